@@ -1,0 +1,60 @@
+"""Small numeric helpers shared by several corruptions."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+_BORDERS = {
+    # scipy.ndimage / scikit-image mode -> OpenCV border
+    "reflect": cv2.BORDER_REFLECT,      # d c b a | a b c d | d c b a
+    "mirror": cv2.BORDER_REFLECT_101,   # d c b | a b c d | c b a
+    "nearest": cv2.BORDER_REPLICATE,
+    "constant": cv2.BORDER_CONSTANT,
+}
+
+
+def to_float(x: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """``x / 255`` in ``dtype`` (computed in float64, as the benchmark does)."""
+    return (x / 255.0).astype(dtype, copy=False)
+
+
+def to_uint8(v: np.ndarray, scale: float = 255.0) -> np.ndarray:
+    """``uint8(floor(clip(v * scale, 0, 255)))``: the benchmark truncates, it does not round."""
+    out = np.multiply(v, scale)
+    np.clip(out, 0.0, 255.0, out=out)
+    return out.astype(np.uint8)
+
+
+def gaussian_kernel_1d(sigma: float, truncate: float) -> np.ndarray:
+    """The 1-D kernel of ``scipy.ndimage.gaussian_filter``: radius ``int(truncate * sigma + 0.5)``."""
+    radius = int(truncate * float(sigma) + 0.5)
+    x = np.arange(-radius, radius + 1, dtype=np.float64)
+    k = np.exp(-0.5 * (x / sigma) ** 2)
+    return k / k.sum()
+
+
+def gaussian(img: np.ndarray, sigma, *, truncate: float = 4.0, mode: str = "nearest") -> np.ndarray:
+    """``skimage.filters.gaussian`` (= ``scipy.ndimage.gaussian_filter`` per channel) on a
+    float H x W or H x W x C array, with OpenCV's separable filter doing the work.
+
+    ``sigma`` is a scalar or a (row, column) pair; channels are never mixed.
+    """
+    sy, sx = (sigma, sigma) if np.isscalar(sigma) else sigma
+    ky = gaussian_kernel_1d(sy, truncate)
+    kx = gaussian_kernel_1d(sx, truncate)
+    border = _BORDERS[mode]
+    src = img if img.dtype in (np.float32, np.float64) else img.astype(np.float64)
+    if src.ndim == 3 and src.shape[2] > 4:
+        return np.stack([gaussian(src[..., c], sigma, truncate=truncate, mode=mode)
+                         for c in range(src.shape[2])], axis=-1)
+    # OpenCV limits a border to less than the image size; larger kernels do not occur here.
+    if max(ky.size, kx.size) // 2 >= min(src.shape[:2]):
+        raise ValueError("image too small for this Gaussian")
+    return cv2.sepFilter2D(src, -1, kx.astype(src.dtype), ky.astype(src.dtype), borderType=border)
+
+
+def ceil_int(v: float) -> int:
+    return int(math.ceil(v))

@@ -1,0 +1,17 @@
+import numpy as np
+from PIL import Image
+
+from .registry import DATA, register
+
+LEVELS = (0.6, 0.5, 0.4, 0.3, 0.25)
+
+
+@register(DATA, ("c",), LEVELS, deterministic=True)
+def pixelate(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
+    """Shrink to ``(int(W * c), int(H * c))`` with Pillow's BOX filter, then enlarge back to
+    W x H with NEAREST."""
+    c = LEVELS[level - 1]
+    h, w = x.shape[:2]
+    im = Image.fromarray(x)
+    small = im.resize((int(w * c), int(h * c)), Image.BOX)
+    return np.asarray(small.resize((w, h), Image.NEAREST)).copy()

@@ -1,0 +1,131 @@
+"""Reading, resizing and writing images, the way SPEC section 1 describes."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, UnidentifiedImageError
+
+MIN_SIDE = 32
+
+
+class ImageError(ValueError):
+    """An image that cannot be used; the message names the file and the problem."""
+
+
+def as_rgb(img: np.ndarray, *, what: str = "image") -> np.ndarray:
+    """Return ``img`` as a uint8 H x W x 3 RGB array.
+
+    Grayscale (H x W or H x W x 1) is repeated over three channels, RGBA drops its alpha,
+    16-bit integers are scaled to 8 bits. Anything else raises ``ValueError``.
+    """
+    if not isinstance(img, np.ndarray):
+        raise ValueError(f"{what}: expected a numpy array, got {type(img).__name__}")
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    elif img.dtype == np.bool_:
+        img = img.astype(np.uint8) * 255
+    if img.dtype != np.uint8:
+        raise ValueError(f"{what}: expected uint8 pixels, got {img.dtype}")
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[..., 0]
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    elif img.ndim == 3 and img.shape[2] == 4:
+        img = img[..., :3]
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"{what}: expected H x W, H x W x 3 or H x W x 4 pixels, got shape {img.shape}")
+    h, w = img.shape[:2]
+    if h < MIN_SIDE or w < MIN_SIDE:
+        raise ValueError(f"{what}: {w} x {h} pixels is too small (at least {MIN_SIDE} x {MIN_SIDE})")
+    return np.ascontiguousarray(img)
+
+
+def _pil_to_rgb(im: Image.Image) -> Image.Image:
+    if im.mode in ("I;16", "I;16B", "I;16L", "I"):
+        # 16-bit grayscale: keep the top 8 bits.
+        arr = np.asarray(im, dtype=np.uint32) >> 8
+        return Image.fromarray(np.clip(arr, 0, 255).astype(np.uint8), "L").convert("RGB")
+    return im.convert("RGB")
+
+
+def read_rgb(path: str | os.PathLike) -> Image.Image:
+    """Open an image file fully decoded as an RGB Pillow image, or raise ``ImageError``."""
+    path = Path(path)
+    try:
+        with Image.open(path) as im:
+            im.load()
+            rgb = _pil_to_rgb(im)
+    except FileNotFoundError:
+        raise ImageError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise ImageError(f"{path}: is a directory, not an image") from None
+    except UnidentifiedImageError:
+        raise ImageError(f"{path}: not an image file Pillow can read") from None
+    except (OSError, SyntaxError, ValueError) as exc:
+        raise ImageError(f"{path}: unreadable image ({exc})") from None
+    w, h = rgb.size
+    if h < MIN_SIDE or w < MIN_SIDE:
+        raise ImageError(f"{path}: {w} x {h} pixels is too small (at least {MIN_SIDE} x {MIN_SIDE})")
+    return rgb
+
+
+def resize_lanczos(im: Image.Image, size_hw: tuple[int, int] | None) -> np.ndarray:
+    """The clean image: RGB, resized to ``(H, W)`` with Pillow's Lanczos filter (unless it is
+    already that size or ``size_hw`` is None), as a uint8 H x W x 3 array."""
+    if size_hw is not None:
+        h, w = size_hw
+        if im.size != (w, h):
+            im = im.resize((w, h), Image.LANCZOS)
+    return np.asarray(im, dtype=np.uint8).copy()
+
+
+def load_clean(path: str | os.PathLike, size_hw: tuple[int, int] | None) -> np.ndarray:
+    return resize_lanczos(read_rgb(path), size_hw)
+
+
+def encode_png(img: np.ndarray, compress_level: int = 1) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="PNG", compress_level=compress_level)
+    return buf.getvalue()
+
+
+def write_atomic(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same directory and a
+    rename, so a reader never sees a partial file. The temporary file is removed on error."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def write_png(path: str | os.PathLike, img: np.ndarray, compress_level: int = 1) -> bytes:
+    """Encode ``img`` as PNG and write it atomically; return the bytes written."""
+    data = encode_png(img, compress_level)
+    write_atomic(path, data)
+    return data
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"192x640"`` -> ``(192, 640)``; ``ValueError`` with a readable message otherwise."""
+    parts = text.lower().replace(" ", "").split("x")
+    if len(parts) != 2 or not all(p.isdigit() for p in parts):
+        raise ValueError(f"size {text!r} is not of the form HxW, e.g. 192x640")
+    h, w = int(parts[0]), int(parts[1])
+    if h < MIN_SIDE or w < MIN_SIDE:
+        raise ValueError(f"size {text!r}: both sides must be at least {MIN_SIDE}")
+    return h, w

@@ -1,0 +1,23 @@
+"""Per-job random generators (SPEC section 4).
+
+A job's generator depends only on (global seed, dataset, variant, level, relative source
+path), so its output does not depend on worker count, order or what was built before.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+
+def job_seed_sequence(seed: int, dataset: str, variant: str, level: int, relpath: str) -> np.random.SeedSequence:
+    key = "\x1f".join((str(int(seed)), dataset, variant, str(int(level)), relpath.replace("\\", "/")))
+    digest = hashlib.sha256(key.encode("utf-8")).digest()
+    # 256 bits of the digest as entropy: distinct keys give independent streams.
+    return np.random.SeedSequence([int.from_bytes(digest[i:i + 4], "little") for i in range(0, 32, 4)])
+
+
+def job_rng(seed: int, dataset: str, variant: str, level: int, relpath: str) -> np.random.Generator:
+    """The generator of one job."""
+    return np.random.Generator(np.random.PCG64(job_seed_sequence(seed, dataset, variant, level, relpath)))
