@@ -12,6 +12,16 @@ from PIL import Image, UnidentifiedImageError
 MIN_SIDE = 32
 
 
+def _file_mode() -> int:
+    # mkstemp creates 0600 files; outputs should get the usual 0666 & ~umask.
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+_FILE_MODE = _file_mode()
+
+
 class ImageError(ValueError):
     """An image that cannot be used; the message names the file and the problem."""
 
@@ -103,6 +113,7 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
+            os.fchmod(fh.fileno(), _FILE_MODE)
             fh.write(data)
         os.replace(tmp, path)
     except BaseException:

@@ -46,7 +46,9 @@ class Corruption:
     def params(self, level: int) -> dict:
         """The named parameters of ``level`` (1-based)."""
         entry = self.levels[level - 1]
-        values = entry if isinstance(entry, tuple) else (entry,)
+        # With one field the entry is the value itself, even when that value is a sequence
+        # (zoom_blur's factor sets).
+        values = (entry,) if len(self.fields) == 1 else entry
         return dict(zip(self.fields, values))
 
 

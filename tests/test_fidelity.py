@@ -1,0 +1,172 @@
+"""Fidelity of the 18 corruptions to the benchmark's formulas (issue 2, SPEC section 2).
+
+Two independent references:
+
+* ``../shared/reference/``: outputs and statistics made with the benchmark's own code on the
+  two KITTI-like fixture frames (192 x 640) and two NYU frames (480 x 640), every level.
+* the ``imagecorruptions`` package (the oracle for 15 of the 18), run here on other real
+  photographs (scikit-image's bundled samples) resized as SPEC section 1 does.
+
+Deterministic corruptions are compared pixel for pixel: at least 99% of values within one
+level and a mean absolute difference of at most 0.25. Random ones are compared by eight
+statistics (per-channel mean and standard deviation of the output, mean absolute
+difference from the clean image, standard deviation of the difference): each within
+``max(5 * seed_sd, 0.25)`` of the reference mean over seeds.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from robodepth_cli.corruptions import REGISTRY, corrupt
+from robodepth_cli.imageio import resize_lanczos
+
+from conftest import REFERENCE
+
+KITTI_KEYS = ("kitti_like_md2", "kitti_like_newyork")
+NYU_KEYS = ("nyu_1", "nyu_119")
+NYU_NAMES = tuple(n for n in REGISTRY if n not in ("fog", "frost", "snow"))
+DETERMINISTIC = tuple(n for n, c in REGISTRY.items() if c.deterministic)
+RANDOM = tuple(n for n, c in REGISTRY.items() if not c.deterministic)
+
+# The oracle implements these 15 of our 18 (dark, color_quant and iso_noise are the
+# benchmark's own additions, covered by ../shared/reference only).
+ORACLE_NAMES = (
+    "brightness", "fog", "frost", "snow", "contrast", "defocus_blur", "glass_blur",
+    "motion_blur", "zoom_blur", "elastic_transform", "gaussian_noise", "impulse_noise",
+    "shot_noise", "pixelate", "jpeg_compression",
+)
+ORACLE_SEEDS = 6
+
+
+def _load(path) -> np.ndarray:
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB")).copy()
+
+
+def stats(out: np.ndarray, clean: np.ndarray) -> np.ndarray:
+    """The eight figures of ``../shared/reference/README.md``, in its order."""
+    o = out.astype(np.float64)
+    d = o - clean.astype(np.float64)
+    return np.array([
+        *o.mean(axis=(0, 1)), *o.std(axis=(0, 1)), np.abs(d).mean(), d.std(),
+    ])
+
+
+def assert_pixels_match(ours: np.ndarray, ref: np.ndarray, what: str) -> None:
+    assert ours.shape == ref.shape, what
+    diff = np.abs(ours.astype(np.int16) - ref.astype(np.int16))
+    within = float((diff <= 1).mean())
+    mad = float(diff.mean())
+    assert within >= 0.99 and mad <= 0.25, (
+        f"{what}: {within:.4%} of values within one level (need 99%), "
+        f"mean abs diff {mad:.3f} (need <= 0.25), max diff {int(diff.max())}")
+
+
+def assert_stats_match(ours: np.ndarray, mean, sd, what: str) -> None:
+    mean, sd = np.asarray(mean, float), np.asarray(sd, float)
+    tol = np.maximum(5 * sd, 0.25)
+    bad = np.abs(ours - mean) > tol
+    fields = ("mean_r", "mean_g", "mean_b", "std_r", "std_g", "std_b", "mad", "sd_diff")
+    assert not bad.any(), what + ": " + "; ".join(
+        f"{f} ours {o:.3f} ref {m:.3f} +- {t:.3f}"
+        for f, o, m, t, b in zip(fields, ours, mean, tol, bad) if b)
+
+
+# --- ../shared/reference -------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def _reference_stats(folder: str) -> dict:
+    return json.loads((REFERENCE / folder / "stats.json").read_text())["stats"]
+
+
+@lru_cache(maxsize=None)
+def _reference_input(folder: str, key: str) -> np.ndarray:
+    return _load(REFERENCE / folder / f"{key}__input.png")
+
+
+def _reference_cases():
+    for folder, keys, names, levels in (("kitti", KITTI_KEYS, tuple(REGISTRY), 5),
+                                        ("nyu", NYU_KEYS, NYU_NAMES, 4)):
+        for name in names:
+            for key in keys:
+                for level in range(1, levels + 1):
+                    yield pytest.param(folder, key, name, level, id=f"{name}-{key}-{level}")
+
+
+@pytest.mark.parametrize("folder,key,name,level", list(_reference_cases()))
+def test_matches_reference(folder, key, name, level):
+    clean = _reference_input(folder, key)
+    rng = np.random.default_rng(level * 1009 + len(key))
+    out = corrupt(clean, name, level, rng)
+    what = f"{name} level {level} on {key}"
+    if REGISTRY[name].deterministic:
+        ref = _load(REFERENCE / folder / f"{key}__{name}__{level}.png")
+        assert_pixels_match(out, ref, what)
+    else:
+        ref = _reference_stats(folder)[f"{key}/{name}/{level}"]
+        assert_stats_match(stats(out, clean), ref["mean"], ref["sd"], what)
+
+
+def test_reference_covers_every_corruption():
+    kitti = {k.split("/")[1] for k in _reference_stats("kitti")}
+    nyu = {k.split("/")[1] for k in _reference_stats("nyu")}
+    assert kitti == set(REGISTRY)
+    assert nyu == set(NYU_NAMES)
+
+
+# --- the imagecorruptions oracle on other photographs ----------------------------------
+
+# Other real photographs than the reference's, one per output size.
+PHOTOS = (("coffee", (192, 640)), ("astronaut", (480, 640)))
+
+
+@lru_cache(maxsize=None)
+def _photo(sample: str, size_hw) -> np.ndarray:
+    from skimage import data
+
+    return resize_lanczos(Image.fromarray(getattr(data, sample)()).convert("RGB"), size_hw)
+
+
+def _oracle_once(clean: np.ndarray, name: str, level: int, seed: int) -> np.ndarray:
+    import imagecorruptions
+
+    np.random.seed(seed)
+    kwargs = {}
+    if name in ("glass_blur", "impulse_noise"):
+        # Neither follows numpy.random.seed (see DEVELOPERS.md): give them the seed directly.
+        kwargs["seed"] = seed
+    return imagecorruptions.corrupt(clean, severity=level, corruption_name=name, **kwargs)
+
+
+@lru_cache(maxsize=None)
+def _oracle_stats(sample: str, size_hw, name: str, level: int):
+    clean = _photo(sample, size_hw)
+    runs = np.array([stats(_oracle_once(clean, name, level, 1000 + s), clean)
+                     for s in range(ORACLE_SEEDS)])
+    # ddof=1: the spread of a small sample of seeds.
+    return runs.mean(axis=0), runs.std(axis=0, ddof=1)
+
+
+def _oracle_cases():
+    for sample, size in PHOTOS:
+        for name in ORACLE_NAMES:
+            for level in range(1, 6):
+                yield pytest.param(sample, size, name, level, id=f"{name}-{sample}-{size[0]}x{size[1]}-{level}")
+
+
+@pytest.mark.parametrize("sample,size_hw,name,level", list(_oracle_cases()))
+def test_matches_oracle(sample, size_hw, name, level):
+    clean = _photo(sample, size_hw)
+    out = corrupt(clean, name, level, np.random.default_rng(7 * level))
+    what = f"{name} level {level} on {sample} at {size_hw[0]}x{size_hw[1]} vs imagecorruptions"
+    if REGISTRY[name].deterministic:
+        assert_pixels_match(out, _oracle_once(clean, name, level, 0), what)
+    else:
+        mean, sd = _oracle_stats(sample, size_hw, name, level)
+        assert_stats_match(stats(out, clean), mean, sd, what)
