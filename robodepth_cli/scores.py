@@ -1,0 +1,437 @@
+"""The benchmark's robustness scores (SPEC section 5): DEE, CE, mCE, RR, mRR, mDEE.
+
+Everything here is pure: parse a results CSV into :class:`Results`, then :func:`score` it
+against a :class:`Baseline` into a :class:`Scores` record that renders as a table or as
+JSON. Problems with the input raise :class:`ScoreError`, whose message is one line naming
+the file (and the line, where there is one).
+
+Results CSV
+    A header row is required; columns are found by name (case-insensitive, surrounding
+    spaces ignored, in any order; other columns such as ``sq_rel`` or ``rmse`` are ignored).
+    Required: ``corruption``, ``level`` and either both ``abs_rel`` and ``a1`` or ``dee``
+    (not both, which would be ambiguous). One row per (corruption, level); the clean row has
+    corruption ``clean`` and level ``0``. Blank lines and lines starting with ``#`` are
+    skipped. ``a1`` is a fraction in [0, 1]; ``abs_rel`` is finite and >= 0; ``dee`` is in
+    [0, 1] (a value above 1 is almost surely the paper's DES1 = abs_rel - a1 + 1, which
+    lacks the halving).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Mapping
+
+from .corruptions import CATEGORIES, NAMES, REGISTRY
+
+CLEAN = "clean"
+
+
+class ScoreError(ValueError):
+    """A results or baseline file that cannot be scored; the message is one line."""
+
+
+# --------------------------------------------------------------------------- formulas
+
+def dee(abs_rel: float, a1: float) -> float:
+    """Depth estimation error ``(abs_rel - a1 + 1) / 2`` (SPEC section 5)."""
+    return (abs_rel - a1 + 1.0) / 2.0
+
+
+def mean(values: Iterable[float]) -> float:
+    """Arithmetic mean; ``ValueError`` on no values (a silent 0 or nan would hide a bug)."""
+    values = list(values)
+    if not values:
+        raise ValueError("mean of no values")
+    return math.fsum(values) / len(values)
+
+
+def corruption_error(level_dees: Iterable[float], baseline_dee: float) -> float:
+    """CE in percent: ``100 * mean_l DEE_l / baseline_dee``.
+
+    ``baseline_dee`` is the baseline's level-averaged DEE for the same corruption; with all
+    levels present this equals SPEC's ``sum_l DEE_l / sum_l DEE^base_l``.
+    """
+    return 100.0 * mean(level_dees) / baseline_dee
+
+
+def resilience_rate(level_dees: Iterable[float], clean_dee: float) -> float:
+    """RR in percent: ``100 * sum_l (1 - DEE_l) / (L * (1 - clean_dee))``, L = number of levels."""
+    return 100.0 * mean(1.0 - d for d in level_dees) / (1.0 - clean_dee)
+
+
+# --------------------------------------------------------------------------- benchmarks
+
+@dataclass(frozen=True)
+class Baseline:
+    """A reference model: its clean DEE and its level-averaged DEE per corruption."""
+
+    name: str
+    clean: float
+    dee: Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    name: str
+    corruptions: tuple[str, ...]  # SPEC order
+    n_levels: int
+    baseline: Baseline
+
+    @property
+    def levels(self) -> range:
+        return range(1, self.n_levels + 1)
+
+
+def _baseline(name: str, clean: float, corruptions: tuple[str, ...], dees: str) -> Baseline:
+    values = [float(v) for v in dees.split()]
+    assert len(values) == len(corruptions)
+    return Baseline(name, clean, dict(zip(corruptions, values)))
+
+
+_NYU = tuple(n for n in NAMES if n not in ("fog", "frost", "snow"))
+
+# SPEC section 5: the published baselines, level-averaged DEE in SPEC order.
+BENCHMARKS: dict[str, Benchmark] = {
+    "kitti-c": Benchmark("kitti-c", NAMES, 5, _baseline(
+        "MonoDepth2 R18, 640x192", 0.119, NAMES,
+        ".130 .280 .155 .277 .511 .187 .244 .242 .216 .201 .129 .193 .384 .389 .340 .388 "
+        ".145 .196")),
+    "nyudepth2-c": Benchmark("nyudepth2-c", _NYU, 4, _baseline(
+        "AdaBins EfficientNet-B5", 0.112, _NYU,
+        ".132 .194 .212 .235 .206 .184 .384 .153 .151 .390 .374 .294 .380 .124 .154")),
+}
+
+
+def get_benchmark(name: str) -> Benchmark:
+    try:
+        return BENCHMARKS[name]
+    except KeyError:
+        raise ValueError(f"unknown benchmark {name!r}; valid: {', '.join(BENCHMARKS)}") from None
+
+
+# --------------------------------------------------------------------------- parsing
+
+@dataclass
+class Results:
+    """Parsed results: the clean DEE and the DEE of every (corruption, level) present."""
+
+    source: str
+    clean: float
+    dee: dict[str, dict[int, float]] = field(default_factory=dict)  # name -> level -> DEE
+
+    def missing(self, benchmark: Benchmark) -> list[tuple[str, int]]:
+        """The (corruption, level) variants of ``benchmark`` with no row, in SPEC order."""
+        return [(n, lv) for n in benchmark.corruptions for lv in benchmark.levels
+                if lv not in self.dee.get(n, {})]
+
+
+def _normalise_name(text: str) -> str:
+    return text.strip().lower().replace("-", "_").replace(" ", "_")
+
+
+def _number(text: str, column: str, where: str) -> float:
+    text = text.strip()
+    if not text:
+        raise ScoreError(f"{where}: empty {column}")
+    try:
+        value = float(text)
+    except ValueError:
+        raise ScoreError(f"{where}: {column} {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise ScoreError(f"{where}: {column} {text!r} is not a finite number")
+    return value
+
+
+def _level(text: str, where: str) -> int:
+    value = _number(text, "level", where)
+    # Spreadsheets and pandas often write integers as 3.0; accept those, nothing fractional.
+    if not value.is_integer():
+        raise ScoreError(f"{where}: level {text.strip()!r} is not an integer")
+    return int(value)
+
+
+def _row_dee(cells: Mapping[str, str], use_dee: bool, where: str) -> float:
+    if use_dee:
+        d = _number(cells["dee"], "dee", where)
+        if not 0.0 <= d <= 1.0:
+            hint = " (DES1 = abs_rel - a1 + 1? DEE is half of it)" if d > 1.0 else ""
+            raise ScoreError(f"{where}: dee {d:g} is outside [0, 1]{hint}")
+        return d
+    abs_rel = _number(cells["abs_rel"], "abs_rel", where)
+    a1 = _number(cells["a1"], "a1", where)
+    if abs_rel < 0.0:
+        raise ScoreError(f"{where}: abs_rel {abs_rel:g} is negative")
+    if not 0.0 <= a1 <= 1.0:
+        hint = " (a percentage? give a1 as a fraction)" if 1.0 < a1 <= 100.0 else ""
+        raise ScoreError(f"{where}: a1 {a1:g} is outside [0, 1]{hint}")
+    return dee(abs_rel, a1)
+
+
+def _columns(header: list[str], source: str, line: int) -> tuple[dict[str, int], bool]:
+    """Map the needed column names to their indices; return it and whether ``dee`` is used."""
+    index: dict[str, int] = {}
+    for i, name in enumerate(header):
+        key = name.strip().lower()
+        if key in index:
+            raise ScoreError(f"{source}:{line}: column {key!r} appears twice in the header")
+        index[key] = i
+    missing = [c for c in ("corruption", "level") if c not in index]
+    has_metrics = "abs_rel" in index or "a1" in index
+    if "dee" in index and has_metrics:
+        raise ScoreError(f"{source}:{line}: header has both dee and abs_rel/a1; keep one")
+    use_dee = "dee" in index
+    if not use_dee:
+        missing += [c for c in ("abs_rel", "a1") if c not in index]
+    if missing:
+        need = "corruption, level, abs_rel, a1 (or dee instead of abs_rel, a1)"
+        raise ScoreError(f"{source}:{line}: header lacks {', '.join(missing)}; "
+                         f"the first row must name the columns: {need}")
+    wanted = ("corruption", "level") + (("dee",) if use_dee else ("abs_rel", "a1"))
+    return {c: index[c] for c in wanted}, use_dee
+
+
+def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
+    """Parse a results CSV (format in the module docstring) for ``benchmark``.
+
+    Every row is checked: known corruption of this benchmark, level in range (0 for clean),
+    numbers finite and in range, no duplicate (corruption, level). Completeness is not
+    checked here: see :meth:`Results.missing`. Raises :class:`ScoreError`.
+    """
+    reader = csv.reader(io.StringIO(text))
+    columns: dict[str, int] | None = None
+    use_dee = False
+    seen: dict[tuple[str, int], int] = {}
+    clean: float | None = None
+    table: dict[str, dict[int, float]] = {}
+    try:
+        for row in reader:
+            line = reader.line_num
+            if not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
+                continue
+            if columns is None:
+                columns, use_dee = _columns(row, source, line)
+                continue
+            where = f"{source}:{line}"
+            if any(i >= len(row) for i in columns.values()):
+                raise ScoreError(f"{where}: only {len(row)} cells; the header names more columns")
+            cells = {c: row[i] for c, i in columns.items()}
+            name = _normalise_name(cells["corruption"])
+            if not name:
+                raise ScoreError(f"{where}: empty corruption")
+            level = _level(cells["level"], where)
+            if name == CLEAN:
+                if level != 0:
+                    raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
+            elif name not in benchmark.corruptions:
+                if name in REGISTRY:
+                    raise ScoreError(f"{where}: {name} is not a corruption of {benchmark.name}")
+                raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
+                                 f"valid: clean, {', '.join(benchmark.corruptions)}")
+            elif not 1 <= level <= benchmark.n_levels:
+                raise ScoreError(f"{where}: level {level} of {name} is outside "
+                                 f"1..{benchmark.n_levels} for {benchmark.name}")
+            if (name, level) in seen:
+                raise ScoreError(f"{where}: duplicate row for {name} level {level} "
+                                 f"(first on line {seen[name, level]})")
+            seen[name, level] = line
+            value = _row_dee(cells, use_dee, where)
+            if name == CLEAN:
+                if value >= 1.0:
+                    raise ScoreError(f"{where}: clean DEE {value:g} must be below 1 "
+                                     "(RR divides by 1 - clean DEE)")
+                clean = value
+            else:
+                table.setdefault(name, {})[level] = value
+    except csv.Error as exc:
+        raise ScoreError(f"{source}:{reader.line_num}: malformed CSV: {exc}") from None
+    if columns is None:
+        raise ScoreError(f"{source}: no header row; the file is empty")
+    if clean is None:
+        raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); "
+                         "RR needs the clean DEE")
+    if not table:
+        raise ScoreError(f"{source}: no corruption rows, only the clean one")
+    return Results(source, clean, {n: dict(sorted(table[n].items()))
+                                   for n in benchmark.corruptions if n in table})
+
+
+def read_results(path: str | Path, benchmark: Benchmark) -> Results:
+    """Read and parse a results CSV file; I/O and decoding problems become ScoreError."""
+    try:
+        text = Path(path).read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ScoreError(f"{path}: not a UTF-8 text file") from None
+    except OSError as exc:
+        raise ScoreError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    return parse_results(text, str(path), benchmark)
+
+
+def describe_missing(missing: list[tuple[str, int]], benchmark: Benchmark) -> str:
+    """``[("fog", 1), ..., ("fog", 5), ("snow", 3)]`` -> ``"fog (all levels), snow 3"``."""
+    by_name: dict[str, list[int]] = {}
+    for name, level in missing:
+        by_name.setdefault(name, []).append(level)
+    parts = []
+    for name, levels in by_name.items():
+        if len(levels) == benchmark.n_levels:
+            parts.append(f"{name} (all levels)")
+        else:
+            parts.append(f"{name} {','.join(map(str, levels))}")
+    return ", ".join(parts)
+
+
+def missing_message(results: Results, benchmark: Benchmark) -> str | None:
+    """``"FILE: missing N of M variants: ..."``, or None when every variant has a row."""
+    missing = results.missing(benchmark)
+    if not missing:
+        return None
+    total = len(benchmark.corruptions) * benchmark.n_levels
+    return (f"{results.source}: missing {len(missing)} of {total} variants: "
+            f"{describe_missing(missing, benchmark)}")
+
+
+def check_complete(results: Results, benchmark: Benchmark) -> None:
+    """Raise ScoreError naming the missing variants, if any."""
+    message = missing_message(results, benchmark)
+    if message:
+        raise ScoreError(message)
+
+
+def baseline_from_results(results: Results, benchmark: Benchmark) -> Baseline:
+    """A complete results file as a baseline (level-averaged, like the published ones)."""
+    check_complete(results, benchmark)
+    return Baseline(results.source, results.clean,
+                    {n: mean(results.dee[n].values()) for n in benchmark.corruptions})
+
+
+# --------------------------------------------------------------------------- scoring
+
+@dataclass(frozen=True)
+class CorruptionScore:
+    name: str
+    category: str
+    level_dee: dict[int, float]  # empty when the corruption is absent (partial scoring)
+    dee: float | None  # mean over the levels present
+    ce: float | None  # percent
+    rr: float | None  # percent
+
+
+@dataclass(frozen=True)
+class GroupScore:
+    name: str
+    n: int  # corruptions with rows
+    dee: float | None
+    ce: float | None
+    rr: float | None
+
+
+@dataclass(frozen=True)
+class Scores:
+    benchmark: str
+    n_levels: int
+    source: str
+    baseline: Baseline
+    clean_dee: float
+    corruptions: tuple[CorruptionScore, ...]
+    categories: tuple[GroupScore, ...]
+    overall: GroupScore
+    missing: tuple[tuple[str, int], ...]
+
+    def to_json(self) -> dict:
+        """The JSON form; keys are documented in the README and stay stable."""
+        return {
+            "benchmark": self.benchmark,
+            "results": self.source,
+            "baseline": {"name": self.baseline.name, "clean_dee": self.baseline.clean,
+                         "dee": dict(self.baseline.dee)},
+            "clean_dee": self.clean_dee,
+            "corruptions": {
+                c.name: {"category": c.category, "dee": c.dee, "ce": c.ce, "rr": c.rr,
+                         "levels": {str(lv): d for lv, d in c.level_dee.items()}}
+                for c in self.corruptions},
+            "categories": {g.name: {"n": g.n, "dee": g.dee, "ce": g.ce, "rr": g.rr}
+                           for g in self.categories},
+            "mdee": self.overall.dee,
+            "mce": self.overall.ce,
+            "mrr": self.overall.rr,
+            "partial": bool(self.missing),
+            "missing": [{"corruption": n, "level": lv} for n, lv in self.missing],
+        }
+
+
+def _group(name: str, members: list[CorruptionScore]) -> GroupScore:
+    present = [c for c in members if c.dee is not None]
+    if not present:
+        return GroupScore(name, 0, None, None, None)
+    return GroupScore(name, len(present), mean(c.dee for c in present),
+                      mean(c.ce for c in present), mean(c.rr for c in present))
+
+
+def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = None,
+          *, allow_partial: bool = False) -> Scores:
+    """Score ``results`` against ``baseline`` (default: the benchmark's published one).
+
+    Per corruption: DEE is the mean over the levels present, CE and RR as in
+    :func:`corruption_error` and :func:`resilience_rate`. Category means and the overall
+    mDEE, mCE, mRR average the corruptions present. Missing variants raise ScoreError
+    unless ``allow_partial``; then they are listed in ``Scores.missing``.
+    """
+    baseline = baseline or benchmark.baseline
+    missing = results.missing(benchmark)
+    if missing and not allow_partial:
+        check_complete(results, benchmark)
+    rows = []
+    for name in benchmark.corruptions:
+        levels = results.dee.get(name, {})
+        if levels:
+            d = levels.values()
+            rows.append(CorruptionScore(name, REGISTRY[name].category, dict(levels), mean(d),
+                                        corruption_error(d, baseline.dee[name]),
+                                        resilience_rate(d, results.clean)))
+        else:
+            rows.append(CorruptionScore(name, REGISTRY[name].category, {}, None, None, None))
+    categories = tuple(_group(cat, [r for r in rows if r.category == cat]) for cat in CATEGORIES)
+    return Scores(benchmark.name, benchmark.n_levels, results.source, baseline, results.clean, tuple(rows),
+                  categories, _group("overall", rows), tuple(missing))
+
+
+# --------------------------------------------------------------------------- table
+
+def _fmt(value: float | None, spec: str, width: int) -> str:
+    return f"{'n/a' if value is None else format(value, spec):>{width}}"
+
+
+def _partial_note(c: CorruptionScore, s: Scores) -> str:
+    if not c.level_dee:
+        return "  (missing)"
+    if len(c.level_dee) < s.n_levels:
+        return f"  (levels {','.join(map(str, c.level_dee))} of 1..{s.n_levels})"
+    return ""
+
+
+def format_table(s: Scores) -> str:
+    """A plain-text table: per corruption DEE, CE, RR; category means; mDEE, mCE, mRR."""
+    w = max(len(n) for n in (*NAMES, *CATEGORIES)) + 2
+    head = f"{'':<{w}}{'DEE':>8}{'CE %':>9}{'RR %':>9}"
+    lines = [f"{s.benchmark}: {s.source}",
+             f"baseline: {s.baseline.name} (clean DEE {s.baseline.clean:.3f})",
+             f"clean DEE: {s.clean_dee:.3f}", "", head]
+    for cat, group in zip(CATEGORIES, s.categories):
+        lines.append(cat)
+        for c in s.corruptions:
+            if c.category == cat:
+                lines.append(f"  {c.name:<{w - 2}}{_fmt(c.dee, '.3f', 8)}"
+                             f"{_fmt(c.ce, '.2f', 9)}{_fmt(c.rr, '.2f', 9)}{_partial_note(c, s)}")
+        lines += [f"  {'mean':<{w - 2}}{_fmt(group.dee, '.3f', 8)}"
+                  f"{_fmt(group.ce, '.2f', 9)}{_fmt(group.rr, '.2f', 9)}", ""]
+    o = s.overall
+    lines.append(f"mCE {_fmt(o.ce, '.2f', 0)}   mRR {_fmt(o.rr, '.2f', 0)}   "
+                 f"mDEE {_fmt(o.dee, '.3f', 0)}")
+    if s.missing:
+        lines.append(f"partial: {len(s.missing)} variants missing, scores average the "
+                     f"{o.n} corruptions present")
+    return "\n".join(lines) + "\n"
