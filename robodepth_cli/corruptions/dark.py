@@ -1,11 +1,30 @@
+from functools import lru_cache
+
 import numpy as np
 
-from ._ops import to_uint8
+from ._sampling import N_VALUES, ValueTable, gaussian_truncated_cdf, poisson_pmf
 from .registry import WEATHER, register
 
 LEVELS = (0.60, 0.50, 0.40, 0.30, 0.20)
 _PHOTONS = (60, 25, 12, 5, 3)
 _READ_NOISE = (0.08, 0.12, 0.18, 0.26, 0.38)
+
+
+@lru_cache(maxsize=256)  # keyed by the image's extremes: few distinct pairs in a dataset
+def output_law(level: int, lo: int, hi: int) -> ValueTable:
+    """Law of one output element given its input value ``k``, for an image whose values
+    span ``lo..hi``: with ``n = ((k - lo) / (hi - lo))**2 * c`` (0 if ``hi == lo``),
+    ``u = clip01(Poisson(n * p) / p)``, ``floor(clip01(u + Normal(0, g)) * 255)``."""
+    i = level - 1
+    c, p, g = LEVELS[i], 10 * _PHOTONS[i], 0.1 * _READ_NOISE[i]
+    f = np.arange(N_VALUES) / 255.0
+    if hi > lo:
+        n = ((f - lo / 255.0) / (hi / 255.0 - lo / 255.0)) ** 2 * c
+    else:
+        n = np.zeros(N_VALUES)
+    pmf = poisson_pmf(n * p)
+    u = np.minimum(np.arange(pmf.shape[1]) / float(p), 1.0)
+    return ValueTable(pmf @ gaussian_truncated_cdf(u, g))
 
 
 @register(WEATHER, ("c",), LEVELS)
@@ -14,19 +33,9 @@ def dark(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     pixels and channels; a constant image gives ``n = 0``), then Poisson-Gaussian sensor
     noise with ``i = level - 1``: ``p = 10 * [60, 25, 12, 5, 3][i]``,
     ``u = clip01(Poisson(n * p) / p)``, ``g = 0.1 * [.08, .12, .18, .26, .38][i]``,
-    ``v = clip01(u + Normal(0, g))``; truncated to uint8."""
-    c = LEVELS[level - 1]
-    p = 10 * _PHOTONS[level - 1]
-    g = 0.1 * _READ_NOISE[level - 1]
-    lo, hi = int(x.min()), int(x.max())
-    if hi > lo:
-        n = ((x - lo) * (1.0 / (hi - lo))) ** 2 * c
-    else:
-        n = np.zeros(x.shape)
-    u = rng.poisson(n * p).astype(np.float32)
-    u *= np.float32(1 / p)
-    np.minimum(u, 1.0, out=u)
-    noise = rng.standard_normal(x.shape, dtype=np.float32)
-    noise *= np.float32(g)
-    noise += u
-    return to_uint8(noise)
+    ``v = clip01(u + Normal(0, g))`` per pixel and channel, independently; truncated to
+    uint8.
+
+    Each element is drawn directly from that formula's exact output law given its input
+    value (:func:`output_law`, inverse transform of one uniform; see ``_sampling``)."""
+    return output_law(level, int(x.min()), int(x.max())).sample(x, rng)

@@ -1,17 +1,25 @@
+from functools import lru_cache
+
 import numpy as np
 
-from ._ops import to_uint8
+from ._sampling import N_VALUES, ValueTable, gaussian_truncated_cdf
 from .registry import DATA, register
 
 LEVELS = (0.08, 0.12, 0.18, 0.26, 0.38)
 
 
+@lru_cache(maxsize=None)
+def output_law(level: int) -> ValueTable:
+    """Law of one output element given its input value ``k``: ``floor(clip01(k / 255 + z) * 255)``
+    with ``z ~ Normal(0, sigma)``."""
+    return ValueTable(gaussian_truncated_cdf(np.arange(N_VALUES) / 255.0, LEVELS[level - 1]))
+
+
 @register(DATA, ("sigma",), LEVELS)
 def gaussian_noise(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Additive white noise: ``clip01(f + Normal(0, sigma))`` per pixel and channel,
-    truncated to uint8."""
-    sigma = LEVELS[level - 1]
-    noise = rng.standard_normal(x.shape, dtype=np.float32)
-    noise *= np.float32(sigma)
-    noise += x * np.float32(1 / 255)
-    return to_uint8(noise)
+    independently, truncated to uint8.
+
+    Each element is drawn directly from that formula's exact output law given its input
+    value (:func:`output_law`, inverse transform of one uniform; see ``_sampling``)."""
+    return output_law(level).sample(x, rng)

@@ -1,20 +1,29 @@
+from functools import lru_cache
+
 import numpy as np
 
-from ._ops import to_uint8
+from ._sampling import N_VALUES, ValueTable, gaussian_truncated_cdf, poisson_pmf
 from .registry import DATA, register
 
 LEVELS = tuple(round(0.7 * s, 6) for s in (0.08, 0.12, 0.18, 0.26, 0.38))
+_PHOTONS = 25
+
+
+@lru_cache(maxsize=None)
+def output_law(level: int) -> ValueTable:
+    """Law of one output element given its input value ``k``: with
+    ``u = clip01(Poisson(k / 255 * 25) / 25)``, ``floor(clip01(u + Normal(0, sigma)) * 255)``."""
+    pmf = poisson_pmf(np.arange(N_VALUES) / 255.0 * _PHOTONS)
+    u = np.minimum(np.arange(pmf.shape[1]) / float(_PHOTONS), 1.0)
+    return ValueTable(pmf @ gaussian_truncated_cdf(u, LEVELS[level - 1]))
 
 
 @register(DATA, ("sigma",), LEVELS)
 def iso_noise(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Sensor noise at high ISO: photon noise ``u = clip01(Poisson(f * 25) / 25)``, then
-    ``clip01(u + Normal(0, sigma))`` per pixel and channel, truncated to uint8."""
-    sigma = LEVELS[level - 1]
-    u = rng.poisson(x * (25 / 255.0)).astype(np.float32)
-    u *= np.float32(1 / 25)
-    np.minimum(u, 1.0, out=u)
-    noise = rng.standard_normal(x.shape, dtype=np.float32)
-    noise *= np.float32(sigma)
-    noise += u
-    return to_uint8(noise)
+    ``clip01(u + Normal(0, sigma))`` per pixel and channel, independently, truncated to
+    uint8.
+
+    Each element is drawn directly from that formula's exact output law given its input
+    value (:func:`output_law`, inverse transform of one uniform; see ``_sampling``)."""
+    return output_law(level).sample(x, rng)

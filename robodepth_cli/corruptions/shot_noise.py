@@ -1,14 +1,28 @@
+from functools import lru_cache
+
 import numpy as np
 
-from ._ops import to_uint8
+from ._sampling import N_VALUES, ValueTable, poisson_pmf, truncated_cdf
 from .registry import DATA, register
 
 LEVELS = (60, 25, 12, 5, 3)
 
 
+@lru_cache(maxsize=None)
+def output_law(level: int) -> ValueTable:
+    """Law of one output element given its input value ``k``:
+    ``floor(clip01(Poisson(k / 255 * lambda) / lambda) * 255)``."""
+    lam = LEVELS[level - 1]
+    pmf = poisson_pmf(np.arange(N_VALUES) / 255.0 * lam)
+    counts = np.arange(pmf.shape[1])
+    return ValueTable(pmf @ truncated_cdf(counts / float(lam)))
+
+
 @register(DATA, ("lambda",), LEVELS)
 def shot_noise(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
-    """Photon noise: ``clip01(Poisson(f * lambda) / lambda)``, truncated to uint8."""
-    lam = LEVELS[level - 1]
-    counts = rng.poisson(x * (lam / 255.0))
-    return to_uint8(counts, 255.0 / lam)
+    """Photon noise: ``clip01(Poisson(f * lambda) / lambda)`` per pixel and channel,
+    independently, truncated to uint8.
+
+    Each element is drawn directly from that formula's exact output law given its input
+    value (:func:`output_law`, inverse transform of one uniform; see ``_sampling``)."""
+    return output_law(level).sample(x, rng)
