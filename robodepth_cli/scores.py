@@ -188,6 +188,9 @@ def _columns(header: list[str], source: str, line: int) -> tuple[dict[str, int],
         missing += [c for c in ("abs_rel", "a1") if c not in index]
     if missing:
         need = "corruption, level, abs_rel, a1 (or dee instead of abs_rel, a1)"
+        if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
+            raise ScoreError(f"{source}:{line}: columns must be separated by commas, "
+                             f"not semicolons or tabs; need {need}")
         raise ScoreError(f"{source}:{line}: header lacks {', '.join(missing)}; "
                          f"the first row must name the columns: {need}")
     wanted = ("corruption", "level") + (("dee",) if use_dee else ("abs_rel", "a1"))

@@ -355,6 +355,8 @@ GOOD = "corruption,level,abs_rel,a1\nclean,0,0.1,0.9\n"
     ("corruption,level,abs_rel\nclean,0,0.1\n", 1, "header lacks a1"),
     ("corruption,level,dee,abs_rel,a1\n", 1, "both dee and abs_rel/a1"),
     ("corruption,level,dee,DEE\n", 1, "column 'dee' appears twice"),
+    ("corruption;level;dee\nclean;0;0.1\n", 1, "columns must be separated by commas"),
+    (GOOD + ",1,0.1,0.9\n", 3, "empty corruption"),
     (GOOD + "fog,1,abc,0.9\n", 3, "abs_rel 'abc' is not a number"),
     (GOOD + "fog,1,nan,0.9\n", 3, "abs_rel 'nan' is not a finite number"),
     (GOOD + "fog,1,,0.9\n", 3, "empty abs_rel"),
