@@ -1,3 +1,8 @@
+"""Contrast (SPEC section 2, definition 6): pull every channel towards its mean."""
+
+from __future__ import annotations
+
+import cv2
 import numpy as np
 
 from ._ops import to_uint8
@@ -5,12 +10,19 @@ from .registry import WEATHER, register
 
 LEVELS = (0.4, 0.3, 0.2, 0.1, 0.05)
 
+_VALUES = np.arange(256, dtype=np.float64)[:, None] / 255.0
+
 
 @register(WEATHER, ("c",), LEVELS, deterministic=True)
 def contrast(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
-    """Pull every channel towards its mean: ``clip01((f - m) * c + m)``, ``m`` the
-    per-channel mean of ``f = x / 255``; truncated to uint8."""
+    """``clip01((f - m) * c + m)`` truncated to uint8, ``m`` the per-channel mean of
+    ``f = x / 255``.
+
+    The output of a channel depends only on that channel's value, so the formula is
+    evaluated in float64 once per value (a 256-entry table per channel) and applied with
+    ``cv2.LUT``.
+    """
     c = LEVELS[level - 1]
-    f = x / 255.0
-    m = f.mean(axis=(0, 1), keepdims=True)
-    return to_uint8((f - m) * c + m)
+    m = np.asarray(cv2.mean(np.ascontiguousarray(x))[:3], dtype=np.float64) / 255.0
+    table = to_uint8((_VALUES - m) * c + m)
+    return cv2.LUT(x, table.reshape(256, 1, 3))
