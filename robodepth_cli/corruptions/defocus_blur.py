@@ -1,11 +1,84 @@
-import numpy as np
+"""Defocus blur (SPEC section 2, definition 7): convolution with an anti-aliased disk."""
 
+from __future__ import annotations
+
+from functools import lru_cache
+
+import cv2
+import numpy as np
+import scipy.fft
+
+from ._ops import to_uint8
 from .registry import SENSOR, register
 
-LEVELS = ()  # TODO(helper): SPEC section 2 table
+LEVELS = ((3, 0.1), (4, 0.5), (6, 0.5), (8, 0.5), (10, 0.5))
+
+# Up to this kernel side OpenCV's direct filter2D is faster than the FFT below.
+_DIRECT_MAX = 11
 
 
-@register(SENSOR, (), LEVELS)
+@lru_cache(maxsize=None)
+def disk_kernel(radius: int, alias: float) -> np.ndarray:
+    """The benchmark's defocus kernel, trimmed of its all-zero border rows and columns.
+
+    Coordinates ``-8..8`` with a 3 x 3 Gaussian if ``radius <= 8``, else
+    ``-radius..radius`` with 5 x 5; disk = ``X^2 + Y^2 <= radius^2`` normalised to sum 1
+    in float32, then ``cv2.GaussianBlur`` of that size with sigma ``alias`` (its own
+    reflect-101 border included). Trimming exact zeros changes no convolution result.
+    """
+    if radius <= 8:
+        coords, ksize = np.arange(-8, 9), (3, 3)
+    else:
+        coords, ksize = np.arange(-radius, radius + 1), (5, 5)
+    xx, yy = np.meshgrid(coords, coords)
+    d = np.asarray(xx ** 2 + yy ** 2 <= radius ** 2, dtype=np.float32)
+    d /= np.sum(d)
+    k = cv2.GaussianBlur(d, ksize=ksize, sigmaX=alias)
+    keep = np.flatnonzero(k.any(axis=0))
+    # The kernel is symmetric, so the same span serves rows and columns and stays centred.
+    k = np.ascontiguousarray(k[keep[0]:keep[-1] + 1, keep[0]:keep[-1] + 1])
+    k.flags.writeable = False
+    return k
+
+
+@lru_cache(maxsize=32)
+def _kernel_spectrum(radius: int, alias: float, shape: tuple[int, int]) -> np.ndarray:
+    k = disk_kernel(radius, alias).astype(np.float64)
+    spec = scipy.fft.rfft2(k, s=shape)[:, :, None].astype(np.complex64)
+    spec.flags.writeable = False
+    return spec
+
+
+def filter2d_fft(x: np.ndarray, radius: int, alias: float) -> np.ndarray:
+    """``cv2.filter2D(x, CV_32F, disk_kernel(radius, alias))`` (reflect-101 border) on the
+    channels of uint8 ``x`` through a float32 FFT of the border-padded image. The disk is
+    symmetric, so correlation and convolution coincide."""
+    h, w = x.shape[:2]
+    r = disk_kernel(radius, alias).shape[0] // 2
+    padded = cv2.copyMakeBorder(np.ascontiguousarray(x), r, r, r, r, cv2.BORDER_REFLECT_101)
+    shape = (scipy.fft.next_fast_len(h + 2 * r, real=True),
+             scipy.fft.next_fast_len(w + 2 * r, real=True))
+    spec = scipy.fft.rfft2(padded.astype(np.float32), s=shape, axes=(0, 1), workers=1)
+    spec *= _kernel_spectrum(radius, alias, shape)
+    # Circular wrap-around only reaches the first 2r rows and columns, which are dropped.
+    out = scipy.fft.irfft2(spec, s=shape, axes=(0, 1), workers=1)
+    return out[2 * r:2 * r + h, 2 * r:2 * r + w]
+
+
+@register(SENSOR, ("radius", "alias"), LEVELS, deterministic=True)
 def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
-    """Not implemented yet."""
-    raise NotImplementedError("defocus_blur")
+    """Convolve each channel with :func:`disk_kernel` ``(radius, alias)`` with OpenCV
+    ``filter2D`` semantics (reflect-101 border): ``clip01(filter2D(f, disk))``, truncated
+    to uint8. Computed on the 0..255 values in float32 (direct for small kernels, FFT for
+    large ones), which matches the float64 formula to about 1e-4 of a level. Where the
+    float64 kernel sums to just under 1 (levels 1-3, by ~1e-8) the formula puts flat areas
+    a hair below an integer, which truncates one level lower than float32 resolves; that
+    accounts for the 0.02-0.05 mean difference seen at level 1."""
+    radius, alias = LEVELS[level - 1]
+    k = disk_kernel(radius, alias)
+    if k.shape[0] <= _DIRECT_MAX:
+        # float32 in, not uint8 in with a float32 output: OpenCV's mixed-type path is ~6x slower.
+        out = cv2.filter2D(x.astype(np.float32), -1, k, borderType=cv2.BORDER_REFLECT_101)
+    else:
+        out = filter2d_fft(x, radius, alias)
+    return to_uint8(out, 1.0)
