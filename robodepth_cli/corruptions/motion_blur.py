@@ -1,11 +1,117 @@
+"""Motion blur (SPEC section 2, definition 9) and the shift-and-add routine snow shares.
+
+Shifting with edge replication is sampling with a replicate border: the shifted copy by
+``(dx, dy)`` is ``img[clamp(row - dy), clamp(col - dx)]``. The weighted sum of the copies is
+therefore a sparse correlation, done here by one numba pass over the output rows that
+adds every tap as a contiguous row segment plus its replicated edge.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numba
 import numpy as np
 
+from ._ops import to_uint8
 from .registry import SENSOR, register
 
-LEVELS = ()  # TODO(helper): SPEC section 2 table
+LEVELS = ((10, 3), (15, 5), (15, 8), (15, 12), (20, 15))
 
 
-@register(SENSOR, (), LEVELS)
+@lru_cache(maxsize=64)
+def _weights(radius: int, sigma: float) -> np.ndarray:
+    width = 2 * radius + 1
+    i = np.arange(width, dtype=np.float64)
+    k = np.exp(-(i ** 2) / (2 * sigma ** 2))
+    k /= k.sum()
+    k.flags.writeable = False
+    return k
+
+
+def motion_taps(radius: int, sigma: float, angle: float, shape: tuple[int, int]):
+    """The shifts and weights of the benchmark's motion blur of an image of ``shape``.
+
+    ``width = 2 * radius + 1``; ``k_i = exp(-i^2 / (2 sigma^2))`` normalised to sum 1;
+    ``(py, px) = (width * sin a, width * cos a)`` with ``a`` in degrees; tap ``i`` shifts by
+    ``dy = -ceil(i * py / hypot - 0.5)``, ``dx = -ceil(i * px / hypot - 0.5)``, and the taps
+    end before the first one with ``|dy| >= H`` or ``|dx| >= W``.
+
+    Returns ``(dy, dx, k)``: int64, int64 and float64 arrays of equal length.
+    """
+    h, w = shape
+    width = 2 * radius + 1
+    k = _weights(radius, sigma)
+    a = np.deg2rad(angle)
+    py, px = width * np.sin(a), width * np.cos(a)
+    hyp = math.hypot(py, px)
+    dys, dxs = [], []
+    for i in range(width):
+        dy = -math.ceil(i * py / hyp - 0.5)
+        dx = -math.ceil(i * px / hyp - 0.5)
+        if abs(dy) >= h or abs(dx) >= w:
+            break
+        dys.append(dy)
+        dxs.append(dx)
+    n = len(dys)
+    return np.array(dys, np.int64), np.array(dxs, np.int64), k[:n].copy()
+
+
+@numba.njit(cache=True, nogil=True)
+def _shift_sum(img, dys, dxs, ks, out):
+    """``out += sum_t ks[t] * img[clamp(row - dys[t]), clamp(col - dxs[t])]`` for an
+    H x W x C ``img`` (any real dtype) into a float32 H x W x C ``out``; ``|dxs| < W``."""
+    h, w, nch = img.shape
+    src_rows = img.reshape(h, w * nch)
+    out_rows = out.reshape(h, w * nch)
+    for y in range(h):
+        o = out_rows[y]
+        for t in range(ks.shape[0]):
+            sy = min(max(y - dys[t], 0), h - 1)
+            src = src_rows[sy]
+            k = np.float32(ks[t])
+            dx = dxs[t]
+            x0 = max(dx, 0)          # first column whose source lies inside the row
+            x1 = min(w + dx, w)      # one past the last such column
+            # The covered band: a contiguous segment (slices keep numba's indexing
+            # wraparound checks out of the loop, so it vectorises).
+            dst = o[x0 * nch:x1 * nch]
+            seg = src[(x0 - dx) * nch:(x1 - dx) * nch]
+            for q in range(dst.shape[0]):
+                dst[q] += k * seg[q]
+            # The uncovered bands repeat the first / last column.
+            for xx in range(x0):
+                for c in range(nch):
+                    o[xx * nch + c] += k * src[c]
+            for xx in range(x1, w):
+                for c in range(nch):
+                    o[xx * nch + c] += k * src[(w - 1) * nch + c]
+    return out
+
+
+def shift_blur(img: np.ndarray, radius: int, sigma: float, angle: float) -> np.ndarray:
+    """The benchmark's ``_motion_blur``: ``sum_i k_i * shift(img, dx_i, dy_i)`` over the
+    taps of :func:`motion_taps`, where ``shift`` moves the image by ``dx`` columns and
+    ``dy`` rows (positive: right / down) and fills the uncovered band by repeating the
+    nearest row or column moved in.
+
+    ``img`` is H x W or H x W x C of any real dtype; returns float32 of the same shape,
+    unclipped.
+    """
+    src = np.ascontiguousarray(img)
+    flat = src.ndim == 2
+    if flat:
+        src = src[..., None]
+    dys, dxs, ks = motion_taps(radius, sigma, angle, src.shape[:2])
+    out = _shift_sum(src, dys, dxs, ks, np.zeros(src.shape, np.float32))
+    return out[..., 0] if flat else out
+
+
+@register(SENSOR, ("radius", "sigma"), LEVELS)
 def motion_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
-    """Not implemented yet."""
-    raise NotImplementedError("motion_blur")
+    """:func:`shift_blur` of the 0..255 image with ``(radius, sigma)`` of the level and an
+    angle drawn uniformly from [-45, 45) degrees; clipped to [0, 255] and truncated."""
+    radius, sigma = LEVELS[level - 1]
+    angle = rng.uniform(-45, 45)
+    return to_uint8(shift_blur(x, radius, sigma, angle), 1.0)
