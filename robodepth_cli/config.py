@@ -1,0 +1,245 @@
+"""Build configurations: YAML presets in ``configs/``, the user's ``--config FILE`` and flags.
+
+A configuration is resolved in three layers, each overriding the one before: the preset
+named on the command line (``configs/<preset>.yaml``), the user's file, then the flags.
+Every layer is checked strictly as it is applied (unknown keys, wrong types, unknown
+variant names, impossible levels), so a bad value is reported with the file or flag that
+set it, the key, and the valid choices, before any work starts.
+
+Keys: ``dataset`` (the dataset definition, e.g. ``kitti-c``), ``split`` (a standard split
+name of ``splits/splits.json``, or a split file; relative paths in a YAML file are relative
+to that file), ``size`` (``HxW`` or ``[H, W]``), ``corruptions`` (list of names, or
+``all``), ``levels`` (list, or ``all``), ``seed`` (integer >= 0), ``jobs`` (worker
+processes, >= 1), ``limit`` (first N source images, or null for all).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from . import splits
+from .datasets import get_dataset
+from .imageio import parse_size
+
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
+ALL = "all"
+
+
+class ConfigError(ValueError):
+    """A configuration value that cannot be used; the message names its origin and key."""
+
+
+@dataclass(frozen=True)
+class BuildConfig:
+    preset: str
+    dataset: str
+    split: str  # a standard split name, or an absolute path to a split file
+    size: tuple[int, int]  # (H, W)
+    variants: tuple[str, ...]
+    levels: tuple[int, ...]
+    seed: int
+    jobs: int
+    limit: int | None
+    extra: dict[str, Any] = field(default_factory=dict)  # dataset-specific keys (KITTI-S)
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["size"] = list(self.size)
+        d["variants"] = list(self.variants)
+        d["levels"] = list(self.levels)
+        return d
+
+
+def presets() -> tuple[str, ...]:
+    """The preset names: the ``configs/*.yaml`` files."""
+    return tuple(sorted(p.stem for p in CONFIG_DIR.glob("*.yaml")))
+
+
+def load_yaml(path: Path) -> dict[str, Any]:
+    """A YAML mapping from ``path`` (safe loader); :class:`ConfigError` otherwise."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read the config ({getattr(exc, 'strerror', None) or exc})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(f"{path}: not valid YAML ({at}{problem})") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping of keys to values, got {type(data).__name__}")
+    return data
+
+
+def _loc(where: str, key: str) -> str:
+    """Where a value came from, for messages: a flag names itself, a file needs the key."""
+    return where if where.startswith("--") else f"{where}: {key}"
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _int(loc: str, v, minimum: int) -> int:
+    if isinstance(v, str) and v.strip().lstrip("-").isdigit():
+        v = int(v)  # flags arrive as text
+    if not _is_int(v) or v < minimum:
+        raise ConfigError(f"{loc}: expected an integer >= {minimum}, got {v!r}")
+    return v
+
+
+def _names(loc: str, v) -> list:
+    """A list from a YAML list, ``all``, or comma-separated text; empty lists refused."""
+    if isinstance(v, str):
+        v = [s.strip() for s in v.split(",") if s.strip()]
+    elif _is_int(v):
+        v = [v]
+    if not isinstance(v, list) or not v:
+        raise ConfigError(f"{loc}: expected a non-empty list or {ALL!r}, got {v!r}")
+    return v
+
+
+class _Resolver:
+    """Applies layers of raw values onto the current configuration, checking each one."""
+
+    KEYS = ("dataset", "split", "size", "levels", "seed", "jobs", "limit")
+
+    def __init__(self, preset: str):
+        self.preset = preset
+        self.values: dict[str, Any] = {}
+        self.origin: dict[str, str] = {}
+        self.base: Path = Path.cwd()
+
+    @property
+    def dataset(self):
+        return get_dataset(self.values["dataset"])
+
+    def valid_keys(self) -> tuple[str, ...]:
+        if "dataset" not in self.values:
+            return self.KEYS + ("corruptions",)
+        ds = self.dataset
+        return self.KEYS + (ds.variant_key,) + tuple(ds.options())
+
+    def apply(self, where: str, raw: dict[str, Any], base: Path) -> None:
+        if "dataset" in raw:
+            self._set_dataset(where, raw["dataset"])
+        for key, value in raw.items():
+            if key == "dataset":
+                continue
+            if key not in self.valid_keys():
+                raise ConfigError(f"{where}: unknown key {key!r}; valid keys: {', '.join(self.valid_keys())}")
+            self.values[key] = self._check(_loc(where, key), key, value, base)
+            self.origin[key] = where
+
+    def _set_dataset(self, where: str, name) -> None:
+        try:
+            ds = get_dataset(name)
+        except ValueError as exc:
+            raise ConfigError(f"{where}: dataset: {exc}") from None
+        if "dataset" in self.values and ds.name != self.values["dataset"]:
+            raise ConfigError(f"{where}: dataset: {name!r} does not match {self.values['dataset']!r} "
+                              f"of {self.origin['dataset']}; use the preset {name!r} instead")
+        self.values["dataset"] = ds.name
+        self.origin["dataset"] = where
+
+    def _check(self, loc: str, key: str, v, base: Path):
+        ds = self.dataset
+        if key == "split":
+            return self._split(loc, v, base)
+        if key == "size":
+            if isinstance(v, list) and len(v) == 2 and all(_is_int(s) for s in v):
+                v = f"{v[0]}x{v[1]}"
+            if not isinstance(v, str):
+                raise ConfigError(f"{loc}: expected HxW such as 192x640, or [H, W], got {v!r}")
+            try:
+                return parse_size(v)
+            except ValueError as exc:
+                raise ConfigError(f"{loc}: {exc}") from None
+        if key == ds.variant_key:
+            names = ds.variant_names()
+            if v == ALL:
+                return names
+            v = _names(loc, v)
+            for name in v:
+                if name not in names:
+                    raise ConfigError(f"{loc}: unknown name {name!r}; valid: {', '.join(names)}")
+            return tuple(dict.fromkeys(v))
+        if key == "levels":
+            return v if v == ALL else tuple(sorted({_int(loc, lv, 1) for lv in _names(loc, v)}))
+        if key == "seed":
+            return _int(loc, v, 0)
+        if key == "jobs":
+            return _int(loc, v, 1)
+        if key == "limit":
+            return None if v is None else _int(loc, v, 1)
+        try:
+            return ds.check_option(key, v, base)
+        except ValueError as exc:
+            raise ConfigError(f"{loc}: {exc}") from None
+
+    def _split(self, loc: str, v, base: Path) -> str:
+        if not isinstance(v, str) or not v:
+            raise ConfigError(f"{loc}: expected a standard split name or a file, got {v!r}")
+        recs = splits.records()
+        if v in recs:
+            rec, ds = recs[v], self.dataset
+            if rec.format != ds.split_format:
+                fits = [r.name for r in recs.values() if r.format == ds.split_format]
+                raise ConfigError(f"{loc}: {v!r} is not a split of {ds.name}; valid: "
+                                  f"{', '.join(fits)} or a split file")
+            return v
+        return str((base / Path(v).expanduser()).resolve())
+
+    def result(self) -> BuildConfig:
+        missing = [k for k in ("dataset", "split", "size", self.dataset.variant_key, "seed", "jobs")
+                   if k not in self.values]
+        if missing:
+            raise ConfigError(f"preset {self.preset!r}: missing keys {', '.join(missing)}")
+        ds = self.dataset
+        variants = self.values[ds.variant_key]
+        levels = self.values.get("levels", ALL)
+        if ds.leveled:
+            top = min(ds.n_levels(v) for v in variants)
+            if levels == ALL:
+                levels = tuple(range(1, top + 1))
+            for lv in levels:
+                if lv > top:
+                    loc = _loc(self.origin.get("levels", self.preset), "levels")
+                    worst = next(v for v in variants if ds.n_levels(v) < lv)
+                    raise ConfigError(f"{loc}: level {lv} does not exist for {worst}; "
+                                      f"valid levels: 1..{ds.n_levels(worst)}")
+        else:
+            levels = ()
+        extra = {k: v for k, v in self.values.items() if k in ds.options()}
+        return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values["split"],
+                           size=self.values["size"], variants=tuple(variants), levels=tuple(levels),
+                           seed=self.values["seed"], jobs=self.values["jobs"],
+                           limit=self.values.get("limit"), extra=extra)
+
+
+def resolve(preset: str, config_file: Path | None = None,
+            flags: dict[str, Any] | None = None) -> BuildConfig:
+    """The configuration of preset ``preset``, overridden by ``config_file`` and then by
+    ``flags`` (a mapping of config key to flag text; None values are ignored)."""
+    if preset not in presets():
+        raise ConfigError(f"unknown dataset {preset!r}; valid: {', '.join(presets())}")
+    r = _Resolver(preset)
+    preset_file = CONFIG_DIR / f"{preset}.yaml"
+    raw = load_yaml(preset_file)
+    if "dataset" not in raw:
+        raise ConfigError(f"{preset_file}: dataset: missing")
+    r.apply(str(preset_file), raw, preset_file.parent)
+    if config_file is not None:
+        r.apply(str(config_file), load_yaml(config_file), Path(config_file).resolve().parent)
+    for key, value in (flags or {}).items():
+        if value is not None:
+            r.apply(f"--{key.replace('_', '-')}", {key: value}, Path.cwd())
+    return r.result()

@@ -1,0 +1,232 @@
+"""What each dataset is: its split format, where its source images live, how its outputs are
+named, which variants it has and how they are rendered (SPEC sections 1 and 4).
+
+A split entry becomes an :class:`Entry` with a *key*: the dataset-relative path of the
+image with the extension ``.png`` (``kitti_data/<date>/<drive>/image_02/data/<frame>.png``
+for KITTI, ``<scene>/rgb_<n>.png`` for NYU). The key names every output of that source,
+``<variant>/<level>/<key>`` (``<variant>/<key>`` for datasets without levels,
+``clean/<key>`` for the resized clean image), and is the relative path that seeds the
+job's generator, so a PNG and a JPEG copy of a frame get the same noise.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+from typing import Iterator, Protocol, Sequence
+
+import numpy as np
+
+from .imageio import ImageError
+from .splits import SplitError
+
+CLEAN = "clean"
+SOURCE_EXTS = (".png", ".jpg", ".jpeg")  # tried in this order when a split names no extension
+KITTI_PREFIX = "kitti_data"
+KITTI_SIDES = {"l": "image_02", "r": "image_03"}
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One source image of a split."""
+
+    line: int  # 1-based line number in the split file
+    key: str  # dataset-relative path, posix, extension .png
+    candidates: tuple[str, ...]  # source paths relative to the root, tried in order
+
+
+@dataclass(frozen=True)
+class Job:
+    """One output file: the source's ``key`` rendered as ``variant`` at ``level``."""
+
+    variant: str
+    level: int | None  # None: the clean image, or a dataset without levels
+
+    def path(self, key: str) -> str:
+        """The output path relative to OUT."""
+        if self.level is None:
+            return f"{self.variant}/{key}"
+        return f"{self.variant}/{self.level}/{key}"
+
+
+class Renderer(Protocol):
+    """Renders the non-clean jobs of one source image. Must pickle small (it is sent to the
+    workers) and load anything heavy lazily, once per process."""
+
+    def render(self, clean: np.ndarray, key: str,
+               jobs: Sequence[Job]) -> Iterator[tuple[Job, np.ndarray | Exception]]:
+        """Yield ``(job, image)`` for every job, or ``(job, exception)`` for a job that failed
+        on its own; ``clean`` is read-only."""
+
+
+def _relative_parts(text: str, what: str) -> list[str]:
+    """The components of a relative posix path, refusing anything that could leave the root
+    (absolute paths, ``..``, empty or ``.`` components, backslashes, NUL)."""
+    if not text or "\\" in text or "\0" in text or text.startswith("/"):
+        raise ValueError(f"{what} {text!r} is not a relative path")
+    parts = text.split("/")
+    if any(p in ("", ".", "..") for p in parts):
+        raise ValueError(f"{what} {text!r} has an empty, '.' or '..' component")
+    return parts
+
+
+def _with_exts(stem: str, first: str | None = None) -> tuple[str, ...]:
+    exts = ((first,) if first else ()) + tuple(e for e in SOURCE_EXTS if e != first)
+    return tuple(stem + e for e in exts)
+
+
+def parse_eigen(fields: list[str]) -> tuple[str, tuple[str, ...]]:
+    """``DATE/DRIVE FRAME SIDE`` -> (key, candidates). The frame number is zero-padded to 10
+    digits, as the benchmark's KITTI loader formats it."""
+    if len(fields) != 3:
+        raise ValueError(f"expected 3 fields 'DATE/DRIVE FRAME SIDE', got {len(fields)}")
+    folder, frame, side = fields
+    parts = _relative_parts(folder, "folder")
+    if not frame.isdigit():
+        raise ValueError(f"frame {frame!r} is not a number")
+    if side not in KITTI_SIDES:
+        raise ValueError(f"side {side!r} is not one of {', '.join(KITTI_SIDES)}")
+    rel = "/".join([*parts, KITTI_SIDES[side], "data", f"{int(frame):010d}"])
+    return f"{KITTI_PREFIX}/{rel}.png", _with_exts(rel)
+
+
+def parse_nyu(fields: list[str]) -> tuple[str, tuple[str, ...]]:
+    """``RGB DEPTH FOCAL`` -> (key, candidates); the RGB path as listed is tried first."""
+    if len(fields) != 3:
+        raise ValueError(f"expected 3 fields 'RGB DEPTH FOCAL', got {len(fields)}")
+    rgb, depth, focal = fields
+    _relative_parts(rgb, "RGB path")
+    _relative_parts(depth, "depth path")
+    try:
+        float(focal)
+    except ValueError:
+        raise ValueError(f"focal length {focal!r} is not a number") from None
+    p = PurePosixPath(rgb)
+    stem = str(p.with_suffix("")) if p.suffix.lower() in SOURCE_EXTS else rgb
+    listed = p.suffix if p.suffix.lower() in SOURCE_EXTS else None
+    cands = _with_exts(stem, listed) if listed else (rgb, *_with_exts(stem))
+    return f"{stem}.png", cands
+
+
+PARSERS = {"eigen": parse_eigen, "nyu": parse_nyu}
+
+
+def read_split(path: Path, split_format: str) -> list[Entry]:
+    """Parse a split file. Blank lines and lines starting with ``#`` are ignored. Raises
+    :class:`SplitError` naming the file and line for a malformed or duplicate entry, and for
+    a split without entries."""
+    parse = PARSERS[split_format]
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise SplitError(f"{path}: not a text file") from None
+    except OSError as exc:
+        raise SplitError(f"{path}: cannot read the split ({exc.strerror or exc})") from None
+    entries: list[Entry] = []
+    seen: dict[str, int] = {}
+    for n, line in enumerate(text.splitlines(), 1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        try:
+            key, cands = parse(line.split())
+        except ValueError as exc:
+            raise SplitError(f"{path}:{n}: {exc}") from None
+        if key in seen:
+            raise SplitError(f"{path}:{n}: duplicate of line {seen[key]} ({key})")
+        seen[key] = n
+        entries.append(Entry(n, key, cands))
+    if not entries:
+        raise SplitError(f"{path}: the split lists no images")
+    return entries
+
+
+def locate(root: Path, entry: Entry) -> tuple[str, Path]:
+    """The first existing candidate of ``entry`` under ``root`` (an already resolved
+    directory), as (path relative to the root, absolute path). Raises :class:`ImageError`
+    if none exists or if it leads outside the root through a symlink."""
+    for rel in entry.candidates:
+        path = root / rel
+        if path.is_file():
+            real = Path(os.path.realpath(path))
+            if not real.is_relative_to(root):
+                raise ImageError(f"{path}: a symlink to {real}, outside the root {root}; refused")
+            return rel, path
+    tried = ", ".join(PurePosixPath(c).suffix for c in entry.candidates)
+    raise ImageError(f"{root / entry.candidates[0]}: no such file (tried {tried})")
+
+
+class CorruptionRenderer:
+    """Applies SPEC section 2 corruptions, each job with its own generator (SPEC section 4)."""
+
+    def __init__(self, dataset: str, seed: int):
+        self.dataset = dataset
+        self.seed = seed
+
+    def render(self, clean, key, jobs):
+        from . import corruptions, seeding
+
+        for job in jobs:
+            rng = seeding.job_rng(self.seed, self.dataset, job.variant, job.level, key)
+            try:
+                yield job, corruptions.corrupt(clean, job.variant, job.level, rng)
+            except Exception as exc:  # one broken variant must not sink the other outputs
+                yield job, exc
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A dataset with corruptions as variants and numbered levels (KITTI-C, NYUDepth2-C).
+    Datasets rendered differently (KITTI-S) subclass it and override the methods."""
+
+    name: str
+    split_format: str  # a key of PARSERS
+    variant_key: str = "corruptions"  # the config key and flag that select the variants
+    leveled: bool = True
+
+    def variant_names(self) -> tuple[str, ...]:
+        from .corruptions import NAMES
+
+        return NAMES
+
+    def n_levels(self, variant: str) -> int:
+        from .corruptions import get
+
+        return get(variant).n_levels
+
+    def jobs(self, variants: Sequence[str], levels: Sequence[int]) -> list[Job]:
+        """Every output of one source: clean first, then variants x levels in the given order."""
+        out = [Job(CLEAN, None)]
+        for v in variants:
+            out += [Job(v, lv) for lv in levels] if self.leveled else [Job(v, None)]
+        return out
+
+    def options(self) -> tuple[str, ...]:
+        """Config keys of this dataset beyond the common ones (none here)."""
+        return ()
+
+    def check_option(self, key: str, value, base: Path):
+        """The checked value of option ``key``; ``ValueError`` saying what is wrong.
+        ``base`` is the directory relative paths are resolved against."""
+        raise ValueError(f"{self.name} has no option {key!r}")
+
+    def renderer(self, config) -> Renderer:
+        return CorruptionRenderer(self.name, config.seed)
+
+    def libraries(self) -> tuple[str, ...]:
+        """Distributions whose versions the build record keeps."""
+        return ("numpy", "Pillow", "opencv-python-headless", "scipy", "scikit-image", "numba",
+                "joblib", "tqdm", "PyYAML", "click")
+
+
+DATASETS: dict[str, Dataset] = {
+    "kitti-c": Dataset("kitti-c", "eigen"),
+    "nyudepth2-c": Dataset("nyudepth2-c", "nyu"),
+}
+
+
+def get_dataset(name: str) -> Dataset:
+    try:
+        return DATASETS[name]
+    except KeyError:
+        raise ValueError(f"unknown dataset {name!r}; valid: {', '.join(DATASETS)}") from None

@@ -1,0 +1,254 @@
+"""The bookkeeping files of an output directory (SPEC section 4) and ``robodepth verify``.
+
+- ``OUT/manifest.csv``: one row per output file (:data:`FIELDS`). Rows are appended and
+  flushed as results arrive, so a killed build keeps the record of what it finished; the
+  last row for a path wins. A torn last line (a build killed mid-write) is ignored when
+  reading and cut off before appending. A finished build rewrites the file with one row per
+  path, sorted, so the same build gives the same manifest whatever the worker count.
+  A row with an ``error`` is a job that failed; its file does not exist.
+- ``OUT/build.json``: the build record (resolved config, seed, split, library versions,
+  summary), rewritten at the start and at the end of every build.
+- ``OUT/.robodepth.lock``: held (``flock``) by the running build; the kernel releases it
+  when the process ends, however it ends.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import os
+import re
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from .imageio import write_atomic
+
+MANIFEST = "manifest.csv"
+RECORD = "build.json"
+LOCK = ".robodepth.lock"
+BOOKKEEPING = frozenset({MANIFEST, RECORD, LOCK})
+_SHA = re.compile(r"[0-9a-f]{64}")
+_TEMP = re.compile(r"^\..+\.part$")  # imageio.write_atomic's temporary names
+
+
+class ManifestError(ValueError):
+    """An output directory whose bookkeeping cannot be used."""
+
+
+@dataclass(frozen=True)
+class Row:
+    output: str  # path relative to OUT, posix
+    source: str  # source path relative to the root ("" if it was not found)
+    variant: str
+    level: int | None  # None: the clean image or a dataset without levels
+    seed: int
+    height: int
+    width: int
+    sha256: str  # of the file's bytes; "" for a failed job
+    error: str = ""  # why the job failed; "" when it succeeded
+
+
+FIELDS = tuple(f.name for f in fields(Row))
+HEADER = ",".join(FIELDS) + "\n"
+
+
+def _to_fields(row: Row) -> list[str]:
+    return ["" if v is None else str(v) for v in (getattr(row, f) for f in FIELDS)]
+
+
+def _from_fields(values: list[str]) -> Row:
+    """Parse one CSV record; ``ValueError`` if it is not a complete row."""
+    if len(values) != len(FIELDS):
+        raise ValueError(f"{len(values)} fields, expected {len(FIELDS)}")
+    d = dict(zip(FIELDS, values))
+    row = Row(output=d["output"], source=d["source"], variant=d["variant"],
+              level=int(d["level"]) if d["level"] else None, seed=int(d["seed"]),
+              height=int(d["height"]), width=int(d["width"]), sha256=d["sha256"], error=d["error"])
+    if not row.output or bool(row.error) == bool(_SHA.fullmatch(row.sha256)):
+        raise ValueError("needs either a sha256 or an error")
+    return row
+
+
+def format_rows(rows) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(_to_fields(r) for r in rows)
+    return buf.getvalue()
+
+
+def read_manifest(out: Path) -> dict[str, Row]:
+    """The latest row of every output path in ``out``'s manifest ({} if there is none).
+    A last line without its newline is a torn write and ignored."""
+    path = Path(out) / MANIFEST
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return {}
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ManifestError(f"{path}: cannot read the manifest ({exc})") from None
+    if not text:
+        return {}
+    if not text.startswith(HEADER):
+        raise ManifestError(f"{path}: not a robodepth manifest (first line should be {HEADER.strip()!r})")
+    lines = text.splitlines(keepends=True)
+    if not lines[-1].endswith("\n"):
+        lines.pop()
+    rows: dict[str, Row] = {}
+    for n, values in enumerate(csv.reader(lines[1:]), 2):
+        try:
+            row = _from_fields(values)
+        except ValueError as exc:
+            raise ManifestError(f"{path}:{n}: damaged row ({exc})") from None
+        rows[row.output] = row
+    return rows
+
+
+class ManifestWriter:
+    """Appends rows to ``out``'s manifest, flushing after every batch."""
+
+    def __init__(self, out: Path):
+        self.path = Path(out) / MANIFEST
+        read_manifest(out)  # refuse a foreign or damaged file before touching it
+        self._fh = open(self.path, "a+b")
+        self._fh.seek(0)
+        data = self._fh.read()
+        if not data:
+            self._fh.write(HEADER.encode())
+        elif not data.endswith(b"\n"):
+            self._fh.truncate(data.rfind(b"\n") + 1)  # drop a torn last line
+        self._fh.flush()
+
+    def append(self, rows) -> None:
+        if rows:
+            self._fh.write(format_rows(rows).encode("utf-8"))
+            self._fh.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def compact_manifest(out: Path) -> None:
+    """Rewrite the manifest atomically with the latest row of each path, sorted by path."""
+    rows = read_manifest(out)
+    write_atomic(Path(out) / MANIFEST, (HEADER + format_rows(rows[k] for k in sorted(rows))).encode("utf-8"))
+
+
+def write_record(out: Path, record: dict) -> None:
+    write_atomic(Path(out) / RECORD, (json.dumps(record, indent=2, sort_keys=True) + "\n").encode("utf-8"))
+
+
+def sha256_bytes(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+class BuildLock:
+    """An exclusive lock on ``OUT/.robodepth.lock`` for the duration of a ``with`` block.
+    A second build into the same OUT gets :class:`ManifestError` instead of waiting."""
+
+    def __init__(self, out: Path):
+        self.path = Path(out) / LOCK
+        self._fd: int | None = None
+
+    def __enter__(self):
+        import fcntl
+
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise ManifestError(f"{self.path.parent}: another build (pid {holder}) is writing here; "
+                                f"wait for it to finish or choose another --out") from None
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self._fd = fd
+        return self
+
+    def __exit__(self, *exc):
+        os.close(self._fd)  # releases the lock; the file stays, so no one locks a stale inode
+        self._fd = None
+
+
+def remove_temporaries(out: Path) -> int:
+    """Delete temporary files a killed build left behind (call with the lock held)."""
+    n = 0
+    for dirpath, _, files in os.walk(out):
+        for name in files:
+            if _TEMP.match(name):
+                os.unlink(os.path.join(dirpath, name))
+                n += 1
+    return n
+
+
+@dataclass
+class VerifyReport:
+    checked: int
+    missing: list[str]  # in the manifest, not on disk
+    changed: list[str]  # on disk with other bytes than the manifest says
+    extra: list[str]  # on disk, not in the manifest
+    failed: list[str]  # jobs the build recorded as failed
+
+    @property
+    def ok(self) -> bool:
+        return not (self.missing or self.changed or self.extra or self.failed)
+
+
+def tree_files(out: Path) -> set[str]:
+    """Every file under ``out`` (relative posix paths) except the bookkeeping files."""
+    found = set()
+    for dirpath, _, files in os.walk(out):
+        rel = os.path.relpath(dirpath, out)
+        for name in files:
+            p = name if rel == "." else f"{rel}/{name}".replace(os.sep, "/")
+            if p not in BOOKKEEPING:
+                found.add(p)
+    return found
+
+
+def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
+    """Re-hash every file of ``out`` against its manifest. ``progress(n)`` is called as
+    files are checked."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    out = Path(out)
+    if not out.exists():
+        raise ManifestError(f"{out}: does not exist")
+    if not out.is_dir():
+        raise ManifestError(f"{out}: not a directory")
+    if not (out / MANIFEST).is_file():
+        raise ManifestError(f"{out}: no {MANIFEST}; not a robodepth build output")
+    rows = read_manifest(out)
+    on_disk = tree_files(out)
+    failed = sorted(p for p, r in rows.items() if r.error)
+    listed = {p: r for p, r in rows.items() if not r.error}
+    missing = sorted(p for p in listed if p not in on_disk)
+    extra = sorted(p for p in on_disk if p not in listed)
+    present = sorted(p for p in listed if p in on_disk)
+
+    def check(p: str) -> bool:
+        return sha256_file(out / p) == listed[p].sha256
+
+    changed = []
+    with ThreadPoolExecutor(threads) as pool:  # hashlib and file reads release the GIL
+        for p, same in zip(present, pool.map(check, present)):
+            if not same:
+                changed.append(p)
+            if progress:
+                progress(1)
+    return VerifyReport(len(present), missing, changed, extra, failed)

@@ -1,0 +1,126 @@
+"""The standard test splits: where they come from, and a checked local cache of them.
+
+The project does not ship the split files. ``splits/splits.json`` (at the top of the
+repository) records, for each standard split, its public address, sha256 and number of
+entries. :func:`standard_split` returns a cached copy, downloading it on first use with a
+timeout and refusing any file whose sha256 differs from the record. When the download is
+impossible the error asks for ``--split FILE``.
+
+Overrides, for mirrors and tests: the ``url=`` argument, or the environment variable
+``ROBODEPTH_SPLIT_URL_<NAME>`` (name upper-cased, e.g. ``ROBODEPTH_SPLIT_URL_EIGEN_TEST``)
+for the address; ``ROBODEPTH_CACHE_DIR`` for the cache directory (default
+``$XDG_CACHE_HOME/robodepth`` or ``~/.cache/robodepth``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import urllib.error
+import urllib.request
+from dataclasses import dataclass
+from pathlib import Path
+
+from .imageio import write_atomic
+from .manifest import sha256_bytes
+
+RECORDS_FILE = Path(__file__).resolve().parents[1] / "splits" / "splits.json"
+TIMEOUT_S = 30.0
+MAX_BYTES = 8 << 20  # the real files are ~50 KB; anything far larger is not a split
+
+
+class SplitError(ValueError):
+    """A split that cannot be obtained or read; the message says what to do instead."""
+
+
+@dataclass(frozen=True)
+class SplitRecord:
+    name: str
+    format: str  # the dataset line format: "eigen" or "nyu"
+    file: str
+    url: str
+    sha256: str
+    lines: int  # number of entries (non-blank lines)
+    description: str = ""
+
+
+def records() -> dict[str, SplitRecord]:
+    """All standard splits of ``splits/splits.json``, by name."""
+    try:
+        raw = json.loads(RECORDS_FILE.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise SplitError(f"{RECORDS_FILE}: cannot read the split records ({exc})") from None
+    return {name: SplitRecord(name=name, **fields) for name, fields in raw.items()}
+
+
+def record(name: str) -> SplitRecord:
+    recs = records()
+    if name not in recs:
+        raise SplitError(f"unknown standard split {name!r}; valid: {', '.join(recs)} (or a split file)")
+    return recs[name]
+
+
+def cache_dir() -> Path:
+    """``$ROBODEPTH_CACHE_DIR``, else ``$XDG_CACHE_HOME/robodepth``, else ``~/.cache/robodepth``."""
+    if os.environ.get("ROBODEPTH_CACHE_DIR"):
+        return Path(os.environ["ROBODEPTH_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "robodepth"
+
+
+def url_for(rec: SplitRecord) -> str:
+    return os.environ.get(f"ROBODEPTH_SPLIT_URL_{rec.name.upper()}") or rec.url
+
+
+def count_entries(data: bytes) -> int:
+    return sum(1 for line in data.splitlines() if line.strip())
+
+
+def _download(url: str, timeout: float) -> bytes:
+    with urllib.request.urlopen(url, timeout=timeout) as resp:  # noqa: S310 (http(s) from our records or the user)
+        data = resp.read(MAX_BYTES + 1)
+    if len(data) > MAX_BYTES:
+        raise SplitError(f"{url}: more than {MAX_BYTES} bytes; this is not a split file")
+    return data
+
+
+def standard_split(name: str, *, url: str | None = None, cache: Path | None = None,
+                   timeout: float = TIMEOUT_S) -> Path:
+    """The local path of standard split ``name``, checked against its sha256.
+
+    A cached copy with the right checksum is used as it is. Otherwise the file is fetched
+    from ``url`` (default: the environment override, then the recorded address), checked
+    (sha256 and entry count) and written atomically into the cache. Raises
+    :class:`SplitError` when offline or on a mismatch; nothing is cached then.
+    """
+    rec = record(name)
+    target = (cache or cache_dir()) / "splits" / rec.file
+    try:
+        if sha256_bytes(target.read_bytes()) == rec.sha256:
+            return target
+    except OSError:
+        pass  # not cached yet (or unreadable): fetch it
+    src = url or url_for(rec)
+    hint = "download it yourself and pass it with --split FILE"
+    try:
+        data = _download(src, timeout)
+    except urllib.error.HTTPError as exc:  # the server answered: not an offline problem
+        raise SplitError(f"cannot download the {name} split from {src} (HTTP {exc.code} {exc.reason}); "
+                         f"{hint}") from None
+    except (urllib.error.URLError, OSError, ValueError) as exc:
+        reason = getattr(exc, "reason", None) or exc
+        raise SplitError(f"cannot download the {name} split from {src} ({reason}); "
+                         f"offline? {hint}") from None
+    got = sha256_bytes(data)
+    if got != rec.sha256:
+        raise SplitError(f"the {name} split downloaded from {src} has sha256 {got}, expected "
+                         f"{rec.sha256}; refusing it: {hint}")
+    n = count_entries(data)
+    if n != rec.lines:  # unreachable with a matching sha256 unless the record itself is wrong
+        raise SplitError(f"the {name} split from {src} has {n} entries, expected {rec.lines}")
+    try:
+        write_atomic(target, data)
+    except OSError as exc:
+        raise SplitError(f"cannot write the split cache {target} ({exc.strerror or exc}); "
+                         f"set ROBODEPTH_CACHE_DIR or pass --split FILE") from None
+    return target

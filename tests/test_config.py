@@ -1,0 +1,107 @@
+"""Build configurations: presets, the user's YAML, flags, and strict checking."""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from robodepth_cli.cli import main
+from robodepth_cli.config import CONFIG_DIR, ConfigError, presets, resolve
+from robodepth_cli.corruptions import NAMES
+
+
+def test_presets():
+    assert {"kitti-c", "kitti-c-hr", "nyudepth2-c"} <= set(presets())
+    kc = resolve("kitti-c")
+    assert (kc.dataset, kc.split, kc.size, kc.variants, kc.levels, kc.jobs, kc.limit) == (
+        "kitti-c", "eigen_test", (192, 640), NAMES, (1, 2, 3, 4, 5), 2, None)
+    hr = resolve("kitti-c-hr")
+    assert (hr.dataset, hr.size, hr.variants, hr.levels) == ("kitti-c", (320, 1024), NAMES, (1, 2, 3, 4, 5))
+    ny = resolve("nyudepth2-c")
+    assert (ny.dataset, ny.split, ny.size, ny.levels) == ("nyudepth2-c", "nyu_test", (480, 640), (1, 2, 3, 4))
+    assert ny.variants == tuple(n for n in NAMES if n not in ("fog", "frost", "snow"))
+
+
+def test_flags_override_the_preset(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    cfg = resolve("kitti-c", flags={"corruptions": "contrast,brightness", "levels": "3,1", "size": "64x96",
+                                    "jobs": "1", "seed": "5", "limit": "2", "split": "my.txt"})
+    assert cfg.variants == ("contrast", "brightness")  # the order given
+    assert (cfg.levels, cfg.size, cfg.jobs, cfg.seed, cfg.limit) == ((1, 3), (64, 96), 1, 5, 2)
+    assert cfg.split == str(tmp_path / "my.txt")
+
+
+def test_user_file_over_preset_and_flags_over_file(tmp_path):
+    sub = tmp_path / "conf"
+    sub.mkdir()
+    f = sub / "mine.yaml"
+    f.write_text("dataset: kitti-c\nsplit: ../lists/few.txt\ncorruptions: [dark, contrast]\nlevels: 2\n"
+                 "size: [96, 320]\nseed: 11\njobs: 3\n")
+    cfg = resolve("kitti-c", f, {"seed": "12", "corruptions": None})
+    assert cfg.split == str(tmp_path / "lists" / "few.txt")  # relative to the YAML file
+    assert (cfg.variants, cfg.levels, cfg.size, cfg.seed, cfg.jobs) == (("dark", "contrast"), (2,), (96, 320), 12, 3)
+    assert resolve("kitti-c-hr", f).size == (96, 320)  # the file wins over the preset it is applied to
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("levles: [1]\n", "unknown key 'levles'; valid keys: dataset, split, size, levels, seed, jobs, limit, corruptions"),
+    ("seed: abc\n", ": seed: expected an integer >= 0, got 'abc'"),
+    ("seed: true\n", ": seed: expected an integer >= 0, got True"),
+    ("jobs: 0\n", ": jobs: expected an integer >= 1, got 0"),
+    ("corruptions: [fog, fgo]\n", ": corruptions: unknown name 'fgo'; valid: brightness, dark, fog,"),
+    ("corruptions: []\n", ": corruptions: expected a non-empty list or 'all', got []"),
+    ("corruptions: brightness\nlevels: [0, 1]\n", ": levels: expected an integer >= 1, got 0"),
+    ("corruptions: brightness\nlevels: [1, 6]\n", ": levels: level 6 does not exist for brightness; valid levels: 1..5"),
+    ("size: 192\n", ": size: expected HxW such as 192x640, or [H, W], got 192"),
+    ("size: 16x640\n", ": size: size '16x640': both sides must be at least 32"),
+    ("split: nyu_test\n", ": split: 'nyu_test' is not a split of kitti-c; valid: eigen_test or a split file"),
+    ("split: 3\n", ": split: expected a standard split name or a file, got 3"),
+    ("dataset: nyudepth2-c\n", ": dataset: 'nyudepth2-c' does not match 'kitti-c'"),
+    ("dataset: kitti-x\n", ": dataset: unknown dataset 'kitti-x'; valid: kitti-c, nyudepth2-c"),
+    ("seed: [1\n", ": not valid YAML (line 2, column 1:"),
+    ("- seed\n", ": expected a mapping of keys to values, got list"),
+])
+def test_bad_values_name_file_key_and_choices(tmp_path, text, expected):
+    f = tmp_path / "bad.yaml"
+    f.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        resolve("kitti-c", f)
+    assert str(err.value).startswith(str(f))
+    assert expected in str(err.value)
+
+
+@pytest.mark.parametrize("flags, expected", [
+    ({"corruptions": "brightness,nope"}, "--corruptions: unknown name 'nope'; valid: brightness,"),
+    ({"corruptions": "contrast", "levels": "1,x"}, "--levels: expected an integer >= 1, got 'x'"),
+    ({"jobs": "0"}, "--jobs: expected an integer >= 1, got 0"),
+    ({"size": "640"}, "--size: size '640' is not of the form HxW"),
+    ({"limit": "0"}, "--limit: expected an integer >= 1, got 0"),
+])
+def test_bad_flags_name_the_flag(flags, expected):
+    with pytest.raises(ConfigError) as err:
+        resolve("kitti-c", flags=flags)
+    assert str(err.value).startswith(expected)
+
+
+def test_unknown_preset():
+    with pytest.raises(ConfigError, match="unknown dataset 'kitti'; valid: .*kitti-c, kitti-c-hr, nyudepth2-c"):
+        resolve("kitti")
+
+
+def test_presets_use_only_known_keys():
+    """Each preset sets every key, so a user's file only needs what it changes."""
+    for p in ("kitti-c", "kitti-c-hr", "nyudepth2-c"):
+        text = (CONFIG_DIR / f"{p}.yaml").read_text()
+        for key in ("dataset", "split", "size", "corruptions", "levels", "seed", "jobs", "limit"):
+            assert f"\n{key}:" in "\n" + text, (p, key)
+
+
+def test_cli_config_error_is_one_line_exit_2(tmp_path):
+    f = tmp_path / "bad.yaml"
+    f.write_text("corruptions: [snow, sleet]\n")
+    res = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(tmp_path), "--out", str(tmp_path / "o"),
+                                    "--config", str(f)])
+    assert res.exit_code == 2
+    assert res.output.startswith(f"robodepth: error: {f}: corruptions: unknown name 'sleet'; valid: ")
+    assert len(res.output.strip().splitlines()) == 1 and "Traceback" not in res.output
+    assert not (tmp_path / "o").exists()
