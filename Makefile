@@ -16,4 +16,10 @@ bench:
 	$(PYTHON) bench/run.py
 
 demo:
-	$(PYTHON) bench/demo.py
+	@set -e; out=$$(mktemp -d -t robodepth-demo.XXXXXX); \
+	fx=../shared/fixtures; rd="$(PYTHON) -m robodepth_cli.cli"; \
+	$$rd build kitti-c --root $$fx/kitti_raw --split $$fx/kitti_split.txt --out $$out/kitti-c; \
+	$$rd verify $$out/kitti-c; \
+	$$rd build nyudepth2-c --root $$fx/nyu --split $$fx/nyu_split.txt --out $$out/nyudepth2-c; \
+	$$rd verify $$out/nyudepth2-c; \
+	echo "demo output: $$out (e.g. $$out/kitti-c/zoom_blur/3/kitti_data/...; delete it when done)"

@@ -172,6 +172,97 @@ def preview_command(image, out, corruption, size, seed, thumb_width):
 
 # --- build commands (build, verify) ---
 
+_LISTED = 20  # paths shown per kind of problem by verify
+
+
+@main.command("build")
+@click.argument("dataset", metavar="DATASET")
+@click.option("--root", required=True, type=click.Path(path_type=Path),
+              help="KITTI raw root (holds 2011_09_26/...) or the NYU Depth V2 test root.")
+@click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
+              help="Output directory; rerunning into it resumes.")
+@click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="Your own YAML config, applied over the DATASET preset.")
+@click.option("--split", help="Standard split name (eigen_test, nyu_test) or a split file.")
+@click.option("--corruptions", help="Comma-separated corruption names, or 'all'.")
+@click.option("--levels", help="Comma-separated levels (e.g. 1,3), or 'all'.")
+@click.option("--size", help="Output size HxW (e.g. 320x1024).")
+@click.option("--jobs", "-j", help="Worker processes (preset: 2).")
+@click.option("--seed", help="Global seed (preset: 0).")
+@click.option("--limit", help="Only the first N images of the split, for a quick look.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def build_command(dataset, root, out, config_file, progress, **flags):
+    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c) from ROOT into OUT.
+
+    Writes OUT/clean/<image> and OUT/<corruption>/<level>/<image> as PNG, where <image> is
+    the source's path (KITTI: kitti_data/<date>/<drive>/image_02/data/<frame>.png), plus
+    OUT/manifest.csv (one row and sha256 per file) and OUT/build.json (config, versions).
+    Settings come from configs/DATASET.yaml, then --config FILE, then the flags.
+
+    Rerunning the same command redoes only missing or changed outputs. Exit status: 0 all
+    done, 1 some images failed (the rest is built; see the summary), 2 nothing could be
+    done (bad config, root, split or OUT), 130 interrupted (resumable).
+
+    \b
+    Examples:
+      robodepth build kitti-c --root KITTI_RAW --out KITTI_C
+      robodepth build nyudepth2-c --root NYU_TEST --out NYU_C --jobs 2
+      robodepth build kitti-c --root KITTI_RAW --out /tmp/look --limit 2 --levels 3
+    """
+    from .builder import BuildError, build
+    from .config import ConfigError, resolve
+    from .manifest import ManifestError
+    from .splits import SplitError
+
+    try:
+        cfg = resolve(dataset, config_file, flags)
+        summary = build(cfg, root, out, progress=progress, command=sys.argv)
+    except (ConfigError, SplitError, BuildError, ManifestError) as exc:
+        raise UserError(str(exc)) from None
+    click.echo(f"{cfg.preset}: {summary.text()}", err=True)
+    if summary.interrupted:
+        click.echo("robodepth: interrupted; rerun the same command to resume", err=True)
+        sys.exit(130)
+    if summary.fatal:
+        raise UserError(f"{summary.fatal}; finished images are kept, rerun to resume")
+    if summary.failed:
+        sys.exit(1)
+
+
+@main.command("verify")
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def verify_command(out, progress):
+    """Re-hash every file in OUT against OUT/manifest.csv.
+
+    Reports files that are missing, changed or extra (not in the manifest), and images the
+    build recorded as failed. Exit status 0 when everything matches, 1 otherwise.
+    """
+    from tqdm import tqdm
+
+    from .manifest import ManifestError, verify
+
+    try:
+        with tqdm(unit="file", disable=None if progress else True, file=sys.stderr) as bar:
+            report = verify(out, progress=bar.update)
+    except ManifestError as exc:
+        raise UserError(str(exc)) from None
+    for kind in ("missing", "changed", "extra", "failed"):
+        paths = getattr(report, kind)
+        if paths:
+            click.echo(f"{kind}: {len(paths)}")
+            for p in paths[:_LISTED]:
+                click.echo(f"  {p}")
+            if len(paths) > _LISTED:
+                click.echo(f"  ... and {len(paths) - _LISTED} more")
+    if report.ok:
+        click.echo(f"{out}: {report.checked} files match the manifest")
+    else:
+        click.echo(f"{out}: {report.checked} files checked; the tree does not match its manifest", err=True)
+        sys.exit(1)
+
 # --- style commands (stylize) ---
 
 # --- score command ---
