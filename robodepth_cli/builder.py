@@ -247,8 +247,9 @@ def plan(ds: Dataset, cfg: BuildConfig, located: list[tuple], done: dict[str, Ro
         expected = []
         for job in jobs:
             r = done.get(job.path(entry.key))
-            same = (r is not None and not r.error and r.source == source and r.seed == cfg.seed
-                    and (r.height, r.width) == cfg.size)
+            # A source that has gone missing does not spoil the outputs already made from it.
+            same = (r is not None and not r.error and (r.source == source or bool(error))
+                    and r.seed == cfg.seed and (r.height, r.width) == cfg.size)
             expected.append(r.sha256 if same else None)
         tasks.append(Task(entry.key, source, path and str(path), error, jobs, tuple(expected)))
     return tasks

@@ -320,3 +320,25 @@ def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, mo
     res = build_kitti(root, split, out, *flags)
     assert res.exit_code == 0 and "4 written, 2 skipped" in res.output
     assert run("verify", out).exit_code == 0
+
+
+def test_source_gone_missing_keeps_its_finished_outputs(kitti, tmp_path):
+    root, split = kitti
+    out = tmp_path / "out"
+    flags = ["--size", "64x96", "--corruptions", "contrast", "--jobs", "1"]
+    assert build_kitti(root, split, out, *flags, "--levels", "1").exit_code == 0
+    before = tree(out)
+    (root / "2011_09_26/2011_09_26_drive_0001_sync/image_02/data/0000000005.png").unlink()
+    res = build_kitti(root, split, out, *flags, "--levels", "1,2")
+    assert res.exit_code == 1
+    assert "1 written, 4 skipped (already done), 1 failed" in res.output
+    after = tree(out)
+    assert {p: after[p] for p in before} == before
+    assert set(after) - set(before) == {f"contrast/2/{kitti_key(7, 'r')}"}
+
+
+def test_split_file_not_found(tmp_path, kitti):
+    root, _ = kitti
+    res = build_kitti(root, tmp_path / "nope.txt", tmp_path / "out", "--corruptions", "contrast")
+    assert res.exit_code == 2
+    assert f"{tmp_path / 'nope.txt'}: cannot read the split (No such file or directory)" in res.output

@@ -48,7 +48,7 @@ def test_user_file_over_preset_and_flags_over_file(tmp_path):
     ("seed: abc\n", ": seed: expected an integer >= 0, got 'abc'"),
     ("seed: true\n", ": seed: expected an integer >= 0, got True"),
     ("jobs: 0\n", ": jobs: expected an integer >= 1, got 0"),
-    ("corruptions: [fog, fgo]\n", ": corruptions: unknown name 'fgo'; valid: brightness, dark, fog,"),
+    ("corruptions: [fog, fgo]\n", ": corruptions: unknown corruption 'fgo'; valid: brightness, dark, fog,"),
     ("corruptions: []\n", ": corruptions: expected a non-empty list or 'all', got []"),
     ("corruptions: brightness\nlevels: [0, 1]\n", ": levels: expected an integer >= 1, got 0"),
     ("corruptions: brightness\nlevels: [1, 6]\n", ": levels: level 6 does not exist for brightness; valid levels: 1..5"),
@@ -71,7 +71,7 @@ def test_bad_values_name_file_key_and_choices(tmp_path, text, expected):
 
 
 @pytest.mark.parametrize("flags, expected", [
-    ({"corruptions": "brightness,nope"}, "--corruptions: unknown name 'nope'; valid: brightness,"),
+    ({"corruptions": "brightness,nope"}, "--corruptions: unknown corruption 'nope'; valid: brightness,"),
     ({"corruptions": "contrast", "levels": "1,x"}, "--levels: expected an integer >= 1, got 'x'"),
     ({"jobs": "0"}, "--jobs: expected an integer >= 1, got 0"),
     ({"size": "640"}, "--size: size '640' is not of the form HxW"),
@@ -102,6 +102,6 @@ def test_cli_config_error_is_one_line_exit_2(tmp_path):
     res = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(tmp_path), "--out", str(tmp_path / "o"),
                                     "--config", str(f)])
     assert res.exit_code == 2
-    assert res.output.startswith(f"robodepth: error: {f}: corruptions: unknown name 'sleet'; valid: ")
+    assert res.output.startswith(f"robodepth: error: {f}: corruptions: unknown corruption 'sleet'; valid: ")
     assert len(res.output.strip().splitlines()) == 1 and "Traceback" not in res.output
     assert not (tmp_path / "o").exists()
