@@ -103,10 +103,10 @@ def parse_nyu(fields: list[str]) -> tuple[str, tuple[str, ...]]:
     except ValueError:
         raise ValueError(f"focal length {focal!r} is not a number") from None
     p = PurePosixPath(rgb)
-    stem = str(p.with_suffix("")) if p.suffix.lower() in SOURCE_EXTS else rgb
-    listed = p.suffix if p.suffix.lower() in SOURCE_EXTS else None
-    cands = _with_exts(stem, listed) if listed else (rgb, *_with_exts(stem))
-    return f"{stem}.png", cands
+    if p.suffix.lower() in SOURCE_EXTS:
+        stem = str(p.with_suffix(""))
+        return f"{stem}.png", _with_exts(stem, p.suffix)
+    return f"{rgb}.png", (rgb, *_with_exts(rgb))
 
 
 PARSERS = {"eigen": parse_eigen, "nyu": parse_nyu}
