@@ -1,0 +1,34 @@
+"""`make bench`: run every benchmark script under bench/ that exists, one after another.
+
+Each runs in its own interpreter with its default settings (so each sets its own thread
+limits before importing numpy); run a script directly to pass it options. Exits non-zero
+if any script fails.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SCRIPTS = ("corruptions.py", "build.py", "stylize.py")
+
+
+def main() -> int:
+    failed = []
+    for script in SCRIPTS:
+        path = HERE / script
+        if not path.is_file():
+            continue
+        print(f"=== bench/{script}", flush=True)
+        if subprocess.run([sys.executable, str(path)]).returncode != 0:
+            failed.append(script)
+        print(flush=True)
+    if failed:
+        print(f"failed: {', '.join(failed)}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
