@@ -116,16 +116,13 @@ class _Resolver:
         self.preset = preset
         self.values: dict[str, Any] = {}
         self.origin: dict[str, str] = {}
-        self.base: Path = Path.cwd()
 
     @property
     def dataset(self):
         return get_dataset(self.values["dataset"])
 
     def valid_keys(self) -> tuple[str, ...]:
-        if "dataset" not in self.values:
-            return self.KEYS + ("corruptions",)
-        ds = self.dataset
+        ds = self.dataset  # set by the preset, which is applied first
         return self.KEYS + (ds.variant_key,) + tuple(ds.options())
 
     def apply(self, where: str, raw: dict[str, Any], base: Path) -> None:
