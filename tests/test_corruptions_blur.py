@@ -16,7 +16,7 @@ import scipy.ndimage
 import skimage.color
 import skimage.filters
 
-from robodepth_cli.corruptions import corrupt
+from robodepth_cli.corruptions import REGISTRY, corrupt
 from robodepth_cli.corruptions import defocus_blur as defocus_mod
 from robodepth_cli.corruptions import elastic_transform as elastic_mod
 from robodepth_cli.corruptions import snow as snow_mod
@@ -76,17 +76,18 @@ def test_clipped_zoom_is_scipy_zoom_of_the_centre_crop(shape, z):
 
 
 def test_zoom_levels_are_the_benchmark_factor_sets():
-    counts = [len(f) for f in zoom_mod.LEVELS]
-    assert counts == [12, 16, 11, 13, 11]
-    assert [round(f[-1], 2) for f in zoom_mod.LEVELS] == [1.11, 1.15, 1.20, 1.24, 1.30]
-    assert all(f[0] == 1.0 for f in zoom_mod.LEVELS)
+    sets = [zoom_mod.level_factors(level) for level in range(1, 6)]
+    assert [len(f) for f in sets] == [12, 16, 11, 13, 11]
+    assert [round(f[-1], 2) for f in sets] == [1.11, 1.15, 1.20, 1.24, 1.30]
+    assert all(f[0] == 1.0 for f in sets)
+    assert REGISTRY["zoom_blur"].params(3) == {"start": 1, "stop": 1.21, "step": 0.02}
 
 
 @pytest.mark.parametrize("level", [1, 3, 5])
 def test_zoom_blur_is_the_mean_of_the_clipped_zooms(level):
     x = smooth_image(44, 60)
     f = (x / 255.0).astype(np.float32)
-    factors = zoom_mod.LEVELS[level - 1]
+    factors = zoom_mod.level_factors(level)
     acc = np.zeros_like(f)
     for z in factors:
         acc += scipy.ndimage.zoom(centre_crop(f, z), (z, z, 1), order=1)[:44, :60]

@@ -17,15 +17,20 @@ import numpy as np
 from ._ops import to_uint8
 from .registry import SENSOR, register
 
-# numpy.arange with float steps, exactly as the benchmark writes them: the float steps
-# decide the last factor (e.g. arange(1, 1.11, .01) has 12 entries ending at 1.11).
+# (start, stop, step) of numpy.arange with float steps, exactly as the benchmark writes
+# them: the float steps decide the last factor (arange(1, 1.11, .01) ends at 1.11).
 LEVELS = (
-    tuple(np.arange(1, 1.11, 0.01)),
-    tuple(np.arange(1, 1.16, 0.01)),
-    tuple(np.arange(1, 1.21, 0.02)),
-    tuple(np.arange(1, 1.26, 0.02)),
-    tuple(np.arange(1, 1.31, 0.03)),
+    (1, 1.11, 0.01),
+    (1, 1.16, 0.01),
+    (1, 1.21, 0.02),
+    (1, 1.26, 0.02),
+    (1, 1.31, 0.03),
 )
+
+
+def level_factors(level: int) -> tuple[float, ...]:
+    """The zoom factors of ``level``: 12, 16, 11, 13 and 11 of them for levels 1..5."""
+    return tuple(float(z) for z in np.arange(*LEVELS[level - 1]))
 
 
 def zoom_axis(n: int, z: float) -> tuple[int, int, int]:
@@ -111,7 +116,8 @@ def zoom_table(h: int, w: int, factors: tuple) -> tuple:
 
 @numba.njit(cache=True, nogil=True)
 def _accumulate(img, nrows, r0, r1, wy, nruns, runs, wx, acc):
-    """``acc[:nrows[k], :ncols[k]] += bilinear layer k`` for every factor ``k``.
+    """``acc[:nrows[k], :W'] += bilinear layer k`` for every factor ``k``, ``W'`` the width of
+    ``acc`` (the layer's columns beyond it are not computed).
 
     ``img`` is float32 H x W x C. Rows are blended first into a one-row buffer (contiguous),
     then columns run by run (contiguous within a run); the right tap of an output is the
@@ -175,15 +181,16 @@ def clipped_zoom(img: np.ndarray, z: float) -> np.ndarray:
     return linear_zoom(img[top:top + ch, left:left + cw], z)
 
 
-@register(SENSOR, ("factors",), LEVELS, deterministic=True)
+@register(SENSOR, ("start", "stop", "step"), LEVELS, deterministic=True)
 def zoom_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
-    """Average of the image and its clipped zooms by every factor of the level:
+    """Average of the image and its clipped zooms by every factor of the level
+    (:func:`level_factors`):
     ``clip01((f + sum_z clipped_zoom(f, z)[:H, :W]) / (n + 1))`` on ``f = x / 255`` in
     float32, ``n`` the number of factors; a layer smaller than H x W adds only to its
     top-left part. Truncated to uint8."""
     h, w = x.shape[:2]
     f = x.astype(np.float32) * np.float32(1 / 255)
-    factors = LEVELS[level - 1]
+    factors = level_factors(level)
     acc = _accumulate(f, *zoom_table(h, w, factors), f.copy())
     acc /= np.float32(len(factors) + 1)
     return to_uint8(acc)
