@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from robodepth_cli.manifest import BOOKKEEPING
+
 KITTI_DRIVE = "2011_09_26/2011_09_26_drive_0001_sync"
-BOOKKEEPING = {"manifest.csv", "build.json", ".robodepth.lock"}
 
 
 def random_image(h: int, w: int, seed: int) -> np.ndarray:
