@@ -183,13 +183,13 @@ _LISTED = 20  # paths shown per kind of problem by verify
               help="Output directory; rerunning into it resumes.")
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
               help="Your own YAML config, applied over the DATASET preset.")
-@click.option("--split", help="Standard split name (eigen_test, nyu_test) or a split file.")
-@click.option("--corruptions", help="Comma-separated corruption names, or 'all'.")
-@click.option("--levels", help="Comma-separated levels (e.g. 1,3), or 'all'.")
-@click.option("--size", help="Output size HxW (e.g. 320x1024).")
-@click.option("--jobs", "-j", help="Worker processes (preset: 2).")
-@click.option("--seed", help="Global seed (preset: 0).")
-@click.option("--limit", help="Only the first N images of the split, for a quick look.")
+@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test) or a split file.")
+@click.option("--corruptions", metavar="A,B|all", help="Comma-separated corruption names, or 'all'.")
+@click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3), or 'all'.")
+@click.option("--size", metavar="HxW", help="Output size HxW (e.g. 320x1024).")
+@click.option("--jobs", "-j", metavar="N", help="Worker processes (preset: 2).")
+@click.option("--seed", metavar="S", help="Global seed (preset: 0).")
+@click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, **flags):
