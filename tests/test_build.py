@@ -342,3 +342,22 @@ def test_split_file_not_found(tmp_path, kitti):
     res = build_kitti(root, tmp_path / "nope.txt", tmp_path / "out", "--corruptions", "contrast")
     assert res.exit_code == 2
     assert f"{tmp_path / 'nope.txt'}: cannot read the split (No such file or directory)" in res.output
+
+
+def test_kitti_c_build_never_imports_torch(kitti, tmp_path):
+    import subprocess
+    import sys
+
+    root, split = kitti
+    code = ("import sys; from robodepth_cli.cli import main\n"
+            "try:\n"
+            f"    main(['build', 'kitti-c', '--root', {str(root)!r}, '--split', {str(split)!r}, '--out',"
+            f" {str(tmp_path / 'out')!r}, '--corruptions', 'contrast', '--levels', '1', '--size', '64x96',"
+            " '--jobs', '1', '--no-progress'])\n"
+            "except SystemExit as e:\n"
+            "    assert not e.code, e.code\n"
+            "print('torch' in sys.modules)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "False"
+    assert len(tree(tmp_path / "out")) == 4
