@@ -3,10 +3,9 @@ added twice (once rotated by 180 degrees) to a whitened image."""
 
 from __future__ import annotations
 
-import cv2
+import numba
 import numpy as np
 
-from ._ops import to_uint8
 from .motion_blur import shift_blur
 from .registry import WEATHER, register
 from .zoom_blur import linear_zoom, zoom_axis
@@ -22,12 +21,12 @@ LEVELS = (
 
 def snow_layer(shape: tuple[int, int], mu: float, sigma: float, z: float, tau: float,
                radius: int, s: float, rng: np.random.Generator) -> np.ndarray:
-    """The snow layer ``S`` of an H x W image, uint8 in 0..255 (``S * 255`` of the SPEC).
+    """The snow layer ``S`` of an H x W image before its rounding: float32, at least
+    H x W (the zoomed size; :func:`_blend` rounds it and reads its top-left H x W).
 
     ``Normal(mu, sigma)`` noise, clipped-zoomed by ``z``; values ``< tau`` set to 0; clip01;
     motion-blurred (``radius``, ``s``, angle uniform in [-135, -45) degrees, drawn after the
-    noise) on the whole zoomed layer, whose replicated edges are its own; rounded to
-    1/255; cropped to H x W.
+    noise) on the whole zoomed layer, whose replicated edges are its own.
 
     The clipped zoom reads only the centre ``ceil(H / z)`` x ``ceil(W / z)`` block of the
     noise, so only that block is drawn: the layer has the same distribution as when the
@@ -43,27 +42,42 @@ def snow_layer(shape: tuple[int, int], mu: float, sigma: float, z: float, tau: f
     layer[layer < tau] = 0
     np.clip(layer, 0, 1, out=layer)
     angle = rng.uniform(-135, -45)
-    blurred = shift_blur(layer, radius, sigma=s, angle=angle)
-    # round(S * 255): values stay within 0..255 because the blur weights sum to 1.
-    return np.rint(blurred[:h, :w] * np.float32(255)).astype(np.uint8)
+    return shift_blur(layer, radius, sigma=s, angle=angle)
+
+
+@numba.njit(cache=True, nogil=True)
+def _blend(x, layer, beta, out):
+    """Per pixel and channel, with ``f = x / 255`` in float32:
+    ``g = beta * f + (1 - beta) * max(f, gray * 1.5 + 0.5)``, ``gray = 0.299 R + 0.587 G +
+    0.114 B`` (OpenCV's RGB-to-gray); ``S = round(layer * 255) / 255`` on the top-left
+    H x W of ``layer``; ``out = floor(clip01(g + S + rot180(S)) * 255)``."""
+    h, w, _ = x.shape
+    b = np.float32(beta)
+    nb = np.float32(1.0) - b
+    scale = np.float32(1.0 / 255.0)
+    for i in range(h):
+        for j in range(w):
+            r = x[i, j, 0] * scale
+            g = x[i, j, 1] * scale
+            bl = x[i, j, 2] * scale
+            lift = (np.float32(0.299) * r + np.float32(0.587) * g + np.float32(0.114) * bl) \
+                * np.float32(1.5) + np.float32(0.5)
+            flakes = (np.rint(layer[i, j] * np.float32(255))
+                      + np.rint(layer[h - 1 - i, w - 1 - j] * np.float32(255))) * scale
+            for c in range(3):
+                f = x[i, j, c] * scale
+                v = b * f + nb * max(f, lift) + flakes
+                out[i, j, c] = np.uint8(min(max(v, np.float32(0)), np.float32(1)) * np.float32(255))
+    return out
 
 
 @register(WEATHER, ("mu", "sigma", "z", "tau", "r", "s", "beta"), LEVELS)
 def snow(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """On ``f = x / 255`` in float32: ``g = beta * f + (1 - beta) * max(f, gray(f) * 1.5 +
     0.5)`` with ``gray`` OpenCV's RGB-to-gray, then ``clip01(g + S + rot180(S))`` with ``S``
-    the :func:`snow_layer` / 255 on every channel; truncated to uint8."""
+    the :func:`snow_layer` rounded to 1/255 and cropped to H x W, on every channel;
+    truncated to uint8 (fused in :func:`_blend`)."""
     mu, sigma, z, tau, radius, s, beta = LEVELS[level - 1]
     h, w = x.shape[:2]
     layer = snow_layer((h, w), mu, sigma, z, tau, radius, s, rng)
-    f = x.astype(np.float32) * np.float32(1 / 255)
-    lifted = cv2.cvtColor(f, cv2.COLOR_RGB2GRAY)
-    lifted *= np.float32(1.5)
-    lifted += np.float32(0.5)
-    g = np.maximum(f, lifted[..., None])
-    g *= np.float32(1 - beta)
-    g += np.float32(beta) * f
-    # Both snow terms in one uint16 sum: at most 510, exact.
-    flakes = layer.astype(np.uint16) + layer[::-1, ::-1]
-    g += (flakes * np.float32(1 / 255))[..., None]
-    return to_uint8(g)
+    return _blend(x, layer[:h, :w], beta, np.empty_like(x))
