@@ -14,7 +14,8 @@ about one table lookup per element instead of a Poisson and a Gaussian draw.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ._jit import njit
 
 N_VALUES = 256
 _GUIDE = 256  # guide buckets per row: the search starts within ~1 entry of the answer
@@ -56,7 +57,7 @@ class ValueTable:
         return _inverse_transform(flat, u, self.cdf, self.guide).reshape(x.shape)
 
 
-@njit(cache=True, nogil=True)
+@njit
 def _inverse_transform(values, u, cdf, guide):
     out = np.empty(values.size, dtype=np.uint8)
     n_guide = guide.shape[1]

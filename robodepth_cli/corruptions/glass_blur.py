@@ -1,11 +1,71 @@
+"""Glass blur (SPEC section 2, definition 8): blur, local pixel shuffling, blur again."""
+
+from __future__ import annotations
+
 import numpy as np
 
+from ._jit import njit
+from ._ops import gaussian, to_uint8
 from .registry import SENSOR, register
 
-LEVELS = ()  # TODO(helper): SPEC section 2 table
+# (sigma, delta, iterations)
+LEVELS = ((0.7, 1, 2), (0.9, 2, 1), (1.0, 2, 3), (1.1, 3, 2), (1.5, 4, 2))
 
 
-@register(SENSOR, (), LEVELS)
+def swap_offsets(shape, delta: int, iterations: int, rng: np.random.Generator) -> np.ndarray:
+    """All the random offsets of the shuffle, in the order they are used:
+    ``offsets[i, a, b] = (dx, dy)`` for pass ``i`` and the ``a``-th row and ``b``-th column
+    of the descending scan (``h = H - delta - a``, ``w = W - delta - b``), each drawn
+    uniformly from ``[-delta, delta)``; one ``rng.integers`` call, dx before dy."""
+    height, width = shape[:2]
+    rows, cols = max(height - 2 * delta, 0), max(width - 2 * delta, 0)
+    return rng.integers(-delta, delta, size=(iterations, rows, cols, 2), dtype=np.int8)
+
+
+@njit
+def shuffle_pixels(img, offsets, delta):
+    """In place, for every pass ``i``: for ``h`` from ``H - delta`` down to ``delta + 1``,
+    for ``w`` from ``W - delta`` down to ``delta + 1``, with
+    ``(dx, dy) = offsets[i, H - delta - h, W - delta - w]``, set pixel ``(h, w)`` to the
+    current value of pixel ``(h + dy, w + dx)``, which keeps its value (the benchmark's
+    "swap", see :func:`glass_blur`). Sequential: a pixel written earlier can be copied
+    again."""
+    height, width, channels = img.shape
+    for i in range(offsets.shape[0]):
+        for h in range(height - delta, delta, -1):
+            a = height - delta - h
+            for w in range(width - delta, delta, -1):
+                b = width - delta - w
+                hp = h + offsets[i, a, b, 1]
+                wp = w + offsets[i, a, b, 0]
+                for ch in range(channels):
+                    img[h, w, ch] = img[hp, wp, ch]
+    return img
+
+
+@register(SENSOR, ("sigma", "delta", "iterations"), LEVELS)
 def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
-    """Not implemented yet."""
-    raise NotImplementedError("glass_blur")
+    """Glass blur: ``y = uint8(floor(gauss(f, sigma) * 255))`` with ``gauss`` scikit-image's
+    ``filters.gaussian`` per channel (mode ``nearest``, truncate 4); then ``iterations``
+    passes of local pixel shuffling: for ``h`` from ``H - delta`` down to ``delta + 1``, for
+    ``w`` from ``W - delta`` down to ``delta + 1``, draw ``dx`` then ``dy`` uniformly from
+    ``[-delta, delta)`` and "swap" pixels ``(h, w)`` and ``(h + dy, w + dx)``, sequentially;
+    result ``clip01(gauss(y / 255, sigma))``, truncated to uint8.
+
+    The "swap" is what the benchmark's code does, not a true exchange: it is the tuple
+    assignment ``x[h, w], x[h', w'] = x[h', w'], x[h, w]`` on numpy (and numba) row views
+    of an H x W x 3 array; the second view already holds the copied pixel, so pixel
+    ``(h, w)`` takes the value of ``(h', w')`` and ``(h', w')`` is unchanged. SPEC section 2
+    says "swap"; the benchmark's data (../shared/reference) and the ``imagecorruptions``
+    oracle both follow the copy, so that is what is done here.
+
+    All offsets are drawn up front (:func:`swap_offsets`) and the swaps run in a numba
+    kernel (:func:`shuffle_pixels`). The blurs run in float64 on ``x / 255`` as the
+    benchmark does: in flat regions ``gauss(k / 255) * 255`` lands a rounding error below
+    or above ``k``, and truncation turns that into ``k - 1`` or ``k``.
+    """
+    sigma, delta, iterations = LEVELS[level - 1]
+    offsets = swap_offsets(x.shape, delta, iterations, rng)
+    y = to_uint8(gaussian(x / 255.0, sigma, truncate=4.0, mode="nearest"))
+    shuffle_pixels(y, offsets, delta)
+    return to_uint8(gaussian(y / 255.0, sigma, truncate=4.0, mode="nearest"))

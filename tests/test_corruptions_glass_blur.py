@@ -1,0 +1,126 @@
+"""glass_blur (SPEC section 2, definition 8) beyond the statistics of test_fidelity.py:
+the numba shuffle against a literal Python transcription of the benchmark's loop, and the
+whole pipeline against scikit-image's gaussian with the same offsets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import robodepth_cli.corruptions.glass_blur as gb
+from robodepth_cli.corruptions import corrupt
+
+
+def literal_shuffle(x: np.ndarray, offsets: np.ndarray, delta: int) -> np.ndarray:
+    """The benchmark's loop, statement for statement, consuming ``offsets`` in scan order
+    (dx, then dy) instead of drawing them: the "swap" is a tuple assignment of numpy row
+    views."""
+    height, width = x.shape[:2]
+    it = iter(offsets.reshape(-1, 2))
+    for _ in range(offsets.shape[0]):
+        for h in range(height - delta, delta, -1):
+            for w in range(width - delta, delta, -1):
+                dx, dy = (int(v) for v in next(it))
+                h_prime, w_prime = h + dy, w + dx
+                x[h, w], x[h_prime, w_prime] = x[h_prime, w_prime], x[h, w]
+    assert next(it, None) is None  # every offset used exactly once
+    return x
+
+
+@pytest.mark.parametrize("level", [1, 2, 3, 4, 5])
+def test_kernel_matches_literal_loop(level):
+    _, delta, iterations = gb.LEVELS[level - 1]
+    x = np.random.default_rng(level).integers(0, 256, (13, 17, 3), dtype=np.uint8)
+    offsets = gb.swap_offsets(x.shape, delta, iterations, np.random.default_rng(100 + level))
+    ours = gb.shuffle_pixels(x.copy(), offsets, delta)
+    np.testing.assert_array_equal(ours, literal_shuffle(x.copy(), offsets, delta))
+
+
+def test_benchmark_swap_copies_instead_of_exchanging():
+    # Why the kernel copies (see glass_blur's docstring): with numpy row views the tuple
+    # "swap" leaves both pixels equal to the second one.
+    x = np.arange(2 * 2 * 3, dtype=np.uint8).reshape(2, 2, 3)
+    x[0, 0], x[1, 1] = x[1, 1], x[0, 0]
+    assert x[0, 0].tolist() == [9, 10, 11] and x[1, 1].tolist() == [9, 10, 11]
+
+
+@pytest.mark.parametrize("delta,iterations", [(1, 2), (4, 1)])
+def test_offsets_shape_and_range(delta, iterations):
+    off = gb.swap_offsets((50, 60, 3), delta, iterations, np.random.default_rng(0))
+    assert off.shape == (iterations, 50 - 2 * delta, 60 - 2 * delta, 2)
+    assert set(np.unique(off).tolist()) == set(range(-delta, delta))
+
+
+@pytest.mark.parametrize("level", [1, 3, 5])
+def test_pipeline_matches_scikit_image_with_same_offsets(level, monkeypatch):
+    from skimage.filters import gaussian as sk_gaussian
+
+    sigma, delta, _ = gb.LEVELS[level - 1]
+    # smooth content with flat areas (where truncation after the blur is delicate)
+    rng = np.random.default_rng(level)
+    x = np.repeat(np.repeat(rng.integers(0, 256, (8, 10, 3), dtype=np.uint8), 6, 0), 7, 1)
+    x[:10] = 255
+    drawn = []
+    real = gb.swap_offsets
+    monkeypatch.setattr(gb, "swap_offsets", lambda *a: drawn.append(real(*a)) or drawn[-1])
+    ours = corrupt(x, "glass_blur", level, np.random.default_rng(9))
+
+    y = np.uint8(sk_gaussian(x / 255.0, sigma=sigma, channel_axis=-1) * 255)
+    y = literal_shuffle(y, drawn[0], delta)
+    ref = np.uint8(np.clip(sk_gaussian(y / 255.0, sigma=sigma, channel_axis=-1), 0, 1) * 255)
+    diff = np.abs(ours.astype(int) - ref)
+    assert diff.max() <= 1 and (diff > 0).mean() < 0.001
+
+
+def test_same_seed_same_output():
+    x = np.random.default_rng(0).integers(0, 256, (40, 50, 3), dtype=np.uint8)
+    a = corrupt(x, "glass_blur", 4, np.random.default_rng(1))
+    b = corrupt(x, "glass_blur", 4, np.random.default_rng(1))
+    c = corrupt(x, "glass_blur", 4, np.random.default_rng(2))
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+# --- the numba cache fallback used by the kernels (corruptions/_jit.py) ------------------
+
+def _fake_numba_njit(calls, fail_dirs):
+    import numba
+
+    real = numba.njit
+
+    def fake(**options):
+        calls.append((options["cache"], numba.config.CACHE_DIR))
+        if options["cache"] and numba.config.CACHE_DIR in fail_dirs:
+            raise RuntimeError("cannot cache function 'f': no locator available for file")
+        return real(**{**options, "cache": False})  # never write a real cache from a test
+
+    return fake
+
+
+def test_njit_caches_in_a_temporary_directory_when_numba_has_no_writable_place(monkeypatch, tmp_path):
+    import numba
+    from robodepth_cli.corruptions import _jit
+
+    calls = []
+    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
+    monkeypatch.setattr(numba, "njit", _fake_numba_njit(calls, fail_dirs={""}))
+    monkeypatch.setattr(_jit, "_fallback_cache_dir", lambda: str(tmp_path / "cache"))
+    add_one = _jit.njit(lambda a: a + 1)
+    assert add_one(1) == 2
+    assert calls == [(True, ""), (True, str(tmp_path / "cache"))]
+    assert (tmp_path / "cache").is_dir()
+
+
+def test_njit_compiles_without_cache_when_nothing_is_writable(monkeypatch, tmp_path):
+    import numba
+    from robodepth_cli.corruptions import _jit
+
+    calls = []
+    blocked = str(tmp_path / "cache")
+    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
+    monkeypatch.setattr(numba, "njit", _fake_numba_njit(calls, fail_dirs={"", blocked}))
+    monkeypatch.setattr(_jit, "_fallback_cache_dir", lambda: blocked)
+    add_one = _jit.njit(lambda a: a + 1)
+    assert add_one(1) == 2
+    assert calls == [(True, ""), (True, blocked), (False, "")]
+    assert numba.config.CACHE_DIR == ""
