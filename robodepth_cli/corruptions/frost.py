@@ -1,11 +1,123 @@
+"""Frost (SPEC section 2, definition 4): a frost texture blended over the image.
+
+The textures are read from the installed ``imagecorruptions-imaug`` distribution's files,
+located through its metadata: the package itself is never imported (it would pull in its
+own dependencies and our test oracle into the build).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from importlib import metadata
+from pathlib import Path
+
+import cv2
 import numpy as np
 
+from ._jit import njit
 from .registry import WEATHER, register
 
-LEVELS = ()  # TODO(helper): SPEC section 2 table
+# (a, b): weights of the image and of the frost texture
+LEVELS = ((1.0, 0.4), (0.8, 0.6), (0.7, 0.7), (0.65, 0.7), (0.6, 0.75))
+
+DISTRIBUTION = "imagecorruptions-imaug"
+# The package ships six; the benchmark only ever picks among the first five.
+TEXTURES = ("frost1.png", "frost2.png", "frost3.png", "frost4.jpg", "frost5.jpg")
+_INSTALL_HINT = (f"run `make install` (or `pip install --no-deps {DISTRIBUTION}`): "
+                 "frost needs its texture files")
 
 
-@register(WEATHER, (), LEVELS)
+class FrostTextureError(RuntimeError):
+    """The frost textures cannot be found or read."""
+
+
+@lru_cache(maxsize=None)
+def texture_path(index: int) -> Path:
+    """Path of texture ``TEXTURES[index]`` inside the installed distribution."""
+    name = TEXTURES[index]
+    try:
+        dist = metadata.distribution(DISTRIBUTION)
+    except metadata.PackageNotFoundError:
+        raise FrostTextureError(f"{DISTRIBUTION} is not installed; {_INSTALL_HINT}") from None
+    for f in dist.files or ():
+        if f.parts[-2:] == ("frost", name):
+            path = Path(dist.locate_file(f))
+            if path.is_file():
+                return path
+    raise FrostTextureError(f"{name} is missing from the installed {DISTRIBUTION}; {_INSTALL_HINT}")
+
+
+@lru_cache(maxsize=None)
+def texture_bgr(index: int) -> np.ndarray:
+    """Texture ``index`` decoded as 3-channel BGR uint8 (OpenCV's ``imread`` default:
+    an alpha channel is dropped). Read-only."""
+    path = texture_path(index)
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise FrostTextureError(f"cannot decode frost texture {path}; {_INSTALL_HINT}")
+    img.flags.writeable = False
+    return img
+
+
+def scaled_size(texture_hw, image_hw) -> tuple[int, int]:
+    """``(width, height)`` the texture is resized to: ``q = 1`` if it is at least as large
+    as the image in both dimensions, else the larger of ``image / texture`` over the
+    dimensions where it is smaller; ``q *= 1.1``; ``(ceil(w_t * q), ceil(h_t * q))``."""
+    (th, tw), (h, w) = texture_hw, image_hw
+    ratios = [n / t for n, t in ((h, th), (w, tw)) if t < n]
+    q = max(ratios) if ratios else 1
+    q *= 1.1
+    return int(math.ceil(tw * q)), int(math.ceil(th * q))
+
+
+@lru_cache(maxsize=32)  # every image of a dataset has the same size: one resize per process
+def scaled_texture(index: int, image_hw: tuple[int, int]) -> np.ndarray:
+    """Texture ``index`` resized for an image of ``image_hw`` (bicubic, OpenCV) and
+    converted to RGB (channel order does not affect the resize). Read-only."""
+    bgr = texture_bgr(index)
+    resized = cv2.resize(bgr, scaled_size(bgr.shape[:2], image_hw), interpolation=cv2.INTER_CUBIC)
+    rgb = np.ascontiguousarray(resized[..., ::-1])
+    rgb.flags.writeable = False
+    return rgb
+
+
+@lru_cache(maxsize=None)
+def blend_table(level: int) -> np.ndarray:
+    """``T[v, u] = uint8(floor(clip(a * v + b * u, 0, 255)))`` for image value ``v`` and
+    texture value ``u``, in float64 as the benchmark computes it."""
+    a, b = LEVELS[level - 1]
+    v = np.arange(256, dtype=np.float64)
+    table = np.clip(a * v[:, None] + b * v[None, :], 0, 255).astype(np.uint8)
+    table.flags.writeable = False
+    return table
+
+
+@njit
+def _blend(x, crop, table):
+    out = np.empty(x.shape, dtype=np.uint8)
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            for c in range(x.shape[2]):
+                out[i, j, c] = table[x[i, j, c], crop[i, j, c]]
+    return out
+
+
+@register(WEATHER, ("a", "b"), LEVELS)
 def frost(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
-    """Not implemented yet."""
-    raise NotImplementedError("frost")
+    """Frost: pick texture ``k`` uniformly among the first five (``rng.integers(5)``),
+    read it as BGR, resize it to :func:`scaled_size` with bicubic interpolation, take the
+    H x W crop at row ``rng.integers(0, h' - H)`` and column ``rng.integers(0, w' - W)``
+    (drawn in that order), convert it to RGB; result ``clip(a * x + b * crop, 0, 255)``
+    in the 0..255 domain, truncated to uint8 (through the exact table
+    :func:`blend_table`).
+
+    Raises :class:`FrostTextureError` if the ``imagecorruptions-imaug`` textures are not
+    installed.
+    """
+    height, width = x.shape[:2]
+    tex = scaled_texture(int(rng.integers(len(TEXTURES))), (height, width))
+    top = int(rng.integers(0, tex.shape[0] - height))
+    left = int(rng.integers(0, tex.shape[1] - width))
+    crop = tex[top:top + height, left:left + width]
+    return _blend(x, crop, blend_table(level))
