@@ -13,46 +13,43 @@ from .registry import SENSOR, register
 LEVELS = (0.05, 0.065, 0.085, 0.1, 0.12)
 
 
-@lru_cache(maxsize=16)
-def _grid(h: int, w: int) -> np.ndarray:
-    """H x W x 2 float32 of (column, row): the identity map of ``cv2.remap``."""
+@lru_cache(maxsize=64)
+def _offset_grid(h: int, w: int, shift: float) -> np.ndarray:
+    """H x W x 2 float32 of ``(column - shift, row - shift)``: the identity map of
+    ``cv2.remap`` moved by a constant."""
     g = np.empty((h, w, 2), np.float32)
-    g[..., 0] = np.arange(w, dtype=np.float32)
-    g[..., 1] = np.arange(h, dtype=np.float32)[:, None]
+    g[..., 0] = np.arange(w, dtype=np.float64) - shift
+    g[..., 1] = np.arange(h, dtype=np.float64)[:, None] - shift
     g.flags.writeable = False
     return g
 
 
-def displacement(shape: tuple[int, int], k: float, rng: np.random.Generator) -> np.ndarray:
-    """The smoothed random displacement field of an H x W image: float32 H x W x 2 holding
-    ``(dx, dy)``.
-
-    ``m = 0.005 * H`` for both directions; ``U(-m, m)`` of H x W is drawn for ``dx`` first,
-    then for ``dy``; each is smoothed with ``gaussian(sigma=(0.01 H, 0.01 W),
-    mode='reflect', truncate=3)`` and multiplied by ``alpha = 250 * k``. (The uniforms are
-    drawn on [0, 1) and mapped to [-m, m) after the smoothing, which is linear and keeps
-    constants: the same field, one pass fewer.)
-    """
+def smoothed_uniforms(shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
+    """Two H x W fields of ``U(0, 1)``, the first for ``dx`` drawn first, each smoothed with
+    ``gaussian(sigma=(0.01 H, 0.01 W), mode='reflect', truncate=3)``: float32 H x W x 2."""
     h, w = shape
-    m = 0.005 * h
-    alpha = 250 * k
     u = rng.random((2, h, w), dtype=np.float32)
-    smooth = gaussian(cv2.merge([u[0], u[1]]), (0.01 * h, 0.01 * w), truncate=3, mode="reflect")
-    smooth -= np.float32(0.5)
-    smooth *= np.float32(2 * m * alpha)
-    return smooth
+    return gaussian(cv2.merge([u[0], u[1]]), (0.01 * h, 0.01 * w), truncate=3, mode="reflect")
 
 
 @register(SENSOR, ("k",), LEVELS)
 def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
-    """Resample every channel at ``(row + dy, col + dx)`` with the field of
-    :func:`displacement` (``k`` of the level), bilinear with a half-sample symmetric
+    """Random elastic warp. ``m = 0.005 * H`` for both directions; ``U(-m, m)`` fields of
+    H x W for ``dx`` (drawn first) and ``dy``, each smoothed with ``gaussian(sigma=(0.01 H,
+    0.01 W), mode='reflect', truncate=3)`` and multiplied by ``alpha = 250 * k``; every
+    channel is resampled at ``(row + dy, col + dx)``, bilinear with a half-sample symmetric
     border (SciPy ``map_coordinates(order=1, mode='reflect')`` = OpenCV
-    ``BORDER_REFLECT``); clipped and truncated. Done by ``cv2.remap`` on the 0..255 values
-    in float32.
+    ``BORDER_REFLECT``); clipped and truncated.
+
+    The uniforms are drawn on [0, 1) and mapped to [-m, m) after the smoothing, which is
+    linear and keeps constants: ``alpha * gaussian(U(-m, m)) = 2 m alpha * gaussian(U(0, 1))
+    - m alpha``, folded into the sampling coordinates. The resampling is
+    ``cv2.remap`` with float coordinates on the 0..255 values in float32.
     """
     h, w = x.shape[:2]
-    coords = displacement((h, w), LEVELS[level - 1], rng)
-    coords += _grid(h, w)
+    m_alpha = 0.005 * h * 250 * LEVELS[level - 1]
+    coords = smoothed_uniforms((h, w), rng)
+    coords *= np.float32(2 * m_alpha)
+    coords += _offset_grid(h, w, m_alpha)
     out = cv2.remap(x.astype(np.float32), coords, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
     return to_uint8(out, 1.0)
