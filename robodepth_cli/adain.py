@@ -26,13 +26,12 @@ from typing import Sequence
 
 import numpy as np
 import torch
-from PIL import Image
 from torch import nn
 
-from .imageio import MIN_SIDE, as_rgb, read_rgb
+from .imageio import as_rgb
+from .styles import check_alpha
 
 EPS = 1e-5
-DEFAULT_STYLE_SIZE = 512
 # Measured in bench/stylize.py: on 2 cores, decoding more than two 192 x 640 images at once
 # is no faster per image (the activations fall out of cache).
 DEFAULT_CHUNK = 2
@@ -218,42 +217,6 @@ def load_model(path: str | os.PathLike, kind: str) -> nn.Sequential:
     return model
 
 
-# ------------------------------------------------------------------- style images
-
-
-def style_resize_size(width: int, height: int, style_size: int | None) -> tuple[int, int]:
-    """``(W, H)`` with the shorter side equal to ``style_size`` and the longer side scaled
-    and truncated (torchvision ``Resize(int)`` semantics); unchanged if ``style_size`` is
-    None or 0."""
-    if not style_size:
-        return width, height
-    if width <= height:
-        return style_size, int(style_size * height / width)
-    return int(style_size * width / height), style_size
-
-
-def check_style_size(style_size: int | None) -> int | None:
-    if style_size is None or style_size == 0:
-        return None
-    if isinstance(style_size, bool) or not isinstance(style_size, (int, np.integer)) \
-            or style_size < MIN_SIDE:
-        raise ValueError(f"style size must be 0 (keep the image's size) or an integer >= "
-                         f"{MIN_SIDE}, got {style_size!r}")
-    return int(style_size)
-
-
-def load_style(path: str | os.PathLike, style_size: int | None = DEFAULT_STYLE_SIZE) -> np.ndarray:
-    """A style image as uint8 RGB, resized so its shorter side is ``style_size`` with
-    Pillow's bilinear filter (antialiased when shrinking); 0/None keeps its size.
-    ``ImageError`` naming the file if it cannot be read."""
-    style_size = check_style_size(style_size)
-    im = read_rgb(path)
-    size = style_resize_size(*im.size, style_size)
-    if size != im.size:
-        im = im.resize(size, Image.BILINEAR)
-    return np.asarray(im, dtype=np.uint8).copy()
-
-
 # -------------------------------------------------------------------- the transform
 
 
@@ -290,13 +253,6 @@ def adain(content_feat: torch.Tensor, style_mean: torch.Tensor, style_std: torch
     if alpha != 1.0:
         t = alpha * t + (1.0 - alpha) * content_feat
     return t
-
-
-def check_alpha(alpha) -> float:
-    alpha = float(alpha)
-    if not 0.0 <= alpha <= 1.0:
-        raise ValueError(f"alpha must be between 0 and 1, got {alpha}")
-    return alpha
 
 
 # ----------------------------------------------------------------------- the engine

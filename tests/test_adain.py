@@ -10,7 +10,7 @@ import torch
 from PIL import Image
 
 from adain_fakes import adain_decoder, full_vgg, reference_stylize, save_checkpoints, smooth_image
-from robodepth_cli import adain
+from robodepth_cli import adain, styles
 from robodepth_cli.imageio import ImageError
 
 
@@ -152,23 +152,23 @@ def test_style_is_resized_to_shorter_side_bilinear(tmp_path):
     img = smooth_image(rng, 100, 150)
     path = tmp_path / "s.png"
     Image.fromarray(img).save(path)
-    out = adain.load_style(path, 64)
+    out = styles.load_style(path, 64)
     assert out.shape == (64, 96, 3)
     expected = np.asarray(Image.fromarray(img).resize((96, 64), Image.BILINEAR))
     np.testing.assert_array_equal(out, expected)
-    tall = adain.load_style(path.rename(tmp_path / "t.png"), 0)
+    tall = styles.load_style(path.rename(tmp_path / "t.png"), 0)
     assert tall.shape == (100, 150, 3)
-    assert adain.style_resize_size(300, 700, 512) == (512, 1194)
-    assert adain.style_resize_size(700, 300, 512) == (1194, 512)
+    assert styles.style_resize_size(300, 700, 512) == (512, 1194)
+    assert styles.style_resize_size(700, 300, 512) == (1194, 512)
 
 
 def test_bad_style_size_and_unreadable_style(tmp_path):
     with pytest.raises(ValueError, match="style size"):
-        adain.check_style_size(8)
+        styles.check_style_size(8)
     bad = tmp_path / "cartoon.png"
     bad.write_bytes(b"not an image")
     with pytest.raises(ImageError, match="cartoon.png"):
-        adain.load_style(bad)
+        styles.load_style(bad)
 
 
 # ------------------------------------------------------------------- checkpoints

@@ -1,0 +1,154 @@
+"""Benchmark: KITTI-S stylisation, our batched engine against the straightforward way.
+
+Both run in the same process on the same inputs: one 192 x 640 content image and 12
+512 x 512 style images, random-weight AdaIN models in the published layout (the speed of a
+convolution does not depend on its weights).
+
+- straightforward: one (content, style) pair at a time, as the public AdaIN test script
+  does it: encode the content, encode the style, AdaIN, decode; default (NCHW) tensors,
+  torch's default threads (every core).
+- ours (robodepth_cli.adain.Stylizer): the 12 style statistics computed once (reported
+  apart; a build does it once for its 8,364 images), the content encoded once for its 12
+  styles, decoding batched over styles in chunks, channels-last tensors, inference mode.
+  Timed for several chunk sizes, without channels-last, and as 1 process x 2 threads
+  against 2 processes x 1 thread (the joblib pool a build would use).
+
+Goal (issue 4): <= 0.8 s per stylised image on this 2-core machine, >= 4x the
+straightforward way.
+
+    python bench/stylize.py [--pairs N] [--contents N] [--chunks 1,2,4] [--style-hw 512x512]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+import torch  # noqa: E402
+from joblib import Parallel, delayed  # noqa: E402
+
+from robodepth_cli import adain  # noqa: E402
+from robodepth_cli.datasets import Job  # noqa: E402
+from robodepth_cli.styles import STYLES, StyleRenderer  # noqa: E402
+
+BUDGET_S = 0.8
+MIN_SPEEDUP = 4.0
+
+
+def smooth_image(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
+    from PIL import Image
+
+    small = rng.integers(0, 256, (max(h // 16, 2), max(w // 16, 2), 3), dtype=np.uint8)
+    noise = rng.integers(0, 24, (h, w, 3))
+    base = np.asarray(Image.fromarray(small).resize((w, h), Image.BILINEAR), dtype=np.int64)
+    return np.clip(base + noise, 0, 255).astype(np.uint8)
+
+
+def straightforward(enc, dec, content: np.ndarray, style: np.ndarray) -> np.ndarray:
+    """One pair, nothing reused: the baseline."""
+    with torch.no_grad():
+        c = torch.from_numpy(content).permute(2, 0, 1)[None].float() / 255
+        s = torch.from_numpy(style).permute(2, 0, 1)[None].float() / 255
+        fc, fs = enc(c), enc(s)
+        ms, ss = adain.mean_std(fs)
+        out = dec(adain.adain(fc, ms, ss))[:, :, :content.shape[0], :content.shape[1]]
+        return adain.to_uint8(out)[0]
+
+
+def timed(fn, *args):
+    t = time.perf_counter()
+    result = fn(*args)
+    return time.perf_counter() - t, result
+
+
+def _render_all(renderer: StyleRenderer, content: np.ndarray) -> int:
+    jobs = [Job(s, None) for s in renderer.features]
+    return sum(1 for _ in renderer.render(content, "bench", jobs))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--pairs", type=int, default=3, help="straightforward pairs timed (default 3)")
+    ap.add_argument("--contents", type=int, default=1,
+                    help="content images per timing of ours, each with all 12 styles (default 1)")
+    ap.add_argument("--chunks", default="1,2,4", help="chunk sizes to time (default 1,2,4)")
+    ap.add_argument("--style-hw", default="512x512", help="style image size after resizing")
+    ap.add_argument("--no-processes", action="store_true", help="skip the 2-process timing")
+    args = ap.parse_args()
+    sh, sw = (int(v) for v in args.style_hw.split("x"))
+    chunks = [int(c) for c in args.chunks.split(",")]
+    cores = os.cpu_count() or 1
+
+    torch.manual_seed(0)
+    rng = np.random.default_rng(0)
+    contents = [smooth_image(rng, 192, 640) for _ in range(max(args.contents, 2))]
+    styles = [smooth_image(rng, sh, sw) for _ in STYLES]
+    enc, dec = adain.encoder(), adain.decoder()
+    print(f"torch {torch.__version__}, {cores} cores, torch threads {torch.get_num_threads()}; "
+          f"content 192x640, {len(styles)} styles {sh}x{sw}, random weights")
+
+    # Warm-up: first calls pay for oneDNN primitive creation.
+    straightforward(enc, dec, contents[0], styles[0])
+    t_naive, _ = timed(lambda: [straightforward(enc, dec, contents[0], s) for s in styles[:args.pairs]])
+    naive = t_naive / args.pairs
+    print(f"straightforward (one pair at a time): {naive:.3f} s/image ({args.pairs} pairs)")
+
+    results = {}
+    feats = None
+    for channels_last in (True, False):
+        for chunk in (chunks if channels_last else [adain.DEFAULT_CHUNK]):
+            st = adain.Stylizer(enc, dec, chunk=chunk, channels_last=channels_last)
+            st.stylize(contents[0], [st.style_features(styles[0])] * chunk)  # warm-up
+            if feats is None:
+                t_feat, feats = timed(lambda: [st.style_features(s) for s in styles])
+                print(f"ours: style statistics, once per build: {t_feat:.2f} s for {len(styles)} styles")
+            t, _ = timed(lambda: [st.stylize(c, feats) for c in contents[:args.contents]])
+            per = t / (args.contents * len(styles))
+            results[(channels_last, chunk)] = per
+            print(f"ours, 1 process x {torch.get_num_threads()} threads, chunk {chunk}, "
+                  f"{'channels-last' if channels_last else 'NCHW'}: {per:.3f} s/image")
+
+    best_cl, best_chunk = min(results, key=results.get)
+    best = results[(best_cl, best_chunk)]
+    procs = None
+    if not args.no_processes and cores >= 2:
+        with tempfile.TemporaryDirectory() as tmp:
+            vgg, dcp = Path(tmp) / "vgg.pth", Path(tmp) / "dec.pth"
+            torch.save(enc.state_dict(), vgg)
+            torch.save(dec.state_dict(), dcp)
+            renderer = StyleRenderer(str(vgg), str(dcp), 1.0, 1, dict(zip(STYLES, feats)))
+            n = 2 * max(args.contents, 1)
+            with Parallel(n_jobs=2) as pool:
+                warm = StyleRenderer(renderer.vgg, renderer.decoder, 1.0, 1,
+                                     {k: renderer.features[k] for k in list(renderer.features)[:1]})
+                pool(delayed(_render_all)(warm, contents[i % 2]) for i in range(4))
+                t, counts = timed(lambda: pool(delayed(_render_all)(renderer, contents[i % 2])
+                                               for i in range(n)))
+            procs = t / sum(counts)
+            print(f"ours, 2 processes x 1 thread, chunk {adain.DEFAULT_CHUNK}, channels-last: "
+                  f"{procs:.3f} s/image ({n} contents x {len(styles)} styles)")
+
+    print()
+    print(f"best in-process: chunk {best_chunk}, {'channels-last' if best_cl else 'NCHW'}: "
+          f"{best:.3f} s/image, {naive / best:.1f}x the straightforward way")
+    if procs is not None:
+        print(f"2 processes x 1 thread: {procs:.3f} s/image, {naive / procs:.1f}x; "
+              f"{'processes' if procs < best else 'threads'} faster by {max(best, procs) / min(best, procs):.2f}x")
+    overall = min(best, procs or best)
+    ok = overall <= BUDGET_S and naive / overall >= MIN_SPEEDUP
+    print(f"goal <= {BUDGET_S} s/image and >= {MIN_SPEEDUP:.0f}x: {'met' if ok else 'NOT met'} "
+          f"({overall:.3f} s/image, {naive / overall:.1f}x)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,181 @@
+"""KITTI-S inputs: the 12 style names, the user's style directory, and the build renderer.
+
+Nothing here imports torch at import time: the dataset definition and the configuration
+checks run in every build, and only a KITTI-S build that has images to render loads torch
+(through :mod:`robodepth_cli.adain`).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+from PIL import Image
+
+from .imageio import MIN_SIDE, read_rgb
+
+# SPEC section 1, in its order; also the output directory names.
+STYLES: tuple[str, ...] = (
+    "cartoon", "digital_art", "ink_painting", "kids_drawing", "murals", "oil_painting",
+    "penciling", "shadow_play", "sketch", "stained_glass", "relief", "water_color",
+)
+STYLE_EXTS = (".jpg", ".jpeg", ".png")
+DEFAULT_STYLE_SIZE = 512
+
+
+class StyleError(ValueError):
+    """A style directory, style name or style image that cannot be used."""
+
+
+def check_names(names: Sequence[str]) -> tuple[str, ...]:
+    """``names`` without duplicates, in the given order; ``StyleError`` for an unknown one."""
+    for n in names:
+        if n not in STYLES:
+            raise StyleError(f"unknown style {n!r}; valid: {', '.join(STYLES)}")
+    return tuple(dict.fromkeys(names))
+
+
+def find_style_images(directory: str | os.PathLike,
+                      names: Sequence[str] = STYLES) -> dict[str, Path]:
+    """``{style: image path}`` for every style of ``names``: the file ``<style>.jpg``,
+    ``.jpeg`` or ``.png`` (extension case ignored) directly in ``directory``.
+
+    ``StyleError`` if the directory is missing, if any style has no image (the message lists
+    the missing styles and the expected file names) or has more than one.
+    """
+    names = check_names(names)
+    directory = Path(directory)
+    if not directory.is_dir():
+        what = "is not a directory" if directory.exists() else "does not exist"
+        raise StyleError(f"{directory}: the style directory {what}; it should hold one image "
+                         f"per style, named <style>.jpg/.jpeg/.png ({', '.join(STYLES)})")
+    by_stem: dict[str, list[Path]] = {}
+    for p in sorted(directory.iterdir()):
+        if p.suffix.lower() in STYLE_EXTS and p.is_file():
+            by_stem.setdefault(p.stem, []).append(p)
+    found, missing = {}, []
+    for name in names:
+        files = by_stem.get(name, [])
+        if not files:
+            missing.append(name)
+        elif len(files) > 1:
+            raise StyleError(f"{directory}: several images for style {name!r} "
+                             f"({', '.join(f.name for f in files)}); keep one")
+        else:
+            found[name] = files[0]
+    if missing:
+        raise StyleError(f"{directory}: no image for style(s) {', '.join(missing)}; expected one "
+                         f"file per style named <style>.jpg, .jpeg or .png, for: {', '.join(names)}")
+    return found
+
+
+def check_alpha(alpha) -> float:
+    """``alpha`` as a float in [0, 1]; ``ValueError`` otherwise."""
+    try:
+        value = float(alpha)
+    except (TypeError, ValueError):
+        raise ValueError(f"alpha must be a number between 0 and 1, got {alpha!r}") from None
+    if isinstance(alpha, bool) or not 0.0 <= value <= 1.0:
+        raise ValueError(f"alpha must be between 0 and 1, got {alpha!r}")
+    return value
+
+
+def check_style_size(style_size) -> int | None:
+    """``style_size`` as an int >= 32, or None for 0/None (keep the style image's size)."""
+    if style_size is None or (not isinstance(style_size, bool) and style_size == 0):
+        return None
+    if isinstance(style_size, bool) or not isinstance(style_size, (int, np.integer)) \
+            or style_size < MIN_SIDE:
+        raise ValueError(f"style size must be 0 (keep the image's size) or an integer >= "
+                         f"{MIN_SIDE}, got {style_size!r}")
+    return int(style_size)
+
+
+def style_resize_size(width: int, height: int, style_size: int | None) -> tuple[int, int]:
+    """``(W, H)`` with the shorter side equal to ``style_size`` and the longer side scaled
+    and truncated (torchvision ``Resize(int)`` semantics); unchanged if ``style_size`` is
+    None or 0."""
+    if not style_size:
+        return width, height
+    if width <= height:
+        return style_size, int(style_size * height / width)
+    return int(style_size * width / height), style_size
+
+
+def load_style(path: str | os.PathLike, style_size: int | None = DEFAULT_STYLE_SIZE) -> np.ndarray:
+    """A style image as uint8 RGB, resized so its shorter side is ``style_size`` with
+    Pillow's bilinear filter (antialiased when shrinking); 0/None keeps its size.
+    ``ImageError`` naming the file if it cannot be read."""
+    style_size = check_style_size(style_size)
+    im = read_rgb(path)
+    size = style_resize_size(*im.size, style_size)
+    if size != im.size:
+        im = im.resize(size, Image.BILINEAR)
+    return np.asarray(im, dtype=np.uint8).copy()
+
+
+def check_weights(path, flag: str) -> Path:
+    """``path`` if it is an existing file; ``StyleError`` naming ``flag`` otherwise."""
+    if path is None or path == "":
+        raise StyleError(f"{flag} is required: the AdaIN checkpoint file "
+                         f"({'vgg_normalised.pth' if 'vgg' in flag else 'decoder.pth'})")
+    p = Path(path)
+    if not p.is_file():
+        raise StyleError(f"{p}: {'not a file' if p.exists() else 'no such file'} ({flag})")
+    return p
+
+
+@dataclass
+class StyleRenderer:
+    """Renders the style jobs of one clean image with one batched AdaIN call.
+
+    Made in the main process by :meth:`prepare`, which loads the checkpoints (refusing bad
+    ones) and computes every style's feature statistics once; a worker receives those
+    statistics (a few kB) and loads the encoder/decoder once per process.
+    """
+
+    vgg: str
+    decoder: str
+    alpha: float
+    threads: int
+    features: dict[str, Any] = field(default_factory=dict)  # style -> adain.StyleFeatures
+
+    @classmethod
+    def prepare(cls, vgg, decoder, style_images: dict[str, Path], *, alpha: float = 1.0,
+                style_size: int | None = DEFAULT_STYLE_SIZE, threads: int = 0) -> "StyleRenderer":
+        """Load and check everything. ``threads``: torch threads of each rendering process
+        (0: every core); the style statistics are computed here with every core."""
+        from . import adain
+
+        cores = os.cpu_count() or 1
+        stylizer = _stylizer(str(vgg), str(decoder), cores)
+        features = {name: stylizer.style_features(load_style(path, style_size))
+                    for name, path in style_images.items()}
+        return cls(str(vgg), str(decoder), check_alpha(alpha), threads or cores, features)
+
+    def render(self, clean, key, jobs):
+        try:
+            stylizer = _stylizer(self.vgg, self.decoder, self.threads)
+            images = stylizer.stylize(clean, [self.features[j.variant] for j in jobs], self.alpha)
+        except Exception as exc:  # reported per job by the builder; the other images go on
+            for job in jobs:
+                yield job, exc
+            return
+        yield from zip(jobs, images)
+
+
+_STYLIZERS: dict[tuple, Any] = {}
+
+
+def _stylizer(vgg: str, decoder: str, threads: int):
+    """One :class:`adain.Stylizer` per process and checkpoint pair."""
+    k = (vgg, decoder)
+    if k not in _STYLIZERS:
+        from . import adain
+
+        _STYLIZERS.clear()
+        _STYLIZERS[k] = adain.Stylizer.from_files(vgg, decoder, threads=threads)
+    return _STYLIZERS[k]
