@@ -61,11 +61,21 @@ SPEC = {"gaussian_noise": _spec_gaussian, "shot_noise": _spec_shot, "iso_noise":
 @pytest.mark.parametrize("name", sorted(SPEC))
 @pytest.mark.parametrize("level", [1, 3, 5])
 def test_law_matches_literal_spec_formula(name, level):
-    x = _value_image()
+    _assert_same_law(name, level, VALUES)
+
+
+@pytest.mark.parametrize("level", [1, 4])
+def test_dark_law_on_a_narrow_range_image(level):
+    # min 20 and max 90: the stretch to [0, 1] comes first
+    _assert_same_law("dark", level, np.array([20, 21, 35, 60, 89, 90], dtype=np.uint8))
+
+
+def _assert_same_law(name, level, values):
+    x = _value_image(values)
     ours = corrupt(x, name, level, np.random.default_rng(1)).reshape(-1)
     spec = SPEC[name](x / 255.0, level, np.random.default_rng(2)).reshape(-1)
     flat = x.reshape(-1)
-    for v in VALUES:
+    for v in values:
         a = ours[flat == v].astype(np.float64)
         b = spec[flat == v].astype(np.float64)
         se = np.sqrt((a.var() + b.var()) / N_PER_VALUE) + 1e-9

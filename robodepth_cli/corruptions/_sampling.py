@@ -30,14 +30,8 @@ class ValueTable:
             raise ValueError(f"need a {N_VALUES} x {N_VALUES} table, got {cdf.shape}")
         # The last column takes whatever mass rounding left over, so every search stops.
         cdf[:, -1] = np.inf
-        # guide[k, b] = first j with cdf[k, j] > b / _GUIDE (a lower bound of the answer
-        # for every u in bucket b).
-        edges = np.arange(_GUIDE) / _GUIDE
-        guide = np.empty((N_VALUES, _GUIDE), dtype=np.int32)
-        for k in range(N_VALUES):
-            guide[k] = np.searchsorted(cdf[k], edges, side="right")
         self.cdf = cdf
-        self.guide = guide
+        self.guide = _guide_table(cdf, _GUIDE)
         self.cdf.flags.writeable = False
         self.guide.flags.writeable = False
 
@@ -55,6 +49,21 @@ class ValueTable:
         u = rng.random(x.size)
         flat = np.ascontiguousarray(x).reshape(-1)
         return _inverse_transform(flat, u, self.cdf, self.guide).reshape(x.shape)
+
+
+@njit
+def _guide_table(cdf, n_guide):
+    """``guide[k, b]`` = the first ``j`` with ``cdf[k, j] > b / n_guide``: a lower bound
+    of the inverse transform of every ``u`` in bucket ``b`` (rows are non-decreasing)."""
+    guide = np.empty((cdf.shape[0], n_guide), dtype=np.uint8)  # j <= 255
+    for k in range(cdf.shape[0]):
+        j = 0
+        for b in range(n_guide):
+            edge = b / n_guide
+            while cdf[k, j] <= edge:
+                j += 1
+            guide[k, b] = j
+    return guide
 
 
 @njit
@@ -92,11 +101,10 @@ def poisson_pmf(lams: np.ndarray) -> np.ndarray:
     return pmf
 
 
-def truncated_cdf(v: np.ndarray) -> np.ndarray:
-    """``T[i, j] = [uint8(floor(clip01(v[i]) * 255)) <= j]``: the output CDF of a known
-    value (computed with the same float64 expression as the benchmark)."""
-    out = np.floor(np.clip(np.asarray(v, dtype=np.float64), 0.0, 1.0) * 255.0)
-    return (out[:, None] <= np.arange(N_VALUES)[None, :]).astype(np.float64)
+def truncated_value(v: np.ndarray) -> np.ndarray:
+    """``uint8(floor(clip01(v) * 255))`` as integers, with the benchmark's float64
+    expression."""
+    return np.floor(np.clip(np.asarray(v, dtype=np.float64), 0.0, 1.0) * 255.0).astype(np.int64)
 
 
 def gaussian_truncated_cdf(v: np.ndarray, sigma: float) -> np.ndarray:

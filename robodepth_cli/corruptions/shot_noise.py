@@ -2,7 +2,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ._sampling import N_VALUES, ValueTable, poisson_pmf, truncated_cdf
+from ._sampling import N_VALUES, ValueTable, poisson_pmf, truncated_value
 from .registry import DATA, register
 
 LEVELS = (60, 25, 12, 5, 3)
@@ -14,8 +14,11 @@ def output_law(level: int) -> ValueTable:
     ``floor(clip01(Poisson(k / 255 * lambda) / lambda) * 255)``."""
     lam = LEVELS[level - 1]
     pmf = poisson_pmf(np.arange(N_VALUES) / 255.0 * lam)
-    counts = np.arange(pmf.shape[1])
-    return ValueTable(pmf @ truncated_cdf(counts / float(lam)))
+    out = truncated_value(np.arange(pmf.shape[1]) / float(lam))  # non-decreasing in the count
+    # P(output <= j) = P(count <= last count whose output is <= j)
+    last = np.searchsorted(out, np.arange(N_VALUES), side="right") - 1
+    cdf = np.cumsum(pmf, axis=1)
+    return ValueTable(np.where(last >= 0, cdf[:, np.maximum(last, 0)], 0.0))
 
 
 @register(DATA, ("lambda",), LEVELS)
