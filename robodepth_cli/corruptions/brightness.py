@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ._jit import njit
 from .registry import WEATHER, register
 
 LEVELS = (0.1, 0.2, 0.3, 0.4, 0.5)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit
 def _brighten(x, c, out):
     """Per pixel, scikit-image's ``rgb2hsv`` / ``hsv2rgb`` round trip with ``V + c``
     clipped, in float64 with the same operations in the same order, so the result is

@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 
-import numba
 import numpy as np
 
+from ._jit import njit
 from ._ops import to_uint8
 from .registry import SENSOR, register
 
@@ -58,7 +58,7 @@ def motion_taps(radius: int, sigma: float, angle: float, shape: tuple[int, int])
     return np.array(dys, np.int64), np.array(dxs, np.int64), k[:n].copy()
 
 
-@numba.njit(cache=True, nogil=True)
+@njit
 def _shift_sum(img, dys, dxs, ks, out):
     """``out += sum_t ks[t] * img[clamp(row - dys[t]), clamp(col - dxs[t])]`` for an
     H x W x C ``img`` (any real dtype) into a float32 H x W x C ``out``; ``|dxs| < W``."""

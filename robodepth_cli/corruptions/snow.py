@@ -3,9 +3,9 @@ added twice (once rotated by 180 degrees) to a whitened image."""
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ._jit import njit
 from .motion_blur import shift_blur
 from .registry import WEATHER, register
 from .zoom_blur import linear_zoom, zoom_axis
@@ -45,7 +45,7 @@ def snow_layer(shape: tuple[int, int], mu: float, sigma: float, z: float, tau: f
     return shift_blur(layer, radius, sigma=s, angle=angle)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit
 def _blend(x, layer, beta, out):
     """Per pixel and channel, with ``f = x / 255`` in float32:
     ``g = beta * f + (1 - beta) * max(f, gray * 1.5 + 0.5)``, ``gray = 0.299 R + 0.587 G +

@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 from functools import lru_cache
 
-import numba
 import numpy as np
 
+from ._jit import njit
 from ._ops import to_uint8
 from .registry import SENSOR, register
 
@@ -114,7 +114,7 @@ def zoom_table(h: int, w: int, factors: tuple) -> tuple:
     return _tables(h, w, factors, h, w)
 
 
-@numba.njit(cache=True, nogil=True)
+@njit
 def _accumulate(img, nrows, r0, r1, wy, nruns, runs, wx, acc):
     """``acc[:nrows[k], :W'] += bilinear layer k`` for every factor ``k``, ``W'`` the width of
     ``acc`` (the layer's columns beyond it are not computed).
