@@ -1,0 +1,80 @@
+"""encode_png / write_png: the speed-tuned encoder must give back exactly the pixels it got."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from robodepth_cli.imageio import encode_png, load_clean, read_rgb, write_png
+
+
+def _decode(data: bytes) -> tuple[str, np.ndarray]:
+    with Image.open(io.BytesIO(data)) as im:
+        assert im.format == "PNG"
+        return im.mode, np.asarray(im).copy()
+
+
+def _images(fixtures_dir):
+    rng = np.random.default_rng(7)
+    noise = rng.integers(0, 256, (48, 80, 3), dtype=np.uint8)
+    # Each channel different, so a red/blue swap cannot go unnoticed.
+    ramp = np.stack([*np.meshgrid(np.arange(80), np.arange(48)), np.full((48, 80), 200)], axis=2)
+    clean = load_clean(fixtures_dir / "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png",
+                       (192, 640))
+    return {"noise": noise, "ramp": (ramp * 3).astype(np.uint8), "clean": clean,
+            "constant": np.full((40, 40, 3), 17, np.uint8), "extremes": (noise > 127).astype(np.uint8) * 255,
+            "view": clean[10:150:2, 600:5:-3]}  # strided, reversed: not contiguous
+
+
+def test_rgb_round_trip_is_exact(fixtures_dir):
+    for name, img in _images(fixtures_dir).items():
+        mode, back = _decode(encode_png(img))
+        assert mode == "RGB", name
+        np.testing.assert_array_equal(back, img, err_msg=name)
+
+
+def test_every_zlib_level_gives_the_same_pixels(fixtures_dir):
+    img = _images(fixtures_dir)["clean"]
+    sizes = []
+    for level in (0, 1, 6, 9):
+        data = encode_png(img, level)
+        np.testing.assert_array_equal(_decode(data)[1], img)
+        sizes.append(len(data))
+    assert sizes[0] > sizes[1] >= sizes[3]  # the level is really applied
+
+
+def test_gray_and_rgba(fixtures_dir):
+    rng = np.random.default_rng(3)
+    gray = rng.integers(0, 256, (33, 35), dtype=np.uint8)
+    rgba = rng.integers(0, 256, (33, 35, 4), dtype=np.uint8)
+    assert _decode(encode_png(gray))[0] == "L"
+    np.testing.assert_array_equal(_decode(encode_png(gray))[1], gray)
+    mode, back = _decode(encode_png(rgba))
+    assert mode == "RGBA"
+    np.testing.assert_array_equal(back, rgba)
+
+
+def test_same_pixels_same_bytes(fixtures_dir):
+    img = _images(fixtures_dir)["noise"]
+    assert encode_png(img) == encode_png(img.copy())
+
+
+@pytest.mark.parametrize("bad, message", [
+    (np.zeros((40, 40, 3), np.float32), "float32"),
+    (np.zeros((40, 40, 2), np.uint8), "shape"),
+    (np.zeros((40,), np.uint8), "shape"),
+])
+def test_refuses_what_it_cannot_encode(bad, message):
+    with pytest.raises(ValueError, match=message):
+        encode_png(bad)
+
+
+def test_write_png_reads_back_identical(fixtures_dir, tmp_path):
+    img = _images(fixtures_dir)["clean"]
+    target = tmp_path / "a" / "b.png"
+    data = write_png(target, img)
+    assert target.read_bytes() == data
+    np.testing.assert_array_equal(np.asarray(read_rgb(target)), img)
