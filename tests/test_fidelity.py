@@ -30,7 +30,6 @@ from conftest import REFERENCE
 
 KITTI_KEYS = ("kitti_like_md2", "kitti_like_newyork")
 NYU_KEYS = ("nyu_1", "nyu_119")
-NYU_NAMES = tuple(n for n in REGISTRY if n not in ("fog", "frost", "snow"))
 DETERMINISTIC = tuple(n for n, c in REGISTRY.items() if c.deterministic)
 RANDOM = tuple(n for n, c in REGISTRY.items() if not c.deterministic)
 
@@ -42,6 +41,11 @@ ORACLE_NAMES = (
     "shot_noise", "pixelate", "jpeg_compression",
 )
 ORACLE_SEEDS = 6
+# Our side of a statistics comparison is the mean over a few seeds: the reference's spread
+# is estimated from only 6-8 seeds and is sometimes well below the true one (motion blur's
+# angle, the noise figures), so a single draw of ours would fail by chance about once per
+# few hundred figures even for an exact implementation.
+OUR_SEEDS = 4
 
 
 def _load(path) -> np.ndarray:
@@ -56,6 +60,12 @@ def stats(out: np.ndarray, clean: np.ndarray) -> np.ndarray:
     return np.array([
         *o.mean(axis=(0, 1)), *o.std(axis=(0, 1)), np.abs(d).mean(), d.std(),
     ])
+
+
+def our_stats(clean: np.ndarray, name: str, level: int, seed: int) -> np.ndarray:
+    """Mean of the eight figures over ``OUR_SEEDS`` generators derived from ``seed``."""
+    return np.mean([stats(corrupt(clean, name, level, np.random.default_rng([seed, k])), clean)
+                    for k in range(OUR_SEEDS)], axis=0)
 
 
 def assert_pixels_match(ours: np.ndarray, ref: np.ndarray, what: str) -> None:
@@ -92,7 +102,9 @@ def _reference_input(folder: str, key: str) -> np.ndarray:
 
 def _reference_cases():
     for folder, keys, names, levels in (("kitti", KITTI_KEYS, tuple(REGISTRY), 5),
-                                        ("nyu", NYU_KEYS, NYU_NAMES, 4)):
+                                        # NYUDepth2-C uses 15 of them, but the
+                                        # reference covers all 18 at levels 1..4.
+                                        ("nyu", NYU_KEYS, tuple(REGISTRY), 4)):
         for name in names:
             for key in keys:
                 for level in range(1, levels + 1):
@@ -102,22 +114,22 @@ def _reference_cases():
 @pytest.mark.parametrize("folder,key,name,level", list(_reference_cases()))
 def test_matches_reference(folder, key, name, level):
     clean = _reference_input(folder, key)
-    rng = np.random.default_rng(level * 1009 + len(key))
-    out = corrupt(clean, name, level, rng)
     what = f"{name} level {level} on {key}"
     if REGISTRY[name].deterministic:
+        out = corrupt(clean, name, level, np.random.default_rng(level))
         ref = _load(REFERENCE / folder / f"{key}__{name}__{level}.png")
         assert_pixels_match(out, ref, what)
     else:
         ref = _reference_stats(folder)[f"{key}/{name}/{level}"]
-        assert_stats_match(stats(out, clean), ref["mean"], ref["sd"], what)
+        assert_stats_match(our_stats(clean, name, level, level * 1009 + len(key)),
+                           ref["mean"], ref["sd"], what)
 
 
 def test_reference_covers_every_corruption():
     kitti = {k.split("/")[1] for k in _reference_stats("kitti")}
     nyu = {k.split("/")[1] for k in _reference_stats("nyu")}
     assert kitti == set(REGISTRY)
-    assert nyu == set(NYU_NAMES)
+    assert nyu == set(REGISTRY)
 
 
 # --- the imagecorruptions oracle on other photographs ----------------------------------
@@ -163,10 +175,10 @@ def _oracle_cases():
 @pytest.mark.parametrize("sample,size_hw,name,level", list(_oracle_cases()))
 def test_matches_oracle(sample, size_hw, name, level):
     clean = _photo(sample, size_hw)
-    out = corrupt(clean, name, level, np.random.default_rng(7 * level))
     what = f"{name} level {level} on {sample} at {size_hw[0]}x{size_hw[1]} vs imagecorruptions"
     if REGISTRY[name].deterministic:
+        out = corrupt(clean, name, level, np.random.default_rng(level))
         assert_pixels_match(out, _oracle_once(clean, name, level, 0), what)
     else:
         mean, sd = _oracle_stats(sample, size_hw, name, level)
-        assert_stats_match(stats(out, clean), mean, sd, what)
+        assert_stats_match(our_stats(clean, name, level, 7 * level), mean, sd, what)
