@@ -283,3 +283,19 @@ def test_random_corruptions_follow_the_seed(name):
     c = corrupt(x, name, 3, np.random.default_rng(12))
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize("mode", ["reflect", "nearest", "mirror"])
+def test_gaussian_matches_scikit_image_even_when_the_kernel_outgrows_the_image(mode):
+    from skimage.filters import gaussian as sk_gaussian
+
+    from robodepth_cli.corruptions._ops import gaussian
+
+    a = np.random.default_rng(0).random((32, 40))
+    ours = gaussian(a, (12, 3), truncate=4, mode=mode)
+    assert np.abs(ours - sk_gaussian(a, sigma=(12, 3), mode=mode, truncate=4)).max() < 1e-12
+
+
+def test_elastic_transform_on_a_very_wide_image():
+    x = np.random.default_rng(1).integers(0, 256, (32, 4000, 3), dtype=np.uint8)
+    assert corrupt(x, "elastic_transform", 5, np.random.default_rng(2)).shape == x.shape

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import cv2
 import numpy as np
 
@@ -50,11 +48,6 @@ def gaussian(img: np.ndarray, sigma, *, truncate: float = 4.0, mode: str = "near
     if src.ndim == 3 and src.shape[2] > 4:
         return np.stack([gaussian(src[..., c], sigma, truncate=truncate, mode=mode)
                          for c in range(src.shape[2])], axis=-1)
-    # OpenCV limits a border to less than the image size; larger kernels do not occur here.
-    if max(ky.size, kx.size) // 2 >= min(src.shape[:2]):
-        raise ValueError("image too small for this Gaussian")
+    # OpenCV reflects repeatedly when the kernel is longer than the image, as SciPy does.
     return cv2.sepFilter2D(src, -1, kx.astype(src.dtype), ky.astype(src.dtype), borderType=border)
 
-
-def ceil_int(v: float) -> int:
-    return int(math.ceil(v))
