@@ -128,6 +128,7 @@ def corrupt_command(image, corruption, level, seed, size, out):
     robodepth corrupt frame.png -c all -l all --size 192x640 --out corrupted/
     """
     from .corruptions import REGISTRY, corrupt
+    from .corruptions.frost import FrostTextureError
     from .seeding import job_rng
 
     names = _corruption_names(corruption)
@@ -144,7 +145,10 @@ def corrupt_command(image, corruption, level, seed, size, out):
         for lv in levels:
             if lv > REGISTRY[name].n_levels:
                 continue
-            img = corrupt(clean, name, lv, job_rng(seed, "image", name, lv, key))
+            try:
+                img = corrupt(clean, name, lv, job_rng(seed, "image", name, lv, key))
+            except FrostTextureError as exc:
+                raise UserError(str(exc)) from None
             _write_png(out if single else out / name / f"{lv}.png", img)
     if not single:
         click.echo(f"wrote {len(names) * len(levels)} images under {out}")
@@ -161,12 +165,16 @@ def corrupt_command(image, corruption, level, seed, size, out):
               help="Width of each cell in pixels.")
 def preview_command(image, out, corruption, size, seed, thumb_width):
     """A labelled contact sheet: the clean image, then one row per corruption and one column per level."""
+    from .corruptions.frost import FrostTextureError
     from .preview import contact_sheet
 
     names = _corruption_names(corruption)
     clean = _load_input(image, size)
-    sheet = contact_sheet(clean, names, range(1, 6), seed=seed, key=Path(image).name,
-                          thumb_width=thumb_width)
+    try:
+        sheet = contact_sheet(clean, names, range(1, 6), seed=seed, key=Path(image).name,
+                              thumb_width=thumb_width)
+    except FrostTextureError as exc:
+        raise UserError(str(exc)) from None
     _write_png(Path(out), np.asarray(sheet))
     click.echo(f"wrote {out} ({sheet.width} x {sheet.height})")
 

@@ -169,3 +169,21 @@ def test_same_bytes_in_another_process(tmp_path):
 
     theirs = dict(line.split() for line in out.splitlines())
     assert theirs == {n: hashlib.sha256(b).hexdigest() for n, b in here.items()}
+
+
+@pytest.mark.parametrize("command", [["corrupt", "-c", "frost", "-l", "2"], ["preview", "-c", "frost"]])
+def test_missing_frost_textures_are_a_clear_error(tmp_path, monkeypatch, command):
+    from robodepth_cli.corruptions import frost
+
+    def missing(index):
+        raise frost.FrostTextureError("imagecorruptions-imaug is not installed; run `make install`")
+
+    # Textures already decoded in this process would hide the missing package.
+    frost.texture_bgr.cache_clear()
+    frost.scaled_texture.cache_clear()
+    monkeypatch.setattr(frost, "texture_path", missing)
+    res = CliRunner().invoke(main, [command[0], str(small_png(tmp_path)), *command[1:],
+                                    "--out", str(tmp_path / "o.png")])
+    assert res.exit_code == 2
+    assert "imagecorruptions-imaug is not installed" in res.output and "Traceback" not in res.output
+    assert not (tmp_path / "o.png").exists()
