@@ -15,6 +15,7 @@ processes, >= 1), ``limit`` (first N source images, or null for all).
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -71,6 +72,12 @@ def load_yaml(path: Path) -> dict[str, Any]:
         mark = getattr(exc, "problem_mark", None)
         at = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        tag = re.search(r"constructor for the tag '([^']*)'", problem)
+        if isinstance(exc, yaml.constructor.ConstructorError) and tag:
+            # e.g. !!python/object/apply:os.system: the safe loader refuses to build it.
+            name = tag.group(1).replace("tag:yaml.org,2002:", "!!")
+            raise ConfigError(f"{path}: {at}YAML tag {name!r} is not allowed (configs are read with a "
+                              f"safe loader: plain values, lists and mappings only)") from None
         raise ConfigError(f"{path}: not valid YAML ({at}{problem})") from None
     if data is None:
         return {}
