@@ -150,8 +150,12 @@ def locate(root: Path, entry: Entry) -> tuple[str, Path]:
         if path.is_file():
             real = Path(os.path.realpath(path))
             if not real.is_relative_to(root):
-                raise ImageError(f"{path}: a symlink to {real}, outside the root {root}; refused")
+                raise ImageError(f"{path}: resolves to {real} (through a symlink), outside the root "
+                                 f"{root}; refused")
             return rel, path
+    for rel in entry.candidates:
+        if (root / rel).is_dir():
+            raise ImageError(f"{root / rel}: is a directory, not an image file")
     tried = ", ".join(PurePosixPath(c).suffix for c in entry.candidates)
     raise ImageError(f"{root / entry.candidates[0]}: no such file (tried {tried})")
 

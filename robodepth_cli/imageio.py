@@ -75,7 +75,8 @@ def read_rgb(path: str | os.PathLike) -> Image.Image:
         raise ImageError(f"{path}: is a directory, not an image") from None
     except UnidentifiedImageError:
         raise ImageError(f"{path}: not an image file Pillow can read") from None
-    except (OSError, SyntaxError, ValueError) as exc:
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as exc:
+        # A bomb is a header claiming an absurd size: corrupt or hostile, either way unusable.
         raise ImageError(f"{path}: unreadable image ({exc})") from None
     w, h = rgb.size
     if h < MIN_SIDE or w < MIN_SIDE:
