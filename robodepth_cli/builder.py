@@ -5,8 +5,8 @@ checked before the first image is touched:
 
 1. check the root, read the split (a standard one is downloaded and checked on first use)
    and find every listed source image; abort if none is there;
-2. create OUT, check it is writable, take its lock, delete temporary files a killed build
-   left behind;
+2. create OUT, check it is writable, take its lock, refuse symlinks in it that lead outside
+   it, delete temporary files a killed build left behind;
 3. plan: one :class:`Task` per source image, holding its jobs (clean + variants x levels)
    and, for each output already listed in the manifest with the current settings, the
    sha256 to check it against;
@@ -313,6 +313,11 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
                          f"wrong --root? (first: {located[0][3]})")
     out = prepare_out(out)
     with manifest.BuildLock(out):
+        leaving = manifest.links_leaving(out)
+        if leaving:
+            link, target = leaving[0]
+            raise BuildError(f"{out / link}: a symlink to {target}, outside {out}; refused (a build "
+                             f"writes only inside its output directory)")
         manifest.remove_temporaries(out)
         tasks = plan(ds, cfg, located, manifest.read_manifest(out))
         summary = Summary(total=sum(len(t.jobs) for t in tasks))

@@ -196,6 +196,24 @@ def remove_temporaries(out: Path) -> int:
     return n
 
 
+def links_leaving(out: Path) -> list[tuple[str, str]]:
+    """Symlinks under ``out`` whose target lies outside it, as (path relative to ``out``,
+    resolved target). A build refuses to start over any: a write or deletion through one
+    would land outside OUT. Links are not followed while searching."""
+    top = os.path.realpath(out)
+    found, stack = [], [top]
+    while stack:
+        with os.scandir(stack.pop()) as entries:
+            for e in entries:
+                if e.is_symlink():
+                    real = os.path.realpath(e.path)
+                    if os.path.commonpath([top, real]) != top:
+                        found.append((os.path.relpath(e.path, top), real))
+                elif e.is_dir():
+                    stack.append(e.path)
+    return sorted(found)
+
+
 @dataclass
 class VerifyReport:
     checked: int
