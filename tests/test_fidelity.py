@@ -88,6 +88,16 @@ def assert_stats_match(ours: np.ndarray, mean, sd, what: str) -> None:
         for f, o, m, t, b in zip(fields, ours, mean, tol, bad) if b)
 
 
+def assert_matches(clean, name, level, what, *, expected_pixels, expected_stats, seed) -> None:
+    """Pixels for a deterministic corruption, statistics over seeds for a random one."""
+    if REGISTRY[name].deterministic:
+        out = corrupt(clean, name, level, np.random.default_rng(seed))
+        assert_pixels_match(out, expected_pixels(), what)
+    else:
+        mean, sd = expected_stats()
+        assert_stats_match(our_stats(clean, name, level, seed), mean, sd, what)
+
+
 # --- ../shared/reference -------------------------------------------------------------
 
 @lru_cache(maxsize=None)
@@ -113,16 +123,13 @@ def _reference_cases():
 
 @pytest.mark.parametrize("folder,key,name,level", list(_reference_cases()))
 def test_matches_reference(folder, key, name, level):
-    clean = _reference_input(folder, key)
-    what = f"{name} level {level} on {key}"
-    if REGISTRY[name].deterministic:
-        out = corrupt(clean, name, level, np.random.default_rng(level))
-        ref = _load(REFERENCE / folder / f"{key}__{name}__{level}.png")
-        assert_pixels_match(out, ref, what)
-    else:
+    def reference_stats():
         ref = _reference_stats(folder)[f"{key}/{name}/{level}"]
-        assert_stats_match(our_stats(clean, name, level, level * 1009 + len(key)),
-                           ref["mean"], ref["sd"], what)
+        return ref["mean"], ref["sd"]
+
+    assert_matches(_reference_input(folder, key), name, level, f"{name} level {level} on {key}",
+                   expected_pixels=lambda: _load(REFERENCE / folder / f"{key}__{name}__{level}.png"),
+                   expected_stats=reference_stats, seed=level * 1009 + len(key))
 
 
 def test_reference_covers_every_corruption():
@@ -175,10 +182,8 @@ def _oracle_cases():
 @pytest.mark.parametrize("sample,size_hw,name,level", list(_oracle_cases()))
 def test_matches_oracle(sample, size_hw, name, level):
     clean = _photo(sample, size_hw)
-    what = f"{name} level {level} on {sample} at {size_hw[0]}x{size_hw[1]} vs imagecorruptions"
-    if REGISTRY[name].deterministic:
-        out = corrupt(clean, name, level, np.random.default_rng(level))
-        assert_pixels_match(out, _oracle_once(clean, name, level, 0), what)
-    else:
-        mean, sd = _oracle_stats(sample, size_hw, name, level)
-        assert_stats_match(our_stats(clean, name, level, 7 * level), mean, sd, what)
+    assert_matches(clean, name, level,
+                   f"{name} level {level} on {sample} at {size_hw[0]}x{size_hw[1]} vs imagecorruptions",
+                   expected_pixels=lambda: _oracle_once(clean, name, level, 0),
+                   expected_stats=lambda: _oracle_stats(sample, size_hw, name, level),
+                   seed=7 * level)
