@@ -25,9 +25,11 @@ from __future__ import annotations
 import itertools
 import os
 import platform
+import signal
 import sys
 import tempfile
 import time
+import warnings
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -127,6 +129,9 @@ def _configure_worker(single_thread: bool) -> None:
         import cv2
 
         cv2.setNumThreads(1)  # two processes on two cores: extra OpenCV threads only contend
+        # Ctrl-C reaches the whole process group; the main process stops the pool, and a
+        # worker interrupted on its own would only print a traceback.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         _configured = True
 
 
@@ -137,6 +142,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[str, Row]]:
     manifest), ``written``, ``failed`` (this job or its source is broken; any stale file
     at its path is removed) or ``fatal`` (the file could not be written: the build stops).
     """
+    _configure_worker(ctx.single_thread)
     out = Path(ctx.out)
     h, w = ctx.size
 
@@ -163,7 +169,6 @@ def run_task(task: Task, ctx: Context) -> list[tuple[str, Row]]:
             fail(job, message)
         return results
 
-    _configure_worker(ctx.single_thread)
     clean.flags.writeable = False
     # Lazily, so only one rendered image is alive at a time.
     rendered = itertools.chain(
@@ -177,7 +182,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[str, Row]]:
         try:
             data = write_png(target, img, PNG_COMPRESS_LEVEL)
         except OSError as exc:
-            results.append(("fatal", row(job, error=f"{target}: cannot write ({exc.strerror or exc})")))
+            results.append(("fatal", row(job, error=_cannot_write(target, exc))))
             return results
         results.append(("written", row(job, sha256_bytes(data))))
     return results
@@ -193,6 +198,10 @@ def _load(task: Task, size: tuple[int, int]):
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
         return None, f"{task.path}: {type(exc).__name__}: {exc}"
+
+
+def _cannot_write(path, exc: OSError) -> str:
+    return f"{path}: cannot write ({exc.strerror or exc})"
 
 
 def _job_name(job: Job) -> str:
@@ -286,7 +295,10 @@ def _results(tasks: list[Task], ctx: Context, n_jobs: int):
         return
     from joblib import Parallel, delayed
 
-    with Parallel(n_jobs=n_jobs, return_as="generator_unordered") as pool:
+    with Parallel(n_jobs=n_jobs, return_as="generator_unordered") as pool, warnings.catch_warnings():
+        # Stopping early on a write error cancels the queued tasks on purpose; joblib's
+        # warning about it would only bury the real message.
+        warnings.filterwarnings("ignore", r".*tasks which were still being processed", UserWarning)
         yield from pool(delayed(run_task)(t, ctx) for t in tasks)
 
 
@@ -329,7 +341,10 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             "versions": library_versions(ds), "png_compress_level": PNG_COMPRESS_LEVEL,
             "started": _now(), "finished": None, "status": "running",
         }
-        manifest.write_record(out, record)
+        try:
+            manifest.write_record(out, record)
+        except OSError as exc:
+            raise BuildError(_cannot_write(out / manifest.RECORD, exc)) from None
         ctx = Context(str(out), cfg.size, cfg.seed, ds.renderer(cfg),
                       single_thread=cfg.jobs > 1 and len(tasks) > 1)
         t0 = time.perf_counter()
@@ -338,11 +353,20 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         except KeyboardInterrupt:
             summary.interrupted = True
         summary.seconds = round(time.perf_counter() - t0, 3)
-        manifest.compact_manifest(out)
+        try:
+            manifest.compact_manifest(out)
+        except OSError as exc:  # the appended manifest stays valid, only unsorted
+            summary.fatal = summary.fatal or _cannot_write(out / manifest.MANIFEST, exc)
+        if summary.interrupted or summary.fatal:
+            # A pool stopped early kills its workers, perhaps in the middle of a write.
+            manifest.remove_temporaries(out)
         status = ("interrupted" if summary.interrupted else "stopped" if summary.fatal
                   else "finished" if summary.complete else "finished with failures")
-        manifest.write_record(out, {**record, "finished": _now(), "status": status,
-                                    "summary": summary.as_dict()})
+        try:
+            manifest.write_record(out, {**record, "finished": _now(), "status": status,
+                                        "summary": summary.as_dict()})
+        except OSError as exc:
+            summary.fatal = summary.fatal or _cannot_write(out / manifest.RECORD, exc)
     return summary
 
 
@@ -350,11 +374,19 @@ def _run(tasks: list[Task], ctx: Context, n_jobs: int, out: Path, summary: Summa
          progress: bool) -> None:
     from tqdm import tqdm
 
+    try:
+        writer = manifest.ManifestWriter(out)
+    except OSError as exc:
+        summary.fatal = _cannot_write(out / manifest.MANIFEST, exc)
+        return
     bar = tqdm(total=summary.total, unit="img", disable=None if progress else True,
                file=sys.stderr, dynamic_ncols=True, smoothing=0.05)
-    with bar, manifest.ManifestWriter(out) as writer:
+    with bar, writer:
         for results in _results(tasks, ctx, n_jobs):
-            writer.append([r for status, r in results if status != "skipped"])
+            try:
+                writer.append([r for status, r in results if status != "skipped"])
+            except OSError as exc:  # these images exist but are not recorded: a rerun redoes them
+                summary.fatal = _cannot_write(writer.path, exc)
             for status, r in results:
                 summary.add(status, r)
             bar.update(len(results))

@@ -209,8 +209,9 @@ def build_command(dataset, root, out, config_file, progress, **flags):
     Settings come from configs/DATASET.yaml, then --config FILE, then the flags.
 
     Rerunning the same command redoes only missing or changed outputs. Exit status: 0 all
-    done, 1 some images failed (the rest is built; see the summary), 2 nothing could be
-    done (bad config, root, split or OUT), 130 interrupted (resumable).
+    done, 1 some images failed (the rest is built; see the summary), 2 refused before any
+    work (bad config, root, split or OUT; another build running there) or stopped by a
+    write error such as a full disk (finished images kept), 130 interrupted (resumable).
 
     \b
     Examples:
@@ -223,14 +224,18 @@ def build_command(dataset, root, out, config_file, progress, **flags):
     from .manifest import ManifestError
     from .splits import SplitError
 
+    interrupted = "robodepth: interrupted; rerun the same command to resume"
     try:
         cfg = resolve(dataset, config_file, flags)
         summary = build(cfg, root, out, progress=progress, command=sys.argv)
     except (ConfigError, SplitError, BuildError, ManifestError) as exc:
         raise UserError(str(exc)) from None
+    except KeyboardInterrupt:  # before or after the images (the build itself handles its own)
+        click.echo(interrupted, err=True)
+        sys.exit(130)
     click.echo(f"{cfg.preset}: {summary.text()}", err=True)
     if summary.interrupted:
-        click.echo("robodepth: interrupted; rerun the same command to resume", err=True)
+        click.echo(interrupted, err=True)
         sys.exit(130)
     if summary.fatal:
         raise UserError(f"{summary.fatal}; finished images are kept, rerun to resume")

@@ -125,7 +125,12 @@ class ManifestWriter:
             self._fh.flush()
 
     def close(self) -> None:
-        self._fh.close()
+        try:
+            self._fh.close()
+        except OSError:
+            # Only bytes of an append that already failed (disk full) can be pending here; that
+            # error was reported, and a torn last line is ignored when the manifest is read.
+            pass
 
     def __enter__(self):
         return self
