@@ -222,8 +222,11 @@ def load_model(path: str | os.PathLike, kind: str) -> nn.Sequential:
 
 def to_tensor(img: np.ndarray, *, channels_last: bool = False) -> torch.Tensor:
     """uint8 H x W x 3 -> float32 1 x 3 x H x W in [0, 1]."""
-    x = torch.from_numpy(np.ascontiguousarray(as_rgb(img))).permute(2, 0, 1).unsqueeze(0)
-    x = x.to(torch.float32).div_(255.0)
+    with warnings.catch_warnings():
+        # A read-only array (the builder's clean image) is only read: .to() copies it.
+        warnings.simplefilter("ignore", UserWarning)
+        x = torch.from_numpy(np.ascontiguousarray(as_rgb(img)))
+    x = x.permute(2, 0, 1).unsqueeze(0).to(torch.float32).div_(255.0)
     return x.contiguous(memory_format=torch.channels_last if channels_last else torch.contiguous_format)
 
 
@@ -256,6 +259,18 @@ def adain(content_feat: torch.Tensor, style_mean: torch.Tensor, style_std: torch
 
 
 # ----------------------------------------------------------------------- the engine
+
+
+def pixel_affine(conv: nn.Conv2d, x: torch.Tensor) -> torch.Tensor:
+    """A 1 x 1 convolution (the encoder's first module) as a fixed sequence of elementwise
+    operations. oneDNN's 1 x 1 convolution rounds differently with 1 and 2 threads, which
+    would make an image's bytes depend on the number of workers; every other module of the
+    encoder and decoder gives the same bits for any thread count (tests/test_adain.py)."""
+    w, b = conv.weight[:, :, 0, 0], conv.bias
+    y = x[:, :1] * w[:, 0].view(1, -1, 1, 1)
+    for c in range(1, w.shape[1]):
+        y = y + x[:, c:c + 1] * w[:, c].view(1, -1, 1, 1)
+    return y + b.view(1, -1, 1, 1)
 
 
 @dataclass(frozen=True)
@@ -291,8 +306,10 @@ class Stylizer:
         return cls(load_model(vgg, "vgg"), load_model(dec, "decoder"), **kwargs)
 
     def encode(self, img: np.ndarray) -> torch.Tensor:
+        """``enc(img)``, 1 x 512 x h x w."""
         with torch.inference_mode():
-            return self.enc(to_tensor(img, channels_last=self.channels_last))
+            x = pixel_affine(self.enc[0], to_tensor(img, channels_last=self.channels_last))
+            return self.enc[1:](x)
 
     def style_features(self, style: np.ndarray) -> StyleFeatures:
         """The statistics of a (resized) uint8 style image; compute once per style."""

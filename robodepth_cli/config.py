@@ -174,8 +174,7 @@ class _Resolver:
             v = _names(loc, v)
             for name in v:
                 if name not in names:
-                    # "corruptions" -> "unknown corruption", "styles" -> "unknown style"
-                    raise ConfigError(f"{loc}: unknown {key[:-1]} {name!r}; valid: {', '.join(names)}")
+                    raise ConfigError(f"{loc}: unknown {ds.variant_noun} {name!r}; valid: {', '.join(names)}")
             return tuple(dict.fromkeys(v))
         if key == "levels":
             return v if v == ALL else tuple(sorted({_int(loc, lv, 1) for lv in _names(loc, v)}))

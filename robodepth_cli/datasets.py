@@ -187,6 +187,7 @@ class Dataset:
     split_format: str  # a key of PARSERS
     variant_key: str = "corruptions"  # the config key and flag that select the variants
     leveled: bool = True
+    variant_noun: str = "corruption"  # in messages: "unknown corruption 'x'"
 
     def variant_names(self) -> tuple[str, ...]:
         from .corruptions import NAMES
@@ -223,9 +224,43 @@ class Dataset:
                 "joblib", "tqdm", "PyYAML", "click")
 
 
+@dataclass(frozen=True)
+class StyleDataset(Dataset):
+    """KITTI-S (SPEC section 3): one AdaIN-stylised output per style, no levels. The style
+    logic lives in :mod:`robodepth_cli.styles`; torch is loaded only by its renderer."""
+
+    variant_key: str = "only_styles"
+    leveled: bool = False
+    variant_noun: str = "style"
+
+    def variant_names(self) -> tuple[str, ...]:
+        from .styles import STYLES
+
+        return STYLES
+
+    def options(self) -> tuple[str, ...]:
+        from .styles import OPTIONS
+
+        return OPTIONS
+
+    def check_option(self, key: str, value, base: Path):
+        from .styles import check_option
+
+        return check_option(key, value, base)
+
+    def renderer(self, config) -> Renderer:
+        from .styles import make_renderer
+
+        return make_renderer(config)
+
+    def libraries(self) -> tuple[str, ...]:
+        return super().libraries() + ("torch",)
+
+
 DATASETS: dict[str, Dataset] = {
     "kitti-c": Dataset("kitti-c", "eigen"),
     "nyudepth2-c": Dataset("nyudepth2-c", "nyu"),
+    "kitti-s": StyleDataset("kitti-s", "eigen"),
 }
 
 

@@ -128,6 +128,55 @@ def check_weights(path, flag: str) -> Path:
     return p
 
 
+# KITTI-S build options (config keys; flags --styles, --vgg, --decoder, --alpha, --style-size).
+OPTIONS = ("styles", "vgg", "decoder", "alpha", "style_size")
+
+
+def check_option(key: str, value, base: Path):
+    """The checked value of KITTI-S option ``key``; ``ValueError`` saying what is wrong.
+    Paths are resolved against ``base``; None (unset) is allowed here, and refused by
+    :func:`make_renderer` for the required ones."""
+    if key in ("styles", "vgg", "decoder"):
+        if value is None:
+            return None
+        if not isinstance(value, str) or not value:
+            raise ValueError(f"expected a path, got {value!r}")
+        path = (Path(base) / Path(value).expanduser()).resolve()
+        if key == "styles":
+            if not path.is_dir():
+                raise ValueError(f"{path}: the style directory "
+                                 f"{'is not a directory' if path.exists() else 'does not exist'}")
+        elif not path.is_file():
+            raise ValueError(f"{path}: {'not a file' if path.exists() else 'no such file'}")
+        return str(path)
+    if key == "alpha":
+        return check_alpha(value)
+    if key == "style_size":
+        if isinstance(value, str) and value.strip().isdigit():
+            value = int(value)  # flags arrive as text
+        return check_style_size(value) or 0
+    raise ValueError(f"unknown option {key!r}")
+
+
+def make_renderer(config) -> "StyleRenderer":
+    """The renderer of a resolved KITTI-S build configuration: checks that the style
+    directory, the checkpoints and a style image for every selected style are there, loads
+    and validates the checkpoints and computes the style statistics. ``ValueError``
+    subclasses (naming the file) for anything missing or unusable."""
+    opts = config.extra
+    for key, flag, what in (("styles", "--styles", "STYLE_DIR (one image per style)"),
+                            ("vgg", "--vgg", "vgg_normalised.pth"),
+                            ("decoder", "--decoder", "decoder.pth")):
+        if opts.get(key) is None:
+            raise StyleError(f"{config.dataset} needs {flag} {what}")
+    images = find_style_images(opts["styles"], config.variants)
+    cores = os.cpu_count() or 1
+    return StyleRenderer.prepare(opts["vgg"], opts["decoder"], images,
+                                 alpha=opts.get("alpha", 1.0),
+                                 style_size=opts.get("style_size", DEFAULT_STYLE_SIZE),
+                                 threads=max(1, cores // max(1, config.jobs)))
+
+
 @dataclass
 class StyleRenderer:
     """Renders the style jobs of one clean image with one batched AdaIN call.

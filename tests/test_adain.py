@@ -94,6 +94,25 @@ def test_engine_options_do_not_change_the_result(checkpoints, stylizer, images, 
         assert np.abs(x.astype(int) - y.astype(int)).max() <= 1
 
 
+def test_same_bytes_for_any_thread_count_and_chunk(checkpoints, images):
+    # A build's bytes must not depend on its number of workers (SPEC section 4), and a
+    # worker of a pool of two runs torch with one thread.
+    vgg_path, dec_path, _, _ = checkpoints
+    styles = images[1]
+    # Large enough for oneDNN to split work between threads (64 x 96 is not).
+    content = smooth_image(np.random.default_rng(4), 96, 160)
+    before = torch.get_num_threads()
+    try:
+        outs = []
+        for threads, chunk in ((2, 2), (1, 1), (1, 3)):
+            st = adain.Stylizer.from_files(vgg_path, dec_path, threads=threads, chunk=chunk)
+            feats = [st.style_features(s) for s in styles] if not outs else feats
+            outs.append(np.stack(st.stylize(content, feats)))
+    finally:
+        torch.set_num_threads(before)
+    assert np.array_equal(outs[0], outs[1]) and np.array_equal(outs[0], outs[2])
+
+
 @pytest.mark.parametrize("alpha", [0.0, 0.4])
 def test_alpha_blends_content_and_style_features(checkpoints, stylizer, images, alpha):
     _, _, vgg, dec = checkpoints

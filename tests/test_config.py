@@ -84,7 +84,7 @@ def test_bad_flags_name_the_flag(flags, expected):
 
 
 def test_unknown_preset():
-    with pytest.raises(ConfigError, match="unknown dataset 'kitti'; valid: .*kitti-c, kitti-c-hr, nyudepth2-c"):
+    with pytest.raises(ConfigError, match="unknown dataset 'kitti'; valid: .*kitti-c, kitti-c-hr, kitti-s, nyudepth2-c"):
         resolve("kitti")
 
 

@@ -129,3 +129,75 @@ def test_help_and_kitti_c_build_do_not_import_torch(tmp_path, fixtures_dir):
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "False"
     assert (tmp_path / "out" / "contrast" / "1").is_dir()
+
+
+# ------------------------------------------------------------------ kitti-s build
+
+
+def _build(args):
+    return _run(["build", "kitti-s", "--no-progress"] + list(args))
+
+
+@pytest.fixture()
+def kitti_s_args(fixtures_dir, ckpt):
+    vgg_path, dec_path, _, _ = ckpt
+    return ["--root", fixtures_dir / "kitti_raw", "--split", fixtures_dir / "kitti_split.txt",
+            "--styles", fixtures_dir / "styles", "--vgg", vgg_path, "--decoder", dec_path,
+            "--size", "48x160", "--style-size", "64"]
+
+
+def _tree(out):
+    return {p.relative_to(out).as_posix(): p.read_bytes()
+            for p in sorted(out.rglob("*.png"))}
+
+
+def test_kitti_s_build_layout_pixels_resume_and_workers(tmp_path, fixtures_dir, ckpt, kitti_s_args):
+    _, _, vgg, dec = ckpt
+    chosen = ["sketch", "cartoon", "murals"]
+    out1, out2 = tmp_path / "one", tmp_path / "two"
+    r = _build(kitti_s_args + ["--only-styles", ",".join(chosen), "--jobs", "1", "--out", out1])
+    assert r.exit_code == 0, r.output
+    files = _tree(out1)
+    keys = [f"kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/{f}.png"
+            for f in ("0000000069", "0000000054")]
+    assert set(files) == {f"{v}/{k}" for v in ["clean"] + chosen for k in keys}
+    # Each output is SPEC section 3 applied to the resized clean image.
+    for k, frame in zip(keys, ("0000000069", "0000000054")):
+        clean = load_clean(fixtures_dir / FRAME.replace("0000000069", frame), (48, 160))
+        assert np.array_equal(np.asarray(Image.open(out1 / "clean" / k)), clean)
+        for style in chosen:
+            style_img = np.asarray(Image.open(fixtures_dir / "styles" / f"{style}.png")
+                                   .convert("RGB").resize((64, 64), Image.BILINEAR))
+            ref = reference_stylize(vgg, dec, clean, style_img)
+            got = np.asarray(Image.open(out1 / style / k))
+            assert np.abs(got.astype(int) - ref.astype(int)).max() <= 1
+    rows = (out1 / "manifest.csv").read_text().splitlines()
+    assert len(rows) == 1 + len(files) and all(",," in row for row in rows[1:])  # no level
+    assert _run(["verify", out1]).exit_code == 0
+    # Two workers (one torch thread each) write the same bytes.
+    r = _build(kitti_s_args + ["--only-styles", ",".join(chosen), "--jobs", "2", "--out", out2])
+    assert r.exit_code == 0, r.output
+    assert _tree(out2) == files
+    # A rerun has nothing to do.
+    r = _build(kitti_s_args + ["--only-styles", ",".join(chosen), "--out", out1])
+    assert r.exit_code == 0 and "0 written, 8 skipped" in r.output
+
+
+@pytest.mark.parametrize("flag,value,message", [
+    ("--only-styles", "sketch,comic", "--only-styles: unknown style 'comic'; valid: cartoon"),
+    ("--styles", "EMPTY", "no image for style(s) cartoon, digital_art"),
+    ("--vgg", None, "kitti-s needs --vgg vgg_normalised.pth"),
+    ("--decoder", "VGG", "this is the AdaIN vgg checkpoint, not the decoder one"),
+    ("--alpha", "2", "--alpha: alpha must be between 0 and 1"),
+    ("--styles", "ABSENT", "the style directory does not exist"),
+])
+def test_kitti_s_problems_stop_before_any_work(tmp_path, ckpt, kitti_s_args, flag, value, message):
+    (tmp_path / "empty").mkdir()
+    named = {"EMPTY": tmp_path / "empty", "ABSENT": tmp_path / "absent", "VGG": ckpt[0]}
+    opts = dict(zip(kitti_s_args[::2], kitti_s_args[1::2]))
+    opts[flag] = named.get(value, value)
+    args = [x for k, v in opts.items() if v is not None for x in (k, v)]
+    r = _build(args + ["--out", tmp_path / "out"])
+    assert r.exit_code == 2, r.output
+    assert message in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "out").exists()
