@@ -323,6 +323,12 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     if all(error for *_, error in located):
         raise BuildError(f"{root}: none of the {len(located)} images of {split_path} is there; "
                          f"wrong --root? (first: {located[0][3]})")
+    try:
+        # Before OUT is touched: a renderer may check the user's files (KITTI-S loads and
+        # validates the checkpoints and style images here).
+        renderer = ds.renderer(cfg)
+    except ValueError as exc:
+        raise BuildError(str(exc)) from None
     out = prepare_out(out)
     with manifest.BuildLock(out):
         leaving = manifest.links_leaving(out)
@@ -345,7 +351,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             manifest.write_record(out, record)
         except OSError as exc:
             raise BuildError(_cannot_write(out / manifest.RECORD, exc)) from None
-        ctx = Context(str(out), cfg.size, cfg.seed, ds.renderer(cfg),
+        ctx = Context(str(out), cfg.size, cfg.seed, renderer,
                       single_thread=cfg.jobs > 1 and len(tasks) > 1)
         t0 = time.perf_counter()
         try:

@@ -198,12 +198,19 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--jobs", "-j", metavar="N", help="Worker processes (preset: 2).")
 @click.option("--seed", metavar="S", help="Global seed (preset: 0).")
 @click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
+@click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
+@click.option("--only-styles", metavar="A,B|all", help="kitti-s: comma-separated style names, or 'all'.")
+@click.option("--vgg", metavar="FILE", help="kitti-s: AdaIN encoder checkpoint (vgg_normalised.pth).")
+@click.option("--decoder", metavar="FILE", help="kitti-s: AdaIN decoder checkpoint (decoder.pth).")
+@click.option("--alpha", metavar="A", help="kitti-s: style strength 0..1 (preset: 1).")
+@click.option("--style-size", metavar="N", help="kitti-s: shorter side of the style images (preset: 512).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, **flags):
-    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c) from ROOT into OUT.
+    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s) from ROOT into OUT.
 
-    Writes OUT/clean/<image> and OUT/<corruption>/<level>/<image> as PNG, where <image> is
+    Writes OUT/clean/<image> and OUT/<corruption>/<level>/<image> (kitti-s:
+    OUT/<style>/<image>) as PNG, where <image> is
     the source's path (KITTI: kitti_data/<date>/<drive>/image_02/data/<frame>.png), plus
     OUT/manifest.csv (one row and sha256 per file) and OUT/build.json (config, versions).
     Settings come from configs/DATASET.yaml, then --config FILE, then the flags.
@@ -218,6 +225,8 @@ def build_command(dataset, root, out, config_file, progress, **flags):
       robodepth build kitti-c --root KITTI_RAW --out KITTI_C
       robodepth build nyudepth2-c --root NYU_TEST --out NYU_C --jobs 2
       robodepth build kitti-c --root KITTI_RAW --out /tmp/look --limit 2 --levels 3
+      robodepth build kitti-s --root KITTI_RAW --styles STYLES --vgg vgg_normalised.pth \\
+          --decoder decoder.pth --out KITTI_S
     """
     from .builder import BuildError, build
     from .config import ConfigError, resolve
