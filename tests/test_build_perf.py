@@ -1,0 +1,51 @@
+"""The builder's work layout that its speed depends on (timings are in bench/build.py):
+one decode and resize per source image, small messages to the workers."""
+
+from __future__ import annotations
+
+import pickle
+
+from click.testing import CliRunner
+
+from robodepth_cli import builder, config
+from robodepth_cli.cli import main
+from robodepth_cli.datasets import get_dataset, read_split
+
+from _trees import kitti_tree
+
+FRAMES = [(5, "l", ".png"), (7, "r", ".jpg")]
+
+
+def test_each_source_is_decoded_and_resized_once(tmp_path, monkeypatch):
+    split = kitti_tree(tmp_path / "kitti_raw", FRAMES)
+    calls = []
+    real = builder.load_clean
+
+    def counting(path, size):
+        calls.append((str(path), size))
+        return real(path, size)
+
+    monkeypatch.setattr(builder, "load_clean", counting)
+    res = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(tmp_path / "kitti_raw"),
+                                    "--split", str(split), "--out", str(tmp_path / "out"),
+                                    "--size", "48x96", "--corruptions", "contrast,color_quant",
+                                    "--levels", "1,2", "--jobs", "1", "--no-progress"])
+    assert res.exit_code == 0, res.output
+    assert len(calls) == len(FRAMES)  # not once per output (5 outputs per source here)
+    assert len({path for path, _ in calls}) == len(FRAMES)
+    assert {size for _, size in calls} == {(48, 96)}
+
+
+def test_what_a_worker_receives_per_source_is_small(tmp_path):
+    """A task names its source by path; the image is read in the worker, never pickled."""
+    split = kitti_tree(tmp_path / "kitti_raw", FRAMES)
+    cfg = config.resolve("kitti-c", flags={"split": str(split)})
+    ds = get_dataset(cfg.dataset)
+    located = builder._locate_all(tmp_path / "kitti_raw", read_split(split, ds.split_format))
+    tasks = builder.plan(ds, cfg, located, {})
+    assert len(tasks[0].jobs) == 18 * 5 + 1
+    renderer = pickle.dumps(ds.renderer(cfg))
+    assert len(renderer) < 1024
+    for task in tasks:
+        # An image of even 48 x 96 would take 13.8 kB; 91 job descriptions take far less.
+        assert len(pickle.dumps(task)) < 8 * 1024
