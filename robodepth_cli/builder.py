@@ -37,7 +37,7 @@ from pathlib import Path
 from . import __version__, manifest, splits
 from .config import BuildConfig
 from .datasets import CLEAN, Dataset, Job, Renderer, get_dataset, locate, read_split
-from .imageio import ImageError, load_clean, write_png
+from .imageio import PNG_ENCODER, ImageError, load_clean, write_png
 from .manifest import Row, sha256_bytes
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
@@ -345,6 +345,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             "split": {"path": str(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
                       "images": len(entries)},
             "versions": library_versions(ds), "png_compress_level": PNG_COMPRESS_LEVEL,
+            "png_encoder": PNG_ENCODER,
             "started": _now(), "finished": None, "status": "running",
         }
         try:
