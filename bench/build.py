@@ -16,16 +16,19 @@ corruptions x 5 levels plus the clean image (91 PNGs per source) at 192 x 640:
 NYUDepth2-C: N fixture frames (480 x 640, not resized), 15 corruptions x 4 levels + clean,
 ours only.
 
-Each build runs as a child process; its whole process tree (the build and its pool
-workers) and the PNGs written so far are sampled every 0.1 s: wall time, CPU time (user +
-system, summed over the tree) and peak memory as the largest sum over the tree of RSS (an
-upper bound: shared library pages count once per process) and of PSS (shared pages split
-between the processes that map them). The full-dataset time is extrapolated as the time
-to the first PNG (interpreter, imports, pool start) plus all images at the steady rate,
-measured between 10% and 90% of the subset's images; the subset's wall time scaled
-linearly (start-up counted again for every subset) is printed too. Other processes slow
-the wall times down: the load average is printed, and the steady CPU time per image over
-the 2 cores gives what an idle machine would take.
+Each build runs as a child process. Its whole process tree (the build and its pool
+workers) is sampled every 0.1 s: CPU time (user + system, summed over the tree), the sum
+of RSS over the tree (an upper bound of its memory: shared library pages count once per
+process) and, every 2 s, the sum of PSS (shared pages split between the processes
+that map them); peak memory is the largest sum seen. Progress is read afterwards from the
+modification times of the PNGs, so measuring costs the build almost nothing. The
+full-dataset time is extrapolated as the time to the first PNG (interpreter, imports, pool
+start) plus all images at the steady rate, measured between 10% and 90% of the subset's
+images; the subset's wall time scaled linearly (start-up counted again for every subset)
+is printed too. Other processes on the machine slow the wall times down: the load average
+is printed, and the steady CPU time per image spread over the 2 cores gives what an idle
+machine would take (an estimate: it assumes both cores fully used, which a quiet machine
+reaches within about 10%).
 
 Goals (issue 6, 2-core machine): full KITTI-C at 192 x 640 in <= 6 min and >= 5x the
 alternative; full NYUDepth2-C in <= 8 min; peak memory of a whole build <= 1.5 GB.
@@ -53,7 +56,8 @@ KITTI_FRAMES = FIXTURES / "kitti_raw" / KITTI_DRIVE / "image_02" / "data"
 NYU_FRAMES = FIXTURES / "nyu" / "bedroom"
 
 KITTI_FULL = 697  # Eigen test split
-FIRST_FRAME = f"{0:010d}.png"  # the name kitti_tree gives the first source
+FIRST_FRAME = f"{0:010d}.png"  # the output name of kitti_tree's first source
+NYU_FIRST_FRAME = f"rgb_{0:05d}.png"  # and of nyu_tree's
 NYU_FULL = 654
 KITTI_PER_SOURCE = 18 * 5  # corruption images per source (+1 clean)
 NYU_PER_SOURCE = 15 * 4
@@ -121,38 +125,52 @@ def _proc_table() -> dict[int, tuple[int, float]]:
     return table
 
 
-def _memory(pid: int) -> tuple[int, int]:
-    """(RSS, PSS) in bytes, (0, 0) for a process that has gone."""
-    rss = pss = 0
+_PAGE = os.sysconf("SC_PAGE_SIZE")
+
+
+def _rss(pid: int) -> int:
+    """Resident set size in bytes (0 for a process that has gone); cheap to read."""
+    try:
+        with open(f"/proc/{pid}/statm") as fh:
+            return int(fh.read().split()[1]) * _PAGE
+    except OSError:
+        return 0
+
+
+def _pss(pid: int) -> int:
+    """Proportional set size in bytes (0 for a process that has gone). The kernel walks every
+    mapping for this (a few ms per process), so it is read less often than the RSS."""
     try:
         with open(f"/proc/{pid}/smaps_rollup") as fh:
             for line in fh:
-                if line.startswith("Rss:"):
-                    rss = int(line.split()[1]) * 1024
-                elif line.startswith("Pss:"):
-                    pss = int(line.split()[1]) * 1024
+                if line.startswith("Pss:"):
+                    return int(line.split()[1]) * 1024
     except OSError:
         pass
-    return rss, pss
+    return 0
 
 
-def count_pngs(out: Path) -> int:
-    """Finished PNGs under ``out`` (not the builder's hidden temporary files)."""
-    n = 0
-    for _, _, files in os.walk(out):
-        n += sum(1 for f in files if f.endswith(".png") and not f.startswith("."))
-    return n
+def png_times(out: Path) -> list[float]:
+    """Modification times of the finished PNGs under ``out``, sorted: when each was
+    written (the builder renames a finished temporary file, which keeps its time)."""
+    times = []
+    for dirpath, _, files in os.walk(out):
+        times += [os.stat(os.path.join(dirpath, f)).st_mtime for f in files
+                  if f.endswith(".png") and not f.startswith(".")]
+    return sorted(times)
 
 
 class TreeSampler(threading.Thread):
-    """Samples the process tree under ``root`` and the PNGs written under ``out`` until
-    :meth:`stop`: ``samples`` holds (seconds since start, PNGs, CPU seconds of the tree)."""
+    """Samples the process tree under ``root`` until :meth:`stop`: ``samples`` holds
+    (time.time(), CPU seconds of the tree so far). Kept light (about 1.5 ms per sample) so
+    as not to slow down what it measures: output progress is read afterwards from the
+    files' times, not counted while the build runs."""
 
-    def __init__(self, root: int, out: Path, t0: float, interval: float = 0.1):
+    def __init__(self, root: int, interval: float = 0.1, pss_every: int = 20):
         super().__init__(daemon=True)
-        self.root, self.out, self.t0, self.interval = root, out, t0, interval
+        self.root, self.interval, self.pss_every = root, interval, pss_every
         self.cpu: dict[int, float] = {}  # last CPU seconds seen per process
-        self.samples: list[tuple[float, int, float]] = []
+        self.samples: list[tuple[float, float]] = []
         self.peak_rss = self.peak_pss = 0
         self.peak_procs = 0
         self._halt = threading.Event()
@@ -168,15 +186,13 @@ class TreeSampler(threading.Thread):
             if pid in table and pid not in tree:
                 tree.add(pid)
                 frontier += children.get(pid, [])
-        rss = pss = 0
         for pid in tree:
             self.cpu[pid] = table[pid][1]
-            r, p = _memory(pid)
-            rss, pss = rss + r, pss + p
-        self.peak_rss, self.peak_pss = max(self.peak_rss, rss), max(self.peak_pss, pss)
+        self.peak_rss = max(self.peak_rss, sum(_rss(pid) for pid in tree))
+        if len(self.samples) % self.pss_every == 0:
+            self.peak_pss = max(self.peak_pss, sum(_pss(pid) for pid in tree))
         self.peak_procs = max(self.peak_procs, len(tree))
-        self.samples.append((time.perf_counter() - self.t0, count_pngs(self.out),
-                             sum(self.cpu.values())))
+        self.samples.append((time.time(), sum(self.cpu.values())))
 
     def run(self) -> None:
         while not self._halt.is_set():
@@ -188,13 +204,20 @@ class TreeSampler(threading.Thread):
         self.join()
 
 
-def steady(samples: list[tuple[float, int, float]], total: int) -> tuple[float, float, float]:
-    """(seconds to the first PNG, PNGs per second and CPU seconds per PNG between 10% and
-    90% of the outputs): start-up and the tail where one worker idles are left out."""
-    first = next(t for t, n, _ in samples if n > 0)
-    ta, na, ca = next(s for s in samples if s[1] >= 0.1 * total)
-    tb, nb, cb = next(s for s in samples if s[1] >= 0.9 * total)
-    return first, (nb - na) / (tb - ta), (cb - ca) / (nb - na)
+def steady(times: list[float], samples: list[tuple[float, float]], start: float):
+    """(seconds from ``start`` to the first PNG, PNGs per second and CPU seconds per PNG
+    between the 10% and the 90% marks of the outputs): start-up and the tail where one
+    worker idles are left out. ``times`` are the PNGs' times, ``samples`` the CPU samples."""
+    ia, ib = len(times) // 10, (9 * len(times)) // 10
+    ta, tb = times[ia], times[ib]
+    ts, cpu = zip(*samples)
+
+    def cpu_at(t: float) -> float:
+        import numpy as np
+
+        return float(np.interp(t, ts, cpu))
+
+    return times[0] - start, (ib - ia) / (tb - ta), (cpu_at(tb) - cpu_at(ta)) / (ib - ia)
 
 
 def measure(cmd: list[str], out: Path, total: int, log: Path) -> dict:
@@ -203,19 +226,19 @@ def measure(cmd: list[str], out: Path, total: int, log: Path) -> dict:
     env = {k: v for k, v in os.environ.items() if k not in THREAD_VARS}
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
     with open(log, "wb") as fh:
-        t0 = time.perf_counter()
+        start, t0 = time.time(), time.perf_counter()
         proc = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, env=env)
-        sampler = TreeSampler(proc.pid, out, t0)
+        sampler = TreeSampler(proc.pid)
         sampler.start()
         rc = proc.wait()
         wall = time.perf_counter() - t0
         sampler.stop()
     if rc != 0:
         sys.exit(f"{' '.join(cmd)} failed with exit status {rc}:\n{log.read_text()[-3000:]}")
-    written = count_pngs(out)
-    if written != total:
-        sys.exit(f"{' '.join(cmd)} wrote {written} PNGs, expected {total}")
-    first, rate, cpu_per_png = steady(sampler.samples, total)
+    times = png_times(out)
+    if len(times) != total:
+        sys.exit(f"{' '.join(cmd)} wrote {len(times)} PNGs, expected {total}")
+    first, rate, cpu_per_png = steady(times, sampler.samples, start)
     return {"wall": wall, "cpu": sum(sampler.cpu.values()), "rss": sampler.peak_rss,
             "pss": sampler.peak_pss, "procs": sampler.peak_procs, "first": first, "rate": rate,
             "cpu_per_png": cpu_per_png, "bytes": sum(f.stat().st_size for f in out.rglob("*.png"))}
@@ -376,6 +399,8 @@ def run(base: Path, args) -> int:
                   base / "nyu", m * (NYU_PER_SOURCE + 1), base / "nyu.log")
     print(f"NYUDepth2-C subset at 480 x 640, {WORKERS} workers")
     nyu_full = show("ours (robodepth build)", nyu, m, NYU_FULL, NYU_PER_SOURCE)
+    print(f"  PNG size vs Pillow's default encoder on the same pixels: "
+          f"{100 * png_size_cost(base / 'nyu', NYU_FIRST_FRAME):+.1f}% (one source's {NYU_PER_SOURCE + 1} images)")
 
     goal(f"full KITTI-C <= {GOAL_KITTI_S // 60} min", GOAL_KITTI_S, *ours_full, _minutes)
     if not args.no_alternative:
