@@ -32,9 +32,14 @@ from .imageio import as_rgb
 from .styles import check_alpha
 
 EPS = 1e-5
-# Measured in bench/stylize.py: on 2 cores, decoding more than two 192 x 640 images at once
-# is no faster per image (the activations fall out of cache).
-DEFAULT_CHUNK = 2
+
+
+def default_chunk(threads: int) -> int:
+    """Styles decoded per batch. Measured at 192 x 640 on 2 cores (bench/stylize.py):
+    batches of 1 are as fast as or faster than 2 or 4 per image, with 1 or 2 threads: the
+    convolutions already run near the CPU's peak, and larger activations spill the cache."""
+    return 1
+
 
 # Layouts: one entry per module, in order, so list positions are the published indices.
 # ("conv", in, out, kernel) | ("pad",) | ("relu",) | ("pool",) | ("up",)
@@ -285,16 +290,19 @@ class Stylizer:
     """Batched AdaIN stylisation with one encoder/decoder pair.
 
     ``threads`` sets torch's intra-op thread count (None leaves it). ``chunk`` is how many
-    styles are decoded in one batch. ``channels_last`` runs the convolutions in NHWC, which
-    oneDNN executes much faster on CPU.
+    styles are decoded in one batch (None: :func:`default_chunk`); neither changes the
+    bytes of the result. ``channels_last`` runs the convolutions in NHWC, which oneDNN
+    executes faster on CPU than NCHW.
     """
 
-    def __init__(self, enc: nn.Sequential, dec: nn.Sequential, *, chunk: int = DEFAULT_CHUNK,
+    def __init__(self, enc: nn.Sequential, dec: nn.Sequential, *, chunk: int | None = None,
                  channels_last: bool = True, threads: int | None = None):
-        if chunk < 1:
-            raise ValueError(f"chunk must be >= 1, got {chunk}")
         if threads is not None:
             torch.set_num_threads(int(threads))
+        if chunk is None:
+            chunk = default_chunk(torch.get_num_threads())
+        if chunk < 1:
+            raise ValueError(f"chunk must be >= 1, got {chunk}")
         fmt = torch.channels_last if channels_last else torch.contiguous_format
         self.enc = enc.eval().to(memory_format=fmt)
         self.dec = dec.eval().to(memory_format=fmt)
