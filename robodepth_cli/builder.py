@@ -147,7 +147,8 @@ def run_task(task: Task, ctx: Context) -> list[tuple[str, Row]]:
     h, w = ctx.size
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
-        return Row(job.path(task.key), task.source, job.variant, job.level, ctx.seed, h, w, sha, error)
+        return Row(job.path(task.key), task.source, job.variant, job.level, ctx.seed, h, w, sha, error,
+                   _fingerprint(ctx.renderer, job))
 
     results: list[tuple[str, Row]] = []
     todo: list[Job] = []
@@ -186,6 +187,10 @@ def run_task(task: Task, ctx: Context) -> list[tuple[str, Row]]:
             return results
         results.append(("written", row(job, sha256_bytes(data))))
     return results
+
+
+def _fingerprint(renderer: Renderer, job: Job) -> str:
+    return "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
 
 
 def _load(task: Task, size: tuple[int, int]):
@@ -248,9 +253,11 @@ def prepare_out(out: Path) -> Path:
     return out
 
 
-def plan(ds: Dataset, cfg: BuildConfig, located: list[tuple], done: dict[str, Row]) -> list[Task]:
+def plan(ds: Dataset, cfg: BuildConfig, located: list[tuple], done: dict[str, Row],
+         renderer: Renderer) -> list[Task]:
     """One task per source. ``located`` holds (entry, source relpath, path, error)."""
     jobs = tuple(ds.jobs(cfg.variants, cfg.levels))
+    fingerprints = {job.variant: _fingerprint(renderer, job) for job in jobs}
     tasks = []
     for entry, source, path, error in located:
         expected = []
@@ -258,7 +265,8 @@ def plan(ds: Dataset, cfg: BuildConfig, located: list[tuple], done: dict[str, Ro
             r = done.get(job.path(entry.key))
             # A source that has gone missing does not spoil the outputs already made from it.
             same = (r is not None and not r.error and (r.source == source or bool(error))
-                    and r.seed == cfg.seed and (r.height, r.width) == cfg.size)
+                    and r.seed == cfg.seed and (r.height, r.width) == cfg.size
+                    and r.params == fingerprints[job.variant])
             expected.append(r.sha256 if same else None)
         tasks.append(Task(entry.key, source, path and str(path), error, jobs, tuple(expected)))
     return tasks
@@ -337,7 +345,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             raise BuildError(f"{out / link}: a symlink to {target}, outside {out}; refused (a build "
                              f"writes only inside its output directory)")
         manifest.remove_temporaries(out)
-        tasks = plan(ds, cfg, located, manifest.read_manifest(out))
+        tasks = plan(ds, cfg, located, manifest.read_manifest(out), renderer)
         summary = Summary(total=sum(len(t.jobs) for t in tasks))
         record = {
             "robodepth": __version__, "command": command or [], "dataset": ds.name,

@@ -59,6 +59,10 @@ class Renderer(Protocol):
         """Yield ``(job, image)`` for every job, or ``(job, exception)`` for a job that failed
         on its own; ``clean`` is read-only."""
 
+    def fingerprint(self, variant: str) -> str:
+        """What, besides the seed and the size, decides ``variant``'s pixels ("" if nothing).
+        A manifest row made with another fingerprint is redone."""
+
 
 def _relative_parts(text: str, what: str) -> list[str]:
     """The components of a relative posix path, refusing anything that could leave the root
@@ -176,6 +180,9 @@ class CorruptionRenderer:
                 yield job, corruptions.corrupt(clean, job.variant, job.level, rng)
             except Exception as exc:  # one broken variant must not sink the other outputs
                 yield job, exc
+
+    def fingerprint(self, variant: str) -> str:
+        return ""  # a corruption's output depends only on the seed, the size and the source
 
 
 @dataclass(frozen=True)

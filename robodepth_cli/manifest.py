@@ -48,6 +48,9 @@ class Row:
     width: int
     sha256: str  # of the file's bytes; "" for a failed job
     error: str = ""  # why the job failed; "" when it succeeded
+    # Fingerprint of whatever else decided the pixels (KITTI-S: checkpoints, style image,
+    # alpha, style size); "" when seed and size say it all (the corruptions).
+    params: str = ""
 
 
 FIELDS = tuple(f.name for f in fields(Row))
@@ -65,7 +68,8 @@ def _from_fields(values: list[str]) -> Row:
     d = dict(zip(FIELDS, values))
     row = Row(output=d["output"], source=d["source"], variant=d["variant"],
               level=int(d["level"]) if d["level"] else None, seed=int(d["seed"]),
-              height=int(d["height"]), width=int(d["width"]), sha256=d["sha256"], error=d["error"])
+              height=int(d["height"]), width=int(d["width"]), sha256=d["sha256"], error=d["error"],
+              params=d["params"])
     if not row.output or bool(row.error) == bool(_SHA.fullmatch(row.sha256)):
         raise ValueError("needs either a sha256 or an error")
     return row

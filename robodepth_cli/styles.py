@@ -7,6 +7,7 @@ checks run in every build, and only a KITTI-S build that has images to render lo
 
 from __future__ import annotations
 
+import hashlib
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,6 +17,7 @@ import numpy as np
 from PIL import Image
 
 from .imageio import MIN_SIDE, read_rgb
+from .manifest import sha256_file
 
 # SPEC section 1, in its order; also the output directory names.
 STYLES: tuple[str, ...] = (
@@ -191,6 +193,7 @@ class StyleRenderer:
     alpha: float
     threads: int
     features: dict[str, Any] = field(default_factory=dict)  # style -> adain.StyleFeatures
+    fingerprints: dict[str, str] = field(default_factory=dict)  # style -> digest of its inputs
 
     @classmethod
     def prepare(cls, vgg, decoder, style_images: dict[str, Path], *, alpha: float = 1.0,
@@ -203,7 +206,16 @@ class StyleRenderer:
         stylizer = _stylizer(str(vgg), str(decoder), cores)
         features = {name: stylizer.style_features(load_style(path, style_size))
                     for name, path in style_images.items()}
-        return cls(str(vgg), str(decoder), check_alpha(alpha), threads or cores, features)
+        alpha = check_alpha(alpha)
+        weights = f"{sha256_file(vgg)}:{sha256_file(decoder)}:{alpha!r}:{style_size!r}"
+        fingerprints = {name: hashlib.sha256(f"{weights}:{sha256_file(path)}".encode()).hexdigest()[:16]
+                        for name, path in style_images.items()}
+        return cls(str(vgg), str(decoder), alpha, threads or cores, features, fingerprints)
+
+    def fingerprint(self, variant: str) -> str:
+        """Digest of the checkpoints, the style image, alpha and the style size: a rebuild
+        after any of them changed redoes that style."""
+        return self.fingerprints[variant]
 
     def render(self, clean, key, jobs):
         try:

@@ -183,6 +183,34 @@ def test_kitti_s_build_layout_pixels_resume_and_workers(tmp_path, fixtures_dir, 
     assert r.exit_code == 0 and "0 written, 8 skipped" in r.output
 
 
+def test_kitti_s_rebuild_redoes_a_style_whose_inputs_changed(tmp_path, fixtures_dir, kitti_s_args):
+    """Seed and size do not decide a stylised image: the checkpoints, the style image, alpha
+    and the style size do, and a rebuild after any of them changed must not keep old pixels."""
+    import shutil
+
+    styles = tmp_path / "styles"
+    shutil.copytree(fixtures_dir / "styles", styles)
+    opts = dict(zip(kitti_s_args[::2], kitti_s_args[1::2]))
+    opts["--styles"] = styles
+    base = [x for kv in opts.items() for x in kv] + ["--only-styles", "sketch,murals", "--limit", "1",
+                                                     "--out", tmp_path / "out"]
+    assert _build(base).exit_code == 0
+    first = _tree(tmp_path / "out")
+
+    r = _build(base + ["--alpha", "0.5"])
+    assert r.exit_code == 0 and "2 written, 1 skipped" in r.output, r.output
+    half = _tree(tmp_path / "out")
+    assert [k for k in first if first[k] != half[k]] == [k for k in first if not k.startswith("clean/")]
+
+    r = _build(base + ["--alpha", "0.5"])
+    assert "0 written, 3 skipped" in r.output, r.output
+
+    Image.open(styles / "sketch.png").transpose(Image.FLIP_LEFT_RIGHT).save(styles / "sketch.png")
+    r = _build(base + ["--alpha", "0.5"])
+    assert r.exit_code == 0 and "1 written, 2 skipped" in r.output, r.output
+    assert _run(["verify", tmp_path / "out"]).exit_code == 0
+
+
 @pytest.mark.parametrize("flag,value,message", [
     ("--only-styles", "sketch,comic", "--only-styles: unknown style 'comic'; valid: cartoon"),
     ("--styles", "EMPTY", "no image for style(s) cartoon, digital_art"),
