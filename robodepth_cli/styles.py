@@ -200,8 +200,6 @@ class StyleRenderer:
                 style_size: int | None = DEFAULT_STYLE_SIZE, threads: int = 0) -> "StyleRenderer":
         """Load and check everything. ``threads``: torch threads of each rendering process
         (0: every core); the style statistics are computed here with every core."""
-        from . import adain
-
         cores = os.cpu_count() or 1
         stylizer = _stylizer(str(vgg), str(decoder), cores)
         features = {name: stylizer.style_features(load_style(path, style_size))

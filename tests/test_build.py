@@ -16,7 +16,7 @@ from robodepth_cli.cli import main
 from robodepth_cli.corruptions import NAMES
 from robodepth_cli.manifest import BuildLock
 
-from _trees import expected_paths, kitti_key, kitti_tree, nyu_tree, tree
+from _trees import expected_paths, kitti_key, kitti_tree, tree
 
 CHEAP = ["brightness", "contrast", "pixelate", "gaussian_noise", "color_quant"]
 FRAMES = [(5, "l", ".png"), (7, "r", ".jpg")]
