@@ -42,10 +42,10 @@ def test_what_a_worker_receives_per_source_is_small(tmp_path):
     cfg = config.resolve("kitti-c", flags={"split": str(split)})
     ds = get_dataset(cfg.dataset)
     located = builder._locate_all(tmp_path / "kitti_raw", read_split(split, ds.split_format))
-    tasks = builder.plan(ds, cfg, located, {})
+    renderer = ds.renderer(cfg)
+    tasks = builder.plan(ds, cfg, located, {}, renderer)
     assert len(tasks[0].jobs) == 18 * 5 + 1
-    renderer = pickle.dumps(ds.renderer(cfg))
-    assert len(renderer) < 1024
+    assert len(pickle.dumps(renderer)) < 1024
     for task in tasks:
         # An image of even 48 x 96 would take 13.8 kB; 91 job descriptions take far less.
         assert len(pickle.dumps(task)) < 8 * 1024
