@@ -7,6 +7,7 @@ subclass caught here) and printed as one line, with a non-zero exit and no trace
 
 from __future__ import annotations
 
+import signal
 import sys
 from pathlib import Path
 
@@ -234,6 +235,8 @@ def build_command(dataset, root, out, config_file, progress, **flags):
     from .splits import SplitError
 
     interrupted = "robodepth: interrupted; rerun the same command to resume"
+    # A scheduler's SIGTERM (end of a job's time) stops the build as cleanly as Ctrl-C.
+    previous = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     try:
         cfg = resolve(dataset, config_file, flags)
         summary = build(cfg, root, out, progress=progress, command=sys.argv)
@@ -242,6 +245,8 @@ def build_command(dataset, root, out, config_file, progress, **flags):
     except KeyboardInterrupt:  # before or after the images (the build itself handles its own)
         click.echo(interrupted, err=True)
         sys.exit(130)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     click.echo(f"{cfg.preset}: {summary.text()}", err=True)
     if summary.interrupted:
         click.echo(interrupted, err=True)
@@ -250,6 +255,10 @@ def build_command(dataset, root, out, config_file, progress, **flags):
         raise UserError(f"{summary.fatal}; finished images are kept, rerun to resume")
     if summary.failed:
         sys.exit(1)
+
+
+def _raise_keyboard_interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 @main.command("verify")

@@ -642,11 +642,15 @@ def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference,
     assert (out / "manifest.csv").read_bytes() == reference[1]
 
 
-def test_ctrl_c_stops_cleanly_and_the_rerun_completes(big, reference, tmp_path, processes):
+@pytest.mark.parametrize("sig", [
+    signal.SIGINT,   # what Ctrl-C in a terminal does: the whole group
+    signal.SIGTERM,  # what a batch scheduler sends at the end of a job's time
+], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_stops_cleanly_and_the_rerun_completes(big, reference, tmp_path, processes, sig):
     out = tmp_path / "out"
     proc = processes(*build_args(big, out))
     wait_until_partly_done(proc, out)
-    os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal does: the whole group
+    os.killpg(proc.pid, sig)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "Warning" not in err, err
