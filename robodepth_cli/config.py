@@ -22,11 +22,11 @@ from typing import Any
 
 import yaml
 
-from . import splits
+from . import data_dir, splits
 from .datasets import get_dataset
 from .imageio import parse_size
 
-CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
+CONFIG_DIR = data_dir("configs")
 ALL = "all"
 
 

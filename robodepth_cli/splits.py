@@ -21,10 +21,11 @@ import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
+from . import data_dir
 from .imageio import write_atomic
 from .manifest import sha256_bytes
 
-RECORDS_FILE = Path(__file__).resolve().parents[1] / "splits" / "splits.json"
+RECORDS_FILE = data_dir("splits") / "splits.json"
 TIMEOUT_S = 30.0
 MAX_BYTES = 8 << 20  # the real files are ~50 KB; anything far larger is not a split
 

@@ -105,3 +105,28 @@ def test_cli_config_error_is_one_line_exit_2(tmp_path):
     assert res.output.startswith(f"robodepth: error: {f}: corruptions: unknown corruption 'sleet'; valid: ")
     assert len(res.output.strip().splitlines()) == 1 and "Traceback" not in res.output
     assert not (tmp_path / "o").exists()
+
+
+def test_presets_and_split_records_ship_inside_a_wheel(tmp_path):
+    """`pip install .` (not only the editable `make install`) must find configs/ and splits/."""
+    import subprocess
+    import sys
+    import zipfile
+
+    from conftest import REPO
+
+    import shutil
+
+    # Built from a copy: a build writes build/ and *.egg-info next to its sources.
+    src = tmp_path / "src"
+    for name in ("robodepth_cli", "configs", "splits"):
+        shutil.copytree(REPO / name, src / name, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(REPO / name, src / name)
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
+                    "-q", "-w", str(tmp_path), str(src)], check=True, capture_output=True)
+    (wheel,) = tmp_path.glob("robodepth_cli-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    assert {"robodepth_cli/configs/kitti-c.yaml", "robodepth_cli/configs/kitti-c-hr.yaml",
+            "robodepth_cli/configs/nyudepth2-c.yaml", "robodepth_cli/configs/kitti-s.yaml",
+            "robodepth_cli/splits/splits.json"} <= names
