@@ -38,6 +38,8 @@ def main():
     Build a dataset:
       robodepth build kitti-c --root KITTI_RAW --out KITTI_C
       robodepth verify KITTI_C
+    Score a model on it:
+      robodepth score results.csv --benchmark kitti-c
     """
 
 
