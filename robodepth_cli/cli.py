@@ -107,7 +107,7 @@ def list_command(fmt):
 
         click.echo(json.dumps([
             {"name": c.name, "category": c.category, "deterministic": c.deterministic,
-             "levels": [c.params(lv) for lv in range(1, c.n_levels + 1)]}
+             "levels": [c.params(lv) for lv in range(1, c.n_levels + 1)], "formula": c.doc}
             for c in REGISTRY.values()], indent=2))
     else:
         click.echo(corruption_table(markdown=(fmt == "markdown")))

@@ -49,6 +49,7 @@ def test_list_json_has_parameters_per_level():
     assert by_name["jpeg_compression"]["levels"] == [{"quality": q} for q in (25, 18, 15, 10, 7)]
     assert by_name["shot_noise"]["category"] == "data & processing"
     assert by_name["defocus_blur"]["deterministic"] is True
+    assert "Poisson" in by_name["shot_noise"]["formula"]  # the function's docstring
 
 
 def test_readme_table_comes_from_the_registry():

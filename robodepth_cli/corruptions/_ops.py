@@ -14,11 +14,6 @@ _BORDERS = {
 }
 
 
-def to_float(x: np.ndarray, dtype=np.float64) -> np.ndarray:
-    """``x / 255`` in ``dtype`` (computed in float64, as the benchmark does)."""
-    return (x / 255.0).astype(dtype, copy=False)
-
-
 def to_uint8(v: np.ndarray, scale: float = 255.0) -> np.ndarray:
     """``uint8(floor(clip(v * scale, 0, 255)))``: the benchmark truncates, it does not round."""
     out = np.multiply(v, scale)
