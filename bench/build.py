@@ -76,32 +76,29 @@ THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NU
 
 # --- inputs --------------------------------------------------------------------------------
 
-def kitti_tree(base: Path, n: int) -> tuple[Path, Path]:
-    """A KITTI raw root with ``n`` frames (copies of the two fixture frames; the builder
-    refuses symlinks leading outside the root) and an Eigen-format split listing them."""
-    frames = sorted(KITTI_FRAMES.glob("*.png"))
-    data = base / "kitti_raw" / KITTI_DRIVE / "image_02" / "data"
-    data.mkdir(parents=True)
-    lines = []
+def _copies(frames: list[Path], folder: Path, n: int, name, line, split: Path) -> None:
+    """``n`` copies of ``frames`` (cycled) in ``folder`` named ``name(i)``, and a split file
+    with ``line(i)`` for each. Copies, not symlinks: the builder refuses links leaving the root."""
+    folder.mkdir(parents=True)
     for i in range(n):
-        shutil.copyfile(frames[i % len(frames)], data / f"{i:010d}.png")
-        lines.append(f"{KITTI_DRIVE} {i:010d} l\n")
-    split = base / "kitti_split.txt"
-    split.write_text("".join(lines))
-    return base / "kitti_raw", split
+        shutil.copyfile(frames[i % len(frames)], folder / name(i))
+    split.write_text("".join(line(i) + "\n" for i in range(n)))
+
+
+def kitti_tree(base: Path, n: int) -> tuple[Path, Path]:
+    """A KITTI raw root with ``n`` frames and an Eigen-format split listing them."""
+    _copies(sorted(KITTI_FRAMES.glob("*.png")), base / "kitti_raw" / KITTI_DRIVE / "image_02" / "data",
+            n, lambda i: f"{i:010d}.png", lambda i: f"{KITTI_DRIVE} {i:010d} l", base / "kitti_split.txt")
+    return base / "kitti_raw", base / "kitti_split.txt"
 
 
 def nyu_tree(base: Path, n: int) -> tuple[Path, Path]:
-    frames = sorted(NYU_FRAMES.glob("rgb_*.jpg"))
-    scene = base / "nyu" / "bedroom"
-    scene.mkdir(parents=True)
-    lines = []
-    for i in range(n):
-        shutil.copyfile(frames[i % len(frames)], scene / f"rgb_{i:05d}.jpg")
-        lines.append(f"bedroom/rgb_{i:05d}.jpg bedroom/sync_depth_{i:05d}.png 518.8579\n")
-    split = base / "nyu_split.txt"
-    split.write_text("".join(lines))
-    return base / "nyu", split
+    """An NYU test root with ``n`` frames in one scene and a split listing them."""
+    _copies(sorted(NYU_FRAMES.glob("rgb_*.jpg")), base / "nyu" / "bedroom", n,
+            lambda i: f"rgb_{i:05d}.jpg",
+            lambda i: f"bedroom/rgb_{i:05d}.jpg bedroom/sync_depth_{i:05d}.png 518.8579",
+            base / "nyu_split.txt")
+    return base / "nyu", base / "nyu_split.txt"
 
 
 # --- measuring a process tree --------------------------------------------------------------
