@@ -132,7 +132,22 @@ def _configure_worker(single_thread: bool) -> None:
         # Ctrl-C reaches the whole process group; the main process stops the pool, and a
         # worker interrupted on its own would only print a traceback.
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        _keep_freed_memory()
         _configured = True
+
+
+def _keep_freed_memory() -> None:
+    """Let glibc reuse freed blocks for the next image's large temporaries instead of
+    returning them to the system and faulting fresh pages in again (about 7% of a worker's
+    time here). A no-op where there is no glibc."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(-3, 256 << 20)  # M_MMAP_THRESHOLD: arrays up to 256 MB come from the heap
+        libc.mallopt(-1, 1 << 30)  # M_TRIM_THRESHOLD: keep up to 1 GB of freed heap
+    except (OSError, AttributeError):
+        pass
 
 
 def run_task(task: Task, ctx: Context) -> list[tuple[str, Row]]:
