@@ -46,17 +46,13 @@ def main():
 # --- corruption commands (list, corrupt, preview) ---
 
 def _corruption_names(value: str) -> list[str]:
-    from .corruptions import NAMES, get
+    from .config import ConfigError, choose_names
+    from .corruptions import NAMES
 
-    if value == "all":
-        return list(NAMES)
-    names = [v.strip() for v in value.split(",") if v.strip()]
-    for n in names:
-        try:
-            get(n)
-        except ValueError as exc:
-            raise UserError(str(exc)) from None
-    return names
+    try:
+        return list(choose_names("--corruption", value, NAMES, "corruption"))
+    except ConfigError as exc:
+        raise UserError(str(exc)) from None
 
 
 def _levels(value: str, names: list[str]) -> list[int]:

@@ -114,6 +114,18 @@ def _names(loc: str, v) -> list:
     return v
 
 
+def choose_names(loc: str, v, valid: tuple[str, ...], noun: str) -> tuple[str, ...]:
+    """The names ``v`` selects from ``valid`` (``all``, a list, or comma-separated text),
+    in the given order without repeats; :class:`ConfigError` naming ``loc`` otherwise."""
+    if v == ALL:
+        return valid
+    v = _names(loc, v)
+    for name in v:
+        if name not in valid:
+            raise ConfigError(f"{loc}: unknown {noun} {name!r}; valid: {', '.join(valid)}")
+    return tuple(dict.fromkeys(v))
+
+
 class _Resolver:
     """Applies layers of raw values onto the current configuration, checking each one."""
 
@@ -168,14 +180,7 @@ class _Resolver:
             except ValueError as exc:
                 raise ConfigError(f"{loc}: {exc}") from None
         if key == ds.variant_key:
-            names = ds.variant_names()
-            if v == ALL:
-                return names
-            v = _names(loc, v)
-            for name in v:
-                if name not in names:
-                    raise ConfigError(f"{loc}: unknown {ds.variant_noun} {name!r}; valid: {', '.join(names)}")
-            return tuple(dict.fromkeys(v))
+            return choose_names(loc, v, ds.variant_names(), ds.variant_noun)
         if key == "levels":
             return v if v == ALL else tuple(sorted({_int(loc, lv, 1) for lv in _names(loc, v)}))
         if key == "seed":

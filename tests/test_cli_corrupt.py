@@ -96,6 +96,7 @@ def test_corrupt_matches_library_call_and_seed(tmp_path):
 
 @pytest.mark.parametrize("args,message", [
     (["-c", "fogg", "-l", "1"], "unknown corruption 'fogg'; valid: brightness, dark"),
+    (["-c", ",", "-l", "1"], "--corruption: expected a non-empty list"),
     (["-c", "fog", "-l", "6"], "--level 6 out of range"),
     (["-c", "fog", "-l", "0"], "--level 0 out of range"),
     (["-c", "fog", "-l", "two"], "expected an integer"),
