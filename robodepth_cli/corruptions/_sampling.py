@@ -119,3 +119,11 @@ def gaussian_truncated_cdf(v: np.ndarray, sigma: float) -> np.ndarray:
     t = ndtr((upper[None, :] - v[:, None]) / sigma)
     t[:, -1] = 1.0
     return t
+
+
+def poisson_gaussian_law(rates: np.ndarray, photons: float, sigma: float) -> ValueTable:
+    """Law of ``floor(clip01(clip01(Poisson(rate) / photons) + Normal(0, sigma)) * 255)``
+    for each of the 256 ``rates`` (one per input value): photon noise, then read noise."""
+    pmf = poisson_pmf(rates)
+    u = np.minimum(np.arange(pmf.shape[1]) / float(photons), 1.0)
+    return ValueTable(pmf @ gaussian_truncated_cdf(u, sigma))

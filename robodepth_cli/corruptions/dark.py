@@ -2,7 +2,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ._sampling import N_VALUES, ValueTable, gaussian_truncated_cdf, poisson_pmf
+from ._sampling import N_VALUES, ValueTable, poisson_gaussian_law
 from .registry import WEATHER, register
 
 LEVELS = (0.60, 0.50, 0.40, 0.30, 0.20)
@@ -24,9 +24,7 @@ def output_law(level: int, lo: int, hi: int) -> ValueTable:
         n = ((f - lo / 255.0) / (hi / 255.0 - lo / 255.0)) ** 2 * c
     else:
         n = np.zeros(N_VALUES)
-    pmf = poisson_pmf(n * p)
-    u = np.minimum(np.arange(pmf.shape[1]) / float(p), 1.0)
-    return ValueTable(pmf @ gaussian_truncated_cdf(u, g))
+    return poisson_gaussian_law(n * p, p, g)
 
 
 @register(WEATHER, ("c",), LEVELS)

@@ -2,7 +2,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ._sampling import N_VALUES, ValueTable, gaussian_truncated_cdf, poisson_pmf
+from ._sampling import N_VALUES, ValueTable, poisson_gaussian_law
 from .registry import DATA, register
 
 LEVELS = tuple(round(0.7 * s, 6) for s in (0.08, 0.12, 0.18, 0.26, 0.38))
@@ -13,9 +13,7 @@ _PHOTONS = 25
 def output_law(level: int) -> ValueTable:
     """Law of one output element given its input value ``k``: with
     ``u = clip01(Poisson(k / 255 * 25) / 25)``, ``floor(clip01(u + Normal(0, sigma)) * 255)``."""
-    pmf = poisson_pmf(np.arange(N_VALUES) / 255.0 * _PHOTONS)
-    u = np.minimum(np.arange(pmf.shape[1]) / float(_PHOTONS), 1.0)
-    return ValueTable(pmf @ gaussian_truncated_cdf(u, LEVELS[level - 1]))
+    return poisson_gaussian_law(np.arange(N_VALUES) / 255.0 * _PHOTONS, _PHOTONS, LEVELS[level - 1])
 
 
 @register(DATA, ("sigma",), LEVELS)
