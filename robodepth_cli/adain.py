@@ -30,6 +30,7 @@ from torch import nn
 
 from .imageio import as_rgb
 from .styles import check_alpha
+from .errors import RobodepthError
 
 EPS = 1e-5
 
@@ -66,7 +67,7 @@ DECODER_LAYOUT: tuple[tuple, ...] = tuple(
 ENCODER_LAST = len(ENCODER_LAYOUT) - 1  # 30: deeper layers of vgg_normalised.pth are ignored
 
 
-class CheckpointError(ValueError):
+class CheckpointError(RobodepthError):
     """A checkpoint that cannot be used; the message names the file and the tensor."""
 
 

@@ -39,12 +39,13 @@ from .config import BuildConfig
 from .datasets import CLEAN, Dataset, Job, Renderer, get_dataset, locate, read_split
 from .imageio import PNG_ENCODER, ImageError, load_clean, write_png
 from .manifest import Row, sha256_bytes
+from .errors import RobodepthError
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
 MAX_ERRORS_SHOWN = 10
 
 
-class BuildError(ValueError):
+class BuildError(RobodepthError):
     """A problem that makes the whole build impossible; nothing was written because of it
     (or, for a write error mid-build, everything finished so far is kept)."""
 

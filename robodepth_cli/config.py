@@ -25,12 +25,13 @@ import yaml
 from . import data_dir, splits
 from .datasets import get_dataset
 from .imageio import parse_size
+from .errors import RobodepthError
 
 CONFIG_DIR = data_dir("configs")
 ALL = "all"
 
 
-class ConfigError(ValueError):
+class ConfigError(RobodepthError):
     """A configuration value that cannot be used; the message names its origin and key."""
 
 

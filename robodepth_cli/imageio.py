@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
+from .errors import RobodepthError
 
 MIN_SIDE = 32
 
@@ -22,7 +23,7 @@ def _file_mode() -> int:
 _FILE_MODE = _file_mode()
 
 
-class ImageError(ValueError):
+class ImageError(RobodepthError):
     """An image that cannot be used; the message names the file and the problem."""
 
 

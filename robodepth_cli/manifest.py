@@ -24,6 +24,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from .imageio import write_atomic
+from .errors import RobodepthError
 
 MANIFEST = "manifest.csv"
 RECORD = "build.json"
@@ -33,7 +34,7 @@ _SHA = re.compile(r"[0-9a-f]{64}")
 _TEMP = re.compile(r"^\..+\.part$")  # imageio.write_atomic's temporary names
 
 
-class ManifestError(ValueError):
+class ManifestError(RobodepthError):
     """An output directory whose bookkeeping cannot be used."""
 
 

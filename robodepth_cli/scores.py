@@ -26,11 +26,12 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from .corruptions import CATEGORIES, NAMES, REGISTRY
+from .errors import RobodepthError
 
 CLEAN = "clean"
 
 
-class ScoreError(ValueError):
+class ScoreError(RobodepthError):
     """A results or baseline file that cannot be scored; the message is one line."""
 
 

@@ -24,13 +24,14 @@ from pathlib import Path
 from . import data_dir
 from .imageio import write_atomic
 from .manifest import sha256_bytes
+from .errors import RobodepthError
 
 RECORDS_FILE = data_dir("splits") / "splits.json"
 TIMEOUT_S = 30.0
 MAX_BYTES = 8 << 20  # the real files are ~50 KB; anything far larger is not a split
 
 
-class SplitError(ValueError):
+class SplitError(RobodepthError):
     """A split that cannot be obtained or read; the message says what to do instead."""
 
 

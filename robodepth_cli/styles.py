@@ -18,6 +18,7 @@ from PIL import Image
 
 from .imageio import MIN_SIDE, read_rgb
 from .manifest import sha256_file
+from .errors import RobodepthError
 
 # SPEC section 1, in its order; also the output directory names.
 STYLES: tuple[str, ...] = (
@@ -28,7 +29,7 @@ STYLE_EXTS = (".jpg", ".jpeg", ".png")
 DEFAULT_STYLE_SIZE = 512
 
 
-class StyleError(ValueError):
+class StyleError(RobodepthError):
     """A style directory, style name or style image that cannot be used."""
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from ._jit import njit
 from .registry import WEATHER, register
+from ..errors import RobodepthError
 
 # (a, b): weights of the image and of the frost texture
 LEVELS = ((1.0, 0.4), (0.8, 0.6), (0.7, 0.7), (0.65, 0.7), (0.6, 0.75))
@@ -28,7 +29,7 @@ _INSTALL_HINT = (f"run `make install` (or `pip install --no-deps {DISTRIBUTION}`
                  "frost needs its texture files")
 
 
-class FrostTextureError(RuntimeError):
+class FrostTextureError(RobodepthError):
     """The frost textures cannot be found or read."""
 
 

@@ -1,0 +1,117 @@
+"""``robodepth build`` and ``robodepth verify``: whole datasets and their manifests."""
+
+from __future__ import annotations
+
+import signal
+import sys
+from pathlib import Path
+
+import click
+
+from ..errors import RobodepthError
+
+_LISTED = 20  # paths shown per kind of problem by verify
+
+
+@click.command("build")
+@click.argument("dataset", metavar="DATASET")
+@click.option("--root", required=True, type=click.Path(path_type=Path),
+              help="KITTI raw root (holds 2011_09_26/...) or the NYU Depth V2 test root.")
+@click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
+              help="Output directory; rerunning into it resumes.")
+@click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="Your own YAML config, applied over the DATASET preset.")
+@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test) or a split file.")
+@click.option("--corruptions", metavar="A,B|all", help="Comma-separated corruption names, or 'all'.")
+@click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3), or 'all'.")
+@click.option("--size", metavar="HxW", help="Output size HxW (e.g. 320x1024).")
+@click.option("--jobs", "-j", metavar="N", help="Worker processes (preset: 2).")
+@click.option("--seed", metavar="S", help="Global seed (preset: 0).")
+@click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
+@click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
+@click.option("--only-styles", metavar="A,B|all", help="kitti-s: comma-separated style names, or 'all'.")
+@click.option("--vgg", metavar="FILE", help="kitti-s: AdaIN encoder checkpoint (vgg_normalised.pth).")
+@click.option("--decoder", metavar="FILE", help="kitti-s: AdaIN decoder checkpoint (decoder.pth).")
+@click.option("--alpha", metavar="A", help="kitti-s: style strength 0..1 (preset: 1).")
+@click.option("--style-size", metavar="N", help="kitti-s: shorter side of the style images (preset: 512).")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def build_command(dataset, root, out, config_file, progress, **flags):
+    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s) from ROOT into OUT.
+
+    Writes OUT/clean/<image> and OUT/<corruption>/<level>/<image> (kitti-s:
+    OUT/<style>/<image>) as PNG, where <image> is
+    the source's path (KITTI: kitti_data/<date>/<drive>/image_02/data/<frame>.png), plus
+    OUT/manifest.csv (one row and sha256 per file) and OUT/build.json (config, versions).
+    Settings come from configs/DATASET.yaml, then --config FILE, then the flags.
+
+    Rerunning the same command redoes only missing or changed outputs. Exit status: 0 all
+    done, 1 some images failed (the rest is built; see the summary), 2 refused before any
+    work (bad config, root, split or OUT; another build running there) or stopped by a
+    write error such as a full disk (finished images kept), 130 interrupted (resumable).
+
+    \b
+    Examples:
+      robodepth build kitti-c --root KITTI_RAW --out KITTI_C
+      robodepth build nyudepth2-c --root NYU_TEST --out NYU_C --jobs 2
+      robodepth build kitti-c --root KITTI_RAW --out /tmp/look --limit 2 --levels 3
+      robodepth build kitti-s --root KITTI_RAW --styles STYLES --vgg vgg_normalised.pth \\
+          --decoder decoder.pth --out KITTI_S
+    """
+    from ..builder import build
+    from ..config import resolve
+
+    interrupted = "robodepth: interrupted; rerun the same command to resume"
+    # A scheduler's SIGTERM (end of a job's time) stops the build as cleanly as Ctrl-C.
+    previous = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    try:
+        cfg = resolve(dataset, config_file, flags)
+        summary = build(cfg, root, out, progress=progress, command=sys.argv)
+    except KeyboardInterrupt:  # before or after the images (the build itself handles its own)
+        click.echo(interrupted, err=True)
+        sys.exit(130)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    click.echo(f"{cfg.preset}: {summary.text()}", err=True)
+    if summary.interrupted:
+        click.echo(interrupted, err=True)
+        sys.exit(130)
+    if summary.fatal:
+        raise RobodepthError(f"{summary.fatal}; finished images are kept, rerun to resume")
+    if summary.failed:
+        sys.exit(1)
+
+
+def _raise_keyboard_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+@click.command("verify")
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def verify_command(out, progress):
+    """Re-hash every file in OUT against OUT/manifest.csv.
+
+    Reports files that are missing, changed or extra (not in the manifest), and images the
+    build recorded as failed. Exit status 0 when everything matches, 1 otherwise.
+    """
+    from tqdm import tqdm
+
+    from ..manifest import verify
+
+    with tqdm(unit="file", disable=None if progress else True, file=sys.stderr) as bar:
+        report = verify(out, progress=bar.update)
+    for kind in ("missing", "changed", "extra", "failed"):
+        paths = getattr(report, kind)
+        if paths:
+            click.echo(f"{kind}: {len(paths)}")
+            for p in paths[:_LISTED]:
+                click.echo(f"  {p}")
+            if len(paths) > _LISTED:
+                click.echo(f"  ... and {len(paths) - _LISTED} more")
+    if report.ok:
+        click.echo(f"{out}: {report.checked} files match the manifest")
+    else:
+        click.echo(f"{out}: {report.checked} files checked; the tree does not match its manifest", err=True)
+        sys.exit(1)

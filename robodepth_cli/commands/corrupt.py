@@ -1,0 +1,91 @@
+"""``robodepth list``, ``corrupt`` and ``preview``: the corruptions on single images."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import numpy as np
+
+from ..errors import RobodepthError
+from . import common
+
+
+@click.command("list")
+@click.option("--format", "fmt", type=click.Choice(["text", "markdown", "json"]), default="text",
+              show_default=True, help="Plain table, the README's Markdown table, or JSON.")
+def list_command(fmt):
+    """List the 18 corruptions with their category and per-level parameters."""
+    from ..corruptions import REGISTRY
+    from ..docs import corruption_table
+
+    if fmt == "json":
+        import json
+
+        click.echo(json.dumps([
+            {"name": c.name, "category": c.category, "deterministic": c.deterministic,
+             "levels": [c.params(lv) for lv in range(1, c.n_levels + 1)], "formula": c.doc}
+            for c in REGISTRY.values()], indent=2))
+    else:
+        click.echo(corruption_table(markdown=(fmt == "markdown")))
+
+
+@click.command("corrupt")
+@click.argument("image", type=click.Path(dir_okay=False))
+@click.option("--corruption", "-c", "corruption", required=True, metavar="NAME|all",
+              help="A corruption name (see `robodepth list`), a comma list, or 'all'.")
+@click.option("--level", "-l", default="all", show_default=True, metavar="N|all",
+              help="Level 1..5, a comma list, or 'all'.")
+@click.option("--seed", "-s", default=0, show_default=True, type=int, help="Seed of the random corruptions.")
+@click.option("--size", metavar="HxW", help="First resize the input as a build does (Lanczos), e.g. 192x640.")
+@click.option("--out", "-o", required=True, type=click.Path(),
+              help="Output PNG for one corruption at one level; otherwise a directory receiving NAME/LEVEL.png.")
+def corrupt_command(image, corruption, level, seed, size, out):
+    """Corrupt one image.
+
+    \b
+    robodepth corrupt frame.png -c zoom_blur -l 3 --out zoom3.png
+    robodepth corrupt frame.png -c all -l all --size 192x640 --out corrupted/
+    """
+    from ..corruptions import REGISTRY, corrupt
+    from ..seeding import job_rng
+
+    names = common.corruption_names(corruption)
+    levels = common.levels(level, names)
+    clean = common.load_input(image, size)
+    single = len(names) == 1 and len(levels) == 1 and corruption != "all" and level != "all"
+    out = Path(out)
+    if single and out.is_dir():
+        raise RobodepthError(f"{out}: is a directory; give a .png file name for one corruption at one level")
+    if not single and out.exists() and not out.is_dir():
+        raise RobodepthError(f"{out}: is a file; several outputs need a directory")
+    key = Path(image).name
+    for name in names:
+        for lv in levels:
+            if lv > REGISTRY[name].n_levels:
+                continue
+            img = corrupt(clean, name, lv, job_rng(seed, "image", name, lv, key))
+            common.write_png(out if single else out / name / f"{lv}.png", img)
+    if not single:
+        click.echo(f"wrote {len(names) * len(levels)} images under {out}")
+
+
+@click.command("preview")
+@click.argument("image", type=click.Path(dir_okay=False))
+@click.option("--out", "-o", required=True, type=click.Path(dir_okay=False), help="The contact sheet (PNG).")
+@click.option("--corruption", "-c", "corruption", default="all", show_default=True, metavar="NAME|all",
+              help="Rows: 'all' or a comma list of corruptions.")
+@click.option("--size", metavar="HxW", help="First resize the input (Lanczos), e.g. 192x640.")
+@click.option("--seed", "-s", default=0, show_default=True, type=int)
+@click.option("--thumb-width", default=320, show_default=True, type=click.IntRange(32, 2000),
+              help="Width of each cell in pixels.")
+def preview_command(image, out, corruption, size, seed, thumb_width):
+    """A labelled contact sheet: the clean image, then one row per corruption and one column per level."""
+    from ..preview import contact_sheet
+
+    names = common.corruption_names(corruption)
+    clean = common.load_input(image, size)
+    sheet = contact_sheet(clean, names, range(1, 6), seed=seed, key=Path(image).name,
+                          thumb_width=thumb_width)
+    common.write_png(Path(out), np.asarray(sheet))
+    click.echo(f"wrote {out} ({sheet.width} x {sheet.height})")

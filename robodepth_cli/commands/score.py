@@ -1,0 +1,57 @@
+"""``robodepth score``: mCE, mRR and DEE of a model from its per-corruption results."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import numpy as np
+
+from ..errors import RobodepthError
+from . import common
+
+@click.command("score")
+@click.argument("results", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--benchmark", "-b", required=True, type=click.Choice(["kitti-c", "nyudepth2-c"]),
+              help="Which benchmark the results are on (sets corruptions, levels, baseline).")
+@click.option("--baseline", "baseline_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="Baseline results in the same CSV form (complete), instead of the published one.")
+@click.option("--allow-partial", is_flag=True,
+              help="Score the variants present; missing ones are a warning, not an error.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also write a PNG bar chart of CE per corruption.")
+def score_command(results, benchmark, baseline_file, allow_partial, as_json, plot_path):
+    """Robustness scores of a model from its per-corruption results (DEE, CE and RR as the benchmark defines them).
+
+    RESULTS is a CSV with a header row naming the columns corruption, level, abs_rel, a1
+    (or dee instead of abs_rel and a1), one row per corruption and level, plus a row
+    `clean,0,...`. Prints DEE, CE and RR per corruption, category means, mCE, mRR, mDEE.
+
+    \b
+    Example:
+      robodepth score monovit.csv --benchmark kitti-c --plot ce.png
+    """
+    import json
+
+    from .. import scores as S
+
+    bench = S.get_benchmark(benchmark)
+    res = S.read_results(results, bench)
+    base = None
+    if baseline_file is not None:
+        base = S.baseline_from_results(S.read_results(baseline_file, bench), bench)
+    missing = S.missing_message(res, bench)
+    if missing and not allow_partial:
+        raise RobodepthError(f"{missing} (--allow-partial scores what is there)")
+    if missing:
+        click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
+    result = S.score(res, bench, base, allow_partial=True)
+    if plot_path is not None:
+        from ..plot import ce_chart
+
+        common.write_png(plot_path, np.asarray(ce_chart(result)))
+    if as_json:
+        click.echo(json.dumps(result.to_json(), indent=2))
+    else:
+        click.echo(S.format_table(result), nl=False)

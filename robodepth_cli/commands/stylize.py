@@ -1,0 +1,51 @@
+"""``robodepth stylize``: one image in one AdaIN style, as a KITTI-S build renders it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..errors import RobodepthError
+from . import common
+
+@click.command("stylize")
+@click.argument("image", type=click.Path(dir_okay=False))
+@click.option("--style", required=True, type=click.Path(dir_okay=False), help="The style image.")
+@click.option("--vgg", required=True, type=click.Path(dir_okay=False),
+              help="AdaIN encoder checkpoint (vgg_normalised.pth).")
+@click.option("--decoder", required=True, type=click.Path(dir_okay=False),
+              help="AdaIN decoder checkpoint (decoder.pth).")
+@click.option("--alpha", default=1.0, show_default=True, type=float,
+              help="Style strength, 0..1: 0 decodes the content's own features.")
+@click.option("--style-size", default=512, show_default=True, type=int,
+              help="Resize the style image so its shorter side is N (bilinear); 0 keeps it.")
+@click.option("--size", metavar="HxW", help="First resize the input (Lanczos) as a build does, "
+              "e.g. 192x640; default: keep its size.")
+@click.option("--out", "-o", required=True, type=click.Path(dir_okay=False), help="Output PNG.")
+def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
+    """Stylise one image with AdaIN, as a KITTI-S build does.
+
+    \b
+    robodepth stylize frame.png --style styles/sketch.jpg --vgg vgg_normalised.pth \\
+        --decoder decoder.pth --size 192x640 --out sketch.png
+    """
+    from ..styles import check_alpha, check_style_size, check_weights, load_style
+
+    out = Path(out)
+    if out.suffix.lower() != ".png":
+        raise RobodepthError(f"{out}: the output is written as PNG; give a .png file name")
+    for flag, check, value in (("--alpha", check_alpha, alpha), ("--style-size", check_style_size, style_size)):
+        try:
+            check(value)
+        except ValueError as exc:
+            raise RobodepthError(f"{flag}: {exc}") from None
+    content = common.load_input(image, size)
+    check_weights(vgg, "--vgg")
+    check_weights(decoder, "--decoder")
+    style_img = load_style(style, style_size)
+    from ..adain import Stylizer
+
+    stylizer = Stylizer.from_files(vgg, decoder)
+    result = stylizer.stylize(content, [stylizer.style_features(style_img)], alpha)[0]
+    common.write_png(out, result)

@@ -1,0 +1,21 @@
+"""The one base class of every refusal the package makes.
+
+Anything the user can cause (a bad flag, file, image, checkpoint, split or output
+directory) is raised as a :class:`RobodepthError` subclass whose message is one line
+naming the file or flag and the problem. The command line translates these, and only
+these, into ``robodepth: error: <message>`` with exit status 2, in one place
+(:mod:`robodepth_cli.cli`); any other exception is a bug and keeps its traceback.
+
+It derives from ``ValueError`` so that library callers catching ``ValueError`` keep working.
+"""
+
+from __future__ import annotations
+
+
+class RobodepthError(ValueError):
+    """A problem with the user's input or environment; the message is one line."""
+
+
+def os_reason(exc: OSError) -> str:
+    """The readable part of an ``OSError`` ("No space left on device"), without errno noise."""
+    return exc.strerror or str(exc)
