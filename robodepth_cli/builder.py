@@ -22,6 +22,7 @@ goes on; a write error (disk full, permissions) stops the build.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import os
 import platform
@@ -29,7 +30,6 @@ import signal
 import sys
 import tempfile
 import time
-import warnings
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -40,6 +40,7 @@ from .datasets import CLEAN, Dataset, Job, Renderer, get_dataset, locate, read_s
 from .imageio import PNG_ENCODER, ImageError, load_clean, write_png
 from .manifest import Row, sha256_bytes
 from .errors import RobodepthError
+from .executors import Executor, LocalExecutor
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
 MAX_ERRORS_SHOWN = 10
@@ -311,21 +312,6 @@ def library_versions(ds: Dataset) -> dict[str, str]:
     return versions
 
 
-def _results(tasks: list[Task], ctx: Context, n_jobs: int):
-    """Task results as they finish: in-process for one worker, else a joblib (loky) pool."""
-    if n_jobs == 1:
-        for t in tasks:
-            yield run_task(t, ctx)
-        return
-    from joblib import Parallel, delayed
-
-    with Parallel(n_jobs=n_jobs, return_as="generator_unordered") as pool, warnings.catch_warnings():
-        # Stopping early on a write error cancels the queued tasks on purpose; joblib's
-        # warning about it would only bury the real message.
-        warnings.filterwarnings("ignore", r".*tasks which were still being processed", UserWarning)
-        yield from pool(delayed(run_task)(t, ctx) for t in tasks)
-
-
 def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
@@ -363,6 +349,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         manifest.remove_temporaries(out)
         tasks = plan(ds, cfg, located, manifest.read_manifest(out), renderer)
         summary = Summary(total=sum(len(t.jobs) for t in tasks))
+        executor = LocalExecutor(min(cfg.jobs, len(tasks)))
         record = {
             "robodepth": __version__, "command": command or [], "dataset": ds.name,
             "config": cfg.as_dict(), "seed": cfg.seed, "root": str(root), "out": str(out.resolve()),
@@ -370,6 +357,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
                       "images": len(entries)},
             "versions": library_versions(ds), "png_compress_level": PNG_COMPRESS_LEVEL,
             "png_encoder": PNG_ENCODER,
+            "executor": executor.describe(),
             "started": _now(), "finished": None, "status": "running",
         }
         try:
@@ -380,7 +368,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
                       single_thread=cfg.jobs > 1 and len(tasks) > 1)
         t0 = time.perf_counter()
         try:
-            _run(tasks, ctx, min(cfg.jobs, len(tasks)), out, summary, progress)
+            _run(tasks, ctx, executor, out, summary, progress)
         except KeyboardInterrupt:
             summary.interrupted = True
         summary.seconds = round(time.perf_counter() - t0, 3)
@@ -401,7 +389,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     return summary
 
 
-def _run(tasks: list[Task], ctx: Context, n_jobs: int, out: Path, summary: Summary,
+def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary: Summary,
          progress: bool) -> None:
     from tqdm import tqdm
 
@@ -413,7 +401,7 @@ def _run(tasks: list[Task], ctx: Context, n_jobs: int, out: Path, summary: Summa
     bar = tqdm(total=summary.total, unit="img", disable=None if progress else True,
                file=sys.stderr, dynamic_ncols=True, smoothing=0.05)
     with bar, writer:
-        for results in _results(tasks, ctx, n_jobs):
+        for results in executor.map_unordered(functools.partial(run_task, ctx=ctx), tasks):
             try:
                 writer.append([r for status, r in results if status != "skipped"])
             except OSError as exc:  # these images exist but are not recorded: a rerun redoes them

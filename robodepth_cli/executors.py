@@ -1,0 +1,51 @@
+"""Where a build's tasks run: the seam between planning a build and executing it.
+
+An executor takes a picklable function and a list of tasks and yields each task's result
+as soon as it is done, in any order. The builder (the only caller) writes the manifest and
+the build record from those results in its own process, so an executor never touches the
+bookkeeping files; it only has to run ``fn(task)`` somewhere that sees the same root and
+output directory.
+
+:class:`LocalExecutor` is the default: in-process for one worker, else a joblib (loky)
+process pool. A cluster backend implements the same two members.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any, Callable, Iterator, Protocol, Sequence
+
+
+class Executor(Protocol):
+    workers: int  # how many tasks run at once
+
+    def map_unordered(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[Any]:
+        """``fn(task)`` for every task, yielded as each finishes. Closing the iterator early
+        (a write error, Ctrl-C) cancels what has not started."""
+
+    def describe(self) -> dict:
+        """What the build record keeps about where the build ran."""
+
+
+class LocalExecutor:
+    """``workers`` processes on this machine (1: no pool at all, everything in-process)."""
+
+    def __init__(self, workers: int):
+        self.workers = max(1, int(workers))
+
+    def map_unordered(self, fn, tasks):
+        if self.workers == 1:
+            for t in tasks:
+                yield fn(t)
+            return
+        from joblib import Parallel, delayed
+
+        with Parallel(n_jobs=self.workers, return_as="generator_unordered") as pool, \
+                warnings.catch_warnings():
+            # Stopping early on a write error cancels the queued tasks on purpose; joblib's
+            # warning about it would only bury the real message.
+            warnings.filterwarnings("ignore", r".*tasks which were still being processed", UserWarning)
+            yield from pool(delayed(fn)(t) for t in tasks)
+
+    def describe(self) -> dict:
+        return {"backend": "local", "workers": self.workers}
