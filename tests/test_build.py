@@ -363,3 +363,19 @@ def test_kitti_c_build_never_imports_torch(kitti, tmp_path):
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "False"
     assert len(tree(tmp_path / "out")) == 4
+
+
+def test_record_lists_the_built_entries_in_split_order(tmp_path):
+    """build.json names the split entries built (after --limit), in the split's order, so a
+    reader of OUT can pair outputs with the split without re-reading it."""
+    import json
+
+    root = tmp_path / "kitti_raw"
+    split = kitti_tree(root, [(9, "l", ".png"), (3, "r", ".png"), (5, "l", ".png")])
+    out = tmp_path / "out"
+    res = build_kitti(root, split, out, "--size", "48x96", "--corruptions", "contrast", "--levels", "1",
+                      "--jobs", "1", "--limit", "2")
+    assert res.exit_code == 0, res.output
+    record = json.loads((out / "build.json").read_text())
+    assert record["split"]["keys"] == [kitti_key(9, "l"), kitti_key(3, "r")]
+    assert record["split"]["images"] == 2

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from robodepth_cli import builder, config
 from robodepth_cli.cli import main
-from robodepth_cli.datasets import get_dataset, read_split
+from robodepth_cli.datasets import get_dataset
 
 from _trees import kitti_tree
 
@@ -41,9 +41,9 @@ def test_what_a_worker_receives_per_source_is_small(tmp_path):
     split = kitti_tree(tmp_path / "kitti_raw", FRAMES)
     cfg = config.resolve("kitti-c", flags={"split": str(split)})
     ds = get_dataset(cfg.dataset)
-    located = builder._locate_all(tmp_path / "kitti_raw", read_split(split, ds.split_format))
+    sources = builder.find_sources((tmp_path / "kitti_raw").resolve(), split, ds)
     renderer = ds.renderer(cfg)
-    tasks = builder.plan(ds, cfg, located, {}, renderer)
+    tasks = builder.plan(ds, cfg, sources, {}, renderer)
     assert len(tasks[0].jobs) == 18 * 5 + 1
     assert len(pickle.dumps(renderer)) < 1024
     for task in tasks:
