@@ -9,8 +9,10 @@ set it, the key, and the valid choices, before any work starts.
 Keys: ``dataset`` (the dataset definition, e.g. ``kitti-c``), ``split`` (a standard split
 name of ``splits/splits.json``, or a split file; relative paths in a YAML file are relative
 to that file), ``size`` (``HxW`` or ``[H, W]``), ``corruptions`` (list of names, or
-``all``), ``levels`` (list, or ``all``), ``seed`` (integer >= 0), ``jobs`` (worker
-processes, >= 1), ``limit`` (first N source images, or null for all).
+``all``: the dataset's own corruptions), ``levels`` (list, or ``all``: the dataset's own
+levels), ``seed`` (integer >= 0), ``jobs`` (worker processes, >= 1), ``limit`` (first N
+source images, or null for all). A corruption or level the dataset does not have (fog or
+level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
 from __future__ import annotations
@@ -115,16 +117,37 @@ def _names(loc: str, v) -> list:
     return v
 
 
-def choose_names(loc: str, v, valid: tuple[str, ...], noun: str) -> tuple[str, ...]:
+def choose_names(loc: str, v, valid: tuple[str, ...], noun: str, *, owner: str = "",
+                 known: tuple[str, ...] = ()) -> tuple[str, ...]:
     """The names ``v`` selects from ``valid`` (``all``, a list, or comma-separated text),
-    in the given order without repeats; :class:`ConfigError` naming ``loc`` otherwise."""
+    in the given order without repeats; :class:`ConfigError` naming ``loc`` otherwise.
+    A name in ``known`` but not in ``valid`` is refused as one that ``owner`` lacks."""
     if v == ALL:
         return valid
     v = _names(loc, v)
     for name in v:
-        if name not in valid:
-            raise ConfigError(f"{loc}: unknown {noun} {name!r}; valid: {', '.join(valid)}")
+        if name in valid:
+            continue
+        if name in known:
+            raise ConfigError(f"{loc}: {owner} has no {noun} {name!r}; valid: {', '.join(valid)}")
+        raise ConfigError(f"{loc}: unknown {noun} {name!r}; valid: {', '.join(valid)}")
     return tuple(dict.fromkeys(v))
+
+
+def choose_levels(loc: str, v, valid: tuple[int, ...] | None, *, owner: str = "") -> tuple[int, ...]:
+    """The levels ``v`` selects (``all``, an integer, a list, or comma-separated text),
+    sorted without repeats. ``all`` means ``valid``; any other level outside ``valid`` is
+    refused naming ``owner`` (``valid`` None: any level >= 1). :class:`ConfigError` naming
+    ``loc`` otherwise."""
+    if v == ALL:
+        return tuple(valid or ())
+    chosen = tuple(sorted({_int(loc, lv, 1) for lv in _names(loc, v)}))
+    for lv in chosen if valid is not None else ():
+        if lv not in valid:
+            of = f" for {owner}" if owner else ""
+            raise ConfigError(f"{loc}: level {lv} does not exist{of}; valid levels: "
+                              f"{valid[0]}..{valid[-1]}")
+    return chosen
 
 
 class _Resolver:
@@ -181,9 +204,11 @@ class _Resolver:
             except ValueError as exc:
                 raise ConfigError(f"{loc}: {exc}") from None
         if key == ds.variant_key:
-            return choose_names(loc, v, ds.variant_names(), ds.variant_noun)
+            return choose_names(loc, v, ds.variant_names(), ds.variant_noun, owner=ds.name,
+                                known=ds.known_variant_names())
         if key == "levels":
-            return v if v == ALL else tuple(sorted({_int(loc, lv, 1) for lv in _names(loc, v)}))
+            # A dataset without levels accepts the key and ignores it.
+            return choose_levels(loc, v, ds.levels() if ds.leveled else None, owner=ds.name)
         if key == "seed":
             return _int(loc, v, 0)
         if key == "jobs":
@@ -215,19 +240,7 @@ class _Resolver:
             raise ConfigError(f"preset {self.preset!r}: missing keys {', '.join(missing)}")
         ds = self.dataset
         variants = self.values[ds.variant_key]
-        levels = self.values.get("levels", ALL)
-        if ds.leveled:
-            top = min(ds.n_levels(v) for v in variants)
-            if levels == ALL:
-                levels = tuple(range(1, top + 1))
-            for lv in levels:
-                if lv > top:
-                    loc = _loc(self.origin.get("levels", self.preset), "levels")
-                    worst = next(v for v in variants if ds.n_levels(v) < lv)
-                    raise ConfigError(f"{loc}: level {lv} does not exist for {worst}; "
-                                      f"valid levels: 1..{ds.n_levels(worst)}")
-        else:
-            levels = ()
+        levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values["split"],
                            size=self.values["size"], variants=tuple(variants), levels=tuple(levels),

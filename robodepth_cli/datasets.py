@@ -1,5 +1,5 @@
 """What each dataset is: its split format, where its source images live, how its outputs are
-named, which variants it has and how they are rendered (SPEC sections 1 and 4).
+named, which variants and levels it has and how they are rendered.
 
 A split entry becomes an :class:`Entry` with a *key*: the dataset-relative path of the
 image with the extension ``.png`` (``kitti_data/<date>/<drive>/image_02/data/<frame>.png``
@@ -18,10 +18,9 @@ from typing import Iterator, Protocol, Sequence
 
 import numpy as np
 
+from .benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS
 from .imageio import ImageError
 from .splits import SplitError
-
-CLEAN = "clean"
 SOURCE_EXTS = (".png", ".jpg", ".jpeg")  # tried in this order when a split names no extension
 KITTI_PREFIX = "kitti_data"
 KITTI_SIDES = {"l": "image_02", "r": "image_03"}
@@ -165,7 +164,7 @@ def locate(root: Path, entry: Entry) -> tuple[str, Path]:
 
 
 class CorruptionRenderer:
-    """Applies SPEC section 2 corruptions, each job with its own generator (SPEC section 4)."""
+    """Applies the corruptions, each job with its own generator (see :mod:`.seeding`)."""
 
     def __init__(self, dataset: str, seed: int):
         self.dataset = dataset
@@ -195,16 +194,21 @@ class Dataset:
     variant_key: str = "corruptions"  # the config key and flag that select the variants
     leveled: bool = True
     variant_noun: str = "corruption"  # in messages: "unknown corruption 'x'"
+    corruptions: tuple[str, ...] = CORRUPTIONS  # this dataset's own, in benchmark order
+    n_levels: int = N_LEVELS  # levels 1..n_levels
 
     def variant_names(self) -> tuple[str, ...]:
-        from .corruptions import NAMES
+        """The variants this dataset has; ``all`` in a configuration means these."""
+        return self.corruptions
 
-        return NAMES
+    def known_variant_names(self) -> tuple[str, ...]:
+        """Every variant name of this kind, including those this dataset does not have (a
+        message then says the dataset lacks it rather than that the name is unknown)."""
+        return CORRUPTIONS
 
-    def n_levels(self, variant: str) -> int:
-        from .corruptions import get
-
-        return get(variant).n_levels
+    def levels(self) -> tuple[int, ...]:
+        """The levels this dataset has (none for a dataset without levels)."""
+        return tuple(range(1, self.n_levels + 1)) if self.leveled else ()
 
     def jobs(self, variants: Sequence[str], levels: Sequence[int]) -> list[Job]:
         """Every output of one source: clean first, then variants x levels in the given order."""
@@ -233,8 +237,8 @@ class Dataset:
 
 @dataclass(frozen=True)
 class StyleDataset(Dataset):
-    """KITTI-S (SPEC section 3): one AdaIN-stylised output per style, no levels. The style
-    logic lives in :mod:`robodepth_cli.styles`; torch is loaded only by its renderer."""
+    """KITTI-S: one AdaIN-stylised output per style, no levels. The style logic lives in
+    :mod:`robodepth_cli.styles`; torch is loaded only by its renderer."""
 
     variant_key: str = "only_styles"
     leveled: bool = False
@@ -244,6 +248,9 @@ class StyleDataset(Dataset):
         from .styles import STYLES
 
         return STYLES
+
+    def known_variant_names(self) -> tuple[str, ...]:
+        return self.variant_names()
 
     def options(self) -> tuple[str, ...]:
         from .styles import OPTIONS
@@ -264,9 +271,15 @@ class StyleDataset(Dataset):
         return super().libraries() + ("torch",)
 
 
+def _benchmark_dataset(name: str, split_format: str) -> Dataset:
+    """The dataset of corruption benchmark ``name``: its corruptions and levels."""
+    b = BENCHMARKS[name]
+    return Dataset(name, split_format, corruptions=b.corruptions, n_levels=b.n_levels)
+
+
 DATASETS: dict[str, Dataset] = {
-    "kitti-c": Dataset("kitti-c", "eigen"),
-    "nyudepth2-c": Dataset("nyudepth2-c", "nyu"),
+    "kitti-c": _benchmark_dataset("kitti-c", "eigen"),
+    "nyudepth2-c": _benchmark_dataset("nyudepth2-c", "nyu"),
     "kitti-s": StyleDataset("kitti-s", "eigen"),
 }
 

@@ -7,20 +7,20 @@ import numpy as np
 from .corruptions import REGISTRY
 
 
-def _fmt(v) -> str:
+def _param_text(v) -> str:
     if isinstance(v, (tuple, list)) and len(v) > 3:
         # A long factor set, e.g. zoom_blur's: first..last, step, count.
         step = v[1] - v[0]
-        return f"{_fmt(v[0])}..{_fmt(v[-1])} step {_fmt(step)} ({len(v)})"
+        return f"{_param_text(v[0])}..{_param_text(v[-1])} step {_param_text(step)} ({len(v)})"
     if isinstance(v, (tuple, list)):
-        return "(" + ", ".join(_fmt(u) for u in v) + ")"
+        return "(" + ", ".join(_param_text(u) for u in v) + ")"
     if isinstance(v, (float, np.floating)):
         return f"{float(v):.4g}"
     return str(v)
 
 
 def _level_text(c, level: int) -> str:
-    return ", ".join(_fmt(v) for v in c.params(level).values())
+    return ", ".join(_param_text(v) for v in c.params(level).values())
 
 
 def corruption_table(markdown: bool = False) -> str:

@@ -1,4 +1,4 @@
-"""The benchmark's robustness scores (SPEC section 5): DEE, CE, mCE, RR, mRR, mDEE.
+"""The benchmark's robustness scores: DEE, CE, mCE, RR, mRR, mDEE.
 
 Everything here is pure: parse a results CSV into :class:`Results`, then :func:`score` it
 against a :class:`Baseline` into a :class:`Scores` record that renders as a table or as
@@ -25,10 +25,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from .corruptions import CATEGORIES, NAMES, REGISTRY
+from .benchmarks import (BENCHMARKS, CATEGORIES, CATEGORY, CLEAN, CORRUPTIONS, Baseline,  # noqa: F401
+                         Benchmark, get_benchmark)
 from .errors import RobodepthError
-
-CLEAN = "clean"
 
 
 class ScoreError(RobodepthError):
@@ -38,7 +37,7 @@ class ScoreError(RobodepthError):
 # --------------------------------------------------------------------------- formulas
 
 def dee(abs_rel: float, a1: float) -> float:
-    """Depth estimation error ``(abs_rel - a1 + 1) / 2`` (SPEC section 5)."""
+    """Depth estimation error ``(abs_rel - a1 + 1) / 2``."""
     return (abs_rel - a1 + 1.0) / 2.0
 
 
@@ -54,7 +53,7 @@ def corruption_error(level_dees: Iterable[float], baseline_dee: float) -> float:
     """CE in percent: ``100 * mean_l DEE_l / baseline_dee``.
 
     ``baseline_dee`` is the baseline's level-averaged DEE for the same corruption; with all
-    levels present this equals SPEC's ``sum_l DEE_l / sum_l DEE^base_l``.
+    levels present this equals the benchmark's ``sum_l DEE_l / sum_l DEE^base_l``.
     """
     return 100.0 * mean(level_dees) / baseline_dee
 
@@ -62,56 +61,6 @@ def corruption_error(level_dees: Iterable[float], baseline_dee: float) -> float:
 def resilience_rate(level_dees: Iterable[float], clean_dee: float) -> float:
     """RR in percent: ``100 * sum_l (1 - DEE_l) / (L * (1 - clean_dee))``, L = number of levels."""
     return 100.0 * mean(1.0 - d for d in level_dees) / (1.0 - clean_dee)
-
-
-# --------------------------------------------------------------------------- benchmarks
-
-@dataclass(frozen=True)
-class Baseline:
-    """A reference model: its clean DEE and its level-averaged DEE per corruption."""
-
-    name: str
-    clean: float
-    dee: Mapping[str, float]
-
-
-@dataclass(frozen=True)
-class Benchmark:
-    name: str
-    corruptions: tuple[str, ...]  # SPEC order
-    n_levels: int
-    baseline: Baseline
-
-    @property
-    def levels(self) -> range:
-        return range(1, self.n_levels + 1)
-
-
-def _baseline(name: str, clean: float, corruptions: tuple[str, ...], dees: str) -> Baseline:
-    values = [float(v) for v in dees.split()]
-    assert len(values) == len(corruptions)
-    return Baseline(name, clean, dict(zip(corruptions, values)))
-
-
-_NYU = tuple(n for n in NAMES if n not in ("fog", "frost", "snow"))
-
-# SPEC section 5: the published baselines, level-averaged DEE in SPEC order.
-BENCHMARKS: dict[str, Benchmark] = {
-    "kitti-c": Benchmark("kitti-c", NAMES, 5, _baseline(
-        "MonoDepth2 R18, 640x192", 0.119, NAMES,
-        ".130 .280 .155 .277 .511 .187 .244 .242 .216 .201 .129 .193 .384 .389 .340 .388 "
-        ".145 .196")),
-    "nyudepth2-c": Benchmark("nyudepth2-c", _NYU, 4, _baseline(
-        "AdaBins EfficientNet-B5", 0.112, _NYU,
-        ".132 .194 .212 .235 .206 .184 .384 .153 .151 .390 .374 .294 .380 .124 .154")),
-}
-
-
-def get_benchmark(name: str) -> Benchmark:
-    try:
-        return BENCHMARKS[name]
-    except KeyError:
-        raise ValueError(f"unknown benchmark {name!r}; valid: {', '.join(BENCHMARKS)}") from None
 
 
 # --------------------------------------------------------------------------- parsing
@@ -125,7 +74,7 @@ class Results:
     dee: dict[str, dict[int, float]] = field(default_factory=dict)  # name -> level -> DEE
 
     def missing(self, benchmark: Benchmark) -> list[tuple[str, int]]:
-        """The (corruption, level) variants of ``benchmark`` with no row, in SPEC order."""
+        """The (corruption, level) variants of ``benchmark`` with no row, in benchmark order."""
         return [(n, lv) for n in benchmark.corruptions for lv in benchmark.levels
                 if lv not in self.dee.get(n, {})]
 
@@ -231,7 +180,7 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
                 if level != 0:
                     raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
             elif name not in benchmark.corruptions:
-                if name in REGISTRY:
+                if name in CATEGORY:
                     raise ScoreError(f"{where}: {name} is not a corruption of {benchmark.name}")
                 raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
                                  f"valid: clean, {', '.join(benchmark.corruptions)}")
@@ -393,11 +342,11 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
         levels = results.dee.get(name, {})
         if levels:
             d = levels.values()
-            rows.append(CorruptionScore(name, REGISTRY[name].category, dict(levels), mean(d),
+            rows.append(CorruptionScore(name, CATEGORY[name], dict(levels), mean(d),
                                         corruption_error(d, baseline.dee[name]),
                                         resilience_rate(d, results.clean)))
         else:
-            rows.append(CorruptionScore(name, REGISTRY[name].category, {}, None, None, None))
+            rows.append(CorruptionScore(name, CATEGORY[name], {}, None, None, None))
     categories = tuple(_group(cat, [r for r in rows if r.category == cat]) for cat in CATEGORIES)
     return Scores(benchmark.name, benchmark.n_levels, results.source, baseline, results.clean, tuple(rows),
                   categories, _group("overall", rows), tuple(missing))
@@ -405,7 +354,7 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
 
 # --------------------------------------------------------------------------- table
 
-def _fmt(value: float | None, spec: str, width: int) -> str:
+def _cell(value: float | None, spec: str, width: int) -> str:
     return f"{'n/a' if value is None else format(value, spec):>{width}}"
 
 
@@ -419,7 +368,7 @@ def _partial_note(c: CorruptionScore, s: Scores) -> str:
 
 def format_table(s: Scores) -> str:
     """A plain-text table: per corruption DEE, CE, RR; category means; mDEE, mCE, mRR."""
-    w = max(len(n) for n in (*NAMES, *CATEGORIES)) + 2
+    w = max(len(n) for n in (*CORRUPTIONS, *CATEGORIES)) + 2
     head = f"{'':<{w}}{'DEE':>8}{'CE %':>9}{'RR %':>9}"
     lines = [f"{s.benchmark}: {s.source}",
              f"baseline: {s.baseline.name} (clean DEE {s.baseline.clean:.3f})",
@@ -428,13 +377,13 @@ def format_table(s: Scores) -> str:
         lines.append(cat)
         for c in s.corruptions:
             if c.category == cat:
-                lines.append(f"  {c.name:<{w - 2}}{_fmt(c.dee, '.3f', 8)}"
-                             f"{_fmt(c.ce, '.2f', 9)}{_fmt(c.rr, '.2f', 9)}{_partial_note(c, s)}")
-        lines += [f"  {'mean':<{w - 2}}{_fmt(group.dee, '.3f', 8)}"
-                  f"{_fmt(group.ce, '.2f', 9)}{_fmt(group.rr, '.2f', 9)}", ""]
+                lines.append(f"  {c.name:<{w - 2}}{_cell(c.dee, '.3f', 8)}"
+                             f"{_cell(c.ce, '.2f', 9)}{_cell(c.rr, '.2f', 9)}{_partial_note(c, s)}")
+        lines += [f"  {'mean':<{w - 2}}{_cell(group.dee, '.3f', 8)}"
+                  f"{_cell(group.ce, '.2f', 9)}{_cell(group.rr, '.2f', 9)}", ""]
     o = s.overall
-    lines.append(f"mCE {_fmt(o.ce, '.2f', 0)}   mRR {_fmt(o.rr, '.2f', 0)}   "
-                 f"mDEE {_fmt(o.dee, '.3f', 0)}")
+    lines.append(f"mCE {_cell(o.ce, '.2f', 0)}   mRR {_cell(o.rr, '.2f', 0)}   "
+                 f"mDEE {_cell(o.dee, '.3f', 0)}")
     if s.missing:
         lines.append(f"partial: {len(s.missing)} variants missing, scores average the "
                      f"{o.n} corruptions present")

@@ -97,8 +97,8 @@ def test_corrupt_matches_library_call_and_seed(tmp_path):
 @pytest.mark.parametrize("args,message", [
     (["-c", "fogg", "-l", "1"], "unknown corruption 'fogg'; valid: brightness, dark"),
     (["-c", ",", "-l", "1"], "--corruption: expected a non-empty list"),
-    (["-c", "fog", "-l", "6"], "--level 6 out of range"),
-    (["-c", "fog", "-l", "0"], "--level 0 out of range"),
+    (["-c", "fog", "-l", "6"], "--level: level 6 does not exist; valid levels: 1..5"),
+    (["-c", "fog", "-l", "0"], "--level: expected an integer >= 1, got 0"),
     (["-c", "fog", "-l", "two"], "expected an integer"),
     (["-c", "contrast", "-l", "1", "--size", "12x40"], "at least 32"),
 ])

@@ -51,7 +51,7 @@ def test_user_file_over_preset_and_flags_over_file(tmp_path):
     ("corruptions: [fog, fgo]\n", ": corruptions: unknown corruption 'fgo'; valid: brightness, dark, fog,"),
     ("corruptions: []\n", ": corruptions: expected a non-empty list or 'all', got []"),
     ("corruptions: brightness\nlevels: [0, 1]\n", ": levels: expected an integer >= 1, got 0"),
-    ("corruptions: brightness\nlevels: [1, 6]\n", ": levels: level 6 does not exist for brightness; valid levels: 1..5"),
+    ("corruptions: brightness\nlevels: [1, 6]\n", ": levels: level 6 does not exist for kitti-c; valid levels: 1..5"),
     ("size: 192\n", ": size: expected HxW such as 192x640, or [H, W], got 192"),
     ("size: 16x640\n", ": size: size '16x640': both sides must be at least 32"),
     ("split: nyu_test\n", ": split: 'nyu_test' is not a split of kitti-c; valid: eigen_test or a split file"),

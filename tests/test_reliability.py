@@ -131,7 +131,7 @@ WHOLE_BUILD = {
     "unknown corruption flag": (_flags("--corruptions", "contrast,fogg"),
                                 ": unknown corruption 'fogg'; valid: brightness, dark, fog,"),
     "level 0": (_flags("--levels", "0"), ": expected an integer >= 1, got 0"),
-    "level 6": (_flags("--levels", "1,6"), ": level 6 does not exist for contrast; valid levels: 1..5"),
+    "level 6": (_flags("--levels", "1,6"), ": level 6 does not exist for kitti-c; valid levels: 1..5"),
     "--jobs 0": (_flags("--jobs", "0"), ": expected an integer >= 1, got 0"),
     "output path is a file": (_out_is_a_file, ": exists and is not a directory"),
 }

@@ -11,27 +11,19 @@ from ..errors import RobodepthError, os_reason
 
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     """The corruptions ``value`` selects ('all', a name or a comma list), in order."""
+    from ..benchmarks import CORRUPTIONS
     from ..config import choose_names
-    from ..corruptions import NAMES
 
-    return list(choose_names(flag, value, NAMES, "corruption"))
+    return list(choose_names(flag, value, CORRUPTIONS, "corruption"))
 
 
-def levels(value: str, names: list[str], flag: str = "--level") -> list[int]:
-    """The levels ``value`` selects ('all' or a comma list) for the corruptions ``names``."""
-    from ..corruptions import REGISTRY
+def levels(value: str, flag: str = "--level") -> list[int]:
+    """The levels ``value`` selects ('all', a level or a comma list), sorted, checked by
+    the same rule as a build's ``--levels``: every corruption has levels 1..5."""
+    from ..benchmarks import N_LEVELS
+    from ..config import choose_levels
 
-    most = max(REGISTRY[n].n_levels for n in names)
-    if value == "all":
-        return list(range(1, most + 1))
-    try:
-        chosen = [int(v) for v in value.split(",")]
-    except ValueError:
-        raise RobodepthError(f"{flag} {value!r}: expected an integer 1..{most}, a comma list, or 'all'") from None
-    for lv in chosen:
-        if not 1 <= lv <= most:
-            raise RobodepthError(f"{flag} {lv} out of range: levels are 1..{most}")
-    return chosen
+    return list(choose_levels(flag, value, tuple(range(1, N_LEVELS + 1))))
 
 
 def load_input(image: str, size: str | None) -> np.ndarray:

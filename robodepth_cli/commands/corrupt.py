@@ -47,11 +47,11 @@ def corrupt_command(image, corruption, level, seed, size, out):
     robodepth corrupt frame.png -c zoom_blur -l 3 --out zoom3.png
     robodepth corrupt frame.png -c all -l all --size 192x640 --out corrupted/
     """
-    from ..corruptions import REGISTRY, corrupt
+    from ..corruptions import corrupt
     from ..seeding import job_rng
 
     names = common.corruption_names(corruption)
-    levels = common.levels(level, names)
+    levels = common.levels(level)
     clean = common.load_input(image, size)
     single = len(names) == 1 and len(levels) == 1 and corruption != "all" and level != "all"
     out = Path(out)
@@ -62,8 +62,6 @@ def corrupt_command(image, corruption, level, seed, size, out):
     key = Path(image).name
     for name in names:
         for lv in levels:
-            if lv > REGISTRY[name].n_levels:
-                continue
             img = corrupt(clean, name, lv, job_rng(seed, "image", name, lv, key))
             common.write_png(out if single else out / name / f"{lv}.png", img)
     if not single:
@@ -81,11 +79,12 @@ def corrupt_command(image, corruption, level, seed, size, out):
               help="Width of each cell in pixels.")
 def preview_command(image, out, corruption, size, seed, thumb_width):
     """A labelled contact sheet: the clean image, then one row per corruption and one column per level."""
+    from ..benchmarks import N_LEVELS
     from ..preview import contact_sheet
 
     names = common.corruption_names(corruption)
     clean = common.load_input(image, size)
-    sheet = contact_sheet(clean, names, range(1, 6), seed=seed, key=Path(image).name,
+    sheet = contact_sheet(clean, names, range(1, N_LEVELS + 1), seed=seed, key=Path(image).name,
                           thumb_width=thumb_width)
     common.write_png(Path(out), np.asarray(sheet))
     click.echo(f"wrote {out} ({sheet.width} x {sheet.height})")

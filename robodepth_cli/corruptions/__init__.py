@@ -1,6 +1,6 @@
-"""The 18 corruptions of the RoboDepth benchmark (SPEC section 2).
+"""The 18 corruptions of the RoboDepth benchmark.
 
-``REGISTRY`` maps each name, in SPEC order, to its :class:`Corruption` record (category,
+``REGISTRY`` maps each name, in benchmark order, to its :class:`Corruption` record (category,
 parameter table, function). :func:`corrupt` is the checked entry point.
 """
 
@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..benchmarks import CATEGORIES, DATA, SENSOR, WEATHER
 from ..imageio import as_rgb
-from .registry import CATEGORIES, DATA, ORDER, SENSOR, WEATHER, Corruption, registry
+from .registry import Corruption, registry
 
 # Importing a module registers its corruption(s).
 from . import (  # noqa: F401  (imported for registration)

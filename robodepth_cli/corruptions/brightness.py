@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._jit import njit
-from .registry import WEATHER, register
+from .registry import register
 
 LEVELS = (0.1, 0.2, 0.3, 0.4, 0.5)
 
@@ -61,7 +61,7 @@ def _brighten(x, c, out):
     return out
 
 
-@register(WEATHER, ("c",), LEVELS, deterministic=True)
+@register(("c",), LEVELS, deterministic=True)
 def brightness(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Raise the HSV value: ``hsv = rgb2hsv(f)``, ``V = clip01(V + c)``,
     ``clip01(hsv2rgb(hsv))`` truncated to uint8, with scikit-image's HSV conversions

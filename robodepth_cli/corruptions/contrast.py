@@ -6,14 +6,14 @@ import cv2
 import numpy as np
 
 from ._ops import to_uint8
-from .registry import WEATHER, register
+from .registry import register
 
 LEVELS = (0.4, 0.3, 0.2, 0.1, 0.05)
 
 _VALUES = np.arange(256, dtype=np.float64)[:, None] / 255.0
 
 
-@register(WEATHER, ("c",), LEVELS, deterministic=True)
+@register(("c",), LEVELS, deterministic=True)
 def contrast(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """``clip01((f - m) * c + m)`` truncated to uint8, ``m`` the per-channel mean of
     ``f = x / 255``.

@@ -3,7 +3,7 @@ from functools import lru_cache
 import numpy as np
 
 from ._sampling import N_VALUES, ValueTable, poisson_gaussian_law
-from .registry import WEATHER, register
+from .registry import register
 
 LEVELS = (0.60, 0.50, 0.40, 0.30, 0.20)
 _PHOTONS = (60, 25, 12, 5, 3)
@@ -27,7 +27,7 @@ def output_law(level: int, lo: int, hi: int) -> ValueTable:
     return poisson_gaussian_law(n * p, p, g)
 
 
-@register(WEATHER, ("c",), LEVELS)
+@register(("c",), LEVELS)
 def dark(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Low light: ``n = ((f - min f) / (max f - min f))**2 * c`` (min and max over all
     pixels and channels; a constant image gives ``n = 0``), then Poisson-Gaussian sensor

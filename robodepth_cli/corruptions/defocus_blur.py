@@ -9,7 +9,7 @@ import numpy as np
 import scipy.fft
 
 from ._ops import to_uint8
-from .registry import SENSOR, register
+from .registry import register
 
 LEVELS = ((3, 0.1), (4, 0.5), (6, 0.5), (8, 0.5), (10, 0.5))
 
@@ -65,7 +65,7 @@ def filter2d_fft(x: np.ndarray, radius: int, alias: float) -> np.ndarray:
     return out[2 * r:2 * r + h, 2 * r:2 * r + w]
 
 
-@register(SENSOR, ("radius", "alias"), LEVELS, deterministic=True)
+@register(("radius", "alias"), LEVELS, deterministic=True)
 def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Convolve each channel with :func:`disk_kernel` ``(radius, alias)`` with OpenCV
     ``filter2D`` semantics (reflect-101 border): ``clip01(filter2D(f, disk))``, truncated

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from ._ops import gaussian, to_uint8
-from .registry import SENSOR, register
+from .registry import register
 
 LEVELS = (0.05, 0.065, 0.085, 0.1, 0.12)
 
@@ -32,7 +32,7 @@ def smoothed_uniforms(shape: tuple[int, int], rng: np.random.Generator) -> np.nd
     return gaussian(cv2.merge([u[0], u[1]]), (0.01 * h, 0.01 * w), truncate=3, mode="reflect")
 
 
-@register(SENSOR, ("k",), LEVELS)
+@register(("k",), LEVELS)
 def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Random elastic warp. ``m = 0.005 * H`` for both directions; ``U(-m, m)`` fields of
     H x W for ``dx`` (drawn first) and ``dy``, each smoothed with ``gaussian(sigma=(0.01 H,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._ops import to_uint8
-from .registry import WEATHER, register
+from .registry import register
 
 # (t, d): fog thickness and the plasma's wibble decay
 LEVELS = ((1.5, 2.0), (2.0, 2.0), (2.5, 1.7), (2.5, 1.5), (3.0, 1.4))
@@ -112,7 +112,7 @@ def _interleave(parts, half_shape) -> np.ndarray:
     return out
 
 
-@register(WEATHER, ("t", "d"), LEVELS)
+@register(("t", "d"), LEVELS)
 def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Fog: with ``m = max f`` and ``P`` a :func:`plasma_fractal` of side ``N`` (the
     smallest power of two >= max(H, W)) and decay ``d``, ``g = f + t * P[:H, :W]`` on every

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from ._jit import njit
-from .registry import WEATHER, register
+from .registry import register
 from ..errors import RobodepthError
 
 # (a, b): weights of the image and of the frost texture
@@ -104,7 +104,7 @@ def _blend(x, crop, table):
     return out
 
 
-@register(WEATHER, ("a", "b"), LEVELS)
+@register(("a", "b"), LEVELS)
 def frost(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Frost: pick texture ``k`` uniformly among the first five (``rng.integers(5)``),
     read it as BGR, resize it to :func:`scaled_size` with bicubic interpolation, take the

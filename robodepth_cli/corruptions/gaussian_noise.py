@@ -3,7 +3,7 @@ from functools import lru_cache
 import numpy as np
 
 from ._sampling import N_VALUES, ValueTable, gaussian_truncated_cdf
-from .registry import DATA, register
+from .registry import register
 
 LEVELS = (0.08, 0.12, 0.18, 0.26, 0.38)
 
@@ -15,7 +15,7 @@ def output_law(level: int) -> ValueTable:
     return ValueTable(gaussian_truncated_cdf(np.arange(N_VALUES) / 255.0, LEVELS[level - 1]))
 
 
-@register(DATA, ("sigma",), LEVELS)
+@register(("sigma",), LEVELS)
 def gaussian_noise(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Additive white noise: ``clip01(f + Normal(0, sigma))`` per pixel and channel,
     independently, truncated to uint8.

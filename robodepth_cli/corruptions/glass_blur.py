@@ -6,7 +6,7 @@ import numpy as np
 
 from ._jit import njit
 from ._ops import gaussian, to_uint8
-from .registry import SENSOR, register
+from .registry import register
 
 # (sigma, delta, iterations)
 LEVELS = ((0.7, 1, 2), (0.9, 2, 1), (1.0, 2, 3), (1.1, 3, 2), (1.5, 4, 2))
@@ -43,7 +43,7 @@ def shuffle_pixels(img, offsets, delta):
     return img
 
 
-@register(SENSOR, ("sigma", "delta", "iterations"), LEVELS)
+@register(("sigma", "delta", "iterations"), LEVELS)
 def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Glass blur: ``y = uint8(floor(gauss(f, sigma) * 255))`` with ``gauss`` scikit-image's
     ``filters.gaussian`` per channel (mode ``nearest``, truncate 4); then ``iterations``

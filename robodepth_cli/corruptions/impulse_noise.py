@@ -1,11 +1,11 @@
 import numpy as np
 
-from .registry import DATA, register
+from .registry import register
 
 LEVELS = (0.03, 0.06, 0.09, 0.17, 0.27)
 
 
-@register(DATA, ("amount",), LEVELS)
+@register(("amount",), LEVELS)
 def impulse_noise(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Salt and pepper on every element (pixel and channel independently): with probability
     ``amount`` it is replaced, by 255 or by 0 with equal odds (scikit-image

@@ -3,7 +3,7 @@ from functools import lru_cache
 import numpy as np
 
 from ._sampling import N_VALUES, ValueTable, poisson_gaussian_law
-from .registry import DATA, register
+from .registry import register
 
 LEVELS = tuple(round(0.7 * s, 6) for s in (0.08, 0.12, 0.18, 0.26, 0.38))
 _PHOTONS = 25
@@ -16,7 +16,7 @@ def output_law(level: int) -> ValueTable:
     return poisson_gaussian_law(np.arange(N_VALUES) / 255.0 * _PHOTONS, _PHOTONS, LEVELS[level - 1])
 
 
-@register(DATA, ("sigma",), LEVELS)
+@register(("sigma",), LEVELS)
 def iso_noise(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Sensor noise at high ISO: photon noise ``u = clip01(Poisson(f * 25) / 25)``, then
     ``clip01(u + Normal(0, sigma))`` per pixel and channel, independently, truncated to

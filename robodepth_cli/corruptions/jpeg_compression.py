@@ -3,12 +3,12 @@ import io
 import numpy as np
 from PIL import Image
 
-from .registry import DATA, register
+from .registry import register
 
 LEVELS = (25, 18, 15, 10, 7)
 
 
-@register(DATA, ("quality",), LEVELS, deterministic=True)
+@register(("quality",), LEVELS, deterministic=True)
 def jpeg_compression(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Encode as JPEG at ``quality`` with Pillow's defaults (4:2:0 chroma subsampling,
     standard tables) and decode again."""

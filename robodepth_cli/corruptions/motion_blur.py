@@ -15,7 +15,7 @@ import numpy as np
 
 from ._jit import njit
 from ._ops import to_uint8
-from .registry import SENSOR, register
+from .registry import register
 
 LEVELS = ((10, 3), (15, 5), (15, 8), (15, 12), (20, 15))
 
@@ -108,7 +108,7 @@ def shift_blur(img: np.ndarray, radius: int, sigma: float, angle: float) -> np.n
     return out[..., 0] if flat else out
 
 
-@register(SENSOR, ("radius", "sigma"), LEVELS)
+@register(("radius", "sigma"), LEVELS)
 def motion_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """:func:`shift_blur` of the 0..255 image with ``(radius, sigma)`` of the level and an
     angle drawn uniformly from [-45, 45) degrees; clipped to [0, 255] and truncated."""

@@ -1,12 +1,12 @@
 import numpy as np
 from PIL import Image
 
-from .registry import DATA, register
+from .registry import register
 
 LEVELS = (0.6, 0.5, 0.4, 0.3, 0.25)
 
 
-@register(DATA, ("c",), LEVELS, deterministic=True)
+@register(("c",), LEVELS, deterministic=True)
 def pixelate(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Shrink to ``(int(W * c), int(H * c))`` with Pillow's BOX filter, then enlarge back to
     W x H with NEAREST."""

@@ -1,8 +1,9 @@
 """The one registry of corruptions, shared by the CLI, the builder, the docs and the tests.
 
 Each corruption module defines a pure function ``name(x, level, rng) -> uint8 image`` and
-registers it with :func:`register`, declaring its category and the parameter table of
-SPEC section 2 (one entry per level, levels 1..5).
+registers it with :func:`register`, declaring its parameter table (one entry per level,
+levels 1..5). Its category and its place in every listing come from
+:mod:`robodepth_cli.benchmarks`, which names the corruptions that exist.
 """
 
 from __future__ import annotations
@@ -12,19 +13,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-WEATHER = "weather & lighting"
-SENSOR = "sensor & movement"
-DATA = "data & processing"
-CATEGORIES = (WEATHER, SENSOR, DATA)
-
-# SPEC section 2 order; the registry is listed in this order whatever the import order.
-ORDER = (
-    "brightness", "dark", "fog", "frost", "snow", "contrast",
-    "defocus_blur", "glass_blur", "motion_blur", "zoom_blur", "elastic_transform",
-    "color_quant",
-    "gaussian_noise", "impulse_noise", "shot_noise", "iso_noise", "pixelate",
-    "jpeg_compression",
-)
+from ..benchmarks import CATEGORY, CORRUPTIONS, N_LEVELS
 
 CorruptionFn = Callable[[np.ndarray, int, np.random.Generator], np.ndarray]
 
@@ -55,20 +44,21 @@ class Corruption:
 _REGISTRY: dict[str, Corruption] = {}
 
 
-def register(category: str, fields: Sequence[str], levels: Sequence, *, deterministic: bool = False):
-    """Decorator: add a corruption function to the registry under its own name."""
-    if category not in CATEGORIES:
-        raise ValueError(f"unknown category {category!r}")
+def register(fields: Sequence[str], levels: Sequence, *, deterministic: bool = False):
+    """Decorator: add a corruption function to the registry under its own name, which must
+    be one of :data:`robodepth_cli.benchmarks.CORRUPTIONS`."""
 
     def decorate(fn: CorruptionFn) -> CorruptionFn:
         name = fn.__name__
-        if name not in ORDER:
-            raise ValueError(f"{name!r} is not a SPEC corruption")
+        if name not in CATEGORY:
+            raise ValueError(f"{name!r} is not a benchmark corruption")
+        if len(levels) != N_LEVELS:
+            raise ValueError(f"{name}: {len(levels)} parameter entries, expected one per level 1..{N_LEVELS}")
         if name in _REGISTRY:
             raise ValueError(f"{name!r} registered twice")
         _REGISTRY[name] = Corruption(
             name=name,
-            category=category,
+            category=CATEGORY[name],
             fields=tuple(fields),
             levels=tuple(levels),
             deterministic=deterministic,
@@ -81,5 +71,6 @@ def register(category: str, fields: Sequence[str], levels: Sequence, *, determin
 
 
 def registry() -> dict[str, Corruption]:
-    """All registered corruptions, in SPEC order."""
-    return {name: _REGISTRY[name] for name in ORDER if name in _REGISTRY}
+    """All registered corruptions, in benchmark order."""
+    # Benchmark order, whatever order the modules were imported in.
+    return {name: _REGISTRY[name] for name in CORRUPTIONS if name in _REGISTRY}

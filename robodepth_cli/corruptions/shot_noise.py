@@ -3,7 +3,7 @@ from functools import lru_cache
 import numpy as np
 
 from ._sampling import N_VALUES, ValueTable, poisson_pmf, truncated_value
-from .registry import DATA, register
+from .registry import register
 
 LEVELS = (60, 25, 12, 5, 3)
 
@@ -21,7 +21,7 @@ def output_law(level: int) -> ValueTable:
     return ValueTable(np.where(last >= 0, cdf[:, np.maximum(last, 0)], 0.0))
 
 
-@register(DATA, ("lambda",), LEVELS)
+@register(("lambda",), LEVELS)
 def shot_noise(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Photon noise: ``clip01(Poisson(f * lambda) / lambda)`` per pixel and channel,
     independently, truncated to uint8.

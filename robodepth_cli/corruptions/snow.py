@@ -7,7 +7,7 @@ import numpy as np
 
 from ._jit import njit
 from .motion_blur import shift_blur
-from .registry import WEATHER, register
+from .registry import register
 from .zoom_blur import linear_zoom, zoom_axis
 
 LEVELS = (
@@ -71,7 +71,7 @@ def _blend(x, layer, beta, out):
     return out
 
 
-@register(WEATHER, ("mu", "sigma", "z", "tau", "r", "s", "beta"), LEVELS)
+@register(("mu", "sigma", "z", "tau", "r", "s", "beta"), LEVELS)
 def snow(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """On ``f = x / 255`` in float32: ``g = beta * f + (1 - beta) * max(f, gray(f) * 1.5 +
     0.5)`` with ``gray`` OpenCV's RGB-to-gray, then ``clip01(g + S + rot180(S))`` with ``S``

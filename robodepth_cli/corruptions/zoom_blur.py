@@ -15,7 +15,7 @@ import numpy as np
 
 from ._jit import njit
 from ._ops import to_uint8
-from .registry import SENSOR, register
+from .registry import register
 
 # (start, stop, step) of numpy.arange with float steps, exactly as the benchmark writes
 # them: the float steps decide the last factor (arange(1, 1.11, .01) ends at 1.11).
@@ -181,7 +181,7 @@ def clipped_zoom(img: np.ndarray, z: float) -> np.ndarray:
     return linear_zoom(img[top:top + ch, left:left + cw], z)
 
 
-@register(SENSOR, ("start", "stop", "step"), LEVELS, deterministic=True)
+@register(("start", "stop", "step"), LEVELS, deterministic=True)
 def zoom_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Average of the image and its clipped zooms by every factor of the level
     (:func:`level_factors`):

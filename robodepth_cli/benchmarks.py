@@ -1,0 +1,89 @@
+"""Facts about the RoboDepth benchmarks, in one light module.
+
+The corruption names in benchmark order, the category of each, each benchmark's own
+corruptions and levels, and the published baselines. Everything that needs one of these
+facts (the corruption registry, the build configuration, ``robodepth score`` and its chart)
+reads it from here. This module imports nothing beyond the standard library, so scoring a
+results file or checking a configuration never loads the corruption engine (numba, OpenCV)
+or torch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+WEATHER = "weather & lighting"
+SENSOR = "sensor & movement"
+DATA = "data & processing"
+CATEGORIES = (WEATHER, SENSOR, DATA)
+
+CLEAN = "clean"
+"""The uncorrupted image: a build's ``clean/`` variant and the ``clean`` row of a results file."""
+
+# Every corruption in benchmark order (the order of every listing, table and score), with
+# its category.
+CATEGORY: dict[str, str] = {
+    "brightness": WEATHER, "dark": WEATHER, "fog": WEATHER, "frost": WEATHER, "snow": WEATHER,
+    "contrast": WEATHER,
+    "defocus_blur": SENSOR, "glass_blur": SENSOR, "motion_blur": SENSOR, "zoom_blur": SENSOR,
+    "elastic_transform": SENSOR, "color_quant": SENSOR,
+    "gaussian_noise": DATA, "impulse_noise": DATA, "shot_noise": DATA, "iso_noise": DATA,
+    "pixelate": DATA, "jpeg_compression": DATA,
+}
+CORRUPTIONS: tuple[str, ...] = tuple(CATEGORY)
+N_LEVELS = 5  # every corruption defines levels 1..5; a benchmark may use fewer
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """A reference model: its clean DEE and its level-averaged DEE per corruption."""
+
+    name: str
+    clean: float
+    dee: Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    """One corruption benchmark: its corruptions (in benchmark order), its levels
+    ``1..n_levels`` and the published baseline its CE is measured against."""
+
+    name: str
+    corruptions: tuple[str, ...]
+    n_levels: int
+    baseline: Baseline
+
+    @property
+    def levels(self) -> range:
+        return range(1, self.n_levels + 1)
+
+
+def _baseline(name: str, clean: float, corruptions: tuple[str, ...], dees: str) -> Baseline:
+    values = [float(v) for v in dees.split()]
+    if len(values) != len(corruptions):
+        raise ValueError(f"baseline {name}: {len(values)} values for {len(corruptions)} corruptions")
+    return Baseline(name, clean, dict(zip(corruptions, values)))
+
+
+# NYU Depth V2 is indoors: no fog, frost or snow, and only the four milder levels.
+_NYU = tuple(n for n in CORRUPTIONS if n not in ("fog", "frost", "snow"))
+
+# The published baselines: level-averaged DEE, the clean DEE apart, in benchmark order.
+BENCHMARKS: dict[str, Benchmark] = {
+    "kitti-c": Benchmark("kitti-c", CORRUPTIONS, 5, _baseline(
+        "MonoDepth2 R18, 640x192", 0.119, CORRUPTIONS,
+        ".130 .280 .155 .277 .511 .187 .244 .242 .216 .201 .129 .193 .384 .389 .340 .388 "
+        ".145 .196")),
+    "nyudepth2-c": Benchmark("nyudepth2-c", _NYU, 4, _baseline(
+        "AdaBins EfficientNet-B5", 0.112, _NYU,
+        ".132 .194 .212 .235 .206 .184 .384 .153 .151 .390 .374 .294 .380 .124 .154")),
+}
+
+
+def get_benchmark(name: str) -> Benchmark:
+    """The benchmark called ``name``; ``ValueError`` listing the valid names otherwise."""
+    try:
+        return BENCHMARKS[name]
+    except KeyError:
+        raise ValueError(f"unknown benchmark {name!r}; valid: {', '.join(BENCHMARKS)}") from None
