@@ -17,9 +17,9 @@ bench:
 
 demo:
 	@set -e; out=$$(mktemp -d -t robodepth-demo.XXXXXX); \
-	fx=../shared/fixtures; rd="$(PYTHON) -m robodepth_cli.cli"; \
+	fx=tests/data/fixtures; rd="$(PYTHON) -m robodepth_cli.cli"; \
 	$$rd build kitti-c --root $$fx/kitti_raw --split $$fx/kitti_split.txt --out $$out/kitti-c; \
 	$$rd verify $$out/kitti-c; \
 	$$rd build nyudepth2-c --root $$fx/nyu --split $$fx/nyu_split.txt --out $$out/nyudepth2-c; \
 	$$rd verify $$out/nyudepth2-c; \
-	echo "demo output: $$out (e.g. $$out/kitti-c/zoom_blur/3/kitti_data/...; delete it when done)"
+	echo "demo output: $$out (e.g. $$out/kitti-c/zoom_blur/3/kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png; delete it when done)"

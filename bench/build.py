@@ -49,8 +49,10 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("ROBODEPTH_SHARED", REPO.parent / "shared")).resolve()
-FIXTURES = SHARED / "fixtures"
+sys.path.insert(0, str(REPO / "tests"))
+
+from _paths import FIXTURES  # noqa: E402  (tests/data/fixtures, inside the repository)
+
 KITTI_DRIVE = "2011_09_26/2011_09_26_drive_0002_sync"
 KITTI_FRAMES = FIXTURES / "kitti_raw" / KITTI_DRIVE / "image_02" / "data"
 NYU_FRAMES = FIXTURES / "nyu" / "bedroom"
@@ -363,7 +365,7 @@ def main(argv=None) -> int:
     if args.sources < 8:
         ap.error("--sources must be at least 8")
     if not KITTI_FRAMES.is_dir() or not NYU_FRAMES.is_dir():
-        ap.error(f"fixtures not found under {FIXTURES} (set ROBODEPTH_SHARED)")
+        ap.error(f"fixtures not found under {FIXTURES} (tests/data is part of the repository)")
 
     base = Path(tempfile.mkdtemp(prefix="robodepth-bench-build-", dir=args.keep))
     try:

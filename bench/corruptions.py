@@ -31,12 +31,12 @@ import numpy as np  # noqa: E402
 from PIL import Image, ImageOps  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path[:0] = [str(REPO), str(REPO / "tests")]
 
+from _paths import REFERENCE  # noqa: E402  (tests/data/reference, inside the repository)
 from robodepth_cli.corruptions import REGISTRY, corrupt  # noqa: E402
 
-SHARED = Path(os.environ.get("ROBODEPTH_SHARED", REPO.parent / "shared")).resolve()
-DEFAULT_IMAGE = SHARED / "reference" / "kitti" / "kitti_like_md2__input.png"
+DEFAULT_IMAGE = REFERENCE / "kitti" / "kitti_like_md2__input.png"
 
 TOTAL_BUDGET_S = 0.8
 MIN_SPEEDUP = 4.0
@@ -151,7 +151,7 @@ def main(argv=None) -> int:
     if unknown:
         ap.error(f"unknown corruption(s): {', '.join(unknown)}")
     if not args.image.is_file():
-        ap.error(f"image not found: {args.image} (set ROBODEPTH_SHARED or pass --image)")
+        ap.error(f"image not found: {args.image} (pass --image)")
     table = run(args.image, args.repeats, names)
     with Image.open(args.image) as im:
         shape = (im.height, im.width)

@@ -16,7 +16,7 @@ from robodepth_cli.corruptions import NAMES, REGISTRY, corrupt
 from robodepth_cli.imageio import load_clean
 from robodepth_cli.seeding import job_rng
 
-from conftest import REFERENCE
+from _paths import REFERENCE
 
 INPUT = REFERENCE / "kitti" / "kitti_like_md2__input.png"
 CHEAP = ("brightness", "contrast", "color_quant", "pixelate")
@@ -53,7 +53,7 @@ def test_list_json_has_parameters_per_level():
 
 
 def test_readme_table_comes_from_the_registry():
-    from conftest import REPO
+    from _paths import REPO
 
     table = run("list", "--format", "markdown").output.strip()
     assert table in (REPO / "README.md").read_text(), "README's corruption table is stale: paste `robodepth list --format markdown`"

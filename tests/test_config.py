@@ -113,7 +113,7 @@ def test_presets_and_split_records_ship_inside_a_wheel(tmp_path):
     import sys
     import zipfile
 
-    from conftest import REPO
+    from _paths import REPO
 
     import shutil
 

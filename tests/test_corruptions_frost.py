@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 
 import robodepth_cli.corruptions.frost as fr
-from conftest import REFERENCE
+from _paths import REFERENCE
 
 
 class ScriptedRng:

@@ -2,7 +2,7 @@
 
 Two independent references:
 
-* ``../shared/reference/``: outputs and statistics made with the benchmark's own code on the
+* ``tests/data/reference/``: outputs and statistics made with the benchmark's own code on the
   two KITTI-like fixture frames (192 x 640) and two NYU frames (480 x 640), every level.
 * the ``imagecorruptions`` package (the oracle for 15 of the 18), run here on other real
   photographs (scikit-image's bundled samples) resized as SPEC section 1 does.
@@ -26,7 +26,7 @@ from PIL import Image
 from robodepth_cli.corruptions import REGISTRY, corrupt
 from robodepth_cli.imageio import resize_lanczos
 
-from conftest import REFERENCE
+from _paths import REFERENCE
 
 KITTI_KEYS = ("kitti_like_md2", "kitti_like_newyork")
 NYU_KEYS = ("nyu_1", "nyu_119")
@@ -34,7 +34,7 @@ DETERMINISTIC = tuple(n for n, c in REGISTRY.items() if c.deterministic)
 RANDOM = tuple(n for n, c in REGISTRY.items() if not c.deterministic)
 
 # The oracle implements these 15 of our 18 (dark, color_quant and iso_noise are the
-# benchmark's own additions, covered by ../shared/reference only).
+# benchmark's own additions, covered by tests/data/reference only).
 ORACLE_NAMES = (
     "brightness", "fog", "frost", "snow", "contrast", "defocus_blur", "glass_blur",
     "motion_blur", "zoom_blur", "elastic_transform", "gaussian_noise", "impulse_noise",
@@ -54,7 +54,7 @@ def _load(path) -> np.ndarray:
 
 
 def stats(out: np.ndarray, clean: np.ndarray) -> np.ndarray:
-    """The eight figures of ``../shared/reference/README.md``, in its order."""
+    """The eight figures of ``tests/data/README.md`` (reference statistics), in its order."""
     o = out.astype(np.float64)
     d = o - clean.astype(np.float64)
     return np.array([
@@ -98,7 +98,7 @@ def assert_matches(clean, name, level, what, *, expected_pixels, expected_stats,
         assert_stats_match(our_stats(clean, name, level, seed), mean, sd, what)
 
 
-# --- ../shared/reference -------------------------------------------------------------
+# --- tests/data/reference -------------------------------------------------------------
 
 @lru_cache(maxsize=None)
 def _reference_stats(folder: str) -> dict:

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from PIL import Image
 
 from adain_fakes import reference_stylize, save_checkpoints, smooth_image
-from conftest import REPO
+from _paths import REPO
 from robodepth_cli import styles
 from robodepth_cli.cli import main
 from robodepth_cli.imageio import load_clean

@@ -56,7 +56,7 @@ def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarra
     assignment ``x[h, w], x[h', w'] = x[h', w'], x[h, w]`` on numpy (and numba) row views
     of an H x W x 3 array; the second view already holds the copied pixel, so pixel
     ``(h, w)`` takes the value of ``(h', w')`` and ``(h', w')`` is unchanged. SPEC section 2
-    says "swap"; the benchmark's data (../shared/reference) and the ``imagecorruptions``
+    says "swap"; the benchmark's data (tests/data/reference) and the ``imagecorruptions``
     oracle both follow the copy, so that is what is done here.
 
     All offsets are drawn up front (:func:`swap_offsets`) and the swaps run in a numba
