@@ -8,11 +8,9 @@ import io
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from PIL import Image
 
 from robodepth_cli import builder, corruptions, datasets, seeding
-from robodepth_cli.cli import main
 from robodepth_cli.corruptions import NAMES
 from robodepth_cli.manifest import BuildLock
 
@@ -20,14 +18,6 @@ from _trees import expected_paths, kitti_key, kitti_tree, tree
 
 CHEAP = ["brightness", "contrast", "pixelate", "gaussian_noise", "color_quant"]
 FRAMES = [(5, "l", ".png"), (7, "r", ".jpg")]
-
-
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args] + ["--no-progress"] * (args[0] in ("build", "verify")))
-
-
-def build_kitti(root, split, out, *flags):
-    return run("build", "kitti-c", "--root", root, "--split", split, "--out", out, *flags)
 
 
 def manifest_rows(out):
@@ -41,7 +31,7 @@ def kitti(tmp_path):
     return root, kitti_tree(root, FRAMES)
 
 
-def test_kitti_layout_manifest_and_pixels(kitti, tmp_path):
+def test_kitti_layout_manifest_and_pixels(kitti, tmp_path, cli, build_kitti):
     root, split = kitti
     out = tmp_path / "out"
     res = build_kitti(root, split, out, "--size", "64x96", "--corruptions", "brightness,gaussian_noise",
@@ -74,12 +64,12 @@ def test_kitti_layout_manifest_and_pixels(kitti, tmp_path):
     want = corruptions.corrupt(clean, "gaussian_noise", 3, rng)
     got = np.asarray(Image.open(io.BytesIO(files[f"gaussian_noise/3/{keys[1]}"])))
     assert np.array_equal(got, want)
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
 
 
-def test_nyu_layout_and_no_resize(fixtures_dir, tmp_path):
+def test_nyu_layout_and_no_resize(fixtures_dir, tmp_path, cli):
     out = tmp_path / "nyu_c"
-    res = run("build", "nyudepth2-c", "--root", fixtures_dir / "nyu", "--split", fixtures_dir / "nyu_split.txt",
+    res = cli("build", "nyudepth2-c", "--root", fixtures_dir / "nyu", "--split", fixtures_dir / "nyu_split.txt",
               "--out", out, "--corruptions", "brightness", "--levels", "4", "--jobs", "1")
     assert res.exit_code == 0, res.output
     keys = ["bedroom/rgb_00001.png", "bedroom/rgb_00119.png"]
@@ -91,15 +81,15 @@ def test_nyu_layout_and_no_resize(fixtures_dir, tmp_path):
     assert np.array_equal(np.asarray(Image.open(io.BytesIO(files["clean/bedroom/rgb_00119.png"]))), src)
 
 
-def test_all_18_corruptions_5_levels_on_one_image(fixtures_dir, tmp_path):
+def test_all_18_corruptions_5_levels_on_one_image(fixtures_dir, tmp_path, cli):
     out = tmp_path / "all"
-    res = run("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
+    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
               fixtures_dir / "kitti_split.txt", "--out", out, "--limit", "1", "--size", "64x96", "--jobs", "1")
     assert res.exit_code == 0, res.output
     key = "kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
     assert len(NAMES) == 18
     assert set(tree(out)) == expected_paths([key], NAMES, [1, 2, 3, 4, 5])
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
 
 
 def test_full_dataset_job_counts(splits_dir):
@@ -118,7 +108,7 @@ def test_full_dataset_job_counts(splits_dir):
         assert len(entries) * (len(jobs) - 1) == n_corrupted
 
 
-def test_jobs_1_and_2_give_identical_trees(kitti, tmp_path):
+def test_jobs_1_and_2_give_identical_trees(kitti, tmp_path, build_kitti):
     root, split = kitti
     flags = ["--size", "64x96", "--corruptions", "gaussian_noise,impulse_noise,shot_noise,pixelate",
              "--levels", "2,5"]
@@ -133,7 +123,7 @@ def test_jobs_1_and_2_give_identical_trees(kitti, tmp_path):
     assert (a / "manifest.csv").read_bytes() == (b / "manifest.csv").read_bytes()
 
 
-def test_resume_redoes_only_missing_or_changed(kitti, tmp_path):
+def test_resume_redoes_only_missing_or_changed(kitti, tmp_path, cli, build_kitti):
     root, split = kitti
     out = tmp_path / "out"
     flags = ["--size", "64x96", "--corruptions", "contrast,shot_noise", "--levels", "1,2", "--jobs", "1"]
@@ -153,10 +143,10 @@ def test_resume_redoes_only_missing_or_changed(kitti, tmp_path):
     # so only the files that were never deleted are compared by inode.
     redone = {p for p in before if p != deleted and (out / p).stat().st_ino != inodes[p]}
     assert redone == {damaged}
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
 
 
-def test_changed_seed_redoes_everything(kitti, tmp_path):
+def test_changed_seed_redoes_everything(kitti, tmp_path, build_kitti):
     root, split = kitti
     out = tmp_path / "out"
     flags = ["--size", "64x96", "--corruptions", "gaussian_noise", "--levels", "1", "--jobs", "1"]
@@ -169,7 +159,7 @@ def test_changed_seed_redoes_everything(kitti, tmp_path):
     assert {r["seed"] for r in manifest_rows(out)} == {"1"}
 
 
-def test_killed_build_leftovers_are_repaired(kitti, tmp_path):
+def test_killed_build_leftovers_are_repaired(kitti, tmp_path, cli, build_kitti):
     """A torn manifest line and a temporary file, as SIGKILL leaves them, do not survive a rerun."""
     root, split = kitti
     out = tmp_path / "out"
@@ -181,17 +171,17 @@ def test_killed_build_leftovers_are_repaired(kitti, tmp_path):
         fh.write(f"{lost},2011_09_26/x.png,pixelate,1,0,64,96,ab12")  # no newline: torn
     temp = (out / lost).parent / ".0000000007.png.k2j3.part"
     temp.write_bytes(b"\x89PNG half")
-    assert run("verify", out).exit_code == 1  # the manifest still reads; the tree is incomplete
+    assert cli("verify", out).exit_code == 1  # the manifest still reads; the tree is incomplete
 
     res = build_kitti(root, split, out, *flags)
     assert res.exit_code == 0, res.output
     assert "1 written, 3 skipped" in res.output
     assert not temp.exists()
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
     assert len(manifest_rows(out)) == 4
 
 
-def test_unreadable_source_fails_alone(kitti, tmp_path):
+def test_unreadable_source_fails_alone(kitti, tmp_path, cli, build_kitti):
     root, split = kitti
     bad = root / "2011_09_26/2011_09_26_drive_0001_sync/image_02/data/0000000005.png"
     bad.write_bytes(bad.read_bytes()[:200])  # truncated PNG
@@ -207,11 +197,11 @@ def test_unreadable_source_fails_alone(kitti, tmp_path):
     failed = {r["output"]: r for r in manifest_rows(out) if r["error"]}
     assert set(failed) == expected_paths([kitti_key(5), kitti_key(9)], ["brightness"], [1, 2])
     assert all(r["sha256"] == "" for r in failed.values())
-    v = run("verify", out)
+    v = cli("verify", out)
     assert v.exit_code == 1 and "failed: 6" in v.output
 
 
-def test_per_variant_error_does_not_stop_the_others(kitti, tmp_path, monkeypatch):
+def test_per_variant_error_does_not_stop_the_others(kitti, tmp_path, monkeypatch, build_kitti):
     root, split = kitti
 
     def broken(self, clean, key, jobs):
@@ -229,7 +219,7 @@ def test_per_variant_error_does_not_stop_the_others(kitti, tmp_path, monkeypatch
 
 # --- whole-build problems: refused before any work, OUT untouched ---------------------------
 
-def test_missing_root(tmp_path, kitti):
+def test_missing_root(tmp_path, kitti, build_kitti):
     _, split = kitti
     out = tmp_path / "out"
     res = build_kitti(tmp_path / "nowhere", split, out, "--corruptions", "contrast")
@@ -238,7 +228,7 @@ def test_missing_root(tmp_path, kitti):
     assert "Traceback" not in res.output and not out.exists()
 
 
-def test_no_listed_image_under_root(tmp_path, kitti):
+def test_no_listed_image_under_root(tmp_path, kitti, build_kitti):
     _, split = kitti
     (tmp_path / "empty").mkdir()
     res = build_kitti(tmp_path / "empty", split, tmp_path / "out", "--corruptions", "contrast")
@@ -246,7 +236,7 @@ def test_no_listed_image_under_root(tmp_path, kitti):
     assert not (tmp_path / "out").exists()
 
 
-def test_empty_split(tmp_path, kitti):
+def test_empty_split(tmp_path, kitti, build_kitti):
     root, split = kitti
     split.write_text("\n# nothing\n")
     res = build_kitti(root, split, tmp_path / "out", "--corruptions", "contrast")
@@ -254,7 +244,7 @@ def test_empty_split(tmp_path, kitti):
     assert not (tmp_path / "out").exists()
 
 
-def test_out_is_a_file(tmp_path, kitti):
+def test_out_is_a_file(tmp_path, kitti, build_kitti):
     root, split = kitti
     (tmp_path / "out").write_text("x")
     res = build_kitti(root, split, tmp_path / "out", "--corruptions", "contrast")
@@ -263,7 +253,7 @@ def test_out_is_a_file(tmp_path, kitti):
     assert res.exit_code == 2 and "cannot write the output directory" in res.output
 
 
-def test_unwritable_out(tmp_path, kitti, monkeypatch):
+def test_unwritable_out(tmp_path, kitti, monkeypatch, build_kitti):
     root, split = kitti
 
     def denied(*a, **k):
@@ -276,7 +266,7 @@ def test_unwritable_out(tmp_path, kitti, monkeypatch):
     assert list((tmp_path / "out").iterdir()) == []
 
 
-def test_bad_config_refused_before_work(tmp_path, kitti):
+def test_bad_config_refused_before_work(tmp_path, kitti, build_kitti):
     root, split = kitti
     cfg = tmp_path / "mine.yaml"
     cfg.write_text("seed: 3\nworkers: 4\n")
@@ -287,7 +277,7 @@ def test_bad_config_refused_before_work(tmp_path, kitti):
     assert not (tmp_path / "out").exists()
 
 
-def test_second_build_into_same_out_is_refused(tmp_path, kitti):
+def test_second_build_into_same_out_is_refused(tmp_path, kitti, build_kitti):
     root, split = kitti
     out = tmp_path / "out"
     out.mkdir()
@@ -299,7 +289,8 @@ def test_second_build_into_same_out_is_refused(tmp_path, kitti):
                        "--jobs", "1").exit_code == 0
 
 
-def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, monkeypatch):
+def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, monkeypatch, cli,
+                                                             build_kitti):
     root, split = kitti
     out = tmp_path / "out"
     flags = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1,2", "--jobs", "1"]
@@ -321,10 +312,10 @@ def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, mo
     monkeypatch.setattr(builder, "write_png", real)
     res = build_kitti(root, split, out, *flags)
     assert res.exit_code == 0 and "4 written, 2 skipped" in res.output
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
 
 
-def test_source_gone_missing_keeps_its_finished_outputs(kitti, tmp_path):
+def test_source_gone_missing_keeps_its_finished_outputs(kitti, tmp_path, build_kitti):
     root, split = kitti
     out = tmp_path / "out"
     flags = ["--size", "64x96", "--corruptions", "contrast", "--jobs", "1"]
@@ -339,7 +330,7 @@ def test_source_gone_missing_keeps_its_finished_outputs(kitti, tmp_path):
     assert set(after) - set(before) == {f"contrast/2/{kitti_key(7, 'r')}"}
 
 
-def test_split_file_not_found(tmp_path, kitti):
+def test_split_file_not_found(tmp_path, kitti, build_kitti):
     root, _ = kitti
     res = build_kitti(root, tmp_path / "nope.txt", tmp_path / "out", "--corruptions", "contrast")
     assert res.exit_code == 2
@@ -365,7 +356,7 @@ def test_kitti_c_build_never_imports_torch(kitti, tmp_path):
     assert len(tree(tmp_path / "out")) == 4
 
 
-def test_record_lists_the_built_entries_in_split_order(tmp_path):
+def test_record_lists_the_built_entries_in_split_order(tmp_path, build_kitti):
     """build.json names the split entries built (after --limit), in the split's order, so a
     reader of OUT can pair outputs with the split without re-reading it."""
     import json

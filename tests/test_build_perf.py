@@ -5,10 +5,7 @@ from __future__ import annotations
 
 import pickle
 
-from click.testing import CliRunner
-
 from robodepth_cli import builder, config
-from robodepth_cli.cli import main
 from robodepth_cli.datasets import get_dataset
 
 from _trees import kitti_tree
@@ -16,7 +13,7 @@ from _trees import kitti_tree
 FRAMES = [(5, "l", ".png"), (7, "r", ".jpg")]
 
 
-def test_each_source_is_decoded_and_resized_once(tmp_path, monkeypatch):
+def test_each_source_is_decoded_and_resized_once(tmp_path, monkeypatch, cli):
     split = kitti_tree(tmp_path / "kitti_raw", FRAMES)
     calls = []
     real = builder.load_clean
@@ -26,10 +23,9 @@ def test_each_source_is_decoded_and_resized_once(tmp_path, monkeypatch):
         return real(path, size)
 
     monkeypatch.setattr(builder, "load_clean", counting)
-    res = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(tmp_path / "kitti_raw"),
-                                    "--split", str(split), "--out", str(tmp_path / "out"),
-                                    "--size", "48x96", "--corruptions", "contrast,color_quant",
-                                    "--levels", "1,2", "--jobs", "1", "--no-progress"])
+    res = cli("build", "kitti-c", "--root", tmp_path / "kitti_raw", "--split", split,
+              "--out", tmp_path / "out", "--size", "48x96", "--corruptions", "contrast,color_quant",
+              "--levels", "1,2", "--jobs", "1")
     assert res.exit_code == 0, res.output
     assert len(calls) == len(FRAMES)  # not once per output (5 outputs per source here)
     assert len({path for path, _ in calls}) == len(FRAMES)

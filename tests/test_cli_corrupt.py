@@ -8,10 +8,8 @@ import sys
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from PIL import Image
 
-from robodepth_cli.cli import main
 from robodepth_cli.corruptions import NAMES, REGISTRY, corrupt
 from robodepth_cli.imageio import load_clean
 from robodepth_cli.seeding import job_rng
@@ -22,10 +20,6 @@ INPUT = REFERENCE / "kitti" / "kitti_like_md2__input.png"
 CHEAP = ("brightness", "contrast", "color_quant", "pixelate")
 
 
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
-
-
 def small_png(tmp_path, name="img.png", size=(48, 64)):
     rng = np.random.default_rng(3)
     arr = rng.integers(0, 256, (*size, 3), dtype=np.uint8)
@@ -34,8 +28,8 @@ def small_png(tmp_path, name="img.png", size=(48, 64)):
     return path
 
 
-def test_list_shows_every_corruption_in_spec_order():
-    res = run("list")
+def test_list_shows_every_corruption_in_spec_order(cli):
+    res = cli("list")
     assert res.exit_code == 0
     lines = res.output.splitlines()[1:]
     assert [ln.split()[1] for ln in lines] == list(NAMES)
@@ -43,8 +37,8 @@ def test_list_shows_every_corruption_in_spec_order():
     assert "weather & lighting" in lines[0] and "0.1" in lines[0]
 
 
-def test_list_json_has_parameters_per_level():
-    data = json.loads(run("list", "--format", "json").output)
+def test_list_json_has_parameters_per_level(cli):
+    data = json.loads(cli("list", "--format", "json").output)
     by_name = {d["name"]: d for d in data}
     assert by_name["jpeg_compression"]["levels"] == [{"quality": q} for q in (25, 18, 15, 10, 7)]
     assert by_name["shot_noise"]["category"] == "data & processing"
@@ -52,43 +46,43 @@ def test_list_json_has_parameters_per_level():
     assert "Poisson" in by_name["shot_noise"]["formula"]  # the function's docstring
 
 
-def test_readme_table_comes_from_the_registry():
+def test_readme_table_comes_from_the_registry(cli):
     from _paths import REPO
 
-    table = run("list", "--format", "markdown").output.strip()
+    table = cli("list", "--format", "markdown").output.strip()
     assert table in (REPO / "README.md").read_text(), "README's corruption table is stale: paste `robodepth list --format markdown`"
 
 
-def test_corrupt_one_writes_the_png(tmp_path):
+def test_corrupt_one_writes_the_png(tmp_path, cli):
     out = tmp_path / "z.png"
-    res = run("corrupt", INPUT, "-c", "contrast", "-l", "3", "--out", out)
+    res = cli("corrupt", INPUT, "-c", "contrast", "-l", "3", "--out", out)
     assert res.exit_code == 0, res.output
     got = np.asarray(Image.open(out))
     expected = np.asarray(Image.open(REFERENCE / "kitti" / "kitti_like_md2__contrast__3.png"))
     assert np.abs(got.astype(int) - expected).max() <= 1
 
 
-def test_corrupt_all_levels_makes_name_level_tree(tmp_path):
-    res = run("corrupt", small_png(tmp_path), "-c", ",".join(CHEAP), "-l", "all", "--out", tmp_path / "o")
+def test_corrupt_all_levels_makes_name_level_tree(tmp_path, cli):
+    res = cli("corrupt", small_png(tmp_path), "-c", ",".join(CHEAP), "-l", "all", "--out", tmp_path / "o")
     assert res.exit_code == 0, res.output
     files = sorted(p.relative_to(tmp_path / "o").as_posix() for p in (tmp_path / "o").rglob("*.png"))
     assert files == sorted(f"{n}/{lv}.png" for n in CHEAP for lv in range(1, 6))
 
 
-def test_corrupt_size_resizes_with_lanczos(tmp_path):
+def test_corrupt_size_resizes_with_lanczos(tmp_path, cli):
     src = small_png(tmp_path, size=(96, 128))
     out = tmp_path / "b.png"
-    assert run("corrupt", src, "-c", "color_quant", "-l", "5", "--size", "48x64", "--out", out).exit_code == 0
+    assert cli("corrupt", src, "-c", "color_quant", "-l", "5", "--size", "48x64", "--out", out).exit_code == 0
     clean = np.asarray(Image.open(src).resize((64, 48), Image.LANCZOS))
     assert np.array_equal(np.asarray(Image.open(out)), clean & 0x80)
 
 
-def test_corrupt_matches_library_call_and_seed(tmp_path):
+def test_corrupt_matches_library_call_and_seed(tmp_path, cli):
     src = small_png(tmp_path)
     a, b, c = tmp_path / "a.png", tmp_path / "b.png", tmp_path / "c.png"
-    run("corrupt", src, "-c", "gaussian_noise", "-l", "2", "--seed", "5", "--out", a)
-    run("corrupt", src, "-c", "gaussian_noise", "-l", "2", "--seed", "5", "--out", b)
-    run("corrupt", src, "-c", "gaussian_noise", "-l", "2", "--seed", "6", "--out", c)
+    cli("corrupt", src, "-c", "gaussian_noise", "-l", "2", "--seed", "5", "--out", a)
+    cli("corrupt", src, "-c", "gaussian_noise", "-l", "2", "--seed", "5", "--out", b)
+    cli("corrupt", src, "-c", "gaussian_noise", "-l", "2", "--seed", "6", "--out", c)
     assert a.read_bytes() == b.read_bytes() != c.read_bytes()
     expected = corrupt(load_clean(src, None), "gaussian_noise", 2, job_rng(5, "image", "gaussian_noise", 2, "img.png"))
     assert np.array_equal(np.asarray(Image.open(a)), expected)
@@ -102,8 +96,8 @@ def test_corrupt_matches_library_call_and_seed(tmp_path):
     (["-c", "fog", "-l", "two"], "expected an integer"),
     (["-c", "contrast", "-l", "1", "--size", "12x40"], "at least 32"),
 ])
-def test_corrupt_bad_options_exit_with_one_line(tmp_path, args, message):
-    res = CliRunner().invoke(main, ["corrupt", str(small_png(tmp_path)), *args, "--out", str(tmp_path / "o.png")])
+def test_corrupt_bad_options_exit_with_one_line(tmp_path, args, message, cli):
+    res = cli("corrupt", small_png(tmp_path), *args, "--out", tmp_path / "o.png")
     assert res.exit_code != 0
     assert message in res.output
     assert "Traceback" not in res.output and len(res.output.strip().splitlines()) == 1
@@ -115,34 +109,34 @@ def test_corrupt_bad_options_exit_with_one_line(tmp_path, args, message):
     (b"not a png at all", "not an image file"),
     (b"\x89PNG\r\n\x1a\n" + b"\0" * 40, "not an image file"),
 ])
-def test_corrupt_unreadable_image(tmp_path, content, message):
+def test_corrupt_unreadable_image(tmp_path, content, message, cli):
     src = tmp_path / "bad.png"
     if content is not None:
         src.write_bytes(content)
-    res = CliRunner().invoke(main, ["corrupt", str(src), "-c", "contrast", "-l", "1", "--out", str(tmp_path / "o.png")])
+    res = cli("corrupt", src, "-c", "contrast", "-l", "1", "--out", tmp_path / "o.png")
     assert res.exit_code != 0
     assert str(src) in res.output and message in res.output
     assert "Traceback" not in res.output
 
 
-def test_corrupt_truncated_png(tmp_path):
+def test_corrupt_truncated_png(tmp_path, cli):
     good = small_png(tmp_path, "good.png")
     bad = tmp_path / "trunc.png"
     bad.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
-    res = CliRunner().invoke(main, ["corrupt", str(bad), "-c", "contrast", "-l", "1", "--out", str(tmp_path / "o.png")])
+    res = cli("corrupt", bad, "-c", "contrast", "-l", "1", "--out", tmp_path / "o.png")
     assert res.exit_code != 0 and "trunc.png: unreadable image" in res.output and "Traceback" not in res.output
 
 
-def test_corrupt_out_is_file_for_many_outputs(tmp_path):
+def test_corrupt_out_is_file_for_many_outputs(tmp_path, cli):
     out = tmp_path / "file"
     out.write_text("x")
-    res = CliRunner().invoke(main, ["corrupt", str(small_png(tmp_path)), "-c", "all", "--out", str(out)])
+    res = cli("corrupt", small_png(tmp_path), "-c", "all", "--out", out)
     assert res.exit_code != 0 and "is a file" in res.output
 
 
-def test_preview_sheet_has_a_row_per_corruption(tmp_path):
+def test_preview_sheet_has_a_row_per_corruption(tmp_path, cli):
     out = tmp_path / "sheet.png"
-    res = run("preview", small_png(tmp_path), "-c", "contrast,color_quant", "--thumb-width", "64", "--out", out)
+    res = cli("preview", small_png(tmp_path), "-c", "contrast,color_quant", "--thumb-width", "64", "--out", out)
     assert res.exit_code == 0, res.output
     sheet = Image.open(out)
     # header + clean row + 2 corruption rows of 48-pixel thumbnails, 5 level columns of 64
@@ -174,7 +168,7 @@ def test_same_bytes_in_another_process(tmp_path):
 
 
 @pytest.mark.parametrize("command", [["corrupt", "-c", "frost", "-l", "2"], ["preview", "-c", "frost"]])
-def test_missing_frost_textures_are_a_clear_error(tmp_path, monkeypatch, command):
+def test_missing_frost_textures_are_a_clear_error(tmp_path, monkeypatch, command, cli):
     from robodepth_cli.corruptions import frost
 
     def missing(index):
@@ -184,8 +178,7 @@ def test_missing_frost_textures_are_a_clear_error(tmp_path, monkeypatch, command
     frost.texture_bgr.cache_clear()
     frost.scaled_texture.cache_clear()
     monkeypatch.setattr(frost, "texture_path", missing)
-    res = CliRunner().invoke(main, [command[0], str(small_png(tmp_path)), *command[1:],
-                                    "--out", str(tmp_path / "o.png")])
+    res = cli(command[0], small_png(tmp_path), *command[1:], "--out", tmp_path / "o.png")
     assert res.exit_code == 2
     assert "imagecorruptions-imaug is not installed" in res.output and "Traceback" not in res.output
     assert not (tmp_path / "o.png").exists()

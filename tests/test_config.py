@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from click.testing import CliRunner
 
-from robodepth_cli.cli import main
 from robodepth_cli.config import CONFIG_DIR, ConfigError, presets, resolve
 from robodepth_cli.corruptions import NAMES
 
@@ -96,11 +94,10 @@ def test_presets_use_only_known_keys():
             assert f"\n{key}:" in "\n" + text, (p, key)
 
 
-def test_cli_config_error_is_one_line_exit_2(tmp_path):
+def test_cli_config_error_is_one_line_exit_2(tmp_path, cli):
     f = tmp_path / "bad.yaml"
     f.write_text("corruptions: [snow, sleet]\n")
-    res = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(tmp_path), "--out", str(tmp_path / "o"),
-                                    "--config", str(f)])
+    res = cli("build", "kitti-c", "--root", tmp_path, "--out", tmp_path / "o", "--config", f)
     assert res.exit_code == 2
     assert res.output.startswith(f"robodepth: error: {f}: corruptions: unknown corruption 'sleet'; valid: ")
     assert len(res.output.strip().splitlines()) == 1 and "Traceback" not in res.output

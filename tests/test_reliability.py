@@ -25,25 +25,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from PIL import Image
 
 from robodepth_cli import builder, imageio, manifest
-from robodepth_cli.cli import main
 
 from _trees import KITTI_DRIVE, kitti_key, kitti_tree, random_image, save, tree
 
 PACKAGE = Path(__file__).resolve().parents[1] / "robodepth_cli"
 CLI = [sys.executable, "-m", "robodepth_cli.cli"]
 SMALL = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1", "--jobs", "1"]
-
-
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args] + ["--no-progress"])
-
-
-def build_kitti(root, split, out, *flags):
-    return run("build", "kitti-c", "--root", root, "--split", split, "--out", out, *flags)
 
 
 def one_line_error(res, start: str) -> None:
@@ -138,7 +128,7 @@ WHOLE_BUILD = {
 
 
 @pytest.mark.parametrize("case", WHOLE_BUILD)
-def test_whole_build_problem_is_one_line_and_exit_2(case, kitti, tmp_path):
+def test_whole_build_problem_is_one_line_and_exit_2(case, kitti, tmp_path, cli):
     setup, problem = WHOLE_BUILD[case]
     root, split = kitti
     flags, named = setup(tmp_path, root, split)
@@ -146,19 +136,19 @@ def test_whole_build_problem_is_one_line_and_exit_2(case, kitti, tmp_path):
     args = ["--root", root, "--split", split, "--out", out, "--size", "64x96", "--corruptions", "contrast",
             "--levels", "1", "--jobs", "1"]
     # Later flags win: a case's own --root/--out/--levels/... replaces the default.
-    res = run("build", "kitti-c", *args, *flags)
+    res = cli("build", "kitti-c", *args, *flags)
     one_line_error(res, named + problem)
     assert not out.exists()
 
 
-def test_unknown_dataset(kitti, tmp_path):
+def test_unknown_dataset(kitti, tmp_path, cli):
     root, split = kitti
-    res = run("build", "kitti-x", "--root", root, "--split", split, "--out", tmp_path / "o2")
+    res = cli("build", "kitti-x", "--root", root, "--split", split, "--out", tmp_path / "o2")
     one_line_error(res, "unknown dataset 'kitti-x'; valid: kitti-c, kitti-c-hr")
     assert not (tmp_path / "o2").exists()
 
 
-def test_yaml_is_loaded_safely(kitti, tmp_path):
+def test_yaml_is_loaded_safely(kitti, tmp_path, build_kitti):
     """A Python tag in a config is refused by name and never executed."""
     root, split = kitti
     marker = tmp_path / "executed"
@@ -277,7 +267,7 @@ PER_IMAGE = {
 
 
 @pytest.mark.parametrize("case", PER_IMAGE)
-def test_per_image_problem_fails_that_image_only(case, tmp_path):
+def test_per_image_problem_fails_that_image_only(case, tmp_path, cli, build_kitti):
     root = tmp_path / "kitti_raw"
     split = kitti_tree(root, [(1, "l", ".png"), (2, "r", ".png")])
     bad, problem = PER_IMAGE[case](root, root / KITTI_DRIVE / "image_03" / "data", tmp_path)
@@ -298,7 +288,7 @@ def test_per_image_problem_fails_that_image_only(case, tmp_path):
     failed = {p: r for p, r in manifest.read_manifest(out).items() if r.error}
     assert set(failed) == {f"clean/{spoilt}", f"contrast/2/{spoilt}", f"pixelate/2/{spoilt}"}
     assert all(r.error.startswith(message) and r.sha256 == "" for r in failed.values())
-    v = run("verify", out)
+    v = cli("verify", out)
     assert v.exit_code == 1 and "failed: 3" in v.output
     assert outside(tmp_path, out) == before
 
@@ -307,7 +297,7 @@ def _rgb16(a: np.ndarray) -> np.ndarray:
     return a[..., ::-1] if a.ndim == 3 and a.shape[2] == 3 else a[..., [2, 1, 0, 3]]
 
 
-def test_gray_alpha_palette_and_16_bit_sources_build_as_rgb(tmp_path):
+def test_gray_alpha_palette_and_16_bit_sources_build_as_rgb(tmp_path, build_kitti):
     """Every PNG pixel format is converted to 8-bit RGB: grey repeated, alpha dropped, a palette
     looked up, 16 bits cut to their top 8 (65535 -> 255, 256 -> 1, 255 -> 0)."""
     h, w = 64, 96
@@ -366,7 +356,7 @@ def test_gray_alpha_palette_and_16_bit_sources_build_as_rgb(tmp_path):
 
 # --- writes stay inside OUT -----------------------------------------------------------------
 
-def test_split_entries_that_would_leave_out_are_refused(tmp_path):
+def test_split_entries_that_would_leave_out_are_refused(tmp_path, cli):
     """NYU entries whose output would land outside OUT (``..``, absolute) are refused before
     anything is written, even when the file they name exists."""
     root = tmp_path / "nyu"
@@ -379,14 +369,14 @@ def test_split_entries_that_would_leave_out_are_refused(tmp_path):
                            (f"{tmp_path}/escape/rgb_00002.jpg", "is not a relative path")]:
         split.write_text(f"bedroom/rgb_00001.jpg bedroom/d_1.png 518.8\n{entry} escape/d_2.png 518.8\n")
         before = outside(tmp_path, out)
-        res = run("build", "nyudepth2-c", "--root", root, "--split", split, "--out", out, "--size", "48x64",
+        res = cli("build", "nyudepth2-c", "--root", root, "--split", split, "--out", out, "--size", "48x64",
                   "--corruptions", "contrast", "--levels", "1", "--jobs", "1")
         one_line_error(res, f"{split}:2: RGB path {entry!r} {problem}")
         assert outside(tmp_path, out) == before
         assert not out.exists()
 
 
-def test_symlink_in_out_leading_outside_is_refused(kitti, tmp_path):
+def test_symlink_in_out_leading_outside_is_refused(kitti, tmp_path, build_kitti):
     """A link planted in OUT cannot redirect the build's writes (or deletions) elsewhere."""
     root, split = kitti
     out = tmp_path / "out"
@@ -424,7 +414,7 @@ def mount_point(tmp_path):
     subprocess.run(["umount", str(mnt)], capture_output=True)
 
 
-def test_read_only_output_file_system(kitti, tmp_path, mount_point):
+def test_read_only_output_file_system(kitti, tmp_path, mount_point, build_kitti):
     """The real thing, where this machine allows a mount (root); without it the same path
     is covered by test_build.py::test_unwritable_out with a patched write."""
     if not _mount_tmpfs(mount_point, "ro,size=64k"):
@@ -434,7 +424,8 @@ def test_read_only_output_file_system(kitti, tmp_path, mount_point):
     one_line_error(res, f"{mount_point / 'out'}: cannot write the output directory (Read-only file system)")
 
 
-def test_full_disk_midway_keeps_only_complete_images_and_resumes(big, reference, tmp_path, mount_point):
+def test_full_disk_midway_keeps_only_complete_images_and_resumes(big, reference, tmp_path,
+                                                                 mount_point, cli, build_kitti):
     """A build onto a real, too-small file system (tmpfs), with the default pool of workers."""
     if not _mount_tmpfs(mount_point, "size=96k"):
         pytest.skip("cannot mount a tmpfs here; test_write_failing_midway_leaves_no_partial_file "
@@ -456,11 +447,11 @@ def test_full_disk_midway_keeps_only_complete_images_and_resumes(big, reference,
     subprocess.run(["mount", "-o", "remount,size=16m", str(mount_point)], check=True)
     res = build_kitti(root, split, out, *BIG, "--jobs", "2")
     assert res.exit_code == 0, res.output
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
     assert tree(out) == reference[0]
 
 
-def test_write_failing_midway_leaves_no_partial_file(kitti, tmp_path, monkeypatch):
+def test_write_failing_midway_leaves_no_partial_file(kitti, tmp_path, monkeypatch, build_kitti):
     """ENOSPC half-way through a file's bytes (the OS-level write, patched): the temporary file
     goes, no final name is ever truncated, the message says what happened; a rerun finishes."""
     root, split = kitti
@@ -511,7 +502,8 @@ def test_write_failing_midway_leaves_no_partial_file(kitti, tmp_path, monkeypatc
 
 
 @pytest.mark.parametrize("stage", ["start", "append", "compact", "end"])
-def test_bookkeeping_write_failure_is_a_clear_stop(stage, kitti, tmp_path, monkeypatch):
+def test_bookkeeping_write_failure_is_a_clear_stop(stage, kitti, tmp_path, monkeypatch, cli,
+                                                   build_kitti):
     """The manifest or build record cannot be written (disk full): one clear message, exit 2,
     and the rerun completes; the images never disagree with the manifest."""
     root, split = kitti
@@ -547,7 +539,7 @@ def test_bookkeeping_write_failure_is_a_clear_stop(stage, kitti, tmp_path, monke
     monkeypatch.undo()
     res = build_kitti(root, split, out, *SMALL)
     assert res.exit_code == 0, res.output
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
 
 
 # --- killed, interrupted and concurrent builds (real processes) -----------------------------
@@ -564,7 +556,7 @@ def big(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def reference(big, tmp_path_factory):
+def reference(big, tmp_path_factory, build_kitti):
     """An uninterrupted build (one worker): its tree and its manifest."""
     root, split = big
     out = tmp_path_factory.mktemp("reference") / "out"
@@ -619,7 +611,8 @@ def completed_rows(out: Path) -> int:
     return sum(1 for r in manifest.read_manifest(out).values() if not r.error)
 
 
-def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference, tmp_path, processes):
+def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference, tmp_path,
+                                                                 processes, cli):
     out = tmp_path / "out"
     proc = processes(*build_args(big, out))
     wait_until_partly_done(proc, out)
@@ -637,7 +630,7 @@ def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference,
     assert not [p for p in out.rglob("*") if p.name.endswith(".part")]
     files = tree(out)
     assert all(decodes(b) for b in files.values())
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
     assert files == reference[0]
     assert (out / "manifest.csv").read_bytes() == reference[1]
 
@@ -646,7 +639,8 @@ def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference,
     signal.SIGINT,   # what Ctrl-C in a terminal does: the whole group
     signal.SIGTERM,  # what a batch scheduler sends at the end of a job's time
 ], ids=["ctrl-c", "sigterm"])
-def test_ctrl_c_stops_cleanly_and_the_rerun_completes(big, reference, tmp_path, processes, sig):
+def test_ctrl_c_stops_cleanly_and_the_rerun_completes(big, reference, tmp_path, processes, sig, cli,
+                                                      build_kitti):
     out = tmp_path / "out"
     proc = processes(*build_args(big, out))
     wait_until_partly_done(proc, out)
@@ -665,11 +659,12 @@ def test_ctrl_c_stops_cleanly_and_the_rerun_completes(big, reference, tmp_path, 
     res = build_kitti(*big, out, *BIG, "--jobs", "2")
     assert res.exit_code == 0, res.output
     assert f"{done} skipped (already done)" in res.output
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
     assert tree(out) == reference[0]
 
 
-def test_second_build_into_the_same_out_is_refused_while_one_runs(big, reference, tmp_path, processes):
+def test_second_build_into_the_same_out_is_refused_while_one_runs(big, reference, tmp_path,
+                                                                  processes, cli):
     out = tmp_path / "out"
     first = processes(*build_args(big, out))
     wait_until_partly_done(first, out)
@@ -684,11 +679,11 @@ def test_second_build_into_the_same_out_is_refused_while_one_runs(big, reference
                            f"wait for it to finish or choose another --out")
     _, err = first.communicate(timeout=600)
     assert first.returncode == 0, err
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
     assert tree(out) == reference[0]
 
 
-def test_interrupt_before_the_build_starts_is_clean(kitti, tmp_path, monkeypatch):
+def test_interrupt_before_the_build_starts_is_clean(kitti, tmp_path, monkeypatch, build_kitti):
     """Ctrl-C while the split is read or the plan is made: the same message and exit code."""
     root, split = kitti
 
@@ -701,14 +696,14 @@ def test_interrupt_before_the_build_starts_is_clean(kitti, tmp_path, monkeypatch
     assert res.output.strip() == "robodepth: interrupted; rerun the same command to resume"
 
 
-def test_unknown_style(kitti, tmp_path):
+def test_unknown_style(kitti, tmp_path, cli):
     """KITTI-S names its variants styles: a wrong one is refused like a wrong corruption."""
     root, split = kitti
     out = tmp_path / "out"
-    res = run("build", "kitti-s", "--root", root, "--split", split, "--out", out, "--only-styles", "sketch,skecth")
+    res = cli("build", "kitti-s", "--root", root, "--split", split, "--out", out, "--only-styles", "sketch,skecth")
     one_line_error(res, "--only-styles: unknown style 'skecth'; valid: cartoon, digital_art,")
     cfg = tmp_path / "mine.yaml"
     cfg.write_text("only_styles: [relief, murals, graffiti]\n")
-    res = run("build", "kitti-s", "--root", root, "--split", split, "--out", out, "--config", cfg)
+    res = cli("build", "kitti-s", "--root", root, "--split", split, "--out", out, "--config", cfg)
     one_line_error(res, f"{cfg}: only_styles: unknown style 'graffiti'; valid: cartoon,")
     assert not out.exists()

@@ -9,11 +9,9 @@ from __future__ import annotations
 import json
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from PIL import Image
 
 from robodepth_cli import scores as S
-from robodepth_cli.cli import main
 from robodepth_cli.corruptions import DATA, NAMES, SENSOR, WEATHER
 from robodepth_cli.plot import COLOURS, ce_chart
 
@@ -109,12 +107,6 @@ def levels_csv(table: dict[str, str]) -> str:
     return "\n".join(rows) + "\n"
 
 
-def run(*args):
-    result = CliRunner().invoke(main, [str(a) for a in args])
-    assert "Traceback" not in result.output
-    return result
-
-
 def write(tmp_path, text, name="results.csv"):
     path = tmp_path / name
     path.write_text(text)
@@ -205,10 +197,10 @@ def test_partial_scores_average_what_is_present():
 
 # --------------------------------------------------------------------------- published figures
 
-def test_monovit_kitti_c_published_summary(tmp_path):
+def test_monovit_kitti_c_published_summary(tmp_path, cli):
     dees = dict(zip(NAMES, floats(MONOVIT_DEE)))
     path = write(tmp_path, dee_csv(MONOVIT_CLEAN, dees, 5))
-    result = run("score", path, "--benchmark", "kitti-c", "--json")
+    result = cli("score", path, "--benchmark", "kitti-c", "--json")
     assert result.exit_code == 0, result.output
     out = json.loads(result.output)
     # The page's own per-corruption CE_2 equals the ratio of the ROUNDED DEEs (e.g.
@@ -236,9 +228,9 @@ def _rounding_bounds(base: list[float], clean: float, dees: list[float], delta: 
     (KITTI, MONOVIT_LEVELS, MONOVIT_CLEAN, MONOVIT_DEE, KITTI_BASE, 79.33, 89.15),
     (NYU, BTS_LEVELS, BTS_CLEAN, BTS_DEE, NYU_BASE, 122.78, 80.63),
 ])
-def test_published_per_level_metrics(tmp_path, bench, table, pub_clean, pub_dee, base, mce, mrr):
+def test_published_per_level_metrics(tmp_path, bench, table, pub_clean, pub_dee, base, mce, mrr, cli):
     path = write(tmp_path, levels_csv(table))
-    result = run("score", path, "--benchmark", bench.name, "--json")
+    result = cli("score", path, "--benchmark", bench.name, "--json")
     assert result.exit_code == 0, result.output
     out = json.loads(result.output)
     # The inputs are printed to 3 decimals, so each level's DEE is within
@@ -256,22 +248,22 @@ def test_published_per_level_metrics(tmp_path, bench, table, pub_clean, pub_dee,
     assert out["mrr"] == pytest.approx(mrr, abs=PRINTED + rr_tol)
 
 
-def test_bts_nyu_summary_reproduces_to_the_printed_digits(tmp_path):
+def test_bts_nyu_summary_reproduces_to_the_printed_digits(tmp_path, cli):
     # Stronger than the bound above, and what SPEC section 5 claims: with the AdaBins-B5
     # row the paper's BTS summary reproduces. The level means of BTS's 3-decimal inputs
     # happen to sit so close to the paper's DEEs that the summary matches to 0.005.
     path = write(tmp_path, levels_csv(BTS_LEVELS))
-    out = json.loads(run("score", path, "-b", "nyudepth2-c", "--json").output)
+    out = json.loads(cli("score", path, "-b", "nyudepth2-c", "--json").output)
     assert out["mce"] == pytest.approx(122.78, abs=PRINTED)
     assert out["mrr"] == pytest.approx(80.63, abs=PRINTED)
 
 
 @pytest.mark.parametrize("bench, base", [(KITTI, KITTI_BASE), (NYU, NYU_BASE)])
-def test_baseline_scores_itself_100(tmp_path, bench, base):
+def test_baseline_scores_itself_100(tmp_path, bench, base, cli):
     values = floats(base)
     path = write(tmp_path, dee_csv(bench.baseline.clean, dict(zip(bench.corruptions, values)),
                                    bench.n_levels))
-    out = json.loads(run("score", path, "-b", bench.name, "--json").output)
+    out = json.loads(cli("score", path, "-b", bench.name, "--json").output)
     assert out["mce"] == pytest.approx(100.0, abs=1e-9)
     assert all(c["ce"] == pytest.approx(100.0, abs=1e-9) for c in out["corruptions"].values())
     # mRR of the baseline = (1 - mean DEE) / (1 - clean), mDEE = mean DEE; by hand for
@@ -281,26 +273,26 @@ def test_baseline_scores_itself_100(tmp_path, bench, base):
         assert out["mrr"] == pytest.approx(100 * (1 - 4.607 / 18) / (1 - 0.119))
 
 
-def test_baseline_file_replaces_the_published_one(tmp_path):
+def test_baseline_file_replaces_the_published_one(tmp_path, cli):
     # Baseline = MonoViT itself, given per level: every CE is exactly 100.
     dees = dict(zip(NAMES, floats(MONOVIT_DEE)))
     res = write(tmp_path, dee_csv(MONOVIT_CLEAN, dees, 5))
     base = write(tmp_path, levels_csv(MONOVIT_LEVELS), "base.csv")
     # Against the per-level baseline, the CE of brightness is .106 / mean(level DEEs);
     # levels (.099-.900+1)/2 = .0995, .1015, .1045, .109, .1135: sum .528, mean .1056.
-    out = json.loads(run("score", res, "-b", "kitti-c", "--baseline", base, "--json").output)
+    out = json.loads(cli("score", res, "-b", "kitti-c", "--baseline", base, "--json").output)
     assert out["baseline"]["name"] == str(base)
     assert out["baseline"]["clean_dee"] == pytest.approx(0.0995)
     assert out["corruptions"]["brightness"]["ce"] == pytest.approx(100 * 0.106 / 0.1056)
-    same = json.loads(run("score", res, "-b", "kitti-c", "--baseline", res, "--json").output)
+    same = json.loads(cli("score", res, "-b", "kitti-c", "--baseline", res, "--json").output)
     assert same["mce"] == pytest.approx(100.0)
 
 
 # --------------------------------------------------------------------------- output forms
 
-def test_json_keys_are_stable(tmp_path):
+def test_json_keys_are_stable(tmp_path, cli):
     path = write(tmp_path, dee_csv(MONOVIT_CLEAN, dict(zip(NAMES, floats(MONOVIT_DEE))), 5))
-    out = json.loads(run("score", path, "-b", "kitti-c", "--json").output)
+    out = json.loads(cli("score", path, "-b", "kitti-c", "--json").output)
     assert list(out) == ["benchmark", "results", "baseline", "clean_dee", "corruptions",
                          "categories", "mdee", "mce", "mrr", "partial", "missing"]
     assert out["benchmark"] == "kitti-c" and out["results"] == str(path)
@@ -313,9 +305,9 @@ def test_json_keys_are_stable(tmp_path):
     assert out["baseline"]["name"] == "MonoDepth2 R18, 640x192"
 
 
-def test_table_output(tmp_path):
+def test_table_output(tmp_path, cli):
     path = write(tmp_path, dee_csv(MONOVIT_CLEAN, dict(zip(NAMES, floats(MONOVIT_DEE))), 5))
-    result = run("score", path, "-b", "kitti-c")
+    result = cli("score", path, "-b", "kitti-c")
     assert result.exit_code == 0
     lines = result.output.splitlines()
     assert lines[-1].startswith("mCE 79.33   mRR 89.15   mDEE ")
@@ -324,15 +316,15 @@ def test_table_output(tmp_path):
     assert sum(l.strip().startswith("mean ") for l in lines) == 3
 
 
-def test_allow_partial_warns_and_scores(tmp_path):
+def test_allow_partial_warns_and_scores(tmp_path, cli):
     text = dee_csv(MONOVIT_CLEAN, dict(zip(NAMES, floats(MONOVIT_DEE))), 5)
     text = "\n".join(l for l in text.splitlines() if not l.startswith(("fog,", "snow,3"))) + "\n"
     path = write(tmp_path, text)
-    result = run("score", path, "-b", "kitti-c")
+    result = cli("score", path, "-b", "kitti-c")
     assert result.exit_code == 2
     assert result.output.strip() == (f"robodepth: error: {path}: missing 6 of 90 variants: "
                                      "fog (all levels), snow 3 (--allow-partial scores what is there)")
-    result = run("score", path, "-b", "kitti-c", "--allow-partial", "--json")
+    result = cli("score", path, "-b", "kitti-c", "--allow-partial", "--json")
     assert result.exit_code == 0
     assert "robodepth: warning:" in result.stderr and "fog (all levels), snow 3" in result.stderr
     out = json.loads(result.stdout)
@@ -375,9 +367,9 @@ GOOD = "corruption,level,abs_rel,a1\nclean,0,0.1,0.9\n"
     ("corruption,level,dee\nclean,0,0.1\nfog,1,-0.01\n", 3, "dee -0.01 is outside [0, 1]"),
     ("corruption,level,dee\nclean,0,1\nfog,1,0.1\n", 2, "clean DEE 1 must be below 1"),
 ])
-def test_bad_rows_are_one_line_errors(tmp_path, text, line, problem):
+def test_bad_rows_are_one_line_errors(tmp_path, text, line, problem, cli):
     path = write(tmp_path, text)
-    result = run("score", path, "-b", "kitti-c")
+    result = cli("score", path, "-b", "kitti-c")
     assert result.exit_code == 2
     assert result.output.startswith(f"robodepth: error: {path}:{line}: ")
     assert problem in result.output and result.output.count("\n") == 1
@@ -388,46 +380,46 @@ def test_bad_rows_are_one_line_errors(tmp_path, text, line, problem):
     ("corruption,level,abs_rel,a1\nfog,1,0.1,0.9\n", "no clean row"),
     (GOOD, "no corruption rows"),
 ])
-def test_bad_files_are_one_line_errors(tmp_path, text, problem):
+def test_bad_files_are_one_line_errors(tmp_path, text, problem, cli):
     path = write(tmp_path, text)
-    result = run("score", path, "-b", "kitti-c")
+    result = cli("score", path, "-b", "kitti-c")
     assert result.exit_code == 2
     assert result.output.startswith(f"robodepth: error: {path}: {problem}")
     assert result.output.count("\n") == 1
 
 
-def test_benchmark_specific_corruptions_and_levels(tmp_path):
+def test_benchmark_specific_corruptions_and_levels(tmp_path, cli):
     fog = write(tmp_path, GOOD + "fog,1,0.1,0.9\n")
-    assert "fog is not a corruption of nyudepth2-c" in run("score", fog, "-b", "nyudepth2-c").output
+    assert "fog is not a corruption of nyudepth2-c" in cli("score", fog, "-b", "nyudepth2-c").output
     lv5 = write(tmp_path, GOOD + "dark,5,0.1,0.9\n", "lv5.csv")
-    assert "level 5 of dark is outside 1..4 for nyudepth2-c" in run("score", lv5, "-b", "nyudepth2-c").output
+    assert "level 5 of dark is outside 1..4 for nyudepth2-c" in cli("score", lv5, "-b", "nyudepth2-c").output
 
 
-def test_unreadable_inputs(tmp_path):
+def test_unreadable_inputs(tmp_path, cli):
     missing = tmp_path / "nope.csv"
-    result = run("score", missing, "-b", "kitti-c")
+    result = cli("score", missing, "-b", "kitti-c")
     assert result.exit_code == 2 and f"{missing}: cannot read" in result.output
     binary = tmp_path / "bin.csv"
     binary.write_bytes(b"corruption,level,dee\n\xff\xfe\x00")
-    result = run("score", binary, "-b", "kitti-c")
+    result = cli("score", binary, "-b", "kitti-c")
     assert result.exit_code == 2 and f"{binary}: not a UTF-8 text file" in result.output
 
 
-def test_names_are_normalised_and_bom_accepted(tmp_path):
+def test_names_are_normalised_and_bom_accepted(tmp_path, cli):
     # "Defocus-Blur", a UTF-8 BOM, "3.0" levels and spaces are what spreadsheets produce.
     text = "\ufeffCorruption, Level, DEE\nClean,0,0.1\n" + "".join(
         f" Defocus-Blur ,{lv}.0, 0.2\n" for lv in range(1, 6))
     path = write(tmp_path, text)
-    result = run("score", path, "-b", "kitti-c", "--allow-partial", "--json")
+    result = cli("score", path, "-b", "kitti-c", "--allow-partial", "--json")
     assert result.exit_code == 0, result.output
     # .2 / .244 = 81.97 %
     assert json.loads(result.stdout)["corruptions"]["defocus_blur"]["ce"] == pytest.approx(100 * 0.2 / 0.244)
 
 
-def test_incomplete_baseline_file_is_an_error(tmp_path):
+def test_incomplete_baseline_file_is_an_error(tmp_path, cli):
     res = write(tmp_path, dee_csv(MONOVIT_CLEAN, dict(zip(NAMES, floats(MONOVIT_DEE))), 5))
     base = write(tmp_path, GOOD + "fog,1,0.1,0.9\n", "base.csv")
-    result = run("score", res, "-b", "kitti-c", "--baseline", base, "--allow-partial")
+    result = cli("score", res, "-b", "kitti-c", "--baseline", base, "--allow-partial")
     assert result.exit_code == 2
     assert result.output.startswith(f"robodepth: error: {base}: missing 89 of 90 variants")
 
@@ -453,7 +445,7 @@ def _bar_lengths(img: np.ndarray, colour) -> list[int]:
     return lengths
 
 
-def test_plot_bars_are_proportional_to_ce(tmp_path):
+def test_plot_bars_are_proportional_to_ce(tmp_path, cli):
     # Brightness at half the baseline's DEE (CE 50), dark at twice (CE 200), every other
     # corruption equal to the baseline (CE 100).
     dees = dict(KITTI.baseline.dee)
@@ -461,7 +453,7 @@ def test_plot_bars_are_proportional_to_ce(tmp_path):
     dees["dark"] = KITTI.baseline.dee["dark"] * 2
     path = write(tmp_path, dee_csv(0.119, dees, 5))
     png = tmp_path / "out" / "ce.png"
-    result = run("score", path, "-b", "kitti-c", "--plot", png)
+    result = cli("score", path, "-b", "kitti-c", "--plot", png)
     assert result.exit_code == 0, result.output
     img = np.asarray(Image.open(png).convert("RGB"))
     weather = _bar_lengths(img, COLOURS[WEATHER])
@@ -475,17 +467,17 @@ def test_plot_bars_are_proportional_to_ce(tmp_path):
         assert runs[0] == 11 and set(runs[1:]) == {full}
 
 
-def test_plot_write_failure_is_a_one_line_error(tmp_path):
+def test_plot_write_failure_is_a_one_line_error(tmp_path, cli):
     path = write(tmp_path, dee_csv(0.119, dict(KITTI.baseline.dee), 5))
-    result = run("score", path, "-b", "kitti-c", "--plot", path / "ce.png")
+    result = cli("score", path, "-b", "kitti-c", "--plot", path / "ce.png")
     assert result.exit_code == 2 and result.output.startswith("robodepth: error: ")
     assert result.output.count("\n") == 1
 
 
-def test_plot_not_written_when_scoring_fails(tmp_path):
+def test_plot_not_written_when_scoring_fails(tmp_path, cli):
     path = write(tmp_path, GOOD)
     png = tmp_path / "ce.png"
-    assert run("score", path, "-b", "kitti-c", "--plot", png).exit_code == 2
+    assert cli("score", path, "-b", "kitti-c", "--plot", png).exit_code == 2
     assert not png.exists()
 
 

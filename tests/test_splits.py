@@ -11,10 +11,8 @@ import threading
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
-from click.testing import CliRunner
 
 from robodepth_cli import splits
-from robodepth_cli.cli import main
 from robodepth_cli.datasets import locate, read_split
 from robodepth_cli.imageio import ImageError
 from robodepth_cli.splits import SplitError
@@ -121,21 +119,20 @@ def test_cache_dir_defaults(monkeypatch, tmp_path):
 
 
 def test_build_without_split_downloads_the_standard_one(splits_dir, fixtures_dir, serve, cache,
-                                                        monkeypatch, tmp_path):
+                                                        monkeypatch, tmp_path, cli):
     """The first two Eigen test frames are the two fixture frames."""
     monkeypatch.setenv("ROBODEPTH_SPLIT_URL_EIGEN_TEST", f"{serve(splits_dir)}/eigen_test_files.txt")
     out = tmp_path / "out"
-    res = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(fixtures_dir / "kitti_raw"),
-                                    "--out", str(out), "--limit", "2", "--corruptions", "contrast",
-                                    "--levels", "1", "--size", "64x96", "--jobs", "1", "--no-progress"])
+    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--out", out, "--limit", "2",
+              "--corruptions", "contrast", "--levels", "1", "--size", "64x96", "--jobs", "1")
     assert res.exit_code == 0, res.output
     assert (cache / "splits" / "eigen_test_files.txt").is_file()
     assert len(list(out.rglob("*.png"))) == 4
 
     monkeypatch.setenv("ROBODEPTH_SPLIT_URL_EIGEN_TEST", closed_port_url("eigen_test_files.txt"))
     shutil.rmtree(cache)
-    res = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(fixtures_dir / "kitti_raw"),
-                                    "--out", str(tmp_path / "out2"), "--corruptions", "contrast"])
+    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--out", tmp_path / "out2",
+              "--corruptions", "contrast")
     assert res.exit_code == 2
     assert "offline?" in res.output and "--split FILE" in res.output
     assert len(res.output.strip().splitlines()) == 1

@@ -9,13 +9,11 @@ import textwrap
 import numpy as np
 import pytest
 import torch
-from click.testing import CliRunner
 from PIL import Image
 
 from adain_fakes import reference_stylize, save_checkpoints, smooth_image
 from _paths import REPO
 from robodepth_cli import styles
-from robodepth_cli.cli import main
 from robodepth_cli.imageio import load_clean
 
 FRAME = "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
@@ -24,10 +22,6 @@ FRAME = "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/000000006
 @pytest.fixture(scope="module")
 def ckpt(tmp_path_factory):
     return save_checkpoints(tmp_path_factory.mktemp("ckpt"), seed=7)
-
-
-def _run(args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 # ---------------------------------------------------------------- style directory
@@ -65,13 +59,13 @@ def test_style_directory_problems_are_named(tmp_path):
 # ------------------------------------------------------------------- stylize CLI
 
 
-def test_stylize_command_matches_reference(tmp_path, fixtures_dir, ckpt):
+def test_stylize_command_matches_reference(tmp_path, fixtures_dir, ckpt, cli):
     vgg_path, dec_path, vgg, dec = ckpt
     style = fixtures_dir / "styles" / "ink_painting.png"
     out = tmp_path / "o.png"
-    r = _run(["stylize", fixtures_dir / FRAME, "--style", style, "--vgg", vgg_path,
-              "--decoder", dec_path, "--size", "44x150", "--style-size", "64",
-              "--alpha", "0.8", "--out", out])
+    r = cli("stylize", fixtures_dir / FRAME, "--style", style, "--vgg", vgg_path,
+            "--decoder", dec_path, "--size", "44x150", "--style-size", "64",
+            "--alpha", "0.8", "--out", out)
     assert r.exit_code == 0, r.output
     got = np.asarray(Image.open(out))
     content = load_clean(fixtures_dir / FRAME, (44, 150))  # not divisible by 8: cropped
@@ -91,7 +85,7 @@ def test_stylize_command_matches_reference(tmp_path, fixtures_dir, ckpt):
     ({"--decoder": "VGG"}, "this is the AdaIN vgg checkpoint, not the decoder one"),
     ({"--vgg": "BROKEN"}, "broken.pth: missing tensor '29.weight'"),
 ])
-def test_stylize_refuses_bad_input(tmp_path, fixtures_dir, ckpt, change, message):
+def test_stylize_refuses_bad_input(tmp_path, fixtures_dir, ckpt, change, message, cli):
     vgg_path, dec_path, vgg, _ = ckpt
     state = {k: v for k, v in vgg.state_dict().items() if k != "29.weight"}
     torch.save(state, tmp_path / "broken.pth")
@@ -100,7 +94,7 @@ def test_stylize_refuses_bad_input(tmp_path, fixtures_dir, ckpt, change, message
             "--decoder": dec_path, "--out": tmp_path / "o.png", "--style-size": "32"}
     for k, v in change.items():
         opts[k] = named.get(v, tmp_path / v if k in ("--style", "--vgg", "--out") else v)
-    r = _run(["stylize", fixtures_dir / FRAME, "--size", "32x96"] + [x for kv in opts.items() for x in kv])
+    r = cli("stylize", fixtures_dir / FRAME, "--size", "32x96", *[x for kv in opts.items() for x in kv])
     assert r.exit_code == 2
     assert message in r.output and "Traceback" not in r.output
     assert len(r.output.strip().splitlines()) == 1
@@ -134,8 +128,10 @@ def test_help_and_kitti_c_build_do_not_import_torch(tmp_path, fixtures_dir):
 # ------------------------------------------------------------------ kitti-s build
 
 
-def _build(args):
-    return _run(["build", "kitti-s", "--no-progress"] + list(args))
+@pytest.fixture()
+def build_kitti_s(cli):
+    """``build_kitti_s(args)``: ``robodepth build kitti-s ARGS...``."""
+    return lambda args: cli("build", "kitti-s", *args)
 
 
 @pytest.fixture()
@@ -151,11 +147,12 @@ def _tree(out):
             for p in sorted(out.rglob("*.png"))}
 
 
-def test_kitti_s_build_layout_pixels_resume_and_workers(tmp_path, fixtures_dir, ckpt, kitti_s_args):
+def test_kitti_s_build_layout_pixels_resume_and_workers(tmp_path, fixtures_dir, ckpt, kitti_s_args, cli,
+                                                        build_kitti_s):
     _, _, vgg, dec = ckpt
     chosen = ["sketch", "cartoon", "murals"]
     out1, out2 = tmp_path / "one", tmp_path / "two"
-    r = _build(kitti_s_args + ["--only-styles", ",".join(chosen), "--jobs", "1", "--out", out1])
+    r = build_kitti_s(kitti_s_args + ["--only-styles", ",".join(chosen), "--jobs", "1", "--out", out1])
     assert r.exit_code == 0, r.output
     files = _tree(out1)
     keys = [f"kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/{f}.png"
@@ -173,17 +170,18 @@ def test_kitti_s_build_layout_pixels_resume_and_workers(tmp_path, fixtures_dir, 
             assert np.abs(got.astype(int) - ref.astype(int)).max() <= 1
     rows = (out1 / "manifest.csv").read_text().splitlines()
     assert len(rows) == 1 + len(files) and all(",," in row for row in rows[1:])  # no level
-    assert _run(["verify", out1]).exit_code == 0
+    assert cli("verify", out1).exit_code == 0
     # Two workers (one torch thread each) write the same bytes.
-    r = _build(kitti_s_args + ["--only-styles", ",".join(chosen), "--jobs", "2", "--out", out2])
+    r = build_kitti_s(kitti_s_args + ["--only-styles", ",".join(chosen), "--jobs", "2", "--out", out2])
     assert r.exit_code == 0, r.output
     assert _tree(out2) == files
     # A rerun has nothing to do.
-    r = _build(kitti_s_args + ["--only-styles", ",".join(chosen), "--out", out1])
+    r = build_kitti_s(kitti_s_args + ["--only-styles", ",".join(chosen), "--out", out1])
     assert r.exit_code == 0 and "0 written, 8 skipped" in r.output
 
 
-def test_kitti_s_rebuild_redoes_a_style_whose_inputs_changed(tmp_path, fixtures_dir, kitti_s_args):
+def test_kitti_s_rebuild_redoes_a_style_whose_inputs_changed(tmp_path, fixtures_dir, kitti_s_args, cli,
+                                                             build_kitti_s):
     """Seed and size do not decide a stylised image: the checkpoints, the style image, alpha
     and the style size do, and a rebuild after any of them changed must not keep old pixels."""
     import shutil
@@ -194,21 +192,21 @@ def test_kitti_s_rebuild_redoes_a_style_whose_inputs_changed(tmp_path, fixtures_
     opts["--styles"] = styles
     base = [x for kv in opts.items() for x in kv] + ["--only-styles", "sketch,murals", "--limit", "1",
                                                      "--out", tmp_path / "out"]
-    assert _build(base).exit_code == 0
+    assert build_kitti_s(base).exit_code == 0
     first = _tree(tmp_path / "out")
 
-    r = _build(base + ["--alpha", "0.5"])
+    r = build_kitti_s(base + ["--alpha", "0.5"])
     assert r.exit_code == 0 and "2 written, 1 skipped" in r.output, r.output
     half = _tree(tmp_path / "out")
     assert [k for k in first if first[k] != half[k]] == [k for k in first if not k.startswith("clean/")]
 
-    r = _build(base + ["--alpha", "0.5"])
+    r = build_kitti_s(base + ["--alpha", "0.5"])
     assert "0 written, 3 skipped" in r.output, r.output
 
     Image.open(styles / "sketch.png").transpose(Image.FLIP_LEFT_RIGHT).save(styles / "sketch.png")
-    r = _build(base + ["--alpha", "0.5"])
+    r = build_kitti_s(base + ["--alpha", "0.5"])
     assert r.exit_code == 0 and "1 written, 2 skipped" in r.output, r.output
-    assert _run(["verify", tmp_path / "out"]).exit_code == 0
+    assert cli("verify", tmp_path / "out").exit_code == 0
 
 
 @pytest.mark.parametrize("flag,value,message", [
@@ -219,13 +217,14 @@ def test_kitti_s_rebuild_redoes_a_style_whose_inputs_changed(tmp_path, fixtures_
     ("--alpha", "2", "--alpha: alpha must be between 0 and 1"),
     ("--styles", "ABSENT", "the style directory does not exist"),
 ])
-def test_kitti_s_problems_stop_before_any_work(tmp_path, ckpt, kitti_s_args, flag, value, message):
+def test_kitti_s_problems_stop_before_any_work(tmp_path, ckpt, kitti_s_args, flag, value, message,
+                                               build_kitti_s):
     (tmp_path / "empty").mkdir()
     named = {"EMPTY": tmp_path / "empty", "ABSENT": tmp_path / "absent", "VGG": ckpt[0]}
     opts = dict(zip(kitti_s_args[::2], kitti_s_args[1::2]))
     opts[flag] = named.get(value, value)
     args = [x for k, v in opts.items() if v is not None for x in (k, v)]
-    r = _build(args + ["--out", tmp_path / "out"])
+    r = build_kitti_s(args + ["--out", tmp_path / "out"])
     assert r.exit_code == 2, r.output
     assert message in r.output and "Traceback" not in r.output
     assert not (tmp_path / "out").exists()

@@ -2,25 +2,17 @@
 
 from __future__ import annotations
 
-from click.testing import CliRunner
-
-from robodepth_cli.cli import main
-
 from _trees import kitti_key, kitti_tree
 
 
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args] + ["--no-progress"])
-
-
-def test_verify_reports_missing_changed_and_extra(tmp_path):
+def test_verify_reports_missing_changed_and_extra(tmp_path, cli):
     root = tmp_path / "kitti_raw"
     split = kitti_tree(root, [(3, "l", ".png")])
     out = tmp_path / "out"
-    res = run("build", "kitti-c", "--root", root, "--split", split, "--out", out, "--size", "64x96",
+    res = cli("build", "kitti-c", "--root", root, "--split", split, "--out", out, "--size", "64x96",
               "--corruptions", "contrast,color_quant", "--levels", "1,2", "--jobs", "1")
     assert res.exit_code == 0, res.output
-    ok = run("verify", out)
+    ok = cli("verify", out)
     assert ok.exit_code == 0 and "5 files match the manifest" in ok.output
 
     missing, changed = f"contrast/2/{kitti_key(3)}", f"color_quant/1/{kitti_key(3)}"
@@ -31,7 +23,7 @@ def test_verify_reports_missing_changed_and_extra(tmp_path):
     (out / "contrast/3").mkdir()
     (out / "contrast/3/stray.png").write_bytes(b"x")
 
-    res = run("verify", out)
+    res = cli("verify", out)
     assert res.exit_code == 1
     lines = res.output.splitlines()
     assert lines[lines.index("missing: 1") + 1].strip() == missing
@@ -40,9 +32,9 @@ def test_verify_reports_missing_changed_and_extra(tmp_path):
     assert "4 files checked; the tree does not match its manifest" in res.output
 
 
-def test_verify_refuses_a_directory_without_manifest(tmp_path):
-    res = run("verify", tmp_path)
+def test_verify_refuses_a_directory_without_manifest(tmp_path, cli):
+    res = cli("verify", tmp_path)
     assert res.exit_code == 2
     assert res.output.strip() == f"robodepth: error: {tmp_path}: no manifest.csv; not a robodepth build output"
-    res = run("verify", tmp_path / "nowhere")
+    res = cli("verify", tmp_path / "nowhere")
     assert res.exit_code == 2 and "nowhere: does not exist" in res.output
