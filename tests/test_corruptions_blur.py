@@ -1,8 +1,7 @@
-"""Behaviour of the blur, snow, elastic, brightness and contrast corruptions that the
-fidelity harness (tests/test_fidelity.py) does not pin down: the shared building blocks
-(clipped zoom, shift-and-add motion blur) against SPEC-literal or SciPy/scikit-image
-formulations on small images, the random ones against the oracle or the literal formula
-for the same random draws, and determinism for a fixed seed.
+"""zoom_blur, motion_blur and defocus_blur beyond the fidelity harness
+(tests/test_fidelity.py): their building blocks (clipped zoom, shift-and-add motion blur,
+the anti-aliased disk kernel) against SPEC-literal or SciPy/OpenCV formulations on small
+images.
 """
 
 from __future__ import annotations
@@ -13,35 +12,13 @@ import cv2
 import numpy as np
 import pytest
 import scipy.ndimage
-import skimage.color
-import skimage.filters
 
 from robodepth_cli.corruptions import REGISTRY, corrupt
 from robodepth_cli.corruptions import defocus_blur as defocus_mod
-from robodepth_cli.corruptions import elastic_transform as elastic_mod
-from robodepth_cli.corruptions import snow as snow_mod
 from robodepth_cli.corruptions import zoom_blur as zoom_mod
 from robodepth_cli.corruptions.motion_blur import motion_taps, shift_blur
 
-
-def smooth_image(h: int, w: int, seed: int = 0) -> np.ndarray:
-    """A photo-like uint8 test image: smooth random structure plus some edges."""
-    rng = np.random.default_rng(seed)
-    base = rng.random((h // 4 + 2, w // 4 + 2, 3))
-    img = cv2.resize(base, (w, h), interpolation=cv2.INTER_CUBIC)
-    img[h // 3:h // 2, w // 5:w // 2] = 0.9  # a flat patch with sharp borders
-    return np.clip(img * 255, 0, 255).astype(np.uint8)
-
-
-def truncate(v: np.ndarray) -> np.ndarray:
-    return (np.clip(v, 0, 1) * 255).astype(np.uint8)
-
-
-def assert_close_uint8(ours: np.ndarray, expected: np.ndarray, min_exact: float = 0.999) -> None:
-    assert ours.shape == expected.shape and ours.dtype == np.uint8
-    diff = np.abs(ours.astype(int) - expected.astype(int))
-    assert diff.max() <= 1, f"max diff {diff.max()}"
-    assert (diff == 0).mean() >= min_exact, f"only {(diff == 0).mean():.4%} exact"
+from _images import assert_close_uint8, smooth_image, truncate
 
 
 # --- clipped zoom / zoom blur --------------------------------------------------------
@@ -173,117 +150,3 @@ def test_defocus_blur_is_filter2d_with_the_full_kernel(level):
     near_integer = np.abs(exact * 255 - np.round(exact * 255)) < 1e-4
     assert np.abs(diff).max() <= 1
     assert not diff[~near_integer].any()
-
-
-# --- snow ----------------------------------------------------------------------------
-
-class ReplayRng:
-    """Serves prescribed draws to code that asks a numpy Generator for them."""
-
-    def __init__(self, **draws):
-        self.draws = draws
-
-    def standard_normal(self, shape, dtype=np.float64):
-        out = self.draws["standard_normal"](shape)
-        return out.astype(dtype)
-
-    def uniform(self, low, high):
-        return self.draws["uniform"]
-
-    def random(self, shape, dtype=np.float64):
-        return self.draws["random"].astype(dtype).reshape(shape)
-
-
-@pytest.mark.parametrize("level", [1, 3, 4, 5])
-def test_snow_equals_the_oracle_for_the_same_noise_and_angle(level):
-    import imagecorruptions
-
-    x = smooth_image(64, 96, seed=level)
-    mu, sigma, z = snow_mod.LEVELS[level - 1][:3]
-    np.random.seed(level)
-    expected = imagecorruptions.corrupt(x, severity=level, corruption_name="snow")
-    np.random.seed(level)
-    noise = np.random.normal(size=x.shape[:2], loc=mu, scale=sigma)
-    angle = np.random.uniform(-135, -45)
-
-    def centre_block(shape):
-        (top, ch, _), (left, cw, _) = zoom_mod.zoom_axis(64, z), zoom_mod.zoom_axis(96, z)
-        assert shape == (ch, cw)
-        return (noise[top:top + ch, left:left + cw] - mu) / sigma
-
-    ours = snow_mod.snow(x, level, ReplayRng(standard_normal=centre_block, uniform=angle))
-    assert_close_uint8(ours, expected)
-
-
-# --- elastic transform ---------------------------------------------------------------
-
-def test_elastic_transform_equals_the_literal_formula_for_the_same_uniforms():
-    h, w, level = 60, 90, 5
-    x = smooth_image(h, w, seed=3)
-    u = np.random.default_rng(4).random((2, h, w), dtype=np.float32)
-    m, alpha = 0.005 * h, 250 * elastic_mod.LEVELS[level - 1]
-    dx, dy = (skimage.filters.gaussian(2 * m * u[i].astype(np.float64) - m, sigma=(0.01 * h, 0.01 * w),
-                                       mode="reflect", truncate=3) * alpha for i in range(2))
-    rows, cols = np.mgrid[0:h, 0:w]
-    f = (x / 255.0).astype(np.float32)
-    expected = truncate(np.stack([
-        scipy.ndimage.map_coordinates(f[..., c], [rows + dy, cols + dx], order=1, mode="reflect")
-        for c in range(3)], axis=-1))
-    assert np.abs(dx).max() > 1  # the field really moves pixels at this size and level
-    ours = elastic_mod.elastic_transform(x, level, ReplayRng(random=u))
-    assert_close_uint8(ours, expected, 0.99)
-
-
-def test_elastic_transform_with_a_centred_field_is_the_identity():
-    x = smooth_image(40, 50)
-    half = np.full((2, 40, 50), 0.5, np.float32)
-    assert np.array_equal(elastic_mod.elastic_transform(x, 5, ReplayRng(random=half)), x)
-
-
-# --- brightness / contrast -----------------------------------------------------------
-
-def awkward_pixels() -> np.ndarray:
-    """Random colours plus black, white, grays and every kind of tie for the maximum."""
-    rng = np.random.default_rng(5)
-    px = rng.integers(0, 256, (64, 64, 3)).astype(np.uint8)
-    px[0, :, :] = px[0, :, :1]                         # grays, including 0 and 255
-    px[0, 0], px[0, 1] = 0, 255
-    px[1, :, 1] = px[1, :, 0]                          # red == green
-    px[2, :, 2] = px[2, :, 1]                          # green == blue
-    px[3, :, 2] = px[3, :, 0]                          # red == blue
-    px[4, :, :2] = 255                                 # saturated
-    return px
-
-
-@pytest.mark.parametrize("level", [1, 2, 3, 4, 5])
-def test_brightness_is_bit_identical_to_the_skimage_round_trip(level):
-    x = awkward_pixels()
-    hsv = skimage.color.rgb2hsv(x / 255.0)
-    hsv[..., 2] = np.clip(hsv[..., 2] + (0.1, 0.2, 0.3, 0.4, 0.5)[level - 1], 0, 1)
-    expected = truncate(skimage.color.hsv2rgb(hsv))
-    assert np.array_equal(corrupt(x, "brightness", level, np.random.default_rng(0)), expected)
-
-
-@pytest.mark.parametrize("level", [1, 5])
-def test_contrast_equals_the_formula(level):
-    x = smooth_image(50, 70)
-    c = (0.4, 0.3, 0.2, 0.1, 0.05)[level - 1]
-    f = x / 255.0
-    m = f.mean(axis=(0, 1), keepdims=True)
-    assert_close_uint8(corrupt(x, "contrast", level, np.random.default_rng(0)), truncate((f - m) * c + m))
-
-
-@pytest.mark.parametrize("mode", ["reflect", "nearest", "mirror"])
-def test_gaussian_matches_scikit_image_even_when_the_kernel_outgrows_the_image(mode):
-    from skimage.filters import gaussian as sk_gaussian
-
-    from robodepth_cli.corruptions._ops import gaussian
-
-    a = np.random.default_rng(0).random((32, 40))
-    ours = gaussian(a, (12, 3), truncate=4, mode=mode)
-    assert np.abs(ours - sk_gaussian(a, sigma=(12, 3), mode=mode, truncate=4)).max() < 1e-12
-
-
-def test_elastic_transform_on_a_very_wide_image():
-    x = np.random.default_rng(1).integers(0, 256, (32, 4000, 3), dtype=np.uint8)
-    assert corrupt(x, "elastic_transform", 5, np.random.default_rng(2)).shape == x.shape
