@@ -6,9 +6,7 @@ import subprocess
 import sys
 
 import pytest
-from click.testing import CliRunner
 
-from robodepth_cli.cli import main
 from robodepth_cli.config import ConfigError, resolve
 
 from _trees import nyu_tree, tree
@@ -55,18 +53,17 @@ def test_nyu_config_file_outside_the_set_names_the_file(tmp_path):
         resolve("nyudepth2-c", f)
 
 
-def test_nyu_build_with_level_5_is_refused_before_any_work(tmp_path):
+def test_nyu_build_with_level_5_is_refused_before_any_work(tmp_path, cli):
     root = tmp_path / "nyu"
     split = nyu_tree(root, ["bathroom/rgb_00045.jpg"])
     out = tmp_path / "out"
-    res = CliRunner().invoke(main, ["build", "nyudepth2-c", "--root", str(root), "--split", str(split),
-                                    "--out", str(out), "--corruptions", "contrast", "--levels", "all",
-                                    "--jobs", "1", "--no-progress"])
+    res = cli("build", "nyudepth2-c", "--root", root, "--split", split, "--out", out,
+              "--corruptions", "contrast", "--levels", "all", "--jobs", "1")
     assert res.exit_code == 0, res.output
     assert sorted(p.split("/")[1] for p in tree(out) if p.startswith("contrast/")) == ["1", "2", "3", "4"]
 
-    res = CliRunner().invoke(main, ["build", "nyudepth2-c", "--root", str(root), "--split", str(split),
-                                    "--out", str(tmp_path / "out5"), "--levels", "5", "--no-progress"])
+    res = cli("build", "nyudepth2-c", "--root", root, "--split", split, "--out", tmp_path / "out5",
+              "--levels", "5")
     assert res.exit_code == 2
     assert res.output.strip() == ("robodepth: error: --levels: level 5 does not exist for nyudepth2-c; "
                                   "valid levels: 1..4")
