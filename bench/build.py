@@ -10,7 +10,7 @@ corruptions x 5 levels plus the clean image (91 PNGs per source) at 192 x 640:
 - the alternative: what one writes with the test oracle in an afternoon: a joblib pool of
   2 workers (loky, default batching) over (image, corruption, level) jobs; each job opens
   its source with Pillow, resizes it with Lanczos, applies ``imagecorruptions.corrupt``
-  (its 15 corruptions) or the SPEC section 2 formula written plainly (dark, color_quant,
+  (its 15 corruptions) or the published formula written plainly (dark, color_quant,
   iso_noise; the ones in bench/corruptions.py), and saves the PNG with Pillow's defaults.
 
 NYUDepth2-C: N fixture frames (480 x 640, not resized), 15 corruptions x 4 levels + clean,
@@ -30,7 +30,7 @@ is printed, and the steady CPU time per image spread over the 2 cores gives what
 machine would take (an estimate: it assumes both cores fully used, which a quiet machine
 reaches within about 10%).
 
-Goals (issue 6, 2-core machine): full KITTI-C at 192 x 640 in <= 6 min and >= 5x the
+Goals (2-core machine): full KITTI-C at 192 x 640 in <= 6 min and >= 5x the
 alternative; full NYUDepth2-C in <= 8 min; peak memory of a whole build <= 1.5 GB.
 
     python bench/build.py [--sources N] [--nyu-sources N] [--no-alternative] [--keep DIR]
@@ -49,12 +49,12 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests"))
+sys.path[:0] = [str(REPO), str(REPO / "tests")]
 
+import _trees  # noqa: E402  (the test suite's tree builders)
 from _paths import FIXTURES  # noqa: E402  (tests/data/fixtures, inside the repository)
 
-KITTI_DRIVE = "2011_09_26/2011_09_26_drive_0002_sync"
-KITTI_FRAMES = FIXTURES / "kitti_raw" / KITTI_DRIVE / "image_02" / "data"
+KITTI_FRAMES = FIXTURES / "kitti_raw" / "2011_09_26" / "2011_09_26_drive_0002_sync" / "image_02" / "data"
 NYU_FRAMES = FIXTURES / "nyu" / "bedroom"
 
 KITTI_FULL = 697  # Eigen test split
@@ -78,29 +78,22 @@ THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NU
 
 # --- inputs --------------------------------------------------------------------------------
 
-def _copies(frames: list[Path], folder: Path, n: int, name, line, split: Path) -> None:
-    """``n`` copies of ``frames`` (cycled) in ``folder`` named ``name(i)``, and a split file
-    with ``line(i)`` for each. Copies, not symlinks: the builder refuses links leaving the root."""
-    folder.mkdir(parents=True)
-    for i in range(n):
-        shutil.copyfile(frames[i % len(frames)], folder / name(i))
-    split.write_text("".join(line(i) + "\n" for i in range(n)))
-
-
 def kitti_tree(base: Path, n: int) -> tuple[Path, Path]:
-    """A KITTI raw root with ``n`` frames and an Eigen-format split listing them."""
-    _copies(sorted(KITTI_FRAMES.glob("*.png")), base / "kitti_raw" / KITTI_DRIVE / "image_02" / "data",
-            n, lambda i: f"{i:010d}.png", lambda i: f"{KITTI_DRIVE} {i:010d} l", base / "kitti_split.txt")
-    return base / "kitti_raw", base / "kitti_split.txt"
+    """A KITTI raw root with ``n`` left frames, copies of the two fixture frames in turn, and
+    an Eigen-format split listing them."""
+    root = base / "kitti_raw"
+    split = _trees.kitti_tree(root, [(i, "l", ".png") for i in range(n)],
+                              copies_of=sorted(KITTI_FRAMES.glob("*.png")))
+    return root, split
 
 
 def nyu_tree(base: Path, n: int) -> tuple[Path, Path]:
-    """An NYU test root with ``n`` frames in one scene and a split listing them."""
-    _copies(sorted(NYU_FRAMES.glob("rgb_*.jpg")), base / "nyu" / "bedroom", n,
-            lambda i: f"rgb_{i:05d}.jpg",
-            lambda i: f"bedroom/rgb_{i:05d}.jpg bedroom/sync_depth_{i:05d}.png 518.8579",
-            base / "nyu_split.txt")
-    return base / "nyu", base / "nyu_split.txt"
+    """An NYU test root with ``n`` frames in one scene, copies of the two fixture frames in
+    turn, and a split listing them."""
+    root = base / "nyu"
+    split = _trees.nyu_tree(root, [f"bedroom/rgb_{i:05d}.jpg" for i in range(n)],
+                            copies_of=sorted(NYU_FRAMES.glob("rgb_*.jpg")))
+    return root, split
 
 
 # --- measuring a process tree --------------------------------------------------------------
@@ -402,7 +395,7 @@ def run(base: Path, args) -> int:
         print(f"ours vs the alternative: {alt_full[0] / ours_full[0]:.1f}x on the full dataset "
               f"({ours['rate'] / alt['rate']:.1f}x steady sources/s, {alt['wall'] / ours['wall']:.1f}x "
               f"on the subset's wall time, {alt['cpu_per_png'] / ours['cpu_per_png']:.1f}x less CPU per image)")
-        reread = decode_resize_cpu(root / KITTI_DRIVE / "image_02" / "data" / FIRST_FRAME)
+        reread = decode_resize_cpu(root / _trees.KITTI_DRIVE / "image_02" / "data" / FIRST_FRAME)
         print(f"  (the alternative re-reads and resizes its source in every job: {1000 * reread:.0f} ms CPU "
               f"of its {1000 * alt['cpu_per_png']:.0f} ms per image; a variant that read each source once "
               f"would still take {(alt['cpu_per_png'] - reread) / ours['cpu_per_png']:.1f}x our CPU per image)")

@@ -1,7 +1,8 @@
-"""Small synthetic KITTI-raw and NYU trees for the builder tests, and tree comparison."""
+"""Small KITTI-raw and NYU trees for the builder tests and the benchmarks, and tree comparison."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -25,13 +26,27 @@ def save(path: Path, img: np.ndarray) -> Path:
     return path
 
 
-def kitti_tree(root: Path, frames, size=(60, 200)) -> Path:
+def _source(path: Path, i: int, size, seed: int, copies_of) -> None:
+    """Image ``i`` of a tree: a copy of ``copies_of[i % len(copies_of)]`` if given, else a
+    generated ``size`` image."""
+    if copies_of:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # A copy, not a symlink: the builder refuses links that leave the root.
+        shutil.copyfile(copies_of[i % len(copies_of)], path)
+    else:
+        save(path, random_image(*size, seed=seed))
+
+
+def kitti_tree(root: Path, frames, size=(60, 200), copies_of=()) -> Path:
     """Write KITTI-raw frames under ``root`` and their split file; ``frames`` holds
-    (frame number, side, extension). Returns the split file (beside the root)."""
+    (frame number, side, extension). Returns the split file (beside the root).
+
+    The frames are generated ``size`` images, or byte copies of the files ``copies_of``
+    taken in turn (real photographs, for a benchmark)."""
     lines = []
     for i, (frame, side, ext) in enumerate(frames):
         cam = {"l": "image_02", "r": "image_03"}[side]
-        save(root / KITTI_DRIVE / cam / "data" / f"{frame:010d}{ext}", random_image(*size, seed=i))
+        _source(root / KITTI_DRIVE / cam / "data" / f"{frame:010d}{ext}", i, size, i, copies_of)
         lines.append(f"{KITTI_DRIVE} {frame:010d} {side}")
     split = root.parent / f"{root.name}_split.txt"
     split.write_text("\n".join(lines) + "\n")
@@ -43,11 +58,12 @@ def kitti_key(frame: int, side: str = "l") -> str:
     return f"kitti_data/{KITTI_DRIVE}/{cam}/data/{frame:010d}.png"
 
 
-def nyu_tree(root: Path, names, size=(48, 64)) -> Path:
-    """NYU test frames ``scene/rgb_NNNNN.jpg`` (plus dummy depth entries in the split)."""
+def nyu_tree(root: Path, names, size=(48, 64), copies_of=()) -> Path:
+    """NYU test frames ``scene/rgb_NNNNN.jpg`` (plus dummy depth entries in the split),
+    generated or copied from ``copies_of`` as in :func:`kitti_tree`. Returns the split file."""
     lines = []
     for i, rgb in enumerate(names):
-        save(root / rgb, random_image(*size, seed=100 + i))
+        _source(root / rgb, i, size, 100 + i, copies_of)
         depth = rgb.replace("rgb_", "sync_depth_").rsplit(".", 1)[0] + ".png"
         lines.append(f"{rgb} {depth} 518.8579")
     split = root.parent / f"{root.name}_split.txt"
@@ -62,7 +78,8 @@ def tree(out: Path) -> dict[str, bytes]:
 
 
 def expected_paths(keys, variants, levels) -> set[str]:
-    """The SPEC section 1 layout, spelled out independently of the builder."""
+    """The output layout (``clean/KEY`` and ``VARIANT/LEVEL/KEY``), spelled out independently
+    of the builder."""
     paths = {f"clean/{k}" for k in keys}
     for v in variants:
         for lv in levels:
