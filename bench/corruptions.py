@@ -6,7 +6,7 @@ that absorbs numba compilation and caches). The oracle is ``imagecorruptions.cor
 its 15 corruptions; for the benchmark's own three (dark, color_quant, iso_noise) it is the
 straightforward SPEC formula written inline below.
 
-Goals (issue 2): all 90 variants (18 x 5) of one image in <= 0.8 s on one core in total,
+Goals: all 90 variants (18 x 5) of one image in <= 0.8 s on one core in total,
 and >= 4x faster than the oracle overall.
 
     python bench/corruptions.py [--repeats N] [--image PATH] [--only NAME,NAME]

@@ -13,7 +13,7 @@ convolution does not depend on its weights).
   Timed for several chunk sizes, without channels-last, and as 1 process x 2 threads
   against 2 processes x 1 thread (the joblib pool a build would use).
 
-Goal (issue 4): <= 0.8 s per stylised image on this 2-core machine, >= 4x the
+Goal: <= 0.8 s per stylised image on this 2-core machine, >= 4x the
 straightforward way.
 
     python bench/stylize.py [--repeats N] [--pairs N] [--contents N] [--chunks 1,2,4]

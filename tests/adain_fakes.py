@@ -1,9 +1,9 @@
 """Random-weight AdaIN checkpoints in the published layout, and a per-pair reference.
 
 Written independently of ``robodepth_cli.adain``: the layouts below are spelled out module
-by module from the public AdaIN ``net.py`` description (SPEC section 3), including the VGG
+by module from the public AdaIN ``net.py`` description, including the VGG
 layers past relu4_1 that ``vgg_normalised.pth`` holds, and :func:`reference_stylize` is
-SPEC section 3 taken literally, one content/style pair at a time.
+the AdaIN stylisation rule taken literally, one content/style pair at a time.
 """
 
 from __future__ import annotations
@@ -115,7 +115,7 @@ def _stats(feat: torch.Tensor):
 
 def reference_stylize(vgg: nn.Sequential, dec: nn.Sequential, content: np.ndarray,
                       style: np.ndarray, alpha: float = 1.0) -> np.ndarray:
-    """SPEC section 3 for one pair, literally: encode both, AdaIN, blend, decode, crop,
+    """The stylisation rule for one pair, literally: encode both, AdaIN, blend, decode, crop,
     clamp, ``uint8(out * 255 + 0.5)``. ``style`` is used at its given size."""
     enc = vgg[:31]
     with torch.no_grad():

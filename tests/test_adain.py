@@ -1,4 +1,4 @@
-"""The AdaIN models, checkpoint loading and the batched engine (SPEC section 3)."""
+"""The AdaIN models, checkpoint loading and the batched engine against the per-pair reference."""
 
 from __future__ import annotations
 
@@ -95,7 +95,7 @@ def test_engine_options_do_not_change_the_result(checkpoints, stylizer, images, 
 
 
 def test_same_bytes_for_any_thread_count_and_chunk(checkpoints, images):
-    # A build's bytes must not depend on its number of workers (SPEC section 4), and a
+    # A build's bytes must not depend on its number of workers, and a
     # worker of a pool of two runs torch with one thread.
     vgg_path, dec_path, _, _ = checkpoints
     styles = images[1]

@@ -1,4 +1,5 @@
-"""`robodepth build` and `robodepth verify` on small synthetic trees (SPEC sections 1 and 4)."""
+"""`robodepth build` and `robodepth verify` on small synthetic trees: layout, manifest, pixels,
+resume and refusals."""
 
 from __future__ import annotations
 
@@ -55,7 +56,7 @@ def test_kitti_layout_manifest_and_pixels(kitti, tmp_path, cli, build_kitti):
     assert r["source"] == "2011_09_26/2011_09_26_drive_0001_sync/image_03/data/0000000007.jpg"
     assert rows[f"clean/{keys[0]}"]["level"] == ""
 
-    # The clean image is Pillow's Lanczos resize of the RGB source (SPEC section 1) ...
+    # The clean image is Pillow's Lanczos resize of the RGB source ...
     src = Image.open(root / rows[f"clean/{keys[1]}"]["source"]).convert("RGB")
     clean = np.asarray(src.resize((96, 64), Image.LANCZOS))
     assert np.array_equal(np.asarray(Image.open(io.BytesIO(files[f"clean/{keys[1]}"]))), clean)
@@ -93,7 +94,7 @@ def test_all_18_corruptions_5_levels_on_one_image(fixtures_dir, tmp_path, cli):
 
 
 def test_full_dataset_job_counts(splits_dir):
-    """The presets and the real splits give the SPEC's image counts."""
+    """The presets and the real splits give the published image counts."""
     from robodepth_cli.config import resolve
     from robodepth_cli.datasets import get_dataset, read_split
 

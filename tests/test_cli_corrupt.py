@@ -1,4 +1,4 @@
-"""`robodepth list`, `corrupt` and `preview` (issue 2): behaviour and error handling."""
+"""`robodepth list`, `corrupt` and `preview`: what they write, and one-line errors for bad input."""
 
 from __future__ import annotations
 

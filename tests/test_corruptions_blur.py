@@ -1,6 +1,6 @@
 """zoom_blur, motion_blur and defocus_blur beyond the fidelity harness
 (tests/test_fidelity.py): their building blocks (clipped zoom, shift-and-add motion blur,
-the anti-aliased disk kernel) against SPEC-literal or SciPy/OpenCV formulations on small
+the anti-aliased disk kernel) against literal or SciPy/OpenCV formulations on small
 images.
 """
 
@@ -75,7 +75,7 @@ def test_zoom_blur_is_the_mean_of_the_clipped_zooms(level):
 # --- motion blur ---------------------------------------------------------------------
 
 def spec_shift(img: np.ndarray, dx: int, dy: int) -> np.ndarray:
-    """SPEC 9 literally: move by dx columns / dy rows, repeat the nearest moved-in edge."""
+    """The shift rule literally: move by dx columns / dy rows, repeat the nearest moved-in edge."""
     out = np.array(img, dtype=np.float64)
     h, w = out.shape[:2]
     if dx > 0:

@@ -1,4 +1,4 @@
-"""What every registered corruption promises (issue 2): input handling, purity, seeding."""
+"""What every registered corruption promises: input handling, purity, seeding."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
-"""fog and its plasma fractal (SPEC section 2, definition 3), beyond the statistics of
-test_fidelity.py: the diamond-square map against a point-by-point transcription of the
-SPEC, its torus property, and its law against the imagecorruptions oracle's fractal."""
+"""fog and its plasma fractal beyond the statistics of test_fidelity.py: the diamond-square
+map against a point-by-point transcription of the written rule, its torus property, and its
+law against the imagecorruptions oracle's fractal."""
 
 from __future__ import annotations
 

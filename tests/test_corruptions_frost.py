@@ -1,6 +1,6 @@
-"""frost (SPEC section 2, definition 4) beyond the statistics of test_fidelity.py: texture
-files found without importing their package, a clear error without it, and pixel equality
-with the imagecorruptions oracle when both make the same texture and crop choice."""
+"""frost beyond the statistics of test_fidelity.py: texture files found without importing
+their package, a clear error without it, and pixel equality with the imagecorruptions oracle
+when both make the same texture and crop choice."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
-"""glass_blur (SPEC section 2, definition 8) beyond the statistics of test_fidelity.py:
-the numba shuffle against a literal Python transcription of the benchmark's loop, and the
-whole pipeline against scikit-image's gaussian with the same offsets."""
+"""glass_blur beyond the statistics of test_fidelity.py: the numba shuffle against a literal
+Python transcription of the benchmark's loop, and the whole pipeline against scikit-image's
+gaussian with the same offsets."""
 
 from __future__ import annotations
 

@@ -1,11 +1,11 @@
-"""Fidelity of the 18 corruptions to the benchmark's formulas (issue 2, SPEC section 2).
+"""Fidelity of the 18 corruptions to the benchmark's formulas.
 
 Two independent references:
 
 * ``tests/data/reference/``: outputs and statistics made with the benchmark's own code on the
   two KITTI-like fixture frames (192 x 640) and two NYU frames (480 x 640), every level.
 * the ``imagecorruptions`` package (the oracle for 15 of the 18), run here on other real
-  photographs (scikit-image's bundled samples) resized as SPEC section 1 does.
+  photographs (scikit-image's bundled samples) resized as a build does (Pillow's Lanczos).
 
 Deterministic corruptions are compared pixel for pixel: at least 99% of values within one
 level and a mean absolute difference of at most 0.25. Random ones are compared by eight

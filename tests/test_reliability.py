@@ -1,4 +1,4 @@
-"""Issue 5: bad input, hostile files, killed, interrupted and concurrent builds, full disks.
+"""Builds facing bad input, hostile files, kills, interrupts, concurrent builds and full disks.
 
 Two kinds of failure (the README's "When a build goes wrong"):
 - whole-build problems are refused before any work: one line ``robodepth: error: <file or

@@ -1,7 +1,8 @@
-"""`robodepth score`: DEE, CE, RR and their means (SPEC section 5).
+"""`robodepth score`: DEE, CE, RR and their means, against published figures.
 
-Expected values are either published (SPEC section 5, the issue, and the RoboDepth
-project's per-model result pages) or derived by hand in the comments; none is our output.
+Expected values are either published (the RoboDepth paper's baselines and summaries, and the
+RoboDepth project's per-model result pages) or derived by hand in the comments; none is our
+output.
 """
 
 from __future__ import annotations
@@ -18,11 +19,11 @@ from robodepth_cli.plot import COLOURS, ce_chart
 KITTI = S.get_benchmark("kitti-c")
 NYU = S.get_benchmark("nyudepth2-c")
 
-# SPEC section 5 baselines, retyped here so that a typo in the package's copy shows up.
+# The published baselines, retyped here so that a typo in the package's copy shows up.
 KITTI_BASE = ".130 .280 .155 .277 .511 .187 .244 .242 .216 .201 .129 .193 .384 .389 .340 .388 .145 .196"
 NYU_BASE = ".132 .194 .212 .235 .206 .184 .384 .153 .151 .390 .374 .294 .380 .124 .154"
 
-# MonoViT (mono, 640x192) on KITTI-C, as published (issue 7; RoboDepth results page
+# MonoViT (mono, 640x192) on KITTI-C, as published (RoboDepth results page
 # docs/results/kitti_c/MonoViT_mono_640x192.md of github.com/ldkong1205/RoboDepth):
 # clean DEE, level-averaged DEE in SPEC order, mCE 79.33, mRR 89.15.
 MONOVIT_CLEAN = 0.099
@@ -57,7 +58,7 @@ MONOVIT_LEVELS = {
 
 # BTS (R50) on NYUDepth2-C: per-level abs_rel and a1, levels 1..4, and its level-averaged
 # DES_2 (= DEE), from docs/results/nyu2_c/BTS-R50.md of github.com/ldkong1205/RoboDepth.
-# SPEC section 5 gives its published summary against AdaBins-B5: mCE 122.78, mRR 80.63.
+# Its published summary against AdaBins-B5: mCE 122.78, mRR 80.63.
 BTS_LEVELS = {
     "clean": "0.114 0.870",
     "brightness": "0.119 0.860 0.124 0.841 0.131 0.822 0.138 0.799",
@@ -249,7 +250,7 @@ def test_published_per_level_metrics(tmp_path, bench, table, pub_clean, pub_dee,
 
 
 def test_bts_nyu_summary_reproduces_to_the_printed_digits(tmp_path, cli):
-    # Stronger than the bound above, and what SPEC section 5 claims: with the AdaBins-B5
+    # Stronger than the bound above, and what the published figures imply: with the AdaBins-B5
     # row the paper's BTS summary reproduces. The level means of BTS's 3-decimal inputs
     # happen to sit so close to the paper's DEEs that the summary matches to 0.005.
     path = write(tmp_path, levels_csv(BTS_LEVELS))

@@ -1,4 +1,4 @@
-"""Split files: the records, download + checksum + cache, parsing (SPEC section 1)."""
+"""Split files: the records, download + checksum + cache, parsing."""
 
 from __future__ import annotations
 

@@ -158,7 +158,7 @@ def test_kitti_s_build_layout_pixels_resume_and_workers(tmp_path, fixtures_dir, 
     keys = [f"kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/{f}.png"
             for f in ("0000000069", "0000000054")]
     assert set(files) == {f"{v}/{k}" for v in ["clean"] + chosen for k in keys}
-    # Each output is SPEC section 3 applied to the resized clean image.
+    # Each output is the AdaIN stylisation of the resized clean image.
     for k, frame in zip(keys, ("0000000069", "0000000054")):
         clean = load_clean(fixtures_dir / FRAME.replace("0000000069", frame), (48, 160))
         assert np.array_equal(np.asarray(Image.open(out1 / "clean" / k)), clean)
