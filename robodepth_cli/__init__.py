@@ -11,3 +11,12 @@ def data_dir(name: str) -> Path:
     here = Path(__file__).resolve().parent
     installed = here / name
     return installed if installed.is_dir() else here.parent / name
+
+
+def __getattr__(name: str):
+    # Lazily, so that `import robodepth_cli` (and `robodepth --help`) stays light.
+    if name == "open_dataset":
+        from .api import open_dataset
+
+        return open_dataset
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -46,7 +46,8 @@ def main():
     Build a dataset:
       robodepth build kitti-c --root KITTI_RAW --out KITTI_C
       robodepth verify KITTI_C
-    Score a model on it:
+    Evaluate a model on it (predictions from the open_dataset API) and score it:
+      robodepth evaluate KITTI_C --pred PRED --score
       robodepth score results.csv --benchmark kitti-c
     """
 

@@ -1,0 +1,246 @@
+"""A built dataset from Python: its variants, their images in split order, and where a
+model's predictions go.
+
+>>> from robodepth_cli import open_dataset
+>>> ds = open_dataset("KITTI_C")                          # doctest: +SKIP
+>>> for variant in ds.variants():                         # doctest: +SKIP
+...     preds = [model(path) for path in variant.images()]
+...     variant.save_predictions("PRED", preds)
+
+:meth:`Variant.save_predictions` writes the form ``robodepth evaluate`` reads: one array per
+variant, N x h x w, image ``i`` being the ``i``-th image of the build's split, at
+``PRED/clean.npy``, ``PRED/<corruption>/<level>.npy`` or (KITTI-S) ``PRED/<style>.npy``.
+
+A built dataset is a directory written by ``robodepth build``: ``build.json`` names the
+dataset and lists the split's image keys in order, ``manifest.csv`` lists every output, so
+it says which variants and levels the build has (a subset build has only its own).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .errors import RobodepthError, os_reason
+
+CLEAN = "clean"
+GT_FILE = "gt_depths.npz"  # KITTI ground truth inside a build (monodepth2's format)
+GT_DIR = "gt"  # NYU ground truth inside a build (BTS's layout)
+
+
+class DatasetError(RobodepthError):
+    """A directory that is not a usable built dataset, or predictions that do not fit it."""
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One variant of a built dataset: the clean images, one corruption at one level, or
+    one style (KITTI-S). ``level`` is None for the clean images and for styles."""
+
+    root: Path  # the dataset directory
+    name: str
+    level: int | None
+    keys: tuple[str, ...]  # the split's image keys, in split order
+
+    @property
+    def relpath(self) -> str:
+        """``clean``, ``<corruption>/<level>`` or ``<style>``: the variant's directory in the
+        dataset, and its prediction file's path in PRED without the extension."""
+        return self.name if self.level is None else f"{self.name}/{self.level}"
+
+    @property
+    def label(self) -> str:
+        """``clean``, ``<corruption> <level>`` or ``<style>``, for messages."""
+        return self.name if self.level is None else f"{self.name} {self.level}"
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def images(self) -> list[Path]:
+        """The variant's image files, in split order (image ``i`` is prediction ``i``)."""
+        base = self.root / self.relpath
+        return [base / key for key in self.keys]
+
+    def prediction_file(self, pred: str | os.PathLike) -> Path:
+        """Where :meth:`save_predictions` writes: ``PRED/<relpath>.npy``."""
+        return Path(pred) / f"{self.relpath}.npy"
+
+    def save_predictions(self, pred: str | os.PathLike, predictions) -> Path:
+        """Write a model's outputs for this variant as ``PRED/<relpath>.npy``; return the path.
+
+        Parameters
+        ----------
+        pred : path
+            The predictions directory (created if needed).
+        predictions : array (N x h x w) or sequence of N arrays (h x w)
+            One 2-D map per image, in the order of :meth:`images`: a disparity or a depth,
+            whatever ``robodepth evaluate --kind`` will be told. Anything ``np.asarray``
+            takes (CPU tensors too); a leading axis of length 1 per map (1 x h x w) is
+            dropped. Floating dtypes are kept, others are stored as float32.
+
+        The file is written through a temporary file and a rename, one map at a time (a
+        list is never stacked into a second copy in memory). Raises :class:`DatasetError`
+        for a wrong count, a map that is not 2-D, or maps of different sizes.
+        """
+        target = self.prediction_file(pred)
+        n = len(predictions)
+        if n != len(self.keys):
+            raise DatasetError(f"{target}: {n} predictions for the {len(self.keys)} images of "
+                               f"{self.label}")
+        first = _as_map(predictions[0], target, 0) if n else None
+        shape = first.shape if first is not None else (0, 0)
+        dtype = first.dtype if first is not None and first.dtype.kind == "f" else np.dtype(np.float32)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+            os.close(fd)
+        except OSError as exc:
+            raise DatasetError(f"{target}: cannot write ({os_reason(exc)})") from None
+        try:
+            out = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=(n, *shape))
+            for i in range(n):
+                m = first if i == 0 else _as_map(predictions[i], target, i)
+                if m.shape != shape:
+                    raise DatasetError(f"{target}: prediction {i} is {m.shape[0]} x {m.shape[1]}, "
+                                       f"prediction 0 is {shape[0]} x {shape[1]}; all must "
+                                       "have one size")
+                out[i] = m
+            out.flush()
+            del out
+            os.chmod(tmp, 0o666 & ~_umask())
+            os.replace(tmp, target)
+        except OSError as exc:
+            raise DatasetError(f"{target}: cannot write ({os_reason(exc)})") from None
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        return target
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _as_map(value, target: Path, i: int) -> np.ndarray:
+    if hasattr(value, "detach"):  # a torch tensor, perhaps on a GPU or needing grad
+        value = value.detach().cpu().numpy()
+    m = np.asarray(value)
+    if m.ndim == 3 and m.shape[0] == 1:
+        m = m[0]
+    if m.ndim != 2:
+        raise DatasetError(f"{target}: prediction {i} has shape {m.shape}; expected one 2-D "
+                           "map (h x w) per image")
+    if m.dtype.kind not in "fiu":
+        raise DatasetError(f"{target}: prediction {i} has dtype {m.dtype}; expected numbers")
+    return m
+
+
+class BuiltDataset:
+    """A dataset directory written by ``robodepth build`` (use :func:`open_dataset`)."""
+
+    def __init__(self, path: Path, record: dict, keys: tuple[str, ...],
+                 variants: Sequence[tuple[str, int | None]]):
+        self.path = path
+        self.record = record
+        self.name: str = record["dataset"]
+        self.keys = keys
+        self._variants = tuple(Variant(path, v, lv, keys) for v, lv in variants)
+
+    def __repr__(self) -> str:
+        return (f"<BuiltDataset {self.name} at {self.path}: {len(self._variants)} variants x "
+                f"{len(self.keys)} images>")
+
+    @property
+    def size(self) -> tuple[int, int] | None:
+        """(H, W) of the built images, as the build record states it."""
+        size = self.record.get("config", {}).get("size")
+        return (int(size[0]), int(size[1])) if size else None
+
+    def variants(self) -> list[Variant]:
+        """Every variant the build has: clean first, then the corruptions (or styles) in the
+        benchmark's order, levels ascending."""
+        return list(self._variants)
+
+    def variant(self, name: str, level: int | None = None) -> Variant:
+        """The variant ``name`` at ``level`` (None for clean and styles); KeyError if absent."""
+        for v in self._variants:
+            if (v.name, v.level) == (name, level):
+                return v
+        raise KeyError((name, level))
+
+    def ground_truth(self) -> Path | None:
+        """The build's own ground truth (``gt_depths.npz`` for KITTI datasets, ``gt/`` for
+        NYU), or None when it has none."""
+        path = self.path / (GT_DIR if self.name == "nyudepth2-c" else GT_FILE)
+        return path if path.exists() else None
+
+
+def open_dataset(path: str | os.PathLike) -> BuiltDataset:
+    """Open a dataset directory written by ``robodepth build``.
+
+    Reads ``build.json`` (the dataset and the split's image keys in order) and
+    ``manifest.csv`` (which variants and levels were built). Raises :class:`DatasetError`
+    naming the file when the directory is not a build or its record is unusable.
+    """
+    from .datasets import get_dataset
+    from .manifest import MANIFEST, RECORD, ManifestError, read_manifest
+
+    path = Path(path)
+    if not path.is_dir():
+        raise DatasetError(f"{path}: not a directory (expected a dataset made by robodepth build)")
+    record_path = path / RECORD
+    try:
+        record = json.loads(record_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DatasetError(f"{path}: no {RECORD}; not a dataset made by robodepth build") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise DatasetError(f"{record_path}: cannot read the build record ({exc})") from None
+    if not isinstance(record, dict) or not isinstance(record.get("dataset"), str):
+        raise DatasetError(f"{record_path}: not a robodepth build record (no dataset)")
+    try:
+        ds = get_dataset(record["dataset"])
+    except ValueError as exc:
+        raise DatasetError(f"{record_path}: {exc}") from None
+    keys = _split_keys(record, record_path, ds)
+    try:
+        rows = read_manifest(path)
+    except ManifestError as exc:
+        raise DatasetError(str(exc)) from None
+    if not rows:
+        raise DatasetError(f"{path}: no {MANIFEST} (or an empty one); was the build run to the end?")
+    built = {(r.variant, r.level) for r in rows.values()}
+    order = [CLEAN, *ds.variant_names()]
+    variants = sorted((vl for vl in built if vl[0] in order),
+                      key=lambda vl: (order.index(vl[0]), vl[1] or 0))
+    return BuiltDataset(path, record, keys, variants)
+
+
+def _split_keys(record: dict, record_path: Path, ds) -> tuple[str, ...]:
+    """The split's image keys in order: from the record, or (a build made before records
+    listed them) re-read from the recorded split file if it is unchanged."""
+    split = record.get("split") or {}
+    keys = split.get("keys")
+    if isinstance(keys, list) and all(isinstance(k, str) for k in keys) and keys:
+        return tuple(keys)
+    from .datasets import read_split
+    from .manifest import sha256_bytes
+
+    file = split.get("path")
+    try:
+        data = Path(file).read_bytes()
+    except (TypeError, OSError):
+        raise DatasetError(f"{record_path}: lists no split keys and its split file {file} cannot "
+                           "be read; rebuild with this version to record them") from None
+    if sha256_bytes(data) != split.get("sha256"):
+        raise DatasetError(f"{record_path}: lists no split keys and its split file {file} has "
+                           "changed since the build; rebuild with this version to record them")
+    limit = (record.get("config") or {}).get("limit")
+    return tuple(e.key for e in read_split(Path(file), ds.split_format)[:limit])

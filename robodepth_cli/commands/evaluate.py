@@ -1,0 +1,103 @@
+"""``robodepth evaluate``: a model's predictions on a built dataset -> the results CSV (and
+the scores)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ..errors import RobodepthError
+
+
+@click.command("evaluate")
+@click.argument("dataset_dir", metavar="DATASET_DIR", type=click.Path(path_type=Path))
+@click.option("--pred", required=True, type=click.Path(path_type=Path),
+              help="The model's predictions: PRED/clean.npy, PRED/<corruption>/<level>.npy "
+                   "(N x h x w), or one .npy/.png per image mirroring the dataset tree.")
+@click.option("--protocol", type=click.Choice(["kitti", "nyu"]),
+              help="kitti (monodepth2) or nyu (BTS/AdaBins); default: the dataset's.")
+@click.option("--stereo", is_flag=True,
+              help="kitti: a stereo-trained model: depth x 5.4, no median scaling.")
+@click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
+              help="What the arrays hold: disp (scaled disparity, kitti default), sigmoid "
+                   "(raw network output), depth (nyu default).")
+@click.option("--png-scale", type=float, metavar="S",
+              help="16-bit PNG predictions hold depth x S (default 256 kitti, 1000 nyu).")
+@click.option("--gt", "gt_path", type=click.Path(path_type=Path), metavar="FILE|DIR",
+              help="Ground truth instead of the dataset's own (gt_depths.npz, or a directory "
+                   "of sync_depth PNGs).")
+@click.option("--out", "-o", "out", default="results.csv", show_default=True,
+              type=click.Path(dir_okay=False, path_type=Path), help="The results CSV to write.")
+@click.option("--score", "with_score", is_flag=True,
+              help="Also print the robustness scores (as robodepth score does).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
+@click.option("--allow-partial", is_flag=True,
+              help="Evaluate the variants that have predictions; the rest are listed as missing.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_path, out,
+                     with_score, as_json, allow_partial, progress):
+    """Evaluate a model's depth predictions on DATASET_DIR (made by robodepth build).
+
+    Compares the predictions of every variant (clean, each corruption and level, or each
+    KITTI-S style) with the ground truth under the benchmark's protocol and writes one CSV
+    row per variant: corruption, level, abs_rel, sq_rel, rmse, rmse_log, a1, a2, a3 (nyu
+    also log10, silog); the clean row is `clean,0`. That CSV is what `robodepth score`
+    reads; --score prints the scores right away.
+
+    \b
+    Examples:
+      robodepth evaluate KITTI_C --pred PRED --score
+      robodepth evaluate KITTI_C --pred PRED --stereo --out stereo.csv
+      robodepth evaluate NYU_C --pred BTS_PNGS --out bts.csv
+    """
+    import json
+
+    from tqdm import tqdm
+
+    from .. import evaluate as E
+    from .. import scores as S
+    from ..api import open_dataset
+
+    dataset = open_dataset(dataset_dir)
+    setup = E.make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
+                         kind, stereo, png_scale)
+    bench = None
+    if with_score:
+        if dataset.name not in S.BENCHMARKS:
+            raise RobodepthError(f"--score: {dataset.name} has no robustness scores (they exist "
+                                 f"for {', '.join(S.BENCHMARKS)})")
+        bench = S.get_benchmark(dataset.name)
+    with tqdm(unit="img", disable=None if progress else True, file=sys.stderr,
+              dynamic_ncols=True) as bar:
+        def set_total(n):
+            bar.total = n
+            bar.refresh()
+
+        result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
+                            require_clean=with_score, progress=bar.update, on_total=set_total)
+    text = result.csv_text()
+    E.write_results(out, text)
+    if result.missing:
+        click.echo(f"robodepth: warning: no predictions for {len(result.missing)} variants; "
+                   "evaluated the rest", err=True)
+    scored = None
+    if bench is not None:
+        res = S.parse_results(text, str(out), bench)
+        missing = S.missing_message(res, bench)
+        if missing:
+            click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
+        scored = S.score(res, bench, allow_partial=True)
+    if as_json:
+        doc = {**result.to_json(), "csv": str(out)}
+        if with_score:
+            doc["scores"] = scored.to_json()
+        click.echo(json.dumps(doc, indent=2))
+        return
+    click.echo(result.summary(), nl=False)
+    click.echo(f"wrote {out}", err=True)
+    if scored is not None:
+        click.echo()
+        click.echo(S.format_table(scored), nl=False)

@@ -1,0 +1,574 @@
+"""`robodepth evaluate` and the `open_dataset` API (issue 13).
+
+The expected metrics come from references written here, step by step from the protocols'
+rules (monodepth2's evaluate_depth.py for kitti, BTS's eval_with_pngs.py / AdaBins's
+evaluate.py for nyu), on whole maps with boolean masks as those scripts do; never from the
+package's own output.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from robodepth_cli.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+KITTI_VARIANTS = ["clean", "brightness/1", "brightness/3", "contrast/1", "contrast/3"]
+GT_SHAPES = [(375, 1242), (370, 1226)]  # two KITTI dates differ in image size
+KITTI_COLS = ["abs_rel", "sq_rel", "rmse", "rmse_log", "a1", "a2", "a3"]
+NYU_COLS = KITTI_COLS + ["log10", "silog"]
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+# --------------------------------------------------------------------------- references
+
+def ref_errors(g, d, nyu=False):
+    """compute_errors of the reference scripts, on the valid pixels."""
+    t = np.maximum(g / d, d / g)
+    out = [np.mean(np.abs(g - d) / g), np.mean((g - d) ** 2 / g), np.sqrt(np.mean((g - d) ** 2)),
+           np.sqrt(np.mean((np.log(g) - np.log(d)) ** 2)),
+           np.mean(t < 1.25), np.mean(t < 1.25 ** 2), np.mean(t < 1.25 ** 3)]
+    if nyu:
+        e = np.log(d) - np.log(g)
+        out += [np.mean(np.abs(np.log10(d) - np.log10(g))),
+                np.sqrt(np.mean(e ** 2) - np.mean(e) ** 2) * 100]
+    return out
+
+
+def ref_kitti(gts, preds, kind="disp", stereo=False):
+    """monodepth2's loop: resize to the gt size, invert, Garg crop and 1e-3 < gt < 80,
+    median scaling (mono) or x5.4 (stereo), clamp to [1e-3, 80], mean over images."""
+    errors, ratios = [], []
+    for gt, pred in zip(gts, preds):
+        h, w = gt.shape
+        if kind == "sigmoid":
+            pred = 1 / 100 + (1 / 0.1 - 1 / 100) * pred
+        pred = cv2.resize(pred, (w, h))
+        depth = pred if kind == "depth" else 1 / pred
+        mask = (gt > 1e-3) & (gt < 80)
+        crop = np.zeros(gt.shape, bool)
+        crop[int(0.40810811 * h):int(0.99189189 * h), int(0.03594771 * w):int(0.96405229 * w)] = True
+        mask &= crop
+        d, g = depth[mask], gt[mask]
+        if stereo:
+            d = d * 5.4
+        else:
+            ratios.append(np.median(g) / np.median(d))
+            d = d * ratios[-1]
+        d[d < 1e-3] = 1e-3
+        d[d > 80] = 80
+        errors.append(ref_errors(g, d))
+    return np.array(errors, np.float64).mean(0), ratios
+
+
+def ref_upsample(a, h, w):
+    """Corner-aligned bilinear upsampling, sample positions in float32 as PyTorch computes
+    them, interpolated by SciPy (an implementation independent of the package's)."""
+    from scipy.ndimage import map_coordinates
+
+    ys = np.float32(a.shape[0] - 1) / np.float32(h - 1) * np.arange(h, dtype=np.float32)
+    xs = np.float32(a.shape[1] - 1) / np.float32(w - 1) * np.arange(w, dtype=np.float32)
+    yy, xx = np.meshgrid(ys.astype(np.float64), xs.astype(np.float64), indexing="ij")
+    return map_coordinates(a.astype(np.float64), [yy, xx], order=1, mode="nearest").astype(np.float32)
+
+
+def ref_nyu(gts_mm, preds):
+    """BTS/AdaBins: gt = png / 1000; upsample a smaller prediction; clamp to [1e-3, 10],
+    inf to 10; valid 1e-3 < gt < 10 in rows 45..470, columns 41..600; no scaling."""
+    errors = []
+    for raw, pred in zip(gts_mm, preds):
+        gt = raw.astype(np.float32) / 1000.0
+        if pred.shape != gt.shape:
+            pred = ref_upsample(pred, *gt.shape)
+        pred = pred.copy()
+        pred[pred < 1e-3] = 1e-3
+        pred[pred > 10] = 10
+        pred[np.isinf(pred)] = 10
+        valid = (gt > 1e-3) & (gt < 10)
+        crop = np.zeros(gt.shape, bool)
+        crop[45:471, 41:601] = True
+        valid &= crop
+        errors.append(ref_errors(gt[valid], pred[valid], nyu=True))
+    return np.array(errors, np.float64).mean(0)
+
+
+# --------------------------------------------------------------------------- data
+
+def smooth_depth(h, w, seed):
+    """A dense, smooth depth field in metres (near at the bottom, far at the top)."""
+    rng = np.random.default_rng(seed)
+    y = np.linspace(1, 0, h)[:, None]
+    x = np.linspace(0, 1, w)[None, :]
+    return (8 + 70 * (1 - y) ** 2 + 5 * np.sin(6 * x + rng.uniform(0, 6))).astype(np.float32)
+
+
+def lidar_gt(shape, seed):
+    """KITTI-like ground truth: ~7% of the pixels, some beyond 80 m (invalid), zeros elsewhere."""
+    rng = np.random.default_rng(seed)
+    d = smooth_depth(*shape, seed) * rng.uniform(0.9, 1.25, shape).astype(np.float32)
+    d[rng.random(shape) > 0.07] = 0
+    return d
+
+
+def fake_disp(shape, seed, noise, scale=0.03):
+    """A mono model's disparity at the network size: 1 / depth up to scale, with noise."""
+    rng = np.random.default_rng(seed)
+    d = smooth_depth(*shape, seed % 2) * (1 + noise * rng.standard_normal(shape)).clip(0.3, None)
+    return (scale / d).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def kitti_c(fixtures_dir, tmp_path_factory):
+    """A KITTI-C subset built from the fixtures, with ground truth written in the test in
+    monodepth2's gt_depths.npz format (an object array of float32 maps, split order)."""
+    out = tmp_path_factory.mktemp("kitti") / "KITTI_C"
+    res = run("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
+              fixtures_dir / "kitti_split.txt", "--out", out, "--size", "64x96", "--corruptions",
+              "brightness,contrast", "--levels", "1,3", "--jobs", "1", "--no-progress")
+    assert res.exit_code == 0, res.output
+    gts = np.empty(2, object)
+    for i, shape in enumerate(GT_SHAPES):
+        gts[i] = lidar_gt(shape, i)
+    np.savez_compressed(out / "gt_depths.npz", data=gts)
+    return out, list(gts)
+
+
+def kitti_preds(variant_index, n=2, shape=(64, 96)):
+    return np.stack([fake_disp(shape, i, 0.05 * (1 + variant_index)) for i in range(n)])
+
+
+def write_form1(pred, preds_by_variant, ext=".npy"):
+    for rel, arr in preds_by_variant.items():
+        path = pred / f"{rel}{ext}"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if ext == ".npy":
+            np.save(path, arr)
+        else:
+            np.savez(path, arr)
+    return pred
+
+
+@pytest.fixture(scope="module")
+def kitti_pred(kitti_c, tmp_path_factory):
+    pred = tmp_path_factory.mktemp("pred") / "PRED"
+    return write_form1(pred, {v: kitti_preds(k) for k, v in enumerate(KITTI_VARIANTS)})
+
+
+def check_rows(rows, expected_by_variant, cols):
+    assert [f"{r['corruption']}/{r['level']}".replace("clean/0", "clean") for r in rows] == \
+        list(expected_by_variant)
+    for r, want in zip(rows, expected_by_variant.values()):
+        got = [float(r[c]) for c in cols]
+        np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- kitti protocol
+
+@pytest.mark.parametrize("flags, kind, stereo", [
+    ((), "disp", False),
+    (("--stereo",), "disp", True),
+    (("--kind", "sigmoid"), "sigmoid", False),
+    (("--kind", "depth", "--stereo"), "depth", True),
+])
+def test_kitti_matches_monodepth2_rules(kitti_c, kitti_pred, tmp_path, flags, kind, stereo):
+    out, gts = kitti_c
+    pred = kitti_pred
+    if kind == "sigmoid":  # raw sigmoid outputs in [0, 1]
+        pred = write_form1(tmp_path / "sig", {v: kitti_preds(k) * 20 for k, v in enumerate(KITTI_VARIANTS)})
+    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--no-progress", *flags)
+    assert res.exit_code == 0, res.stderr
+    expected = {}
+    for k, v in enumerate(KITTI_VARIANTS):
+        arr = np.load(pred / f"{v}.npy")
+        expected[v] = ref_kitti(gts, list(arr), kind, stereo)[0]
+    rows = read_csv(tmp_path / "r.csv")
+    assert list(rows[0]) == ["corruption", "level"] + KITTI_COLS
+    check_rows(rows, expected, KITTI_COLS)
+    # The summary prints monodepth2's scaling-ratio line figures, only with median scaling.
+    clean_ratios = ref_kitti(gts, list(np.load(pred / "clean.npy")), kind, stereo)[1]
+    if stereo:
+        assert "ratio med" not in res.stdout
+    else:
+        med = np.median(clean_ratios)
+        line = next(ln for ln in res.stdout.splitlines() if ln.startswith("clean "))
+        assert line.split()[-2:] == [f"{med:.3f}", f"{np.std(np.array(clean_ratios) / med):.3f}"]
+
+
+def test_csv_keeps_full_precision(kitti_c, kitti_pred, tmp_path):
+    out, gts = kitti_c
+    assert run("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv").exit_code == 0
+    text = (tmp_path / "r.csv").read_text()
+    clean = text.splitlines()[1].split(",")
+    want = ref_kitti(gts, list(np.load(kitti_pred / "clean.npy")))[0]
+    assert clean[:2] == ["clean", "0"]
+    assert abs(float(clean[2]) - want[0]) < 1e-9
+    assert len(clean[2]) > 10  # not rounded to a few decimals
+
+
+def test_identities_perfect_and_scaled(kitti_c, tmp_path):
+    """Perfect predictions: abs_rel 0 and a1 1. A constant factor: same mono result (the
+    median ratio absorbs it), a different stereo result."""
+    out, gts = kitti_c
+    # The inverse ground truth at its own size: the resize is the identity, so every valid
+    # pixel's depth is exact. Invalid pixels get an arbitrary disparity.
+    perfect = [np.where(g > 0, 1 / np.maximum(g, 1e-6), 1.0).astype(np.float32) for g in gts]
+    # Form 2 (a file per image): maps of different sizes are fine there.
+    ds_keys = json.loads((out / "build.json").read_text())["split"]["keys"]
+
+    def write_form2(pred, factor):
+        for v in KITTI_VARIANTS:
+            for key, m in zip(ds_keys, perfect):
+                p = pred / v / key.replace(".png", ".npy")
+                p.parent.mkdir(parents=True, exist_ok=True)
+                np.save(p, m * factor)
+        return pred
+
+    good = write_form2(tmp_path / "perfect", 1.0)
+    for flags in ((), ("--stereo",)):
+        factor = 5.4 if flags else 1.0  # stereo: depth = 1 / disp, then x 5.4
+        pred = write_form2(tmp_path / f"p{factor}", factor) if flags else good
+        assert run("evaluate", out, "--pred", pred, "--out", tmp_path / "p.csv", *flags).exit_code == 0
+        for r in read_csv(tmp_path / "p.csv"):
+            assert float(r["abs_rel"]) < 1e-6 and float(r["a1"]) == 1.0
+
+    scaled = write_form2(tmp_path / "scaled", 3.7)
+    results = {}
+    for name, pred in (("good", good), ("scaled", scaled)):
+        for flags in ((), ("--stereo",)):
+            assert run("evaluate", out, "--pred", pred, "--out", tmp_path / "s.csv", *flags).exit_code == 0
+            results[name, bool(flags)] = [float(r["abs_rel"]) for r in read_csv(tmp_path / "s.csv")]
+    np.testing.assert_allclose(results["good", False], results["scaled", False], atol=1e-6)
+    assert all(abs(a - b) > 0.1 for a, b in zip(results["good", True], results["scaled", True]))
+
+
+def test_prediction_forms_agree(kitti_c, kitti_pred, tmp_path):
+    """Form 1 as .npy and .npz and form 2 (one .npy or 16-bit .png per image) give the
+    same rows; a PNG is a depth (value / --png-scale)."""
+    out, gts = kitti_c
+    keys = json.loads((out / "build.json").read_text())["split"]["keys"]
+    arrays = {v: np.load(kitti_pred / f"{v}.npy") for v in KITTI_VARIANTS}
+    npz = write_form1(tmp_path / "npz", arrays, ".npz")
+    per_image = tmp_path / "files"
+    for v, arr in arrays.items():
+        for key, m in zip(keys, arr):
+            p = per_image / v / key.replace(".png", ".npy")
+            p.parent.mkdir(parents=True, exist_ok=True)
+            np.save(p, m)
+    csvs = []
+    for pred in (kitti_pred, npz, per_image):
+        assert run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv").exit_code == 0
+        csvs.append((tmp_path / "r.csv").read_text())
+    assert csvs[0] == csvs[1] == csvs[2]
+
+    # 16-bit PNGs of depth x 100 at the image size, evaluated as depths.
+    pngs = tmp_path / "pngs"
+    depths = {}
+    for v, arr in arrays.items():
+        depths[v] = []
+        for key, m in zip(keys, arr):
+            raw = np.clip(np.round(100 * 0.03 / m * 40), 0, 65535).astype(np.uint16)
+            p = pngs / v / key
+            p.parent.mkdir(parents=True, exist_ok=True)
+            cv2.imwrite(str(p), raw)
+            depths[v].append(raw.astype(np.float32) / np.float32(100))
+    res = run("evaluate", out, "--pred", pngs, "--out", tmp_path / "png.csv", "--png-scale", "100",
+              "--stereo")
+    assert res.exit_code == 0, res.stderr
+    check_rows(read_csv(tmp_path / "png.csv"),
+               {v: ref_kitti(gts, depths[v], "depth", True)[0] for v in KITTI_VARIANTS}, KITTI_COLS)
+
+
+# --------------------------------------------------------------------------- nyu protocol
+
+@pytest.fixture(scope="module")
+def nyu_c(fixtures_dir, tmp_path_factory):
+    out = tmp_path_factory.mktemp("nyu") / "NYU_C"
+    res = run("build", "nyudepth2-c", "--root", fixtures_dir / "nyu", "--split",
+              fixtures_dir / "nyu_split.txt", "--out", out, "--corruptions", "brightness",
+              "--levels", "1", "--jobs", "1", "--no-progress")
+    assert res.exit_code == 0, res.output
+    gts = []
+    for i, n in enumerate(("00001", "00119")):
+        rng = np.random.default_rng(i)
+        mm = (smooth_depth(480, 640, i) / 8 * 1000).astype(np.uint16)
+        mm[rng.random(mm.shape) < 0.2] = 0  # holes
+        mm[:5] = 12000  # beyond 10 m: invalid
+        path = out / "gt" / "bedroom" / f"sync_depth_{n}.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(path), mm)
+        gts.append(mm)
+    return out, gts
+
+
+def test_nyu_matches_bts_adabins_rules(nyu_c, tmp_path):
+    out, gts = nyu_c
+    keys = ["bedroom/rgb_00001.png", "bedroom/rgb_00119.png"]
+    rng = np.random.default_rng(5)
+    # BTS style: one 16-bit PNG per image in millimetres, at the full size, with an image
+    # whose depth goes past 10 m and below 1 mm.
+    pngs, depths = tmp_path / "bts", {}
+    for v in ("clean", "brightness/1"):
+        depths[v] = []
+        for key, gt in zip(keys, gts):
+            mm = np.clip(gt.astype(np.float64) * rng.uniform(0.8, 1.3, gt.shape), 0, 15000)
+            mm[0, :10] = 0
+            mm = mm.astype(np.uint16)
+            (pngs / v / key).parent.mkdir(parents=True, exist_ok=True)
+            cv2.imwrite(str(pngs / v / key), mm)
+            depths[v].append(mm.astype(np.float32) / np.float32(1000))
+    res = run("evaluate", out, "--pred", pngs, "--out", tmp_path / "bts.csv")
+    assert res.exit_code == 0, res.stderr
+    rows = read_csv(tmp_path / "bts.csv")
+    assert list(rows[0]) == ["corruption", "level"] + NYU_COLS
+    check_rows(rows, {v: ref_nyu(gts, d) for v, d in depths.items()}, NYU_COLS)
+
+    # AdaBins style: arrays at half the size, upsampled with corners aligned.
+    small = {v: np.stack([cv2.resize(d, (320, 240), interpolation=cv2.INTER_AREA) for d in ds])
+             for v, ds in depths.items()}
+    pred = write_form1(tmp_path / "ada", small)
+    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "ada.csv")
+    assert res.exit_code == 0, res.stderr
+    check_rows(read_csv(tmp_path / "ada.csv"), {v: ref_nyu(gts, list(a)) for v, a in small.items()},
+               NYU_COLS)
+
+
+def test_corner_aligned_upsampling_is_pytorchs():
+    """AdaBins upsamples with torch's interpolate(bilinear, align_corners=True)."""
+    import torch
+
+    from robodepth_cli.evaluate import upsample_corners
+
+    rng = np.random.default_rng(0)
+    for (h, w), (H, W) in (((240, 320), (480, 640)), ((7, 5), (13, 11)), ((1, 4), (3, 9))):
+        a = rng.uniform(0.5, 9, (h, w)).astype(np.float32)
+        want = torch.nn.functional.interpolate(torch.from_numpy(a)[None, None], (H, W),
+                                               mode="bilinear", align_corners=True)[0, 0].numpy()
+        np.testing.assert_allclose(upsample_corners(a, H, W), want, rtol=0, atol=4e-6)
+
+
+# --------------------------------------------------------------------------- the whole loop
+
+def test_build_predict_evaluate_score(kitti_c, kitti_pred, tmp_path):
+    """--score prints what `robodepth score` prints for the CSV; --json carries both. The
+    subset build is complete for evaluate (its own variants); the scores are partial."""
+    out, _ = kitti_c
+    res = run("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", "--score")
+    assert res.exit_code == 0, res.stderr
+    score = run("score", tmp_path / "r.csv", "--benchmark", "kitti-c", "--allow-partial")
+    assert score.exit_code == 0
+    assert res.stdout.endswith(score.stdout)
+    assert "partial: 86 variants missing" in res.stdout
+    assert "missing 86 of 90 variants" in res.stderr
+
+    res = run("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "j.csv", "--score", "--json")
+    doc = json.loads(res.stdout)
+    score_json = json.loads(run("score", tmp_path / "j.csv", "-b", "kitti-c", "--allow-partial",
+                                "--json").stdout)
+    assert doc["scores"] == score_json
+    assert [(r["corruption"], r["level"]) for r in doc["results"]] == \
+        [("clean", 0), ("brightness", 1), ("brightness", 3), ("contrast", 1), ("contrast", 3)]
+    assert set(doc["results"][0]["scaling_ratio"]) == {"median", "std"}
+    assert doc["partial"] is False and doc["csv"] == str(tmp_path / "j.csv")
+
+
+def test_missing_variants_and_allow_partial(kitti_c, kitti_pred, tmp_path):
+    out, _ = kitti_c
+    pred = write_form1(tmp_path / "p", {v: np.load(kitti_pred / f"{v}.npy")
+                                        for v in ("clean", "brightness/1", "contrast/3")})
+    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
+    assert res.exit_code == 2
+    assert "no predictions for 2 of 5 variants: brightness/3, contrast/1" in res.stderr
+    assert not (tmp_path / "r.csv").exists()
+    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--allow-partial", "--json")
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["partial"] is True
+    assert doc["missing"] == [{"corruption": "brightness", "level": 3},
+                              {"corruption": "contrast", "level": 1}]
+    assert [r["corruption"] + r["level"] for r in read_csv(tmp_path / "r.csv")] == \
+        ["clean0", "brightness1", "contrast3"]
+
+
+# --------------------------------------------------------------------------- bad input
+
+def _bad_pred(kitti_pred, tmp_path, change):
+    pred = write_form1(tmp_path / "bad", {v: np.load(kitti_pred / f"{v}.npy") for v in KITTI_VARIANTS})
+    change(pred)
+    return pred
+
+
+def _set(rel, fn):
+    def change(pred):
+        a = np.load(pred / f"{rel}.npy")
+        np.save(pred / f"{rel}.npy", fn(a))
+    return change
+
+
+def _nan(a):
+    a[1, 10, 20] = np.nan
+    return a
+
+
+def _negative(a):
+    a[1, 3, 3] = -0.5
+    return a
+
+
+def _png(rel_key, img):
+    def change(pred):
+        (pred / "contrast/1.npy").unlink()
+        p = pred / "contrast/1" / rel_key
+        p.parent.mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(p), img)
+        other = pred / "contrast/1" / rel_key.replace("0000000069", "0000000054")
+        cv2.imwrite(str(other), np.full((64, 96), 1000, np.uint16))
+    return change
+
+
+KEY69 = "kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
+
+
+@pytest.mark.parametrize("change, message", [
+    (_set("brightness/3", lambda a: a[:1]), r"brightness/3\.npy: 1 predictions for the 2 images of brightness 3"),
+    (_set("clean", lambda a: a[:, None]), r"clean\.npy: shape \(2, 1, 64, 96\); expected N x h x w"),
+    (_set("contrast/3", _nan), r"contrast/3\.npy: prediction 1 contains NaN"),
+    (_set("clean", _negative), r"clean\.npy: prediction 1 has negative values"),
+    (_png(KEY69, np.full((50, 50), 1000, np.uint16)),
+     r"contrast/1/kitti_data/.*/0000000069\.png \(image 0\) is 50 x 50; a PNG prediction must have"),
+    (_png(KEY69, np.full((64, 96), 100, np.uint8)),
+     r"0000000069\.png: 8-bit; expected a 16-bit single-channel PNG \(prediction of image 0\)"),
+    (_png(KEY69, np.full((64, 96, 3), 100, np.uint16)),
+     r"0000000069\.png: 16-bit, 3 channels; expected a 16-bit single-channel PNG"),
+])
+def test_bad_predictions_are_one_line_errors(kitti_c, kitti_pred, tmp_path, change, message):
+    out, _ = kitti_c
+    pred = _bad_pred(kitti_pred, tmp_path, change)
+    before = sorted(p for p in tmp_path.rglob("*"))
+    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
+    assert res.exit_code == 2, res.stdout
+    assert res.stderr.startswith("robodepth: error: ") and res.stderr.count("\n") == 1
+    assert re.search(message, res.stderr), res.stderr
+    assert sorted(p for p in tmp_path.rglob("*")) == before  # nothing written, no CSV
+
+
+def test_bad_ground_truth(kitti_c, kitti_pred, tmp_path):
+    out, gts = kitti_c
+    one = np.empty(1, object)
+    one[0] = gts[0]
+    np.savez_compressed(tmp_path / "one.npz", data=one)
+    res = run("evaluate", out, "--pred", kitti_pred, "--gt", tmp_path / "one.npz", "--out", tmp_path / "r.csv")
+    assert res.exit_code == 2
+    assert "one.npz: 1 ground-truth maps, but the dataset's split has 2 images" in res.stderr
+    assert not (tmp_path / "r.csv").exists()
+
+    bare = tmp_path / "bare"  # the same build without its ground truth
+    bare.mkdir()
+    for name in ("build.json", "manifest.csv"):
+        (bare / name).write_bytes((out / name).read_bytes())
+    res = run("evaluate", bare, "--pred", kitti_pred, "--out", tmp_path / "r.csv")
+    assert res.exit_code == 2
+    assert f"{bare}: no ground truth" in res.stderr and "--gt" in res.stderr
+
+    res = run("evaluate", tmp_path, "--pred", kitti_pred)
+    assert res.exit_code == 2 and "no build.json; not a dataset made by robodepth build" in res.stderr
+
+
+def test_flag_combinations_refused(kitti_c, kitti_pred, tmp_path):
+    out, _ = kitti_c
+    for flags, message in ((("--protocol", "nyu", "--stereo"), "--stereo applies to --protocol kitti only"),
+                           (("--protocol", "nyu", "--kind", "disp"), "--protocol nyu evaluates depths"),
+                           (("--png-scale", "0"), "--png-scale 0: must be a positive number")):
+        res = run("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", *flags)
+        assert res.exit_code == 2 and message in res.stderr, res.stderr
+    assert not (tmp_path / "r.csv").exists()
+
+
+# --------------------------------------------------------------------------- Python API
+
+def test_open_dataset_variants_and_images(kitti_c):
+    from robodepth_cli import open_dataset
+
+    out, _ = kitti_c
+    ds = open_dataset(out)
+    assert ds.name == "kitti-c" and ds.size == (64, 96)
+    assert [v.relpath for v in ds.variants()] == KITTI_VARIANTS
+    split = [ln.split() for ln in Path(ds.record["split"]["path"]).read_text().splitlines() if ln.strip()]
+    for v in ds.variants():
+        images = v.images()
+        assert [p.relative_to(out / v.relpath).as_posix() for p in images] == \
+            [f"kitti_data/{d}/image_02/data/{f}.png" for d, f, _ in split]
+        assert all(p.is_file() for p in images)
+
+
+def test_save_predictions_writes_form_1(kitti_c, tmp_path):
+    from robodepth_cli import open_dataset
+    from robodepth_cli.errors import RobodepthError
+
+    out, _ = kitti_c
+    v = open_dataset(out).variant("contrast", 3)
+    maps = [np.full((4, 5), i + 1, np.float64) for i in range(2)]
+    path = v.save_predictions(tmp_path / "P", maps)
+    assert path == tmp_path / "P" / "contrast" / "3.npy"
+    saved = np.load(path)
+    assert saved.dtype == np.float64 and saved.shape == (2, 4, 5) and saved[1, 0, 0] == 2
+    assert not [p for p in path.parent.iterdir() if p.name.startswith(".")]  # no temporary left
+    with pytest.raises(RobodepthError, match=r"3\.npy: 1 predictions for the 2 images of contrast 3"):
+        v.save_predictions(tmp_path / "P", maps[:1])
+    with pytest.raises(RobodepthError, match=r"prediction 1 is 5 x 4, prediction 0 is 4 x 5"):
+        v.save_predictions(tmp_path / "P", [maps[0], maps[1].T])
+    assert np.load(path)[1, 0, 0] == 2  # the earlier file is intact
+
+
+def _readme_blocks():
+    text = (REPO / "README.md").read_text()
+    section = text[text.index("## Evaluating a model"):]
+    section = section[:section.index("\n## ", 3)]
+    return (re.findall(r"```python\n(.*?)```", section, re.S),
+            re.findall(r"```sh\n(.*?)```", section, re.S))
+
+
+def test_readme_example_runs(kitti_c, tmp_path, monkeypatch):
+    """The README's evaluation example, exactly as printed, with a stand-in model."""
+    out, _ = kitti_c
+    python, shell = _readme_blocks()
+    assert len(python) == 1 and 5 <= len(python[0].strip().splitlines()) <= 14
+    (tmp_path / "KITTI_C").symlink_to(out)
+    monkeypatch.chdir(tmp_path)
+
+    def model(image):  # stand-in: brighter pixels are nearer
+        assert image.dtype == np.uint8 and image.shape == (64, 96, 3)
+        return (0.02 + image.mean(axis=2) / 2550).astype(np.float32)
+
+    exec(compile(python[0], "README.md", "exec"), {"model": model})
+    evaluate = [ln for block in shell for ln in block.splitlines() if ln.startswith("robodepth evaluate")]
+    assert evaluate
+    res = run(*evaluate[0].split()[1:])
+    assert res.exit_code == 0, res.stderr
+    assert "mCE" in res.stdout
+    assert [r["corruption"] for r in read_csv(tmp_path / "results.csv")] == \
+        ["clean", "brightness", "brightness", "contrast", "contrast"]
+
+
+def test_import_stays_light():
+    code = ("import sys, robodepth_cli; assert 'numpy' not in sys.modules; "
+            "assert callable(robodepth_cli.open_dataset)")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
