@@ -27,9 +27,9 @@ from typing import Sequence
 
 import numpy as np
 
+from .benchmarks import CLEAN
 from .errors import RobodepthError, os_reason
 
-CLEAN = "clean"
 GT_FILE = "gt_depths.npz"  # KITTI ground truth inside a build (monodepth2's format)
 GT_DIR = "gt"  # NYU ground truth inside a build (BTS's layout)
 
