@@ -9,7 +9,6 @@ package's own output.
 from __future__ import annotations
 
 import csv
-import io
 import json
 import re
 import subprocess
@@ -19,19 +18,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from robodepth_cli.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
 KITTI_VARIANTS = ["clean", "brightness/1", "brightness/3", "contrast/1", "contrast/3"]
 GT_SHAPES = [(375, 1242), (370, 1226)]  # two KITTI dates differ in image size
 KITTI_COLS = ["abs_rel", "sq_rel", "rmse", "rmse_log", "a1", "a2", "a3"]
 NYU_COLS = KITTI_COLS + ["log10", "silog"]
-
-
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 def read_csv(path):
@@ -137,13 +130,13 @@ def fake_disp(shape, seed, noise, scale=0.03):
 
 
 @pytest.fixture(scope="module")
-def kitti_c(fixtures_dir, tmp_path_factory):
+def kitti_c(fixtures_dir, tmp_path_factory, cli):
     """A KITTI-C subset built from the fixtures, with ground truth written in the test in
     monodepth2's gt_depths.npz format (an object array of float32 maps, split order)."""
     out = tmp_path_factory.mktemp("kitti") / "KITTI_C"
-    res = run("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
+    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
               fixtures_dir / "kitti_split.txt", "--out", out, "--size", "64x96", "--corruptions",
-              "brightness,contrast", "--levels", "1,3", "--jobs", "1", "--no-progress")
+              "brightness,contrast", "--levels", "1,3", "--jobs", "1")
     assert res.exit_code == 0, res.output
     gts = np.empty(2, object)
     for i, shape in enumerate(GT_SHAPES):
@@ -189,12 +182,12 @@ def check_rows(rows, expected_by_variant, cols):
     (("--kind", "sigmoid"), "sigmoid", False),
     (("--kind", "depth", "--stereo"), "depth", True),
 ])
-def test_kitti_matches_monodepth2_rules(kitti_c, kitti_pred, tmp_path, flags, kind, stereo):
+def test_kitti_matches_monodepth2_rules(kitti_c, kitti_pred, tmp_path, flags, kind, stereo, cli):
     out, gts = kitti_c
     pred = kitti_pred
     if kind == "sigmoid":  # raw sigmoid outputs in [0, 1]
         pred = write_form1(tmp_path / "sig", {v: kitti_preds(k) * 20 for k, v in enumerate(KITTI_VARIANTS)})
-    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--no-progress", *flags)
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", *flags)
     assert res.exit_code == 0, res.stderr
     expected = {}
     for k, v in enumerate(KITTI_VARIANTS):
@@ -213,9 +206,9 @@ def test_kitti_matches_monodepth2_rules(kitti_c, kitti_pred, tmp_path, flags, ki
         assert line.split()[-2:] == [f"{med:.3f}", f"{np.std(np.array(clean_ratios) / med):.3f}"]
 
 
-def test_csv_keeps_full_precision(kitti_c, kitti_pred, tmp_path):
+def test_csv_keeps_full_precision(kitti_c, kitti_pred, tmp_path, cli):
     out, gts = kitti_c
-    assert run("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv").exit_code == 0
+    assert cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv").exit_code == 0
     text = (tmp_path / "r.csv").read_text()
     clean = text.splitlines()[1].split(",")
     want = ref_kitti(gts, list(np.load(kitti_pred / "clean.npy")))[0]
@@ -224,7 +217,7 @@ def test_csv_keeps_full_precision(kitti_c, kitti_pred, tmp_path):
     assert len(clean[2]) > 10  # not rounded to a few decimals
 
 
-def test_identities_perfect_and_scaled(kitti_c, tmp_path):
+def test_identities_perfect_and_scaled(kitti_c, tmp_path, cli):
     """Perfect predictions: abs_rel 0 and a1 1. A constant factor: same mono result (the
     median ratio absorbs it), a different stereo result."""
     out, gts = kitti_c
@@ -246,7 +239,7 @@ def test_identities_perfect_and_scaled(kitti_c, tmp_path):
     for flags in ((), ("--stereo",)):
         factor = 5.4 if flags else 1.0  # stereo: depth = 1 / disp, then x 5.4
         pred = write_form2(tmp_path / f"p{factor}", factor) if flags else good
-        assert run("evaluate", out, "--pred", pred, "--out", tmp_path / "p.csv", *flags).exit_code == 0
+        assert cli("evaluate", out, "--pred", pred, "--out", tmp_path / "p.csv", *flags).exit_code == 0
         for r in read_csv(tmp_path / "p.csv"):
             assert float(r["abs_rel"]) < 1e-6 and float(r["a1"]) == 1.0
 
@@ -254,13 +247,13 @@ def test_identities_perfect_and_scaled(kitti_c, tmp_path):
     results = {}
     for name, pred in (("good", good), ("scaled", scaled)):
         for flags in ((), ("--stereo",)):
-            assert run("evaluate", out, "--pred", pred, "--out", tmp_path / "s.csv", *flags).exit_code == 0
+            assert cli("evaluate", out, "--pred", pred, "--out", tmp_path / "s.csv", *flags).exit_code == 0
             results[name, bool(flags)] = [float(r["abs_rel"]) for r in read_csv(tmp_path / "s.csv")]
     np.testing.assert_allclose(results["good", False], results["scaled", False], atol=1e-6)
     assert all(abs(a - b) > 0.1 for a, b in zip(results["good", True], results["scaled", True]))
 
 
-def test_prediction_forms_agree(kitti_c, kitti_pred, tmp_path):
+def test_prediction_forms_agree(kitti_c, kitti_pred, tmp_path, cli):
     """Form 1 as .npy and .npz and form 2 (one .npy or 16-bit .png per image) give the
     same rows; a PNG is a depth (value / --png-scale)."""
     out, gts = kitti_c
@@ -275,7 +268,7 @@ def test_prediction_forms_agree(kitti_c, kitti_pred, tmp_path):
             np.save(p, m)
     csvs = []
     for pred in (kitti_pred, npz, per_image):
-        assert run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv").exit_code == 0
+        assert cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv").exit_code == 0
         csvs.append((tmp_path / "r.csv").read_text())
     assert csvs[0] == csvs[1] == csvs[2]
 
@@ -290,7 +283,7 @@ def test_prediction_forms_agree(kitti_c, kitti_pred, tmp_path):
             p.parent.mkdir(parents=True, exist_ok=True)
             cv2.imwrite(str(p), raw)
             depths[v].append(raw.astype(np.float32) / np.float32(100))
-    res = run("evaluate", out, "--pred", pngs, "--out", tmp_path / "png.csv", "--png-scale", "100",
+    res = cli("evaluate", out, "--pred", pngs, "--out", tmp_path / "png.csv", "--png-scale", "100",
               "--stereo")
     assert res.exit_code == 0, res.stderr
     check_rows(read_csv(tmp_path / "png.csv"),
@@ -300,11 +293,11 @@ def test_prediction_forms_agree(kitti_c, kitti_pred, tmp_path):
 # --------------------------------------------------------------------------- nyu protocol
 
 @pytest.fixture(scope="module")
-def nyu_c(fixtures_dir, tmp_path_factory):
+def nyu_c(fixtures_dir, tmp_path_factory, cli):
     out = tmp_path_factory.mktemp("nyu") / "NYU_C"
-    res = run("build", "nyudepth2-c", "--root", fixtures_dir / "nyu", "--split",
+    res = cli("build", "nyudepth2-c", "--root", fixtures_dir / "nyu", "--split",
               fixtures_dir / "nyu_split.txt", "--out", out, "--corruptions", "brightness",
-              "--levels", "1", "--jobs", "1", "--no-progress")
+              "--levels", "1", "--jobs", "1")
     assert res.exit_code == 0, res.output
     gts = []
     for i, n in enumerate(("00001", "00119")):
@@ -319,7 +312,7 @@ def nyu_c(fixtures_dir, tmp_path_factory):
     return out, gts
 
 
-def test_nyu_matches_bts_adabins_rules(nyu_c, tmp_path):
+def test_nyu_matches_bts_adabins_rules(nyu_c, tmp_path, cli):
     out, gts = nyu_c
     keys = ["bedroom/rgb_00001.png", "bedroom/rgb_00119.png"]
     rng = np.random.default_rng(5)
@@ -335,7 +328,7 @@ def test_nyu_matches_bts_adabins_rules(nyu_c, tmp_path):
             (pngs / v / key).parent.mkdir(parents=True, exist_ok=True)
             cv2.imwrite(str(pngs / v / key), mm)
             depths[v].append(mm.astype(np.float32) / np.float32(1000))
-    res = run("evaluate", out, "--pred", pngs, "--out", tmp_path / "bts.csv")
+    res = cli("evaluate", out, "--pred", pngs, "--out", tmp_path / "bts.csv")
     assert res.exit_code == 0, res.stderr
     rows = read_csv(tmp_path / "bts.csv")
     assert list(rows[0]) == ["corruption", "level"] + NYU_COLS
@@ -345,7 +338,7 @@ def test_nyu_matches_bts_adabins_rules(nyu_c, tmp_path):
     small = {v: np.stack([cv2.resize(d, (320, 240), interpolation=cv2.INTER_AREA) for d in ds])
              for v, ds in depths.items()}
     pred = write_form1(tmp_path / "ada", small)
-    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "ada.csv")
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "ada.csv")
     assert res.exit_code == 0, res.stderr
     check_rows(read_csv(tmp_path / "ada.csv"), {v: ref_nyu(gts, list(a)) for v, a in small.items()},
                NYU_COLS)
@@ -367,21 +360,21 @@ def test_corner_aligned_upsampling_is_pytorchs():
 
 # --------------------------------------------------------------------------- the whole loop
 
-def test_build_predict_evaluate_score(kitti_c, kitti_pred, tmp_path):
+def test_build_predict_evaluate_score(kitti_c, kitti_pred, tmp_path, cli):
     """--score prints what `robodepth score` prints for the CSV; --json carries both. The
     subset build is complete for evaluate (its own variants); the scores are partial."""
     out, _ = kitti_c
-    res = run("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", "--score")
+    res = cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", "--score")
     assert res.exit_code == 0, res.stderr
-    score = run("score", tmp_path / "r.csv", "--benchmark", "kitti-c", "--allow-partial")
+    score = cli("score", tmp_path / "r.csv", "--benchmark", "kitti-c", "--allow-partial")
     assert score.exit_code == 0
     assert res.stdout.endswith(score.stdout)
     assert "partial: 86 variants missing" in res.stdout
     assert "missing 86 of 90 variants" in res.stderr
 
-    res = run("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "j.csv", "--score", "--json")
+    res = cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "j.csv", "--score", "--json")
     doc = json.loads(res.stdout)
-    score_json = json.loads(run("score", tmp_path / "j.csv", "-b", "kitti-c", "--allow-partial",
+    score_json = json.loads(cli("score", tmp_path / "j.csv", "-b", "kitti-c", "--allow-partial",
                                 "--json").stdout)
     assert doc["scores"] == score_json
     assert [(r["corruption"], r["level"]) for r in doc["results"]] == \
@@ -390,15 +383,15 @@ def test_build_predict_evaluate_score(kitti_c, kitti_pred, tmp_path):
     assert doc["partial"] is False and doc["csv"] == str(tmp_path / "j.csv")
 
 
-def test_missing_variants_and_allow_partial(kitti_c, kitti_pred, tmp_path):
+def test_missing_variants_and_allow_partial(kitti_c, kitti_pred, tmp_path, cli):
     out, _ = kitti_c
     pred = write_form1(tmp_path / "p", {v: np.load(kitti_pred / f"{v}.npy")
                                         for v in ("clean", "brightness/1", "contrast/3")})
-    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
     assert res.exit_code == 2
     assert "no predictions for 2 of 5 variants: brightness/3, contrast/1" in res.stderr
     assert not (tmp_path / "r.csv").exists()
-    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--allow-partial", "--json")
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--allow-partial", "--json")
     assert res.exit_code == 0, res.stderr
     doc = json.loads(res.stdout)
     assert doc["partial"] is True
@@ -459,23 +452,23 @@ KEY69 = "kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/00000000
     (_png(KEY69, np.full((64, 96, 3), 100, np.uint16)),
      r"0000000069\.png: 16-bit, 3 channels; expected a 16-bit single-channel PNG"),
 ])
-def test_bad_predictions_are_one_line_errors(kitti_c, kitti_pred, tmp_path, change, message):
+def test_bad_predictions_are_one_line_errors(kitti_c, kitti_pred, tmp_path, change, message, cli):
     out, _ = kitti_c
     pred = _bad_pred(kitti_pred, tmp_path, change)
     before = sorted(p for p in tmp_path.rglob("*"))
-    res = run("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
     assert res.exit_code == 2, res.stdout
     assert res.stderr.startswith("robodepth: error: ") and res.stderr.count("\n") == 1
     assert re.search(message, res.stderr), res.stderr
     assert sorted(p for p in tmp_path.rglob("*")) == before  # nothing written, no CSV
 
 
-def test_bad_ground_truth(kitti_c, kitti_pred, tmp_path):
+def test_bad_ground_truth(kitti_c, kitti_pred, tmp_path, cli):
     out, gts = kitti_c
     one = np.empty(1, object)
     one[0] = gts[0]
     np.savez_compressed(tmp_path / "one.npz", data=one)
-    res = run("evaluate", out, "--pred", kitti_pred, "--gt", tmp_path / "one.npz", "--out", tmp_path / "r.csv")
+    res = cli("evaluate", out, "--pred", kitti_pred, "--gt", tmp_path / "one.npz", "--out", tmp_path / "r.csv")
     assert res.exit_code == 2
     assert "one.npz: 1 ground-truth maps, but the dataset's split has 2 images" in res.stderr
     assert not (tmp_path / "r.csv").exists()
@@ -484,20 +477,20 @@ def test_bad_ground_truth(kitti_c, kitti_pred, tmp_path):
     bare.mkdir()
     for name in ("build.json", "manifest.csv"):
         (bare / name).write_bytes((out / name).read_bytes())
-    res = run("evaluate", bare, "--pred", kitti_pred, "--out", tmp_path / "r.csv")
+    res = cli("evaluate", bare, "--pred", kitti_pred, "--out", tmp_path / "r.csv")
     assert res.exit_code == 2
     assert f"{bare}: no ground truth" in res.stderr and "--gt" in res.stderr
 
-    res = run("evaluate", tmp_path, "--pred", kitti_pred)
+    res = cli("evaluate", tmp_path, "--pred", kitti_pred)
     assert res.exit_code == 2 and "no build.json; not a dataset made by robodepth build" in res.stderr
 
 
-def test_flag_combinations_refused(kitti_c, kitti_pred, tmp_path):
+def test_flag_combinations_refused(kitti_c, kitti_pred, tmp_path, cli):
     out, _ = kitti_c
     for flags, message in ((("--protocol", "nyu", "--stereo"), "--stereo applies to --protocol kitti only"),
                            (("--protocol", "nyu", "--kind", "disp"), "--protocol nyu evaluates depths"),
                            (("--png-scale", "0"), "--png-scale 0: must be a positive number")):
-        res = run("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", *flags)
+        res = cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", *flags)
         assert res.exit_code == 2 and message in res.stderr, res.stderr
     assert not (tmp_path / "r.csv").exists()
 
@@ -546,7 +539,7 @@ def _readme_blocks():
             re.findall(r"```sh\n(.*?)```", section, re.S))
 
 
-def test_readme_example_runs(kitti_c, tmp_path, monkeypatch):
+def test_readme_example_runs(kitti_c, tmp_path, monkeypatch, cli):
     """The README's evaluation example, exactly as printed, with a stand-in model."""
     out, _ = kitti_c
     python, shell = _readme_blocks()
@@ -561,7 +554,7 @@ def test_readme_example_runs(kitti_c, tmp_path, monkeypatch):
     exec(compile(python[0], "README.md", "exec"), {"model": model})
     evaluate = [ln for block in shell for ln in block.splitlines() if ln.startswith("robodepth evaluate")]
     assert evaluate
-    res = run(*evaluate[0].split()[1:])
+    res = cli(*evaluate[0].split()[1:])
     assert res.exit_code == 0, res.stderr
     assert "mCE" in res.stdout
     assert [r["corruption"] for r in read_csv(tmp_path / "results.csv")] == \
