@@ -1,4 +1,4 @@
-"""`robodepth evaluate` and the `open_dataset` API (issue 13).
+"""`robodepth evaluate` and the `open_dataset` API: predictions -> metrics under the kitti and nyu protocols.
 
 The expected metrics come from references written here, step by step from the protocols'
 rules (monodepth2's evaluate_depth.py for kitti, BTS's eval_with_pngs.py / AdaBins's
