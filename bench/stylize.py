@@ -63,7 +63,7 @@ def straightforward(enc, dec, content: np.ndarray, style: np.ndarray) -> np.ndar
         fc, fs = enc(c), enc(s)
         ms, ss = adain.mean_std(fs)
         out = dec(adain.adain(fc, ms, ss))[:, :, :content.shape[0], :content.shape[1]]
-        return adain.to_uint8(out)[0]
+        return adain.round_to_uint8(out)[0]
 
 
 CPU_USE: list[float] = []  # cores busy in this process during each in-process timing
@@ -105,7 +105,7 @@ def main() -> int:
     print(f"torch {torch.__version__}, {cores} cores, torch threads {torch.get_num_threads()}; "
           f"content 192x640, {len(styles)} styles {sh}x{sw}, random weights")
 
-    configs = [(True, c) for c in chunks] + [(False, adain.default_chunk(torch.get_num_threads()))]
+    configs = [(True, c) for c in chunks] + [(False, adain.DEFAULT_CHUNK)]
     # Own copies of the modules: a Stylizer converts its modules' memory format in place.
     stylizers = {cfg: adain.Stylizer(copy.deepcopy(enc), copy.deepcopy(dec), chunk=cfg[1],
                                      channels_last=cfg[0]) for cfg in configs}
@@ -163,7 +163,7 @@ def main() -> int:
               f"CPU {cpus[cfg]:.3f} s/image")
     procs = min(procs_t) if procs_t else None
     if procs is not None:
-        print(f"ours, 2 processes x 1 thread, chunk {adain.default_chunk(1)}, channels-last: "
+        print(f"ours, 2 processes x 1 thread, chunk {adain.DEFAULT_CHUNK}, channels-last: "
               f"{procs:.3f} s/image ({2 * args.contents} contents x {len(styles)} styles)")
     best_cl, best_chunk = min(results, key=results.get)
     best = results[(best_cl, best_chunk)]

@@ -1,4 +1,4 @@
-"""AdaIN style transfer on the CPU (SPEC section 3).
+"""AdaIN style transfer on the CPU: the torch engine of KITTI-S, self-contained.
 
 The encoder and decoder are ``nn.Sequential`` models whose module indices are those of the
 public PyTorch AdaIN release, so its checkpoints (``vgg_normalised.pth``, ``decoder.pth``:
@@ -7,10 +7,12 @@ plain state_dicts with keys like ``2.weight``) load unchanged. Checkpoints are r
 
 :class:`Stylizer` is the fast path used by builds: a style's feature statistics are
 computed once (:meth:`Stylizer.style_features`), a content image is encoded once for all
-of its styles, and decoding is batched over styles. The result equals the per-pair
-formulation of SPEC section 3 up to float rounding.
+of its styles, and decoding is batched over styles. The result equals stylising each
+(content, style) pair on its own up to float rounding.
 
-This module imports torch at import time; import it only when style work runs.
+This module imports torch at import time and nothing of the package's KITTI-S inputs
+(:mod:`robodepth_cli.styles` imports it, never the reverse); import it only when style
+work runs.
 """
 
 from __future__ import annotations
@@ -29,17 +31,13 @@ import torch
 from torch import nn
 
 from .imageio import as_rgb
-from .styles import check_alpha
 from .errors import RobodepthError
 
 EPS = 1e-5
 
-
-def default_chunk(threads: int) -> int:
-    """Styles decoded per batch. Measured at 192 x 640 on 2 cores (bench/stylize.py):
-    batches of 1 are as fast as or faster than 2 or 4 per image, with 1 or 2 threads: the
-    convolutions already run near the CPU's peak, and larger activations spill the cache."""
-    return 1
+# Styles decoded per batch. Larger batches do not pay on a CPU: the convolutions already
+# run near its peak and larger activations spill the cache (bench/stylize.py times 1, 2, 4).
+DEFAULT_CHUNK = 1
 
 
 # Layouts: one entry per module, in order, so list positions are the published indices.
@@ -90,19 +88,19 @@ def _module(spec: tuple) -> nn.Module:
     raise AssertionError(spec)
 
 
-def build(layout: Sequence[tuple]) -> nn.Sequential:
+def sequential(layout: Sequence[tuple]) -> nn.Sequential:
     """An untrained ``nn.Sequential`` with one module per layout entry (eval mode)."""
     return nn.Sequential(*(_module(s) for s in layout)).eval()
 
 
 def encoder() -> nn.Sequential:
     """The VGG-19 "normalised" encoder up to relu4_1 (modules 0..30), untrained."""
-    return build(ENCODER_LAYOUT)
+    return sequential(ENCODER_LAYOUT)
 
 
 def decoder() -> nn.Sequential:
     """The AdaIN decoder (29 modules), untrained."""
-    return build(DECODER_LAYOUT)
+    return sequential(DECODER_LAYOUT)
 
 
 def expected_tensors(layout: Sequence[tuple]) -> dict[str, tuple[tuple[int, ...], str]]:
@@ -216,7 +214,7 @@ def load_model(path: str | os.PathLike, kind: str) -> nn.Sequential:
                 f"{path}: this is the AdaIN {other_name} checkpoint, not the {kind} one "
                 f"(were --vgg and --decoder swapped?)") from None
         raise exc from None
-    model = build(layout)
+    model = sequential(layout)
     model.load_state_dict(tensors, strict=True)
     for p in model.parameters():
         p.requires_grad_(False)
@@ -236,8 +234,9 @@ def to_tensor(img: np.ndarray, *, channels_last: bool = False) -> torch.Tensor:
     return x.contiguous(memory_format=torch.channels_last if channels_last else torch.contiguous_format)
 
 
-def to_uint8(out: torch.Tensor) -> np.ndarray:
-    """N x 3 x H x W in [0, 1] (clamped) -> uint8 N x H x W x 3, ``uint8(v * 255 + 0.5)``."""
+def round_to_uint8(out: torch.Tensor) -> np.ndarray:
+    """N x 3 x H x W in [0, 1] (clamped) -> uint8 N x H x W x 3, rounded:
+    ``uint8(v * 255 + 0.5)`` (the corruptions truncate instead, as their benchmark does)."""
     v = out.clamp(0.0, 1.0).mul_(255.0).add_(0.5).to(torch.uint8)
     return np.ascontiguousarray(v.permute(0, 2, 3, 1).numpy())
 
@@ -291,7 +290,7 @@ class Stylizer:
     """Batched AdaIN stylisation with one encoder/decoder pair.
 
     ``threads`` sets torch's intra-op thread count (None leaves it). ``chunk`` is how many
-    styles are decoded in one batch (None: :func:`default_chunk`); neither changes the
+    styles are decoded in one batch (None: :data:`DEFAULT_CHUNK`); neither changes the
     bytes of the result. ``channels_last`` runs the convolutions in NHWC, which oneDNN
     executes faster on CPU than NCHW.
     """
@@ -301,7 +300,7 @@ class Stylizer:
         if threads is not None:
             torch.set_num_threads(int(threads))
         if chunk is None:
-            chunk = default_chunk(torch.get_num_threads())
+            chunk = DEFAULT_CHUNK
         if chunk < 1:
             raise ValueError(f"chunk must be >= 1, got {chunk}")
         fmt = torch.channels_last if channels_last else torch.contiguous_format
@@ -329,8 +328,10 @@ class Stylizer:
     def stylize(self, content: np.ndarray, styles: Sequence[StyleFeatures],
                 alpha: float = 1.0) -> list[np.ndarray]:
         """``content`` (uint8 H x W x 3) in every style of ``styles``: a list of uint8
-        H x W x 3 images in the same order. The content is encoded once."""
-        alpha = check_alpha(alpha)
+        H x W x 3 images in the same order. The content is encoded once. ``alpha`` must
+        lie in [0, 1] (``ValueError`` otherwise)."""
+        if not 0.0 <= alpha <= 1.0:  # also refuses nan
+            raise ValueError(f"alpha must be between 0 and 1, got {alpha!r}")
         content = as_rgb(content, what="content image")
         h, w = content.shape[:2]
         results: list[np.ndarray] = []
@@ -345,5 +346,5 @@ class Stylizer:
                 if self.channels_last:
                     t = t.contiguous(memory_format=torch.channels_last)
                 out = self.dec(t)[:, :, :h, :w]
-                results.extend(to_uint8(out))
+                results.extend(round_to_uint8(out))
         return results

@@ -20,7 +20,7 @@ from .imageio import MIN_SIDE, read_rgb
 from .manifest import sha256_file
 from .errors import RobodepthError
 
-# SPEC section 1, in its order; also the output directory names.
+# The 12 KITTI-S styles in the benchmark's order; also the output directory names.
 STYLES: tuple[str, ...] = (
     "cartoon", "digital_art", "ink_painting", "kids_drawing", "murals", "oil_painting",
     "penciling", "shadow_play", "sketch", "stained_glass", "relief", "water_color",
@@ -120,17 +120,6 @@ def load_style(path: str | os.PathLike, style_size: int | None = DEFAULT_STYLE_S
     return np.asarray(im, dtype=np.uint8).copy()
 
 
-def check_weights(path, flag: str) -> Path:
-    """``path`` if it is an existing file; ``StyleError`` naming ``flag`` otherwise."""
-    if path is None or path == "":
-        raise StyleError(f"{flag} is required: the AdaIN checkpoint file "
-                         f"({'vgg_normalised.pth' if 'vgg' in flag else 'decoder.pth'})")
-    p = Path(path)
-    if not p.is_file():
-        raise StyleError(f"{p}: {'not a file' if p.exists() else 'no such file'} ({flag})")
-    return p
-
-
 # KITTI-S build options (config keys; flags --styles, --vgg, --decoder, --alpha, --style-size).
 OPTIONS = ("styles", "vgg", "decoder", "alpha", "style_size")
 
@@ -199,13 +188,13 @@ class StyleRenderer:
     @classmethod
     def prepare(cls, vgg, decoder, style_images: dict[str, Path], *, alpha: float = 1.0,
                 style_size: int | None = DEFAULT_STYLE_SIZE, threads: int = 0) -> "StyleRenderer":
-        """Load and check everything. ``threads``: torch threads of each rendering process
-        (0: every core); the style statistics are computed here with every core."""
+        """Load and check the checkpoints and style images. ``alpha`` and ``style_size`` are
+        values :func:`check_option` accepted. ``threads``: torch threads of each rendering
+        process (0: every core); the style statistics are computed here with every core."""
         cores = os.cpu_count() or 1
         stylizer = _stylizer(str(vgg), str(decoder), cores)
         features = {name: stylizer.style_features(load_style(path, style_size))
                     for name, path in style_images.items()}
-        alpha = check_alpha(alpha)
         weights = f"{sha256_file(vgg)}:{sha256_file(decoder)}:{alpha!r}:{style_size!r}"
         fingerprints = {name: hashlib.sha256(f"{weights}:{sha256_file(path)}".encode()).hexdigest()[:16]
                         for name, path in style_images.items()}

@@ -273,3 +273,15 @@ def test_non_finite_weights_are_refused(tmp_path, checkpoints):
     state["28.bias"][0] = float("nan")
     with pytest.raises(adain.CheckpointError, match=r"'28\.bias' contains NaN"):
         adain.load_model(_save(state, tmp_path / "dec.pth"), "decoder")
+
+
+def test_engine_is_self_contained():
+    """The torch engine loads none of the KITTI-S input handling (which imports it lazily):
+    no import circle between adain and styles."""
+    import subprocess
+    import sys
+
+    code = "import sys, robodepth_cli.adain; print('robodepth_cli.styles' in sys.modules)"
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "False"

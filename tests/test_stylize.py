@@ -78,7 +78,7 @@ def test_stylize_command_matches_reference(tmp_path, fixtures_dir, ckpt, cli):
 
 @pytest.mark.parametrize("change,message", [
     ({"--style": "missing.png"}, "missing.png: no such file"),
-    ({"--vgg": "none.pth"}, "none.pth: no such file (--vgg)"),
+    ({"--vgg": "none.pth"}, "none.pth: no such file"),
     ({"--alpha": "1.5"}, "--alpha: alpha must be between 0 and 1"),
     ({"--style-size": "8"}, "--style-size: style size must be 0"),
     ({"--out": "o.jpg"}, "give a .png file name"),

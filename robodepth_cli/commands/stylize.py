@@ -30,22 +30,22 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
     robodepth stylize frame.png --style styles/sketch.jpg --vgg vgg_normalised.pth \\
         --decoder decoder.pth --size 192x640 --out sketch.png
     """
-    from ..styles import check_alpha, check_style_size, check_weights, load_style
+    from ..styles import check_option, load_style
 
     out = Path(out)
     if out.suffix.lower() != ".png":
         raise RobodepthError(f"{out}: the output is written as PNG; give a .png file name")
-    for flag, check, value in (("--alpha", check_alpha, alpha), ("--style-size", check_style_size, style_size)):
+    # The same checks as a KITTI-S build's options, with the same messages.
+    opts = {}
+    for key, value in (("alpha", alpha), ("style_size", style_size), ("vgg", vgg), ("decoder", decoder)):
         try:
-            check(value)
+            opts[key] = check_option(key, value, Path.cwd())
         except ValueError as exc:
-            raise RobodepthError(f"{flag}: {exc}") from None
+            raise RobodepthError(f"--{key.replace('_', '-')}: {exc}") from None
     content = common.load_input(image, size)
-    check_weights(vgg, "--vgg")
-    check_weights(decoder, "--decoder")
-    style_img = load_style(style, style_size)
+    style_img = load_style(style, opts["style_size"])
     from ..adain import Stylizer
 
-    stylizer = Stylizer.from_files(vgg, decoder)
-    result = stylizer.stylize(content, [stylizer.style_features(style_img)], alpha)[0]
+    stylizer = Stylizer.from_files(opts["vgg"], opts["decoder"])
+    result = stylizer.stylize(content, [stylizer.style_features(style_img)], opts["alpha"])[0]
     common.write_png(out, result)

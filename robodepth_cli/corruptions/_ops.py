@@ -14,7 +14,7 @@ _BORDERS = {
 }
 
 
-def to_uint8(v: np.ndarray, scale: float = 255.0) -> np.ndarray:
+def truncate_to_uint8(v: np.ndarray, scale: float = 255.0) -> np.ndarray:
     """``uint8(floor(clip(v * scale, 0, 255)))``: the benchmark truncates, it does not round."""
     out = np.multiply(v, scale)
     np.clip(out, 0.0, 255.0, out=out)

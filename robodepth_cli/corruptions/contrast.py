@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ._ops import to_uint8
+from ._ops import truncate_to_uint8
 from .registry import register
 
 LEVELS = (0.4, 0.3, 0.2, 0.1, 0.05)
@@ -24,5 +24,5 @@ def contrast(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """
     c = LEVELS[level - 1]
     m = np.asarray(cv2.mean(np.ascontiguousarray(x))[:3], dtype=np.float64) / 255.0
-    table = to_uint8((_VALUES - m) * c + m)
+    table = truncate_to_uint8((_VALUES - m) * c + m)
     return cv2.LUT(x, table.reshape(256, 1, 3))

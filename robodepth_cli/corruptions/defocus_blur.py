@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import scipy.fft
 
-from ._ops import to_uint8
+from ._ops import truncate_to_uint8
 from .registry import register
 
 LEVELS = ((3, 0.1), (4, 0.5), (6, 0.5), (8, 0.5), (10, 0.5))
@@ -81,4 +81,4 @@ def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndar
         out = cv2.filter2D(x.astype(np.float32), -1, k, borderType=cv2.BORDER_REFLECT_101)
     else:
         out = filter2d_fft(x, radius, alias)
-    return to_uint8(out, 1.0)
+    return truncate_to_uint8(out, 1.0)

@@ -7,7 +7,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from ._ops import gaussian, to_uint8
+from ._ops import gaussian, truncate_to_uint8
 from .registry import register
 
 LEVELS = (0.05, 0.065, 0.085, 0.1, 0.12)
@@ -52,4 +52,4 @@ def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np
     coords *= np.float32(2 * m_alpha)
     coords += _offset_grid(h, w, m_alpha)
     out = cv2.remap(x.astype(np.float32), coords, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-    return to_uint8(out, 1.0)
+    return truncate_to_uint8(out, 1.0)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._ops import to_uint8
+from ._ops import truncate_to_uint8
 from .registry import register
 
 # (t, d): fog thickness and the plasma's wibble decay
@@ -127,4 +127,4 @@ def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     scale = np.float32(m / (m + t))
     g = plasma[:, :, None] * np.float32(255.0 * t)
     g = g + x  # float32: the uint8 image is promoted
-    return to_uint8(g, scale)
+    return truncate_to_uint8(g, scale)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._jit import njit
-from ._ops import gaussian, to_uint8
+from ._ops import gaussian, truncate_to_uint8
 from .registry import register
 
 # (sigma, delta, iterations)
@@ -66,6 +66,6 @@ def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarra
     """
     sigma, delta, iterations = LEVELS[level - 1]
     offsets = swap_offsets(x.shape, delta, iterations, rng)
-    y = to_uint8(gaussian(x / 255.0, sigma, truncate=4.0, mode="nearest"))
+    y = truncate_to_uint8(gaussian(x / 255.0, sigma, truncate=4.0, mode="nearest"))
     shuffle_pixels(y, offsets, delta)
-    return to_uint8(gaussian(y / 255.0, sigma, truncate=4.0, mode="nearest"))
+    return truncate_to_uint8(gaussian(y / 255.0, sigma, truncate=4.0, mode="nearest"))

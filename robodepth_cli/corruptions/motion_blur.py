@@ -14,7 +14,7 @@ from functools import lru_cache
 import numpy as np
 
 from ._jit import njit
-from ._ops import to_uint8
+from ._ops import truncate_to_uint8
 from .registry import register
 
 LEVELS = ((10, 3), (15, 5), (15, 8), (15, 12), (20, 15))
@@ -114,4 +114,4 @@ def motion_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarr
     angle drawn uniformly from [-45, 45) degrees; clipped to [0, 255] and truncated."""
     radius, sigma = LEVELS[level - 1]
     angle = rng.uniform(-45, 45)
-    return to_uint8(shift_blur(x, radius, sigma, angle), 1.0)
+    return truncate_to_uint8(shift_blur(x, radius, sigma, angle), 1.0)

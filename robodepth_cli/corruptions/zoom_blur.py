@@ -14,7 +14,7 @@ from functools import lru_cache
 import numpy as np
 
 from ._jit import njit
-from ._ops import to_uint8
+from ._ops import truncate_to_uint8
 from .registry import register
 
 # (start, stop, step) of numpy.arange with float steps, exactly as the benchmark writes
@@ -193,4 +193,4 @@ def zoom_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray
     factors = level_factors(level)
     acc = _accumulate(f, *zoom_table(h, w, factors), f.copy())
     acc /= np.float32(len(factors) + 1)
-    return to_uint8(acc)
+    return truncate_to_uint8(acc)
