@@ -5,7 +5,7 @@ PIP ?= $(PYTHON) -m pip
 
 install:
 	$(PIP) install torch==2.13.0
-	$(PIP) install -e '.[test]'
+	$(PIP) install -e '.[test,dask]'
 	# Frost textures only: the package's own dependencies (opencv-python, ...) are not wanted.
 	$(PIP) install --no-deps imagecorruptions-imaug==1.1.5
 

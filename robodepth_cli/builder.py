@@ -34,6 +34,7 @@ import platform
 import signal
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -45,7 +46,7 @@ from .datasets import CLEAN, Dataset, Entry, Job, Renderer, get_dataset, locate,
 from .imageio import PNG_ENCODER, ImageError, load_clean, write_png
 from .manifest import Row, sha256_bytes
 from .errors import RobodepthError
-from .executors import Executor, LocalExecutor
+from .executors import Executor, ExecutorError, LocalExecutor
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
 MAX_ERRORS_SHOWN = 10
@@ -179,8 +180,9 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         claim_out(out)
         tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer)
         executor = executor or LocalExecutor(min(cfg.jobs, len(tasks)))
+        executor.check(root, out, worker_files(cfg), ds.libraries())
         record = start_record(cfg, ds, root, out, split_path, sources, executor, command)
-        ctx = Context(str(out), cfg.size, cfg.seed, renderer,
+        ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1)
         summary = run_tasks(tasks, ctx, executor, out, progress)
         finish(out, record, summary)
@@ -272,6 +274,12 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
     return tasks
 
 
+def worker_files(cfg: BuildConfig) -> list[str]:
+    """Files named in the configuration that workers read besides the images (KITTI-S:
+    the checkpoints); a cluster's workers must see them too."""
+    return [v for v in cfg.extra.values() if isinstance(v, str) and os.path.isfile(v)]
+
+
 def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split_path: Path,
                  sources: list[Source], executor: Executor, command: list[str] | None) -> dict:
     """Write the build record of a build that starts now (status ``running``) and return it.
@@ -303,6 +311,8 @@ def run_tasks(tasks: list[Task], ctx: Context, executor: Executor, out: Path,
         _run(tasks, ctx, executor, out, summary, progress)
     except KeyboardInterrupt:
         summary.interrupted = True
+    except ExecutorError as exc:  # e.g. a cluster lost the workers it needs
+        summary.fatal = str(exc)
     summary.seconds = round(time.perf_counter() - t0, 3)
     return summary
 
@@ -427,9 +437,10 @@ def _configure_worker(single_thread: bool) -> None:
         import cv2
 
         cv2.setNumThreads(1)  # two processes on two cores: extra OpenCV threads only contend
-        # Ctrl-C reaches the whole process group; the main process stops the pool, and a
-        # worker interrupted on its own would only print a traceback.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        if threading.current_thread() is threading.main_thread():  # not so in a Dask worker
+            # Ctrl-C reaches the whole process group; the main process stops the pool, and a
+            # worker interrupted on its own would only print a traceback.
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
         _keep_freed_memory()
         _configured = True
 

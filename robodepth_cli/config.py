@@ -11,8 +11,11 @@ name of ``splits/splits.json``, or a split file; relative paths in a YAML file a
 to that file), ``size`` (``HxW`` or ``[H, W]``), ``corruptions`` (list of names, or
 ``all``: the dataset's own corruptions), ``levels`` (list, or ``all``: the dataset's own
 levels), ``seed`` (integer >= 0), ``jobs`` (worker processes, >= 1), ``limit`` (first N
-source images, or null for all). A corruption or level the dataset does not have (fog or
-level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
+source images, or null for all), ``scheduler`` (a Dask scheduler address such as
+``tcp://head:8786``: run the build on that cluster, ``jobs`` is then unused) or
+``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
+layer's choice replaces an earlier layer's). A corruption or level the dataset does not
+have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
 from __future__ import annotations
@@ -49,6 +52,8 @@ class BuildConfig:
     jobs: int
     limit: int | None
     extra: dict[str, Any] = field(default_factory=dict)  # dataset-specific keys (KITTI-S)
+    scheduler: str | None = None  # a Dask scheduler's address: build on that cluster
+    scheduler_file: str | None = None  # or the scheduler file that holds it
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -153,7 +158,8 @@ def choose_levels(loc: str, v, valid: tuple[int, ...] | None, *, owner: str = ""
 class _Resolver:
     """Applies layers of raw values onto the current configuration, checking each one."""
 
-    KEYS = ("dataset", "split", "size", "levels", "seed", "jobs", "limit")
+    KEYS = ("dataset", "split", "size", "levels", "seed", "jobs", "limit", "scheduler", "scheduler_file")
+    ONE_OF = ("scheduler", "scheduler_file")
 
     def __init__(self, preset: str):
         self.preset = preset
@@ -178,6 +184,13 @@ class _Resolver:
                 raise ConfigError(f"{where}: unknown key {key!r}; valid keys: {', '.join(self.valid_keys())}")
             self.values[key] = self._check(_loc(where, key), key, value, base)
             self.origin[key] = where
+        both = [k for k in self.ONE_OF if k in raw]
+        if len(both) > 1:
+            raise ConfigError(f"{where}: give either {' or '.join(_loc(where, k) for k in both)}, not both")
+        for key in both:
+            for other in self.ONE_OF:
+                if other != key:
+                    self.values.pop(other, None)
 
     def _set_dataset(self, where: str, name) -> None:
         try:
@@ -215,6 +228,15 @@ class _Resolver:
             return _int(loc, v, 1)
         if key == "limit":
             return None if v is None else _int(loc, v, 1)
+        if key == "scheduler":
+            if v is not None and (not isinstance(v, str) or not v.strip()):
+                raise ConfigError(f"{loc}: expected a Dask scheduler address such as "
+                                  f"tcp://head:8786, got {v!r}")
+            return v and v.strip()
+        if key == "scheduler_file":
+            if v is not None and (not isinstance(v, str) or not v):
+                raise ConfigError(f"{loc}: expected the path of a Dask scheduler file, got {v!r}")
+            return v and str((base / Path(v).expanduser()).resolve())
         try:
             return ds.check_option(key, v, base)
         except ValueError as exc:
@@ -245,7 +267,9 @@ class _Resolver:
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values["split"],
                            size=self.values["size"], variants=tuple(variants), levels=tuple(levels),
                            seed=self.values["seed"], jobs=self.values["jobs"],
-                           limit=self.values.get("limit"), extra=extra)
+                           limit=self.values.get("limit"), extra=extra,
+                           scheduler=self.values.get("scheduler"),
+                           scheduler_file=self.values.get("scheduler_file"))
 
 
 def resolve(preset: str, config_file: Path | None = None,

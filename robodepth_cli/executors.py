@@ -7,17 +7,31 @@ bookkeeping files; it only has to run ``fn(task)`` somewhere that sees the same 
 output directory.
 
 :class:`LocalExecutor` is the default: in-process for one worker, else a joblib (loky)
-process pool. A cluster backend implements the same two members.
+process pool. :class:`robodepth_cli.cluster.DaskExecutor` runs the tasks on a Dask cluster;
+it is imported (with dask) only when a build asks for a scheduler.
 """
 
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol, Sequence
+
+from .errors import RobodepthError
+
+
+class ExecutorError(RobodepthError):
+    """The executor cannot run the build (raised by ``check``, before any work) or lost
+    the ability to go on (raised by ``map_unordered``; finished images are kept)."""
 
 
 class Executor(Protocol):
     workers: int  # how many tasks run at once
+
+    def check(self, root: Path, out: Path, files: Sequence[str], libraries: Sequence[str]) -> None:
+        """Before any work: refuse (:class:`ExecutorError`) if the processes that will run
+        the tasks cannot read ``root`` and ``files`` with the client's contents, write in the
+        existing directory ``out``, or have other versions of ``libraries``."""
 
     def map_unordered(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[Any]:
         """``fn(task)`` for every task, yielded as each finishes. Closing the iterator early
@@ -32,6 +46,9 @@ class LocalExecutor:
 
     def __init__(self, workers: int):
         self.workers = max(1, int(workers))
+
+    def check(self, root, out, files, libraries) -> None:
+        pass  # this machine's processes: the builder's own checks cover them
 
     def map_unordered(self, fn, tasks):
         if self.workers == 1:

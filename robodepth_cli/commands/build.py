@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 from pathlib import Path
@@ -34,6 +35,10 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--decoder", metavar="FILE", help="kitti-s: AdaIN decoder checkpoint (decoder.pth).")
 @click.option("--alpha", metavar="A", help="kitti-s: style strength 0..1 (preset: 1).")
 @click.option("--style-size", metavar="N", help="kitti-s: shorter side of the style images (preset: 512).")
+@click.option("--scheduler", metavar="ADDR", help="Run on the Dask cluster of this scheduler (tcp://HOST:8786); "
+              "ROOT and OUT must be shared paths every worker sees.")
+@click.option("--scheduler-file", metavar="FILE", help="Like --scheduler, with the address read from the "
+              "scheduler's JSON file (dask scheduler --scheduler-file, dask-jobqueue, dask-mpi).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, **flags):
@@ -57,6 +62,8 @@ def build_command(dataset, root, out, config_file, progress, **flags):
       robodepth build kitti-c --root KITTI_RAW --out /tmp/look --limit 2 --levels 3
       robodepth build kitti-s --root KITTI_RAW --styles STYLES --vgg vgg_normalised.pth \\
           --decoder decoder.pth --out KITTI_S
+      robodepth build kitti-c --root /shared/kitti_raw --out /shared/KITTI_C \\
+          --scheduler tcp://head:8786
     """
     from ..builder import build
     from ..config import resolve
@@ -65,8 +72,11 @@ def build_command(dataset, root, out, config_file, progress, **flags):
     # A scheduler's SIGTERM (end of a job's time) stops the build as cleanly as Ctrl-C.
     previous = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     try:
+        if flags["scheduler"] and flags["scheduler_file"]:
+            raise RobodepthError("--scheduler and --scheduler-file: give one of them, not both")
         cfg = resolve(dataset, config_file, flags)
-        summary = build(cfg, root, out, progress=progress, command=sys.argv)
+        with _executor(cfg) as executor:
+            summary = build(cfg, root, out, progress=progress, command=sys.argv, executor=executor)
     except KeyboardInterrupt:  # before or after the images (the build itself handles its own)
         click.echo(interrupted, err=True)
         sys.exit(130)
@@ -80,6 +90,16 @@ def build_command(dataset, root, out, config_file, progress, **flags):
         raise RobodepthError(f"{summary.fatal}; finished images are kept, rerun to resume")
     if summary.failed:
         sys.exit(1)
+
+
+def _executor(cfg):
+    """A Dask cluster's executor if the configuration names a scheduler; otherwise
+    nothing (the builder's local pool), and dask is never imported."""
+    if not (cfg.scheduler or cfg.scheduler_file):
+        return contextlib.nullcontext()
+    from ..cluster import DaskExecutor
+
+    return DaskExecutor(cfg.scheduler, cfg.scheduler_file)
 
 
 def _raise_keyboard_interrupt(signum, frame):

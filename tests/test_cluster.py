@@ -1,0 +1,323 @@
+"""Builds on a real Dask cluster: a `dask scheduler` and single-threaded `dask worker`
+processes on 127.0.0.1, started here and torn down even when a test fails."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from robodepth_cli.cli import main
+
+from _trees import kitti_tree, tree
+
+CHEAP = ["--corruptions", "brightness,gaussian_noise,zoom_blur", "--levels", "1,3", "--size", "48x160"]
+SLOWER = ["--corruptions", "contrast,gaussian_noise,zoom_blur,motion_blur", "--levels", "2,4",
+          "--size", "96x320"]
+START_TIMEOUT_S = 60
+
+
+def _unshare_works() -> bool:
+    try:
+        return subprocess.run(["unshare", "-Urm", "true"], capture_output=True, timeout=10).returncode == 0
+    except (OSError, subprocess.SubprocessError):
+        return False
+
+
+class LocalCluster:
+    """A scheduler and workers as separate process groups, on loopback, no dashboards."""
+
+    def __init__(self, base: Path):
+        self.base = base
+        self.file = base / "scheduler.json"
+        self.procs: list[subprocess.Popen] = []
+        self.client = None
+        self.scheduler = self._start(
+            [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+             "--no-dashboard", "--scheduler-file", str(self.file)], "scheduler")
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while not (self.file.exists() and self.file.stat().st_size):
+            assert self.scheduler.poll() is None, self._log("scheduler")
+            assert time.monotonic() < deadline, "the scheduler did not start"
+            time.sleep(0.1)
+        time.sleep(0.1)  # the file is written in one go, but let the writer close it
+        self.address = json.loads(self.file.read_text())["address"]
+        from distributed import Client
+
+        self.client = Client(self.address, timeout=START_TIMEOUT_S, set_as_default=False)
+
+    def _start(self, args, name, cwd=None, env=None) -> subprocess.Popen:
+        log = open(self.base / f"{name}.log", "wb")
+        proc = subprocess.Popen(args, cwd=cwd, env=env, stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+        log.close()
+        self.procs.append(proc)
+        return proc
+
+    def _log(self, name) -> str:
+        return (self.base / f"{name}.log").read_text(errors="replace")[-3000:]
+
+    def add_worker(self, name: str, *, cwd=None, env=None, prefix=()) -> tuple[subprocess.Popen, str]:
+        """Start one single-threaded worker; returns it and its address once connected."""
+        before = set(self.client.nthreads())
+        proc = self._start([*prefix, sys.executable, "-m", "dask", "worker", "--scheduler-file",
+                            str(self.file), "--nworkers", "1", "--nthreads", "1", "--no-dashboard",
+                            "--host", "127.0.0.1", "--local-directory", str(self.base / name),
+                            "--name", name], name, cwd=cwd, env=env)
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while True:
+            new = set(self.client.nthreads()) - before
+            if new:
+                return proc, new.pop()
+            assert proc.poll() is None, self._log(name)
+            assert time.monotonic() < deadline, f"worker {name} did not connect"
+            time.sleep(0.1)
+
+    def stop(self, proc: subprocess.Popen, address: str | None = None) -> None:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait(timeout=30)
+        if address:  # until the scheduler has noticed, it would count the worker
+            deadline = time.monotonic() + START_TIMEOUT_S
+            while address in self.client.nthreads() and time.monotonic() < deadline:
+                time.sleep(0.1)
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.client.close()
+        for proc in self.procs:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    c = None
+    try:
+        c = LocalCluster(tmp_path_factory.mktemp("cluster"))
+        c.add_worker("w1")
+        c.add_worker("w2")
+        yield c
+    finally:
+        if c is not None:
+            c.close()
+
+
+@pytest.fixture(scope="module")
+def kitti(tmp_path_factory):
+    base = tmp_path_factory.mktemp("data")
+    root = base / "kitti_raw"
+    split = kitti_tree(root, [(i, "l", ".png") for i in range(8)], size=(120, 400))
+    return root, split
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args] + ["--no-progress"])
+
+
+def build(kitti, out, *flags):
+    root, split = kitti
+    return run("build", "kitti-c", "--root", root, "--split", split, "--out", out, *flags)
+
+
+def rows(out):
+    with open(out / "manifest.csv", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def local(kitti, tmp_path_factory):
+    """Local builds to compare with, keyed by their flags."""
+    made = {}
+
+    def get(flags):
+        key = tuple(flags)
+        if key not in made:
+            out = tmp_path_factory.mktemp("local") / "out"
+            res = build(kitti, out, *flags, "--jobs", "1")
+            assert res.exit_code == 0, res.output
+            made[key] = out
+        return made[key]
+
+    return get
+
+
+def test_cluster_build_is_the_local_build(cluster, kitti, local, tmp_path):
+    out = tmp_path / "out"
+    res = build(kitti, out, *CHEAP, "--scheduler", cluster.address)
+    assert res.exit_code == 0, res.output
+    want = local(CHEAP)
+    assert tree(out) == tree(want)
+    assert rows(out) == rows(want)
+    record = json.loads((out / "build.json").read_text())
+    assert record["status"] == "finished"
+    assert record["executor"] == {"backend": "dask", "scheduler": cluster.address, "workers": 2,
+                                  "threads": 2}
+    assert not list(out.glob(".robodepth-probe-*"))
+    # Resume and verify work as with a local build; the scheduler file gives the address too.
+    (out / rows(out)[3]["output"]).unlink()
+    res = build(kitti, out, *CHEAP, "--scheduler-file", cluster.file)
+    assert res.exit_code == 0, res.output
+    assert f"1 written, {len(rows(want)) - 1} skipped" in res.output
+    assert tree(out) == tree(want)
+    assert run("verify", out).exit_code == 0
+
+
+def test_scheduler_in_a_config_file(cluster, kitti, local, tmp_path):
+    cfg = tmp_path / "cluster.yaml"
+    cfg.write_text(f"scheduler: {cluster.address}\n")
+    out = tmp_path / "out"
+    res = build(kitti, out, *CHEAP, "--config", cfg, "--limit", "2")
+    assert res.exit_code == 0, res.output
+    assert json.loads((out / "build.json").read_text())["executor"]["backend"] == "dask"
+    want = tree(local(CHEAP))
+    got = tree(out)
+    assert got and all(got[p] == want[p] for p in got)
+
+
+def test_a_killed_worker_loses_nothing(cluster, kitti, local, tmp_path):
+    victim, address = cluster.add_worker("w3")
+    out = tmp_path / "out"
+    root, split = kitti
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robodepth_cli.cli", "build", "kitti-c", "--root", str(root), "--split",
+         str(split), "--out", str(out), *SLOWER, "--scheduler", cluster.address, "--no-progress"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not cluster.client.processing().get(address):  # the victim holds build tasks
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "the build never reached the third worker"
+            time.sleep(0.02)
+        cluster.stop(victim)
+        _, err = proc.communicate(timeout=180)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        cluster.stop(victim, address)
+    assert proc.returncode == 0, err
+    want = local(SLOWER)
+    assert tree(out) == tree(want)  # also: no temporary file the dead worker left
+    assert rows(out) == rows(want)
+
+
+def test_ctrl_c_cancels_the_cluster_tasks_and_the_rerun_completes(cluster, kitti, local, tmp_path):
+    out = tmp_path / "out"
+    root, split = kitti
+    args = [sys.executable, "-m", "robodepth_cli.cli", "build", "kitti-c", "--root", str(root), "--split",
+            str(split), "--out", str(out), *SLOWER, "--scheduler", cluster.address, "--no-progress"]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not any(cluster.client.processing().values()):
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "the build never started"
+            time.sleep(0.02)
+        os.kill(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    assert json.loads((out / "build.json").read_text())["status"] == "interrupted"
+    deadline = time.monotonic() + 30
+    while any(cluster.client.processing().values()):  # nothing of that build is left to run
+        assert time.monotonic() < deadline, cluster.client.processing()
+        time.sleep(0.1)
+    res = build(kitti, out, *SLOWER, "--scheduler", cluster.address)
+    assert res.exit_code == 0, res.output
+    assert tree(out) == tree(local(SLOWER))
+
+
+def test_worker_with_other_robodepth_is_refused_before_any_work(cluster, kitti, tmp_path):
+    shadow = tmp_path / "shadow"
+    pkg = Path(__import__("robodepth_cli").__file__).parent
+    shutil.copytree(pkg, shadow / "robodepth_cli", ignore=shutil.ignore_patterns("__pycache__"))
+    init = shadow / "robodepth_cli" / "__init__.py"
+    init.write_text(init.read_text().replace('__version__ = "', '__version__ = "0.0.0+other'))
+    env = {**os.environ, "PYTHONPATH": str(shadow)}
+    proc, address = cluster.add_worker("other", env=env, cwd=shadow)  # python -m puts the cwd first
+    try:
+        out = tmp_path / "out"
+        res = build(kitti, out, *CHEAP, "--scheduler", cluster.address)
+    finally:
+        cluster.stop(proc, address)
+    assert res.exit_code == 2, res.output
+    msg = res.output.strip()
+    assert msg.startswith(f"robodepth: error: worker {address}: other versions than the client: robodepth 0.0.0+other")
+    assert len(msg.splitlines()) == 1 and "refused before any work" in msg
+    assert not tree(out) and not (out / "build.json").exists() and not (out / "manifest.csv").exists()
+    assert not list(out.glob(".robodepth-probe-*"))
+
+
+@pytest.mark.skipif(not _unshare_works(), reason="needs unprivileged mount namespaces (unshare -Urm)")
+def test_worker_that_cannot_see_the_root_is_refused_before_any_work(cluster, kitti, tmp_path):
+    """A host without the shared mount: the worker runs in its own mount namespace where the
+    data's directory is an empty tmpfs."""
+    root, _ = kitti
+    hide = root.parent
+    prefix = ["unshare", "-Urm", "sh", "-c", 'mount -t tmpfs tmpfs "$0" && exec "$@"', str(hide)]
+    proc, address = cluster.add_worker("blind", prefix=prefix)
+    try:
+        out = tmp_path / "out"
+        res = build(kitti, out, *CHEAP, "--scheduler", cluster.address)
+    finally:
+        cluster.stop(proc, address)
+    assert res.exit_code == 2, res.output
+    assert res.output.strip() == (f"robodepth: error: worker {address}: cannot see the root {root} "
+                                  f"(no such directory); refused before any work")
+    assert not tree(out) and not (out / "build.json").exists()
+
+
+def test_unreachable_scheduler_and_bad_scheduler_file(kitti, tmp_path, monkeypatch):
+    import socket
+
+    from robodepth_cli import cluster
+
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 2)
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    res = build(kitti, tmp_path / "out", *CHEAP, "--scheduler", f"tcp://127.0.0.1:{port}")
+    assert res.exit_code == 2
+    assert res.output.startswith(f"robodepth: error: tcp://127.0.0.1:{port}: cannot connect to the Dask scheduler")
+    assert not (tmp_path / "out").exists()
+    bad = tmp_path / "s.json"
+    bad.write_text("{}")
+    res = build(kitti, tmp_path / "out", *CHEAP, "--scheduler-file", bad)
+    assert res.output.strip() == f"robodepth: error: {bad}: not a scheduler file (no 'address')"
+    res = build(kitti, tmp_path / "out", *CHEAP, "--scheduler-file", bad, "--scheduler", "tcp://x:1")
+    assert res.output.strip() == "robodepth: error: --scheduler and --scheduler-file: give one of them, not both"
+
+
+def test_a_local_build_never_imports_dask(kitti, tmp_path):
+    root, split = kitti
+    code = ("import sys; from robodepth_cli.cli import main\n"
+            "try:\n"
+            f"    main(['build', 'kitti-c', '--root', {str(root)!r}, '--split', {str(split)!r}, '--out',"
+            f" {str(tmp_path / 'out')!r}, '--corruptions', 'contrast', '--levels', '1', '--size', '32x96',"
+            " '--limit', '2', '--jobs', '2', '--no-progress'])\n"
+            "except SystemExit as e:\n"
+            "    assert not e.code, e.code\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "[]"
+    assert len(tree(tmp_path / "out")) == 4
