@@ -34,6 +34,7 @@ Only this module imports ``dask``/``distributed``, and only when a cluster is as
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -329,15 +330,15 @@ class DaskExecutor:
             raise RuntimeError("check() the workers before running tasks")
         client, req = self.client, self.requirements
         before = set(client.nthreads())
-        # Sent once to every worker instead of once per task (a KITTI-S renderer carries
-        # the style statistics).
-        [fn_f, req_f] = client.scatter([fn, req], broadcast=True, hash=False)
-        futures = client.map(_run_task, tasks, fn=fn_f, req=req_f, pure=False)
+        # fn and the requirements travel inside every task rather than scattered once: data
+        # scattered to the workers is gone for good when they all leave (walltime), tasks
+        # can always be rerun elsewhere.
+        futures = client.map(functools.partial(_run_task, fn=fn, req=req), tasks, pure=False)
         by_key = {f.key: t for f, t in zip(futures, tasks)}
         done = 0
         try:
             for fut in as_completed(futures, loop=client.loop):
-                if fut.status == "error":
+                if fut.status != "finished":
                     raise self._task_error(fut, by_key[fut.key]) from None
                 result = fut.result()
                 fut.release()  # the client keeps no result it has handed on
@@ -347,7 +348,6 @@ class DaskExecutor:
                 yield result
         finally:
             client.cancel([f for f in futures if not f.done()])
-            client.cancel([fn_f, req_f])
             remove_token(req)
             if done < len(futures) or set(client.nthreads()) != before:
                 # A worker that died or a task cancelled mid-write may leave a temporary file.
@@ -356,8 +356,11 @@ class DaskExecutor:
                 remove_temporaries(Path(req.out))
 
     def _task_error(self, fut, task) -> Exception:
-        exc = fut.exception()
         name = getattr(task, "key", None) or getattr(getattr(task, "source", None), "key", "a task")
+        if fut.status != "error":  # cancelled: the scheduler restarted or we lost it
+            return ClusterError(f"{self.address}: the scheduler dropped the build's tasks ({fut.status}); "
+                                f"finished images are kept")
+        exc = fut.exception()
         if type(exc).__name__ == "KilledWorker":
             return ClusterError(f"{name}: its task killed {self.address}'s workers repeatedly "
                                 f"(out of memory?); finished images are kept")

@@ -18,7 +18,7 @@ from click.testing import CliRunner
 
 from robodepth_cli.cli import main
 
-from _trees import kitti_tree, tree
+from _trees import kitti_tree, random_image, save, tree
 
 CHEAP = ["--corruptions", "brightness,gaussian_noise,zoom_blur", "--levels", "1,3", "--size", "48x160"]
 SLOWER = ["--corruptions", "contrast,gaussian_noise,zoom_blur,motion_blur", "--levels", "2,4",
@@ -185,6 +185,28 @@ def test_scheduler_in_a_config_file(cluster, kitti, local, tmp_path):
     want = tree(local(CHEAP))
     got = tree(out)
     assert got and all(got[p] == want[p] for p in got)
+
+
+def test_kitti_s_on_the_cluster_loads_the_checkpoints_once_per_worker(cluster, kitti, tmp_path):
+    from adain_fakes import save_checkpoints
+
+    vgg, dec, _, _ = save_checkpoints(tmp_path, seed=3)
+    styles = tmp_path / "styles"
+    save(styles / "sketch.png", random_image(40, 48, seed=1))
+    save(styles / "murals.jpg", random_image(48, 40, seed=2))
+    root, split = kitti
+    args = ["build", "kitti-s", "--root", root, "--split", split, "--styles", styles, "--vgg", vgg,
+            "--decoder", dec, "--size", "32x96", "--style-size", "32", "--only-styles", "sketch,murals",
+            "--limit", "2"]
+    res = run(*args, "--out", tmp_path / "local", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    res = run(*args, "--out", tmp_path / "cluster", "--scheduler", cluster.address)
+    assert res.exit_code == 0, res.output
+    assert tree(tmp_path / "cluster") == tree(tmp_path / "local")
+    assert rows(tmp_path / "cluster") == rows(tmp_path / "local")
+    # Each worker process keeps one loaded model for these checkpoints, reused by every task.
+    held = cluster.client.run(lambda: list(__import__("robodepth_cli.styles").styles._STYLIZERS))
+    assert any(held.values()) and all(v in ([], [(str(vgg), str(dec))]) for v in held.values()), held
 
 
 def test_a_killed_worker_loses_nothing(cluster, kitti, local, tmp_path):
