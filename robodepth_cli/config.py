@@ -158,8 +158,8 @@ def choose_levels(loc: str, v, valid: tuple[int, ...] | None, *, owner: str = ""
 class _Resolver:
     """Applies layers of raw values onto the current configuration, checking each one."""
 
-    KEYS = ("dataset", "split", "size", "levels", "seed", "jobs", "limit", "scheduler", "scheduler_file")
-    ONE_OF = ("scheduler", "scheduler_file")
+    KEYS = ("dataset", "split", "size", "levels", "seed", "jobs", "limit")
+    ONE_OF = ("scheduler", "scheduler_file")  # where a cluster build runs: one or the other
 
     def __init__(self, preset: str):
         self.preset = preset
@@ -172,7 +172,7 @@ class _Resolver:
 
     def valid_keys(self) -> tuple[str, ...]:
         ds = self.dataset  # set by the preset, which is applied first
-        return self.KEYS + (ds.variant_key,) + tuple(ds.options())
+        return self.KEYS + (ds.variant_key,) + tuple(ds.options()) + self.ONE_OF
 
     def apply(self, where: str, raw: dict[str, Any], base: Path) -> None:
         if "dataset" in raw:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
@@ -163,10 +164,13 @@ def make_renderer(config) -> "StyleRenderer":
             raise StyleError(f"{config.dataset} needs {flag} {what}")
     images = find_style_images(opts["styles"], config.variants)
     cores = os.cpu_count() or 1
+    # On a cluster each worker thread renders one image at a time on its own core; locally
+    # the cores are shared among the pool's processes.
+    on_cluster = config.scheduler or config.scheduler_file
     return StyleRenderer.prepare(opts["vgg"], opts["decoder"], images,
                                  alpha=opts.get("alpha", 1.0),
                                  style_size=opts.get("style_size", DEFAULT_STYLE_SIZE),
-                                 threads=max(1, cores // max(1, config.jobs)))
+                                 threads=1 if on_cluster else max(1, cores // max(1, config.jobs)))
 
 
 @dataclass
@@ -217,14 +221,16 @@ class StyleRenderer:
 
 
 _STYLIZERS: dict[tuple, Any] = {}
+_STYLIZERS_LOCK = threading.Lock()  # a Dask worker runs tasks in several threads
 
 
 def _stylizer(vgg: str, decoder: str, threads: int):
     """One :class:`adain.Stylizer` per process and checkpoint pair."""
     k = (vgg, decoder)
-    if k not in _STYLIZERS:
-        from . import adain
+    with _STYLIZERS_LOCK:
+        if k not in _STYLIZERS:
+            from . import adain
 
-        _STYLIZERS.clear()
-        _STYLIZERS[k] = adain.Stylizer.from_files(vgg, decoder, threads=threads)
-    return _STYLIZERS[k]
+            _STYLIZERS.clear()
+            _STYLIZERS[k] = adain.Stylizer.from_files(vgg, decoder, threads=threads)
+        return _STYLIZERS[k]

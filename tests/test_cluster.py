@@ -307,6 +307,25 @@ def test_worker_that_cannot_see_the_root_is_refused_before_any_work(cluster, kit
     assert not tree(out) and not (out / "build.json").exists()
 
 
+def test_scheduler_config_keys(tmp_path):
+    from robodepth_cli.config import ConfigError, resolve
+
+    f = tmp_path / "c.yaml"
+    f.write_text("scheduler_file: run/scheduler.json\n")
+    cfg = resolve("kitti-c", f)
+    assert (cfg.scheduler, cfg.scheduler_file) == (None, str(tmp_path / "run" / "scheduler.json"))
+    # A flag chooses anew: it replaces the file's choice of the other key.
+    cfg = resolve("kitti-c", f, {"scheduler": "tcp://head:8786"})
+    assert (cfg.scheduler, cfg.scheduler_file) == ("tcp://head:8786", None)
+    assert resolve("kitti-c").scheduler is None and resolve("kitti-c").scheduler_file is None
+    f.write_text("scheduler: tcp://head:8786\nscheduler_file: s.json\n")
+    with pytest.raises(ConfigError, match=f"^{f}: give either {f}: scheduler or {f}: scheduler_file, not both$"):
+        resolve("kitti-c", f)
+    f.write_text("scheduler: 8786\n")
+    with pytest.raises(ConfigError, match="scheduler: expected a Dask scheduler address such as tcp://head:8786, got 8786"):
+        resolve("kitti-c", f)
+
+
 def test_unreachable_scheduler_and_bad_scheduler_file(kitti, tmp_path, monkeypatch):
     import socket
 
