@@ -71,13 +71,14 @@ class ClusterError(ExecutorError):
 class Requirements:
     """What the client found, for every worker to find the same.
 
-    ``root_names``: sorted top-level names in the root; ``files``: ``(path, sha256)`` of
+    ``root_listing``: how many top-level names the root holds and the sha256 of them,
+    sorted and joined by newlines (:func:`listing`); ``files``: ``(path, sha256)`` of
     other files workers read; ``token``: the name and content of the file the client wrote
     in OUT; ``versions``: :func:`pixel_versions` on the client.
     """
 
     root: str
-    root_names: tuple[str, ...]
+    root_listing: tuple[int, str]
     out: str
     token: str
     files: tuple[tuple[str, str], ...] = ()
@@ -116,6 +117,13 @@ def pixel_versions(libraries: Sequence[str]) -> dict[str, str]:
     return versions
 
 
+def listing(directory: str) -> tuple[int, str]:
+    """(number of entries, sha256 of their sorted names) of ``directory``: compared, not
+    sent, so a root with a million files at its top costs every worker 64 bytes."""
+    names = sorted(os.listdir(directory))
+    return len(names), hashlib.sha256("\n".join(names).encode("utf-8", "surrogateescape")).hexdigest()
+
+
 def _sha256(path: str) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as fh:
@@ -132,12 +140,12 @@ def probe(req: Requirements) -> str:
     if not os.path.isdir(root):
         return f"cannot see the root {root} ({'not a directory' if os.path.exists(root) else 'no such directory'})"
     try:
-        names = tuple(sorted(os.listdir(root)))
+        seen = listing(root)
     except OSError as exc:
         return f"cannot read the root {root} ({os_reason(exc)})"
-    if names != req.root_names:
-        return (f"sees other contents in the root {root} ({len(names)} entries, the client "
-                f"{len(req.root_names)}): not the same shared directory")
+    if seen != req.root_listing:
+        return (f"sees other contents in the root {root} ({seen[0]} entries, the client "
+                f"{req.root_listing[0]}): not the same shared directory")
     for path, sha in req.files:
         try:
             if _sha256(path) != sha:
@@ -176,7 +184,7 @@ def requirements(root: Path, out: Path, files: Sequence[str], libraries: Sequenc
             fh.write(token)
     except OSError as exc:
         raise ClusterError(f"{out}: cannot write the output directory ({os_reason(exc)})") from None
-    return Requirements(root=root, root_names=tuple(sorted(os.listdir(root))), out=out, token=token,
+    return Requirements(root=root, root_listing=listing(root), out=out, token=token,
                         files=tuple((os.path.realpath(f), _sha256(f)) for f in files),
                         versions=pixel_versions(libraries))
 

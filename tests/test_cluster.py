@@ -307,6 +307,45 @@ def test_worker_that_cannot_see_the_root_is_refused_before_any_work(cluster, kit
     assert not tree(out) and not (out / "build.json").exists()
 
 
+def test_probe_names_each_problem(tmp_path):
+    """The probe itself, in this process: what a worker on a host without the shared
+    paths, or with other files or versions, reports."""
+    from robodepth_cli import cluster
+
+    root, out = tmp_path / "root", tmp_path / "out"
+    (root / "2011_09_26").mkdir(parents=True)
+    out.mkdir()
+    ckpt = tmp_path / "decoder.pth"
+    ckpt.write_bytes(b"weights")
+    req = cluster.requirements(root, out, [str(ckpt)], ["numpy", "opencv-python-headless", "torch", "tqdm"])
+    assert set(req.versions) == {"robodepth", "numpy", "opencv", "torch"}  # tqdm decides no pixel
+    token = out / req.token
+    assert token.read_text() == req.token and token.name.startswith(".robodepth-probe-")
+    assert cluster.probe(req) == ""
+    assert [p.name for p in out.iterdir()] == [token.name]  # the probe's own file is gone
+
+    from dataclasses import replace
+
+    assert cluster.probe(replace(req, root=str(tmp_path / "nope"))) == \
+        f"cannot see the root {tmp_path / 'nope'} (no such directory)"
+    (root / "2011_09_28").mkdir()
+    assert cluster.probe(req) == (f"sees other contents in the root {root} (2 entries, the client 1): "
+                                  f"not the same shared directory")
+    (root / "2011_09_28").rmdir()
+    ckpt.write_bytes(b"other weights")
+    assert cluster.probe(req) == f"{ckpt}: differs from the client's copy (sha256)"
+    ckpt.write_bytes(b"weights")
+    token.write_text("another build")
+    assert cluster.probe(req) == f"sees another output directory at {out} (its {token} differs)"
+    token.unlink()
+    assert cluster.probe(req).startswith(f"does not see the output directory {out} (cannot read the client's {token}: ")
+    token.write_text(req.token)
+    older = replace(req, versions={**req.versions, "numpy": "1.0.0"})
+    assert cluster.probe(older) == f"other versions than the client: numpy {req.versions['numpy']} (client: 1.0.0)"
+    cluster.remove_token(req)
+    assert not token.exists()
+
+
 def test_scheduler_config_keys(tmp_path):
     from robodepth_cli.config import ConfigError, resolve
 
