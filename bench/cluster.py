@@ -133,7 +133,7 @@ def main(argv=None) -> int:
     if args.sources < 8:
         ap.error("--sources must be at least 8")
     if not bench.KITTI_FRAMES.is_dir():
-        ap.error(f"fixtures not found under {bench.FIXTURES} (set ROBODEPTH_SHARED)")
+        ap.error(f"fixtures not found under {bench.FIXTURES} (tests/data is part of the repository)")
     base = Path(tempfile.mkdtemp(prefix="robodepth-bench-cluster-", dir=args.keep))
     procs = []
     try:

@@ -14,9 +14,6 @@ import time
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
-
-from robodepth_cli.cli import main
 
 from _trees import kitti_tree, random_image, save, tree
 
@@ -123,22 +120,19 @@ def kitti(tmp_path_factory):
     return root, split
 
 
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args] + ["--no-progress"])
-
-
-def build(kitti, out, *flags):
-    root, split = kitti
-    return run("build", "kitti-c", "--root", root, "--split", split, "--out", out, *flags)
-
-
 def rows(out):
     with open(out / "manifest.csv", newline="") as fh:
         return list(csv.DictReader(fh))
 
 
 @pytest.fixture(scope="module")
-def local(kitti, tmp_path_factory):
+def build(build_kitti, kitti):
+    """``build(out, *flags)``: ``robodepth build kitti-c`` of the module's tree."""
+    return lambda out, *flags: build_kitti(*kitti, out, *flags)
+
+
+@pytest.fixture(scope="module")
+def local(build, tmp_path_factory):
     """Local builds to compare with, keyed by their flags."""
     made = {}
 
@@ -146,7 +140,7 @@ def local(kitti, tmp_path_factory):
         key = tuple(flags)
         if key not in made:
             out = tmp_path_factory.mktemp("local") / "out"
-            res = build(kitti, out, *flags, "--jobs", "1")
+            res = build(out, *flags, "--jobs", "1")
             assert res.exit_code == 0, res.output
             made[key] = out
         return made[key]
@@ -154,9 +148,9 @@ def local(kitti, tmp_path_factory):
     return get
 
 
-def test_cluster_build_is_the_local_build(cluster, kitti, local, tmp_path):
+def test_cluster_build_is_the_local_build(cli, build, cluster, local, tmp_path):
     out = tmp_path / "out"
-    res = build(kitti, out, *CHEAP, "--scheduler", cluster.address)
+    res = build(out, *CHEAP, "--scheduler", cluster.address)
     assert res.exit_code == 0, res.output
     want = local(CHEAP)
     assert tree(out) == tree(want)
@@ -168,18 +162,18 @@ def test_cluster_build_is_the_local_build(cluster, kitti, local, tmp_path):
     assert not list(out.glob(".robodepth-probe-*"))
     # Resume and verify work as with a local build; the scheduler file gives the address too.
     (out / rows(out)[3]["output"]).unlink()
-    res = build(kitti, out, *CHEAP, "--scheduler-file", cluster.file)
+    res = build(out, *CHEAP, "--scheduler-file", cluster.file)
     assert res.exit_code == 0, res.output
     assert f"1 written, {len(rows(want)) - 1} skipped" in res.output
     assert tree(out) == tree(want)
-    assert run("verify", out).exit_code == 0
+    assert cli("verify", out).exit_code == 0
 
 
-def test_scheduler_in_a_config_file(cluster, kitti, local, tmp_path):
+def test_scheduler_in_a_config_file(build, cluster, local, tmp_path):
     cfg = tmp_path / "cluster.yaml"
     cfg.write_text(f"scheduler: {cluster.address}\n")
     out = tmp_path / "out"
-    res = build(kitti, out, *CHEAP, "--config", cfg, "--limit", "2")
+    res = build(out, *CHEAP, "--config", cfg, "--limit", "2")
     assert res.exit_code == 0, res.output
     assert json.loads((out / "build.json").read_text())["executor"]["backend"] == "dask"
     want = tree(local(CHEAP))
@@ -187,7 +181,7 @@ def test_scheduler_in_a_config_file(cluster, kitti, local, tmp_path):
     assert got and all(got[p] == want[p] for p in got)
 
 
-def test_kitti_s_on_the_cluster_loads_the_checkpoints_once_per_worker(cluster, kitti, tmp_path):
+def test_kitti_s_on_the_cluster_loads_the_checkpoints_once_per_worker(cli, cluster, kitti, tmp_path):
     from adain_fakes import save_checkpoints
 
     vgg, dec, _, _ = save_checkpoints(tmp_path, seed=3)
@@ -198,9 +192,9 @@ def test_kitti_s_on_the_cluster_loads_the_checkpoints_once_per_worker(cluster, k
     args = ["build", "kitti-s", "--root", root, "--split", split, "--styles", styles, "--vgg", vgg,
             "--decoder", dec, "--size", "32x96", "--style-size", "32", "--only-styles", "sketch,murals",
             "--limit", "2"]
-    res = run(*args, "--out", tmp_path / "local", "--jobs", "1")
+    res = cli(*args, "--out", tmp_path / "local", "--jobs", "1")
     assert res.exit_code == 0, res.output
-    res = run(*args, "--out", tmp_path / "cluster", "--scheduler", cluster.address)
+    res = cli(*args, "--out", tmp_path / "cluster", "--scheduler", cluster.address)
     assert res.exit_code == 0, res.output
     assert tree(tmp_path / "cluster") == tree(tmp_path / "local")
     assert rows(tmp_path / "cluster") == rows(tmp_path / "local")
@@ -236,7 +230,7 @@ def test_a_killed_worker_loses_nothing(cluster, kitti, local, tmp_path):
     assert rows(out) == rows(want)
 
 
-def test_ctrl_c_cancels_the_cluster_tasks_and_the_rerun_completes(cluster, kitti, local, tmp_path):
+def test_ctrl_c_cancels_the_cluster_tasks_and_the_rerun_completes(build, cluster, kitti, local, tmp_path):
     out = tmp_path / "out"
     root, split = kitti
     args = [sys.executable, "-m", "robodepth_cli.cli", "build", "kitti-c", "--root", str(root), "--split",
@@ -262,12 +256,12 @@ def test_ctrl_c_cancels_the_cluster_tasks_and_the_rerun_completes(cluster, kitti
     while any(cluster.client.processing().values()):  # nothing of that build is left to run
         assert time.monotonic() < deadline, cluster.client.processing()
         time.sleep(0.1)
-    res = build(kitti, out, *SLOWER, "--scheduler", cluster.address)
+    res = build(out, *SLOWER, "--scheduler", cluster.address)
     assert res.exit_code == 0, res.output
     assert tree(out) == tree(local(SLOWER))
 
 
-def test_worker_with_other_robodepth_is_refused_before_any_work(cluster, kitti, tmp_path):
+def test_worker_with_other_robodepth_is_refused_before_any_work(build, cluster, tmp_path):
     shadow = tmp_path / "shadow"
     pkg = Path(__import__("robodepth_cli").__file__).parent
     shutil.copytree(pkg, shadow / "robodepth_cli", ignore=shutil.ignore_patterns("__pycache__"))
@@ -277,7 +271,7 @@ def test_worker_with_other_robodepth_is_refused_before_any_work(cluster, kitti, 
     proc, address = cluster.add_worker("other", env=env, cwd=shadow)  # python -m puts the cwd first
     try:
         out = tmp_path / "out"
-        res = build(kitti, out, *CHEAP, "--scheduler", cluster.address)
+        res = build(out, *CHEAP, "--scheduler", cluster.address)
     finally:
         cluster.stop(proc, address)
     assert res.exit_code == 2, res.output
@@ -289,7 +283,7 @@ def test_worker_with_other_robodepth_is_refused_before_any_work(cluster, kitti, 
 
 
 @pytest.mark.skipif(not _unshare_works(), reason="needs unprivileged mount namespaces (unshare -Urm)")
-def test_worker_that_cannot_see_the_root_is_refused_before_any_work(cluster, kitti, tmp_path):
+def test_worker_that_cannot_see_the_root_is_refused_before_any_work(build, cluster, kitti, tmp_path):
     """A host without the shared mount: the worker runs in its own mount namespace where the
     data's directory is an empty tmpfs."""
     root, _ = kitti
@@ -298,7 +292,7 @@ def test_worker_that_cannot_see_the_root_is_refused_before_any_work(cluster, kit
     proc, address = cluster.add_worker("blind", prefix=prefix)
     try:
         out = tmp_path / "out"
-        res = build(kitti, out, *CHEAP, "--scheduler", cluster.address)
+        res = build(out, *CHEAP, "--scheduler", cluster.address)
     finally:
         cluster.stop(proc, address)
     assert res.exit_code == 2, res.output
@@ -365,7 +359,7 @@ def test_scheduler_config_keys(tmp_path):
         resolve("kitti-c", f)
 
 
-def test_unreachable_scheduler_and_bad_scheduler_file(kitti, tmp_path, monkeypatch):
+def test_unreachable_scheduler_and_bad_scheduler_file(build, tmp_path, monkeypatch):
     import socket
 
     from robodepth_cli import cluster
@@ -375,15 +369,15 @@ def test_unreachable_scheduler_and_bad_scheduler_file(kitti, tmp_path, monkeypat
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    res = build(kitti, tmp_path / "out", *CHEAP, "--scheduler", f"tcp://127.0.0.1:{port}")
+    res = build(tmp_path / "out", *CHEAP, "--scheduler", f"tcp://127.0.0.1:{port}")
     assert res.exit_code == 2
     assert res.output.startswith(f"robodepth: error: tcp://127.0.0.1:{port}: cannot connect to the Dask scheduler")
     assert not (tmp_path / "out").exists()
     bad = tmp_path / "s.json"
     bad.write_text("{}")
-    res = build(kitti, tmp_path / "out", *CHEAP, "--scheduler-file", bad)
+    res = build(tmp_path / "out", *CHEAP, "--scheduler-file", bad)
     assert res.output.strip() == f"robodepth: error: {bad}: not a scheduler file (no 'address')"
-    res = build(kitti, tmp_path / "out", *CHEAP, "--scheduler-file", bad, "--scheduler", "tcp://x:1")
+    res = build(tmp_path / "out", *CHEAP, "--scheduler-file", bad, "--scheduler", "tcp://x:1")
     assert res.output.strip() == "robodepth: error: --scheduler and --scheduler-file: give one of them, not both"
 
 
