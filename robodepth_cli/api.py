@@ -231,7 +231,7 @@ def _split_keys(record: dict, record_path: Path, ds) -> tuple[str, ...]:
     if isinstance(keys, list) and all(isinstance(k, str) for k in keys) and keys:
         return tuple(keys)
     from .datasets import read_split
-    from .manifest import sha256_bytes
+    from .files import sha256_bytes
 
     file = split.get("path")
     try:

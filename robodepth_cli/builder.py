@@ -44,7 +44,8 @@ from . import __version__, manifest, splits
 from .config import BuildConfig
 from .datasets import CLEAN, Dataset, Entry, Job, Renderer, get_dataset, locate, read_split
 from .imageio import PNG_ENCODER, ImageError, load_clean, write_png
-from .manifest import Row, sha256_bytes
+from .files import sha256_bytes, sha256_file
+from .manifest import Row
 from .errors import RobodepthError
 from .executors import Executor, ExecutorError, LocalExecutor
 
@@ -172,7 +173,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     """
     ds = get_dataset(cfg.dataset)
     root = check_root(root)
-    split_path = split_file(cfg)
+    split_path = splits.split_path(cfg.split)
     sources = find_sources(root, split_path, ds, cfg.limit)
     renderer = make_renderer(ds, cfg)
     out = prepare_out(out)
@@ -196,14 +197,6 @@ def check_root(root: Path) -> Path:
     if not root.is_dir():
         raise BuildError(f"{root}: the root is not a directory")
     return Path(os.path.realpath(root))
-
-
-def split_file(cfg: BuildConfig) -> Path:
-    """The split file of ``cfg``: a standard split (cached, downloaded on first use) or the
-    user's file."""
-    if cfg.split in splits.records():
-        return splits.standard_split(cfg.split)
-    return Path(cfg.split)
 
 
 def find_sources(root: Path, split_path: Path, ds: Dataset, limit: int | None = None) -> list[Source]:
@@ -485,6 +478,6 @@ def _job_name(job: Job) -> str:
 
 def _sha_or_none(path: Path) -> str | None:
     try:
-        return manifest.sha256_file(path)
+        return sha256_file(path)
     except OSError:
         return None

@@ -206,7 +206,10 @@ class _Resolver:
     def _check(self, loc: str, key: str, v, base: Path):
         ds = self.dataset
         if key == "split":
-            return self._split(loc, v, base)
+            try:
+                return splits.check_choice(v, ds.split_format, base, owner=ds.name)
+            except ValueError as exc:
+                raise ConfigError(f"{loc}: {exc}") from None
         if key == "size":
             if isinstance(v, list) and len(v) == 2 and all(_is_int(s) for s in v):
                 v = f"{v[0]}x{v[1]}"
@@ -241,19 +244,6 @@ class _Resolver:
             return ds.check_option(key, v, base)
         except ValueError as exc:
             raise ConfigError(f"{loc}: {exc}") from None
-
-    def _split(self, loc: str, v, base: Path) -> str:
-        if not isinstance(v, str) or not v:
-            raise ConfigError(f"{loc}: expected a standard split name or a file, got {v!r}")
-        recs = splits.records()
-        if v in recs:
-            rec, ds = recs[v], self.dataset
-            if rec.format != ds.split_format:
-                fits = [r.name for r in recs.values() if r.format == ds.split_format]
-                raise ConfigError(f"{loc}: {v!r} is not a split of {ds.name}; valid: "
-                                  f"{', '.join(fits)} or a split file")
-            return v
-        return str((base / Path(v).expanduser()).resolve())
 
     def result(self) -> BuildConfig:
         missing = [k for k in ("dataset", "split", "size", self.dataset.variant_key, "seed", "jobs")

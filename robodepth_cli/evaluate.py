@@ -741,7 +741,7 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
 
 def write_results(path: Path, text: str) -> None:
     """Write the results CSV atomically (a temporary file, then a rename)."""
-    from .imageio import write_atomic
+    from .files import write_atomic
 
     try:
         write_atomic(path, text.encode("utf-8"))

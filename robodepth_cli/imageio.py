@@ -1,26 +1,20 @@
-"""Reading, resizing and writing images, the way SPEC section 1 describes."""
+"""Reading, resizing and writing images.
+
+A source becomes its clean image by converting it to RGB and resizing it with Pillow's
+Lanczos filter, once; every variant starts from that uint8 image. Outputs are PNG files
+written atomically."""
 
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 from .errors import RobodepthError
+from .files import write_atomic
 
 MIN_SIDE = 32
-
-
-def _file_mode() -> int:
-    # mkstemp creates 0600 files; outputs should get the usual 0666 & ~umask.
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
-_FILE_MODE = _file_mode()
 
 
 class ImageError(RobodepthError):
@@ -109,10 +103,10 @@ def encode_png(img: np.ndarray, compress_level: int = 1) -> bytes:
 
     Encoded with OpenCV's libpng writer, zlib's RLE strategy and libpng's fast row filters
     (None, Sub or Up, chosen per row): on the images a build writes (mostly noise and blur)
-    this takes about half the CPU of Pillow at zlib level 1 (which tries all five
-    filters on every row), and the files are 3-6% larger than Pillow's default level 6
-    (bench/build.py prints the figure). The SUB filter alone would be ~12% faster still
-    but cost +7% (KITTI) to +16% (NYU) in size. Pixels never depend on these choices.
+    this costs much less CPU than Pillow, which tries all five filters on every row, for
+    slightly larger files; the SUB filter alone is faster still but makes clearly larger
+    files. bench/build.py measures time and size against Pillow (figures in the README).
+    Pixels never depend on these choices.
     """
     import cv2
 
@@ -130,25 +124,6 @@ def encode_png(img: np.ndarray, compress_level: int = 1) -> bytes:
     if not ok:
         raise ValueError(f"OpenCV could not encode an image of shape {img.shape} as PNG")
     return buf.tobytes()
-
-
-def write_atomic(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same directory and a
-    rename, so a reader never sees a partial file. The temporary file is removed on error."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            os.fchmod(fh.fileno(), _FILE_MODE)
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
 
 
 def write_png(path: str | os.PathLike, img: np.ndarray, compress_level: int = 1) -> bytes:

@@ -1,4 +1,4 @@
-"""The bookkeeping files of an output directory (SPEC section 4) and ``robodepth verify``.
+"""The bookkeeping files of an output directory and ``robodepth verify``.
 
 - ``OUT/manifest.csv``: one row per output file (:data:`FIELDS`). Rows are appended and
   flushed as results arrive, so a killed build keeps the record of what it finished; the
@@ -15,7 +15,6 @@
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import json
 import os
@@ -23,7 +22,8 @@ import re
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from .imageio import write_atomic
+from .files import is_temporary, sha256_file, write_atomic
+from .files import sha256_bytes  # noqa: F401 (still importable from here by older callers)
 from .errors import RobodepthError
 
 MANIFEST = "manifest.csv"
@@ -31,7 +31,6 @@ RECORD = "build.json"
 LOCK = ".robodepth.lock"
 BOOKKEEPING = frozenset({MANIFEST, RECORD, LOCK})
 _SHA = re.compile(r"[0-9a-f]{64}")
-_TEMP = re.compile(r"^\..+\.part$")  # imageio.write_atomic's temporary names
 
 
 class ManifestError(RobodepthError):
@@ -154,18 +153,6 @@ def write_record(out: Path, record: dict) -> None:
     write_atomic(Path(out) / RECORD, (json.dumps(record, indent=2, sort_keys=True) + "\n").encode("utf-8"))
 
 
-def sha256_bytes(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
-
-
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 class BuildLock:
     """An exclusive lock on ``OUT/.robodepth.lock`` for the duration of a ``with`` block.
     A second build into the same OUT gets :class:`ManifestError` instead of waiting."""
@@ -200,7 +187,7 @@ def remove_temporaries(out: Path) -> int:
     n = 0
     for dirpath, _, files in os.walk(out):
         for name in files:
-            if _TEMP.match(name):
+            if is_temporary(name):
                 os.unlink(os.path.join(dirpath, name))
                 n += 1
     return n

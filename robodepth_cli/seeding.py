@@ -1,4 +1,4 @@
-"""Per-job random generators (SPEC section 4).
+"""Per-job random generators.
 
 A job's generator depends only on (global seed, dataset, variant, level, relative source
 path), so its output does not depend on worker count, order or what was built before.

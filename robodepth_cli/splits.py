@@ -1,4 +1,6 @@
-"""The standard test splits: where they come from, and a checked local cache of them.
+"""Which split a build reads: a standard split (from its record and a checked local cache)
+or the user's own file. Reading a split's lines is the dataset's business
+(:func:`robodepth_cli.datasets.read_split`); choosing and obtaining the file happens here.
 
 The project does not ship the split files. ``splits/splits.json`` (at the top of the
 repository) records, for each standard split, its public address, sha256 and number of
@@ -22,8 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import data_dir
-from .imageio import write_atomic
-from .manifest import sha256_bytes
+from .files import sha256_bytes, write_atomic
 from .errors import RobodepthError
 
 RECORDS_FILE = data_dir("splits") / "splits.json"
@@ -60,6 +61,31 @@ def record(name: str) -> SplitRecord:
     if name not in recs:
         raise SplitError(f"unknown standard split {name!r}; valid: {', '.join(recs)} (or a split file)")
     return recs[name]
+
+
+def check_choice(value, split_format: str, base: Path, owner: str = "this dataset") -> str:
+    """The split a configuration names: a standard split name whose format is
+    ``split_format`` (e.g. "eigen"), kept as the name, or a split file, returned as an
+    absolute path (relative to ``base``). ``ValueError`` for anything else; the file itself
+    is read later."""
+    if not isinstance(value, str) or not value:
+        raise ValueError(f"expected a standard split name or a file, got {value!r}")
+    recs = records()
+    if value in recs:
+        if recs[value].format != split_format:
+            fits = [r.name for r in recs.values() if r.format == split_format]
+            raise ValueError(f"{value!r} is not a split of {owner}; valid: "
+                             f"{', '.join(fits)} or a split file")
+        return value
+    return str((Path(base) / Path(value).expanduser()).resolve())
+
+
+def split_path(choice: str) -> Path:
+    """The file of a split :func:`check_choice` accepted: the checked, cached copy of a
+    standard split (downloaded on first use) or the user's file."""
+    if choice in records():
+        return standard_split(choice)
+    return Path(choice)
 
 
 def cache_dir() -> Path:

@@ -18,7 +18,7 @@ import numpy as np
 from PIL import Image
 
 from .imageio import MIN_SIDE, read_rgb
-from .manifest import sha256_file
+from .files import sha256_file
 from .errors import RobodepthError
 
 # The 12 KITTI-S styles in the benchmark's order; also the output directory names.

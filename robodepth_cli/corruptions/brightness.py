@@ -1,4 +1,4 @@
-"""Brightness (SPEC section 2, definition 1): raise the HSV value."""
+"""Brightness: raise the HSV value."""
 
 from __future__ import annotations
 

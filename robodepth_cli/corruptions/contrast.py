@@ -1,4 +1,4 @@
-"""Contrast (SPEC section 2, definition 6): pull every channel towards its mean."""
+"""Contrast: pull every channel towards its mean."""
 
 from __future__ import annotations
 

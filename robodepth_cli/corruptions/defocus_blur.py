@@ -1,4 +1,4 @@
-"""Defocus blur (SPEC section 2, definition 7): convolution with an anti-aliased disk."""
+"""Defocus blur: convolution with an anti-aliased disk."""
 
 from __future__ import annotations
 
@@ -77,7 +77,7 @@ def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndar
     radius, alias = LEVELS[level - 1]
     k = disk_kernel(radius, alias)
     if k.shape[0] <= _DIRECT_MAX:
-        # float32 in, not uint8 in with a float32 output: OpenCV's mixed-type path is ~6x slower.
+        # float32 in, not uint8 in with a float32 output: OpenCV's mixed-type path is far slower.
         out = cv2.filter2D(x.astype(np.float32), -1, k, borderType=cv2.BORDER_REFLECT_101)
     else:
         out = filter2d_fft(x, radius, alias)

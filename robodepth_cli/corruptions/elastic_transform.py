@@ -1,4 +1,4 @@
-"""Elastic transform (SPEC section 2, definition 11)."""
+"""Elastic transform."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Fog (SPEC section 2, definition 3): a diamond-square plasma fractal added to the image."""
+"""Fog: a diamond-square plasma fractal added to the image."""
 
 from __future__ import annotations
 
@@ -45,8 +45,8 @@ def _wrapped(grid: np.ndarray, before: bool) -> np.ndarray:
 
 def plasma_fractal(n: int, decay: float, rng: np.random.Generator, shape=None) -> np.ndarray:
     """Diamond-square height map on an ``n`` x ``n`` torus (``n >= 2`` a power of two),
-    float32, scaled to [0, 1] (SPEC section 2, definition 3); only its top-left ``shape``
-    (rows, columns) part is returned if given (the scaling still uses the whole map).
+    float32, scaled to [0, 1]; only its top-left ``shape`` (rows, columns) part is
+    returned if given (the scaling still uses the whole map).
 
     ``A[0, 0] = 0``, step ``s = n``, wibble ``w = 100``. While ``s >= 2``, with ``h = s / 2``:
     every square centre ``(h + i s, h + j s)`` becomes the mean of its four grid corners

@@ -1,4 +1,4 @@
-"""Frost (SPEC section 2, definition 4): a frost texture blended over the image.
+"""Frost: a frost texture blended over the image.
 
 The textures are read from the installed ``imagecorruptions-imaug`` distribution's files,
 located through its metadata: the package itself is never imported (it would pull in its

@@ -1,4 +1,4 @@
-"""Glass blur (SPEC section 2, definition 8): blur, local pixel shuffling, blur again."""
+"""Glass blur: blur, local pixel shuffling, blur again."""
 
 from __future__ import annotations
 
@@ -55,9 +55,9 @@ def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarra
     The "swap" is what the benchmark's code does, not a true exchange: it is the tuple
     assignment ``x[h, w], x[h', w'] = x[h', w'], x[h, w]`` on numpy (and numba) row views
     of an H x W x 3 array; the second view already holds the copied pixel, so pixel
-    ``(h, w)`` takes the value of ``(h', w')`` and ``(h', w')`` is unchanged. SPEC section 2
-    says "swap"; the benchmark's data (tests/data/reference) and the ``imagecorruptions``
-    oracle both follow the copy, so that is what is done here.
+    ``(h, w)`` takes the value of ``(h', w')`` and ``(h', w')`` is unchanged. The benchmark's
+    data (tests/data/reference) and the ``imagecorruptions`` oracle both follow the copy,
+    so that is what is done here.
 
     All offsets are drawn up front (:func:`swap_offsets`) and the swaps run in a numba
     kernel (:func:`shuffle_pixels`). The blurs run in float64 on ``x / 255`` as the

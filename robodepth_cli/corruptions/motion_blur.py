@@ -1,4 +1,4 @@
-"""Motion blur (SPEC section 2, definition 9) and the shift-and-add routine snow shares.
+"""Motion blur and the shift-and-add routine snow shares.
 
 Shifting with edge replication is sampling with a replicate border: the shifted copy by
 ``(dx, dy)`` is ``img[clamp(row - dy), clamp(col - dx)]``. The weighted sum of the copies is

@@ -1,4 +1,4 @@
-"""Snow (SPEC section 2, definition 5): a zoomed, thresholded, motion-blurred noise layer
+"""Snow: a zoomed, thresholded, motion-blurred noise layer
 added twice (once rotated by 180 degrees) to a whitened image."""
 
 from __future__ import annotations

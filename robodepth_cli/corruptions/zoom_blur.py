@@ -1,4 +1,4 @@
-"""Zoom blur (SPEC section 2, definition 10) and the clipped zoom it shares with snow.
+"""Zoom blur and the clipped zoom it shares with snow.
 
 Every zoom layer is a bilinear resample of a centred crop onto a corner-aligned grid
 (SciPy ``ndimage.zoom(order=1)``). The sampling positions depend only on the image shape

@@ -1,0 +1,67 @@
+"""Writing files atomically and hashing them: the file helpers every module shares.
+
+:func:`write_atomic` names its temporary files ``.<name>.<random>.part`` in the target's
+directory; :func:`is_temporary` recognises them, so a build can delete what a killed
+process left behind without knowing how the name is made.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+_TEMP_PREFIX = "."
+_TEMP_SUFFIX = ".part"
+
+
+def _file_mode() -> int:
+    # mkstemp creates 0600 files; outputs should get the usual 0666 & ~umask.
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+_FILE_MODE = _file_mode()
+
+
+def write_atomic(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same directory and a
+    rename, so a reader never sees a partial file. The temporary file is removed on error;
+    parent directories are created as needed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            os.fchmod(fh.fileno(), _FILE_MODE)
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def is_temporary(name: str) -> bool:
+    """Whether the file name ``name`` is one of :func:`write_atomic`'s temporary files."""
+    return (name.startswith(_TEMP_PREFIX) and name.endswith(_TEMP_SUFFIX)
+            and len(name) > len(_TEMP_PREFIX) + len(_TEMP_SUFFIX))
+
+
+def sha256_bytes(data: bytes) -> str:
+    """The hex sha256 of ``data``."""
+    return hashlib.sha256(data).hexdigest()
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    """The hex sha256 of the file at ``path``, read in 1 MB chunks; ``OSError`` if it
+    cannot be read."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
