@@ -12,8 +12,9 @@ from __future__ import annotations
 from .build import build_command, verify_command
 from .corrupt import corrupt_command, list_command, preview_command
 from .evaluate import evaluate_command
+from .gt import gt_command
 from .score import score_command
 from .stylize import stylize_command
 
 COMMANDS = (list_command, corrupt_command, preview_command, build_command, verify_command,
-            stylize_command, score_command, evaluate_command)
+            stylize_command, score_command, evaluate_command, gt_command)

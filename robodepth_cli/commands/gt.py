@@ -1,0 +1,111 @@
+"""``robodepth gt kitti`` and ``robodepth gt nyu``: the ground truth a benchmark's evaluation
+compares predictions with, made from the official downloads."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ..errors import RobodepthError
+
+
+@click.group("gt")
+def gt_command():
+    """Ground-truth depth for evaluation, from the official downloads.
+
+    \b
+    KITTI (monodepth2's gt_depths.npz, value for value):
+      robodepth gt kitti --root KITTI_RAW --out gt_depths.npz
+    NYU Depth V2 (BTS's test layout, from the official labeled file):
+      robodepth gt nyu --root nyu_depth_v2_labeled.mat --out NYU_TEST
+    """
+
+
+def _split(value: str, split_format: str, default: str) -> Path:
+    """The split file ``value`` names: a standard split (downloaded and checked on first
+    use) of the right format, or a file."""
+    from .. import splits
+
+    name = value or default
+    records = splits.records()
+    if name in records:
+        if records[name].format != split_format:
+            raise RobodepthError(f"--split {name}: a {records[name].format} split; this needs a "
+                                 f"{split_format} split such as {default}")
+        return splits.standard_split(name)
+    path = Path(name)
+    if not path.is_file():
+        raise RobodepthError(f"--split {name}: no such file, and not a standard split "
+                             f"({', '.join(r for r, rec in records.items() if rec.format == split_format)})")
+    return path
+
+
+def _bar(total: int, progress: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="frame", disable=None if progress else True, file=sys.stderr,
+                dynamic_ncols=True)
+
+
+@gt_command.command("kitti")
+@click.option("--root", required=True, type=click.Path(path_type=Path),
+              help="KITTI raw root: DATE/calib_*.txt and DATE/DRIVE/velodyne_points/data/*.bin.")
+@click.option("--split", metavar="NAME|FILE", default="eigen_test", show_default=True,
+              help="Standard split name or a split file in the Eigen format (DATE/DRIVE FRAME SIDE).")
+@click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
+              help="Output file, e.g. gt_depths.npz.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def gt_kitti_command(root, split, out, progress):
+    """Write the ground-truth depth of every split frame to OUT, exactly as monodepth2's
+    export_gt_depth.py --split eigen does (camera 2, lidar depth).
+
+    OUT is np.savez_compressed(OUT, data=<object array of float32 H x W maps>), in split
+    order; np.load(OUT, allow_pickle=True)["data"] reads it, as monodepth2's and the
+    benchmark's evaluation scripts do. The file appears only when every map is made.
+    """
+    from .. import gt_kitti
+
+    if not root.is_dir():
+        raise RobodepthError(f"--root {root}: not a directory (the KITTI raw root)")
+    if out.is_dir():
+        raise RobodepthError(f"--out {out}: is a directory; give a file name such as gt_depths.npz")
+    split_path = _split(split, "eigen", "eigen_test")
+    frames = gt_kitti.read_frames(split_path)
+    with _bar(len(frames), progress) as bar:
+        gt_kitti.export(root, frames, out, split_name=str(split_path), progress=bar.update)
+    click.echo(f"{out}: {len(frames)} depth maps", err=True)
+
+
+@gt_command.command("nyu")
+@click.option("--root", required=True, type=click.Path(path_type=Path),
+              help="The official nyu_depth_v2_labeled.mat, or a BTS test folder (SCENE/sync_depth_N.png).")
+@click.option("--split", metavar="NAME|FILE", default="nyu_test", show_default=True,
+              help="Standard split name or a split file in the NYU format (RGB DEPTH FOCAL).")
+@click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
+              help="Output folder.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def gt_nyu_command(root, split, out, progress):
+    """Write BTS's NYU test layout for every split frame under OUT.
+
+    From the labeled .mat: OUT/SCENE/rgb_NNNNN.jpg (frame NNNNN of the file, outside rows
+    7..473 and columns 7..631 black, JPEG quality 95, as BTS extracts it) and
+    OUT/SCENE/sync_depth_NNNNN.png (uint16 millimetres: rawDepths * 1000 in float32,
+    truncated). From a BTS folder: its sync_depth files, copied. Every frame is checked
+    (index, scene) before anything is written.
+    """
+    from .. import gt_nyu
+
+    if not root.exists():
+        raise RobodepthError(f"--root {root}: no such file or directory")
+    if out.exists() and not out.is_dir():
+        raise RobodepthError(f"--out {out}: exists and is not a directory")
+    split_path = _split(split, "nyu", "nyu_test")
+    frames = gt_nyu.read_frames(split_path)
+    with _bar(len(frames), progress) as bar:
+        gt_nyu.export(root, frames, out, split_name=str(split_path), progress=bar.update)
+    what = "images and depth maps" if gt_nyu.is_labeled_file(root) else "depth maps"
+    click.echo(f"{out}: {len(frames)} {what}", err=True)
