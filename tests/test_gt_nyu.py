@@ -1,0 +1,188 @@
+"""`robodepth gt nyu` from a small HDF5 file in the layout of the official
+``nyu_depth_v2_labeled.mat`` (written here with h5py), against BTS's extraction written here
+from the rules: border blacked out, OpenCV JPEG at its default quality, depth * 1000 in
+float32 truncated to uint16."""
+
+from __future__ import annotations
+
+import cv2
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from robodepth_cli.cli import main
+
+SCENES = ["bathroom", "kitchen", "bathroom", "living_room", "bedroom"]
+
+
+def smooth_image(rng, h=480, w=640):
+    small = rng.integers(0, 256, (h // 16, w // 16, 3), dtype=np.uint8)
+    img = cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
+    return np.clip(img.astype(int) + rng.integers(-8, 9, img.shape), 0, 255).astype(np.uint8)
+
+
+def write_labeled(path, scenes=SCENES, seed=0, drop=None):
+    """An HDF5 file laid out like the official labeled file (MATLAB v7.3: a 512-byte user
+    block; arrays stored transposed; scene names as references to uint16 character codes).
+    Returns the RGB images (N x 480 x 640 x 3) and depths (N x 480 x 640, float32)."""
+    rng = np.random.default_rng(seed)
+    n = len(scenes)
+    rgb = np.stack([smooth_image(rng) for _ in range(n)])
+    depth = rng.uniform(0, 10, (n, 480, 640)).astype(np.float32)
+    depth[:, :4, :4] = np.float32(0.7)  # 700 in float32 arithmetic, 699 in float64
+    depth[:, 4:8, :4] = 0
+    with h5py.File(path, "w", userblock_size=512) as f:
+        if drop != "images":
+            f.create_dataset("images", data=rgb.transpose(0, 3, 2, 1))  # N x 3 x 640 x 480
+        if drop != "rawDepths":
+            f.create_dataset("rawDepths", data=depth.transpose(0, 2, 1))  # N x 640 x 480
+        refs = f.create_group("#refs#")
+        targets = [refs.create_dataset(f"s{i}", data=np.array([[ord(c)] for c in name], dtype=np.uint16)).ref
+                   for i, name in enumerate(scenes)]
+        if drop != "sceneTypes":
+            st = f.create_dataset("sceneTypes", (1, n), dtype=h5py.ref_dtype)
+            st[0, :] = targets
+    return rgb, depth
+
+
+def write_split(path, indices, scenes=SCENES):
+    path.write_text("\n".join(f"{scenes[i]}/rgb_{i:05d}.jpg {scenes[i]}/sync_depth_{i:05d}.png 518.8579"
+                              for i in indices))
+    return path
+
+
+# --- BTS's extraction, from the rules ---------------------------------------------------------
+
+def bts_files(rgb, depth, folder, i, scene):
+    """What BTS's extraction script writes for frame i, into ``folder``."""
+    (folder / scene).mkdir(parents=True, exist_ok=True)
+    scaled = depth * 1000.0  # float32 array times a Python float: float32
+    assert scaled.dtype == np.float32
+    cv2.imwrite(str(folder / scene / f"sync_depth_{i:05d}.png"), scaled.astype(np.uint16))
+    bgr = rgb[:, :, ::-1]
+    black = np.zeros((480, 640, 3), dtype=np.uint8)
+    black[7:474, 7:632, :] = bgr[7:474, 7:632, :]
+    cv2.imwrite(str(folder / scene / f"rgb_{i:05d}.jpg"), black)
+
+
+def run(*args):
+    return CliRunner().invoke(main, [*map(str, args), "--no-progress"])
+
+
+@pytest.fixture
+def labeled(tmp_path):
+    path = tmp_path / "nyu_depth_v2_labeled.mat"
+    rgb, depth = write_labeled(path)
+    return path, rgb, depth
+
+
+def test_gt_nyu_from_labeled_file_is_bts_layout(labeled, tmp_path):
+    path, rgb, depth = labeled
+    split = write_split(tmp_path / "split.txt", [2, 0, 4])
+    out = tmp_path / "out"
+    res = run("gt", "nyu", "--root", path, "--split", split, "--out", out)
+    assert res.exit_code == 0, res.output
+    bts = tmp_path / "bts"
+    for i in (2, 0, 4):
+        bts_files(rgb[i], depth[i], bts, i, SCENES[i])
+    written = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    assert written == sorted(p.relative_to(bts).as_posix() for p in bts.rglob("*") if p.is_file())
+    assert len(written) == 6
+    for rel in written:
+        if rel.endswith(".png"):
+            got = cv2.imread(str(out / rel), cv2.IMREAD_UNCHANGED)
+            want = cv2.imread(str(bts / rel), cv2.IMREAD_UNCHANGED)
+            assert got.dtype == np.uint16 and got.shape == (480, 640)
+            assert np.array_equal(got, want), rel
+            assert got[0, 0] == 700 and not got[4:8, :4].any()
+        else:
+            got, want = (np.asarray(Image.open(d / rel).convert("RGB")) for d in (out, bts))
+            assert np.array_equal(got, want), rel
+            border = np.concatenate([got[:7].ravel(), got[474:].ravel(), got[:, :7].ravel(), got[:, 632:].ravel()])
+            assert border.mean() < 3 and got[7:474, 7:632].mean() > 50  # black but for JPEG ringing
+    # The float32 product matters: float64 would truncate 0.7 m to 699 mm.
+    assert int(np.float64(np.float32(0.7)) * 1000.0) == 699
+
+
+def test_clean_image_is_bts_jpeg_decoded(labeled, tmp_path):
+    """The clean source of a labeled frame has the pixels of BTS's JPEG of it."""
+    from robodepth_cli.gt_nyu import LabeledFile, clean_image
+
+    path, rgb, depth = labeled
+    bts_files(rgb[3], depth[3], tmp_path / "bts", 3, SCENES[3])
+    want = np.asarray(Image.open(tmp_path / "bts" / SCENES[3] / "rgb_00003.jpg").convert("RGB"))
+    with LabeledFile(path) as f:
+        assert f.n == 5 and f.scene(3) == "living_room"
+        assert np.array_equal(f.rgb(3), rgb[3]) and np.array_equal(f.depth(3), depth[3])
+        got = clean_image(f.rgb(3))
+    assert got.dtype == np.uint8 and got.shape == (480, 640, 3)
+    assert np.array_equal(got, want)
+    assert not np.array_equal(got, rgb[3])  # the border and the JPEG round trip did something
+
+
+def test_gt_nyu_from_bts_folder_copies_depth(tmp_path):
+    rng = np.random.default_rng(3)
+    root = tmp_path / "nyu"
+    (root / "bedroom").mkdir(parents=True)
+    depth = rng.integers(0, 10000, (480, 640), dtype=np.uint16)
+    cv2.imwrite(str(root / "bedroom" / "sync_depth_00001.png"), depth)
+    split = tmp_path / "split.txt"
+    split.write_text("bedroom/rgb_00001.jpg bedroom/sync_depth_00001.png 518.8579\n")
+    out = tmp_path / "out"
+    res = run("gt", "nyu", "--root", root, "--split", split, "--out", out)
+    assert res.exit_code == 0, res.output
+    assert [p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()] == ["bedroom/sync_depth_00001.png"]
+    assert (out / "bedroom/sync_depth_00001.png").read_bytes() == (root / "bedroom/sync_depth_00001.png").read_bytes()
+    # An 8-bit file is not a depth map.
+    cv2.imwrite(str(root / "bedroom" / "sync_depth_00001.png"), (depth >> 8).astype(np.uint8))
+    _fail(run("gt", "nyu", "--root", root, "--split", split, "--out", tmp_path / "out2"),
+          f"{split}:1:", "sync_depth_00001.png", "16-bit")
+    assert not (tmp_path / "out2").exists()
+
+
+def _fail(res, *needles):
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("robodepth: error: "), res.output
+    for n in needles:
+        assert n in lines[0], lines[0]
+
+
+def test_bad_split_lines(labeled, tmp_path):
+    path, *_ = labeled
+    out = tmp_path / "out"
+    split = tmp_path / "split.txt"
+    split.write_text("bathroom/rgb_00000.jpg bathroom/sync_depth_00000.png 518.8579\n"
+                     "bathroom/rgb_00001.jpg bathroom/sync_depth_00001.png 518.8579\n")  # frame 1 is a kitchen
+    _fail(run("gt", "nyu", "--root", path, "--split", split, "--out", out), f"{split}:2:", "'kitchen'",
+          "'bathroom'", "rgb_00001")
+    split.write_text("bedroom/rgb_00004.jpg bedroom/sync_depth_00004.png 518.8579\n"
+                     "bedroom/rgb_00005.jpg bedroom/sync_depth_00005.png 518.8579\n")
+    _fail(run("gt", "nyu", "--root", path, "--split", split, "--out", out), f"{split}:2:", "frame 5", "5 frames")
+    split.write_text("bedroom/frame_4.jpg bedroom/sync_depth_00004.png 518.8579\n")
+    _fail(run("gt", "nyu", "--root", path, "--split", split, "--out", out), f"{split}:1:", "rgb_NNNNN")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("drop", ["images", "rawDepths", "sceneTypes"])
+def test_labeled_file_without_a_dataset(tmp_path, drop):
+    path = tmp_path / "labeled.mat"
+    write_labeled(path, scenes=SCENES[:2], drop=drop)
+    split = write_split(tmp_path / "split.txt", [0, 1])
+    _fail(run("gt", "nyu", "--root", path, "--split", split, "--out", tmp_path / "out"), str(path), repr(drop))
+
+
+def test_not_hdf5_and_wrong_layout(tmp_path):
+    split = write_split(tmp_path / "split.txt", [0])
+    mat = tmp_path / "labeled.mat"
+    mat.write_bytes(b"MATLAB 5.0 MAT-file" + bytes(200))
+    _fail(run("gt", "nyu", "--root", mat, "--split", split, "--out", tmp_path / "out"), str(mat), "not an HDF5")
+    with h5py.File(mat, "w") as f:
+        f.create_dataset("images", data=np.zeros((1, 3, 320, 240), np.uint8))
+        f.create_dataset("rawDepths", data=np.zeros((1, 640, 480), np.float32))
+        f.create_dataset("sceneTypes", (1, 1), dtype=h5py.ref_dtype)
+    _fail(run("gt", "nyu", "--root", mat, "--split", split, "--out", tmp_path / "out"), str(mat), "'images'",
+          "1 x 3 x 640 x 480")
+    assert not (tmp_path / "out").exists()
