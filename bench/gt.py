@@ -1,7 +1,7 @@
 """Benchmark: ``robodepth gt kitti`` on the 697 Eigen test frames, speed and memory.
 
 A temporary KITTI-raw tree holds, for every line of the Eigen test split (the copy in
-../shared/splits), a synthetic velodyne scan of realistic size (``--points``, default
+tests/data/splits), a synthetic velodyne scan of realistic size (``--points``, default
 120,000 points: 64 rings of an HDL-64E-like sensor, ground and walls at 2..80 m), and for
 each of its five dates calibration files: the real 2011_09_26 files, and for the other dates
 the same files with that date's image size (1224x370, 1238x374, 1226x370, 1241x376) and a
@@ -37,9 +37,12 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("ROBODEPTH_SHARED", REPO.parent / "shared")).resolve()
-CALIB = SHARED / "fixtures" / "kitti_raw" / "2011_09_26"
-EIGEN = SHARED / "splits" / "eigen_test_files.txt"
+sys.path.insert(0, str(REPO / "tests"))
+
+from _paths import FIXTURES, SPLITS  # noqa: E402  (tests/data, inside the repository)
+
+CALIB = FIXTURES / "kitti_raw" / "2011_09_26"
+EIGEN = SPLITS / "eigen_test_files.txt"
 SIZES = {"2011_09_26": (1242, 375), "2011_09_28": (1224, 370), "2011_09_29": (1238, 374),
          "2011_09_30": (1226, 370), "2011_10_03": (1241, 376)}
 

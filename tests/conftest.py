@@ -11,7 +11,7 @@ from click.testing import CliRunner, Result
 from _paths import FIXTURES, REFERENCE, SPLITS
 
 # Commands that draw a progress bar: the tests read only what the command reports.
-_PROGRESS_COMMANDS = ("build", "verify")
+_PROGRESS_COMMANDS = ("build", "verify", "gt")
 
 
 def _require(path: Path) -> Path:
@@ -43,7 +43,7 @@ def cli():
     (``exit_code``, ``output`` with stdout and stderr).
 
     Each argument is passed as ``str(arg)``, so paths and numbers can be given as they are.
-    ``build`` and ``verify`` get ``--no-progress`` appended. An exception the CLI lets escape
+    ``build``, ``verify`` and ``gt`` get ``--no-progress`` appended. An exception the CLI lets escape
     is raised in the test with its traceback instead of becoming exit status 1, and the
     output of a run that returns never holds a traceback.
     """

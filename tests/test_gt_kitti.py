@@ -9,9 +9,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from robodepth_cli.cli import main
 
 DATE1, DATE2, DATE3 = "2011_09_26", "2011_09_30", "2011_10_03"
 DRIVE1, DRIVE2 = f"{DATE1}/{DATE1}_drive_0002_sync", f"{DATE2}/{DATE2}_drive_0016_sync"
@@ -175,8 +173,10 @@ def write_tree(tmp_path, fixtures_dir, frames_per_drive=2):
     return root, split_file, split
 
 
-def run(*args):
-    return CliRunner().invoke(main, ["gt", "kitti", *map(str, args), "--no-progress"])
+@pytest.fixture
+def run(cli):
+    """``robodepth gt kitti ARGS...``"""
+    return lambda *args: cli("gt", "kitti", *args)
 
 
 @pytest.fixture
@@ -184,7 +184,7 @@ def kitti(tmp_path, fixtures_dir):
     return write_tree(tmp_path, fixtures_dir)
 
 
-def test_export_equals_reference(kitti, tmp_path):
+def test_export_equals_reference(kitti, tmp_path, run):
     root, split_file, lines = kitti
     out = tmp_path / "gt" / "gt_depths.npz"
     res = run("--root", root, "--split", split_file, "--out", out)
@@ -255,7 +255,7 @@ def _fail(res, *needles):
     (lambda t: t.replace("P_rect_02: 7.215377e+02", "P_rect_02: 7.2x"), ("calib_cam_to_cam.txt", "'P_rect_02'")),
     (lambda t: t + "no colon here\n", ("calib_cam_to_cam.txt:", "KEY: values")),
 ])
-def test_bad_calibration(kitti, tmp_path, edit, needles):
+def test_bad_calibration(kitti, tmp_path, edit, needles, run):
     root, split_file, _ = kitti
     path = root / DATE1 / "calib_cam_to_cam.txt"
     path.write_text(edit(path.read_text()))
@@ -264,7 +264,7 @@ def test_bad_calibration(kitti, tmp_path, edit, needles):
     assert not out.exists() and not list(tmp_path.glob(".gt_depths.npz*"))
 
 
-def test_bad_velodyne_calibration(kitti, tmp_path):
+def test_bad_velodyne_calibration(kitti, tmp_path, run):
     root, split_file, _ = kitti
     path = root / DATE2 / "calib_velo_to_cam.txt"
     path.write_text(path.read_text().replace("T: -4.069766e-03 ", "T: "))
@@ -275,7 +275,7 @@ def test_bad_velodyne_calibration(kitti, tmp_path):
           "calib_velo_to_cam.txt: no such calibration file")
 
 
-def test_missing_and_truncated_scans(kitti, tmp_path):
+def test_missing_and_truncated_scans(kitti, tmp_path, run):
     root, split_file, lines = kitti
     folder, frame, _ = lines[3].split()
     scan_file = root / folder / "velodyne_points" / "data" / f"{frame}.bin"
@@ -290,7 +290,7 @@ def test_missing_and_truncated_scans(kitti, tmp_path):
     assert not out.exists()
 
 
-def test_bad_arguments(kitti, tmp_path):
+def test_bad_arguments(kitti, tmp_path, run):
     root, split_file, _ = kitti
     _fail(run("--root", root, "--split", "nyu_test", "--out", tmp_path / "o.npz"), "nyu_test", "eigen")
     _fail(run("--root", tmp_path / "nowhere", "--split", split_file, "--out", tmp_path / "o.npz"), "--root")

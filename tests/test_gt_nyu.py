@@ -9,10 +9,8 @@ import cv2
 import h5py
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from PIL import Image
 
-from robodepth_cli.cli import main
 
 SCENES = ["bathroom", "kitchen", "bathroom", "living_room", "bedroom"]
 
@@ -67,8 +65,9 @@ def bts_files(rgb, depth, folder, i, scene):
     cv2.imwrite(str(folder / scene / f"rgb_{i:05d}.jpg"), black)
 
 
-def run(*args):
-    return CliRunner().invoke(main, [*map(str, args), "--no-progress"])
+@pytest.fixture
+def run(cli):
+    return cli
 
 
 @pytest.fixture
@@ -78,7 +77,7 @@ def labeled(tmp_path):
     return path, rgb, depth
 
 
-def test_gt_nyu_from_labeled_file_is_bts_layout(labeled, tmp_path):
+def test_gt_nyu_from_labeled_file_is_bts_layout(labeled, tmp_path, run):
     path, rgb, depth = labeled
     split = write_split(tmp_path / "split.txt", [2, 0, 4])
     out = tmp_path / "out"
@@ -122,7 +121,7 @@ def test_clean_image_is_bts_jpeg_decoded(labeled, tmp_path):
     assert not np.array_equal(got, rgb[3])  # the border and the JPEG round trip did something
 
 
-def test_gt_nyu_from_bts_folder_copies_depth(tmp_path):
+def test_gt_nyu_from_bts_folder_copies_depth(tmp_path, run):
     rng = np.random.default_rng(3)
     root = tmp_path / "nyu"
     (root / "bedroom").mkdir(parents=True)
@@ -150,7 +149,7 @@ def _fail(res, *needles):
         assert n in lines[0], lines[0]
 
 
-def test_bad_split_lines(labeled, tmp_path):
+def test_bad_split_lines(labeled, tmp_path, run):
     path, *_ = labeled
     out = tmp_path / "out"
     split = tmp_path / "split.txt"
@@ -167,14 +166,14 @@ def test_bad_split_lines(labeled, tmp_path):
 
 
 @pytest.mark.parametrize("drop", ["images", "rawDepths", "sceneTypes"])
-def test_labeled_file_without_a_dataset(tmp_path, drop):
+def test_labeled_file_without_a_dataset(tmp_path, drop, run):
     path = tmp_path / "labeled.mat"
     write_labeled(path, scenes=SCENES[:2], drop=drop)
     split = write_split(tmp_path / "split.txt", [0, 1])
     _fail(run("gt", "nyu", "--root", path, "--split", split, "--out", tmp_path / "out"), str(path), repr(drop))
 
 
-def test_not_hdf5_and_wrong_layout(tmp_path):
+def test_not_hdf5_and_wrong_layout(tmp_path, run):
     split = write_split(tmp_path / "split.txt", [0])
     mat = tmp_path / "labeled.mat"
     mat.write_bytes(b"MATLAB 5.0 MAT-file" + bytes(200))
