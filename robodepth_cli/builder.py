@@ -43,7 +43,7 @@ from pathlib import Path
 from . import __version__, manifest, splits
 from .config import BuildConfig
 from .datasets import CLEAN, Dataset, Entry, Job, Renderer, get_dataset, locate, read_split
-from .imageio import PNG_ENCODER, ImageError, load_clean, write_png
+from .imageio import PNG_ENCODER, ImageError, load_clean, resize_lanczos, write_png
 from .files import sha256_bytes, sha256_file
 from .manifest import Row
 from .errors import RobodepthError
@@ -75,6 +75,7 @@ class Source:
     rel: str  # the image's path relative to the root; "" when it was not found
     path: str | None  # the image's absolute path; None when it was not found
     error: str = ""  # why the image cannot be used; "" when it was found
+    frame: int | None = None  # the image's index when ``path`` is NYU's labeled .mat file
 
     @classmethod
     def find(cls, root: Path, entry: Entry) -> "Source":
@@ -115,6 +116,7 @@ class Summary:
     errors: list[str] = field(default_factory=list)  # distinct messages, first ones only
     fatal: str = ""  # the error that stopped the build
     interrupted: bool = False
+    notes: list[str] = field(default_factory=list)  # e.g. why the ground truth was not made
 
     def add(self, state: JobState, row: Row) -> None:
         if state is JobState.WRITTEN:
@@ -140,7 +142,7 @@ class Summary:
 
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in ("total", "written", "skipped", "failed", "seconds",
-                                               "errors", "fatal", "interrupted")}
+                                               "errors", "fatal", "interrupted", "notes")}
 
     def text(self) -> str:
         done = self.written + self.skipped + self.failed
@@ -154,17 +156,20 @@ class Summary:
             lines += [f"  {e}" for e in self.errors]
             if self.failed > len(self.errors):
                 lines.append(f"  ... {self.failed} failed images in all")
+        lines += [f"note: {n}" for n in self.notes]
         return "\n".join(lines)
 
 
 # --- the build, step by step (main process) ------------------------------------------------
 
 def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
-          command: list[str] | None = None, executor: Executor | None = None) -> Summary:
+          command: list[str] | None = None, executor: Executor | None = None,
+          gt: bool = True) -> Summary:
     """Build dataset ``cfg`` from ``root`` into ``out`` (see the module docstring).
 
     ``executor`` runs the tasks; by default a :class:`LocalExecutor` with ``cfg.jobs``
-    workers (never more than there are source images).
+    workers (never more than there are source images). With ``gt``, the images are
+    followed by the dataset's ground truth (:func:`add_ground_truth`).
 
     Raises :class:`BuildError`, ``SplitError`` or ``ManifestError`` for whole-build problems
     (before any work) and returns the :class:`Summary` otherwise; ``Summary.complete`` is
@@ -172,7 +177,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     (Ctrl-C; the manifest and record are saved first).
     """
     ds = get_dataset(cfg.dataset)
-    root = check_root(root)
+    root = check_root(root, labeled_ok=ds.split_format == "nyu")
     split_path = splits.split_path(cfg.split)
     sources = find_sources(root, split_path, ds, cfg.limit)
     renderer = make_renderer(ds, cfg)
@@ -186,15 +191,19 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1)
         summary = run_tasks(tasks, ctx, executor, out, progress)
+        if gt and not (summary.interrupted or summary.fatal):
+            add_ground_truth(ds, cfg, root, split_path, out, summary, progress)
         finish(out, record, summary)
     return summary
 
 
-def check_root(root: Path) -> Path:
+def check_root(root: Path, labeled_ok: bool = False) -> Path:
+    """The resolved root: a directory, or with ``labeled_ok`` also a file (NYU's official
+    labeled .mat)."""
     root = Path(root)
     if not root.exists():
         raise BuildError(f"{root}: the root directory does not exist")
-    if not root.is_dir():
+    if not root.is_dir() and not (labeled_ok and root.is_file()):
         raise BuildError(f"{root}: the root is not a directory")
     return Path(os.path.realpath(root))
 
@@ -204,10 +213,36 @@ def find_sources(root: Path, split_path: Path, ds: Dataset, limit: int | None = 
     order, under the resolved directory ``root``. Raises :class:`BuildError` when none of
     them is there (most likely the wrong root)."""
     entries = read_split(split_path, ds.split_format)[:limit]
-    sources = [Source.find(root, e) for e in entries]
+    if root.is_file():
+        sources = labeled_sources(root, split_path, entries)
+    else:
+        sources = [Source.find(root, e) for e in entries]
     if all(s.error for s in sources):
         raise BuildError(f"{root}: none of the {len(sources)} images of {split_path} is there; "
                          f"wrong --root? (first: {sources[0].error})")
+    return sources
+
+
+def labeled_sources(path: Path, split_path: Path, entries: list[Entry]) -> list[Source]:
+    """The sources of a NYU split in the official labeled file at ``path``: frame ``N`` of
+    the file for ``SCENE/rgb_N``. A line whose frame is not in the file, or is of another
+    scene, is that image's failure; a file that is not the labeled file is a
+    :class:`BuildError`."""
+    from . import gt_nyu
+
+    try:
+        labeled = gt_nyu.opened(path)
+    except gt_nyu.NyuError as exc:
+        raise BuildError(str(exc)) from None
+    sources = []
+    for e in entries:
+        rgb = e.key[: -len(".png")]  # the key is the split's RGB path with the extension .png
+        try:
+            i = gt_nyu.frame_index(labeled, rgb)
+        except gt_nyu.NyuError as exc:
+            sources.append(Source(e.key, "", None, f"{split_path}:{e.line}: {exc}"))
+            continue
+        sources.append(Source(e.key, gt_nyu.source_name(path, i), str(path), frame=i))
     return sources
 
 
@@ -332,6 +367,32 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
             bar.update(len(results))
             if summary.fatal:
                 return
+
+
+def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: Path, out: Path,
+                     summary: Summary, progress: bool) -> None:
+    """Write the ground truth of the built frames (see :mod:`robodepth_cli.build_gt`) as
+    manifest rows counted in ``summary``; when it cannot be made at all, only a note."""
+    from . import build_gt
+
+    plan = build_gt.plan_gt(ds.split_format, root, split_path, cfg.limit)
+    if plan.note:
+        summary.notes.append(plan.note)
+        return
+    summary.total += len(plan.jobs)
+    try:
+        with manifest.ManifestWriter(out) as writer:
+            for state, row in build_gt.run_gt(plan, out, manifest.read_manifest(out), progress):
+                state = JobState(state)
+                if state is not JobState.SKIPPED:
+                    writer.append([row])
+                summary.add(state, row)
+                if state is JobState.FATAL:
+                    return
+    except KeyboardInterrupt:
+        summary.interrupted = True
+    except OSError as exc:
+        summary.fatal = _cannot_write(out / manifest.MANIFEST, exc)
 
 
 def finish(out: Path, record: dict, summary: Summary) -> None:
@@ -461,8 +522,12 @@ def _load(src: Source, size: tuple[int, int]):
     if src.error:
         return None, src.error
     try:
+        if src.frame is not None:
+            from .gt_nyu import source_image
+
+            return resize_lanczos(source_image(src.path, src.frame), size), ""
         return load_clean(src.path, size), ""
-    except ImageError as exc:
+    except RobodepthError as exc:  # ImageError, or a labeled file's NyuError
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
         return None, f"{src.path}: {type(exc).__name__}: {exc}"

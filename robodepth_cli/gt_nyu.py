@@ -34,7 +34,7 @@ HEIGHT, WIDTH = 480, 640
 ROWS, COLS = slice(7, 474), slice(7, 632)
 DEPTH_SCALE = np.float32(1000.0)  # sync_depth PNGs hold millimetres
 KEYS = ("images", "rawDepths", "sceneTypes")
-_RGB_NAME = re.compile(r"rgb_(\d+)\.[A-Za-z]+")
+_RGB_NAME = re.compile(r"rgb_(\d+)(?:\.[A-Za-z]+)?")
 
 
 class NyuError(RobodepthError):
@@ -207,8 +207,9 @@ def encode_depth_png(depth_mm: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def read_depth_png(path: Path) -> bytes:
-    """The bytes of a BTS ``sync_depth`` file, checked to be a single-channel 16-bit PNG."""
+def read_depth_png(path: Path) -> tuple[bytes, tuple[int, int]]:
+    """The bytes of a BTS ``sync_depth`` file, checked to be a single-channel 16-bit PNG,
+    and its size (H, W)."""
     import cv2
 
     path = Path(path)
@@ -224,25 +225,62 @@ def read_depth_png(path: Path) -> bytes:
     if img.dtype != np.uint16 or img.ndim != 2:
         raise NyuError(f"{path}: a {img.dtype} PNG with {1 if img.ndim == 2 else img.shape[2]} channel(s); "
                        f"depth is a 16-bit single-channel PNG")
-    return data
+    return data, img.shape
+
+
+def frame_index(labeled: LabeledFile, rgb: str) -> int:
+    """The index in ``labeled`` of the split's RGB path ``rgb`` (``SCENE/rgb_NNNNN.<ext>``):
+    ``NNNNN``, checked to be within the file and a frame of scene ``SCENE``. Raises
+    :class:`NyuError` (the message starts with ``rgb``) otherwise."""
+    frame = NyuFrame(0, rgb, "")
+    i = frame.index
+    if i is None:
+        raise NyuError(f"{rgb}: not named rgb_NNNNN.<ext>, so no frame of {labeled.path.name} can be "
+                       f"found for it")
+    if i >= labeled.n:
+        raise NyuError(f"{rgb}: frame {i} is beyond {labeled.path}, which has {labeled.n} frames")
+    if not frame.scene:
+        raise NyuError(f"{rgb}: no scene folder (expected SCENE/rgb_NNNNN.jpg)")
+    scene = labeled.scene(i)
+    if scene != frame.scene:
+        raise NyuError(f"{rgb}: frame {i} of {labeled.path} is a {scene!r} scene, not {frame.scene!r}")
+    return i
 
 
 def check_frames(labeled: LabeledFile, frames: Sequence[NyuFrame], split_name: str) -> None:
-    """Every frame names a frame of ``labeled`` (``rgb_NNNNN``, within the file) in the
-    scene the file gives it; :class:`NyuError` naming the first split line that does not."""
+    """Every frame names a frame of ``labeled`` (:func:`frame_index`); :class:`NyuError`
+    naming the first split line that does not."""
     for f in frames:
-        where = f"{split_name}:{f.line}: {f.rgb}"
-        i = f.index
-        if i is None:
-            raise NyuError(f"{where}: not named rgb_NNNNN.<ext>, so no frame of {labeled.path.name} "
-                           f"can be found for it")
-        if i >= labeled.n:
-            raise NyuError(f"{where}: frame {i} is beyond {labeled.path}, which has {labeled.n} frames")
-        if not f.scene:
-            raise NyuError(f"{where}: no scene folder (expected SCENE/rgb_NNNNN.jpg)")
-        scene = labeled.scene(i)
-        if scene != f.scene:
-            raise NyuError(f"{where}: frame {i} of {labeled.path} is a {scene!r} scene, not {f.scene!r}")
+        try:
+            frame_index(labeled, f.rgb)
+        except NyuError as exc:
+            raise NyuError(f"{split_name}:{f.line}: {exc}") from None
+
+
+def source_name(path: Path, index: int) -> str:
+    """How a build's manifest names frame ``index`` of the labeled file at ``path``."""
+    return f"{Path(path).name}#{index}"
+
+
+_opened: dict[str, LabeledFile] = {}
+
+
+def opened(path: str | Path) -> LabeledFile:
+    """The labeled file at ``path``, opened once per process (build workers read many frames)."""
+    key = str(path)
+    if key not in _opened:
+        _opened[key] = LabeledFile(path)
+    return _opened[key]
+
+
+def source_image(path: str | Path, index: int):
+    """The clean source of frame ``index`` of the labeled file at ``path`` as a Pillow RGB
+    image: BTS's JPEG of it (:func:`bts_jpeg`), decoded as a JPEG file is."""
+    from PIL import Image
+
+    data = bts_jpeg(opened(path).rgb(index))
+    with Image.open(io.BytesIO(data)) as im:
+        return im.convert("RGB")
 
 
 def export(root: Path, frames: Sequence[NyuFrame], out: Path, *, split_name: str = "split",
@@ -280,7 +318,7 @@ def export(root: Path, frames: Sequence[NyuFrame], out: Path, *, split_name: str
         except NyuError as exc:
             raise NyuError(f"{split_name}:{f.line}: {exc}") from None
     for f in frames:
-        data = read_depth_png(root / f.depth)
+        data, _ = read_depth_png(root / f.depth)
         write_atomic(out / f.depth, data)
         written.append((f.depth, sha256_bytes(data)))
         if progress:

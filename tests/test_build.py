@@ -75,7 +75,11 @@ def test_nyu_layout_and_no_resize(fixtures_dir, tmp_path, cli):
     assert res.exit_code == 0, res.output
     keys = ["bedroom/rgb_00001.png", "bedroom/rgb_00119.png"]
     files = tree(out)
-    assert set(files) == expected_paths(keys, ["brightness"], [4])
+    # The ground truth comes along: the BTS folder's depth files, copied.
+    depths = {f"gt/bedroom/sync_depth_{n}.png" for n in ("00001", "00119")}
+    assert set(files) == expected_paths(keys, ["brightness"], [4]) | depths
+    for path in depths:
+        assert files[path] == (fixtures_dir / "nyu" / path[3:]).read_bytes()
     # 480 x 640 sources are used as they are: the clean PNG holds the decoded JPEG exactly.
     src = np.asarray(Image.open(fixtures_dir / "nyu/bedroom/rgb_00119.jpg").convert("RGB"))
     assert src.shape == (480, 640, 3)

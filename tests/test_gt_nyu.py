@@ -1,6 +1,6 @@
 """`robodepth gt nyu` from a small HDF5 file in the layout of the official
-``nyu_depth_v2_labeled.mat`` (written here with h5py), against BTS's extraction written here
-from the rules: border blacked out, OpenCV JPEG at its default quality, depth * 1000 in
+``nyu_depth_v2_labeled.mat`` (written with h5py by _gt_trees.py), against BTS's extraction written
+there from the rules: border blacked out, OpenCV JPEG at its default quality, depth * 1000 in
 float32 truncated to uint16."""
 
 from __future__ import annotations
@@ -11,58 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-
-SCENES = ["bathroom", "kitchen", "bathroom", "living_room", "bedroom"]
-
-
-def smooth_image(rng, h=480, w=640):
-    small = rng.integers(0, 256, (h // 16, w // 16, 3), dtype=np.uint8)
-    img = cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
-    return np.clip(img.astype(int) + rng.integers(-8, 9, img.shape), 0, 255).astype(np.uint8)
-
-
-def write_labeled(path, scenes=SCENES, seed=0, drop=None):
-    """An HDF5 file laid out like the official labeled file (MATLAB v7.3: a 512-byte user
-    block; arrays stored transposed; scene names as references to uint16 character codes).
-    Returns the RGB images (N x 480 x 640 x 3) and depths (N x 480 x 640, float32)."""
-    rng = np.random.default_rng(seed)
-    n = len(scenes)
-    rgb = np.stack([smooth_image(rng) for _ in range(n)])
-    depth = rng.uniform(0, 10, (n, 480, 640)).astype(np.float32)
-    depth[:, :4, :4] = np.float32(0.7)  # 700 in float32 arithmetic, 699 in float64
-    depth[:, 4:8, :4] = 0
-    with h5py.File(path, "w", userblock_size=512) as f:
-        if drop != "images":
-            f.create_dataset("images", data=rgb.transpose(0, 3, 2, 1))  # N x 3 x 640 x 480
-        if drop != "rawDepths":
-            f.create_dataset("rawDepths", data=depth.transpose(0, 2, 1))  # N x 640 x 480
-        refs = f.create_group("#refs#")
-        targets = [refs.create_dataset(f"s{i}", data=np.array([[ord(c)] for c in name], dtype=np.uint16)).ref
-                   for i, name in enumerate(scenes)]
-        if drop != "sceneTypes":
-            st = f.create_dataset("sceneTypes", (1, n), dtype=h5py.ref_dtype)
-            st[0, :] = targets
-    return rgb, depth
-
-
-def write_split(path, indices, scenes=SCENES):
-    path.write_text("\n".join(f"{scenes[i]}/rgb_{i:05d}.jpg {scenes[i]}/sync_depth_{i:05d}.png 518.8579"
-                              for i in indices))
-    return path
-
-
-# --- BTS's extraction, from the rules ---------------------------------------------------------
-
-def bts_files(rgb, depth, folder, i, scene):
-    """What BTS's extraction script writes for frame i, into ``folder``."""
-    (folder / scene).mkdir(parents=True, exist_ok=True)
-    scaled = depth * 1000.0  # float32 array times a Python float: float32
-    assert scaled.dtype == np.float32
-    cv2.imwrite(str(folder / scene / f"sync_depth_{i:05d}.png"), scaled.astype(np.uint16))
-    bgr = rgb[:, :, ::-1]
-    black = np.zeros((480, 640, 3), dtype=np.uint8)
-    black[7:474, 7:632, :] = bgr[7:474, 7:632, :]
-    cv2.imwrite(str(folder / scene / f"rgb_{i:05d}.jpg"), black)
+from _gt_trees import SCENES, bts_files, write_labeled, write_split
 
 
 @pytest.fixture

@@ -39,9 +39,12 @@ _LISTED = 20  # paths shown per kind of problem by verify
               "ROOT and OUT must be shared paths every worker sees.")
 @click.option("--scheduler-file", metavar="FILE", help="Like --scheduler, with the address read from the "
               "scheduler's JSON file (dask scheduler --scheduler-file, dask-jobqueue, dask-mpi).")
+@click.option("--gt/--no-gt", default=True, show_default=True,
+              help="Also write the ground truth: OUT/gt_depths.npz (KITTI, from the velodyne scans) "
+                   "or OUT/gt/<scene>/sync_depth_N.png (NYU).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
-def build_command(dataset, root, out, config_file, progress, **flags):
+def build_command(dataset, root, out, config_file, progress, gt, **flags):
     """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s) from ROOT into OUT.
 
     Writes OUT/clean/<image> and OUT/<corruption>/<level>/<image> (kitti-s:
@@ -49,6 +52,11 @@ def build_command(dataset, root, out, config_file, progress, **flags):
     the source's path (KITTI: kitti_data/<date>/<drive>/image_02/data/<frame>.png), plus
     OUT/manifest.csv (one row and sha256 per file) and OUT/build.json (config, versions).
     Settings come from configs/DATASET.yaml, then --config FILE, then the flags.
+
+    The ground truth comes with the images (--no-gt: not): KITTI's OUT/gt_depths.npz from
+    ROOT/<date>/<drive>/velodyne_points (if a scan is missing, a note says so and
+    'robodepth gt kitti' makes it later), NYU's OUT/gt/<scene>/sync_depth_N.png. For
+    nyudepth2-c, ROOT may be the official nyu_depth_v2_labeled.mat instead of a BTS folder.
 
     Rerunning the same command redoes only missing or changed outputs. Exit status: 0 all
     done, 1 some images failed (the rest is built; see the summary), 2 refused before any
@@ -59,6 +67,7 @@ def build_command(dataset, root, out, config_file, progress, **flags):
     Examples:
       robodepth build kitti-c --root KITTI_RAW --out KITTI_C
       robodepth build nyudepth2-c --root NYU_TEST --out NYU_C --jobs 2
+      robodepth build nyudepth2-c --root nyu_depth_v2_labeled.mat --out NYU_C
       robodepth build kitti-c --root KITTI_RAW --out /tmp/look --limit 2 --levels 3
       robodepth build kitti-s --root KITTI_RAW --styles STYLES --vgg vgg_normalised.pth \\
           --decoder decoder.pth --out KITTI_S
@@ -76,7 +85,8 @@ def build_command(dataset, root, out, config_file, progress, **flags):
             raise RobodepthError("--scheduler and --scheduler-file: give one of them, not both")
         cfg = resolve(dataset, config_file, flags)
         with _executor(cfg) as executor:
-            summary = build(cfg, root, out, progress=progress, command=sys.argv, executor=executor)
+            summary = build(cfg, root, out, progress=progress, command=sys.argv, executor=executor,
+                            gt=gt)
     except KeyboardInterrupt:  # before or after the images (the build itself handles its own)
         click.echo(interrupted, err=True)
         sys.exit(130)

@@ -1,0 +1,218 @@
+"""The ground truth a build writes beside its images, so the dataset can be evaluated as it is.
+
+- KITTI-C, KITTI-C-HR, KITTI-S (Eigen-format splits): ``OUT/gt_depths.npz``, the depth maps
+  of the built frames in split order (:mod:`robodepth_cli.gt_kitti`), one manifest row.
+  Made only when every frame has its velodyne file; otherwise a note says which is missing
+  and that ``robodepth gt kitti`` can make it later.
+- NYUDepth2-C (NYU-format splits): ``OUT/gt/<depth path of the split line>``, e.g.
+  ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.gt_nyu`), one row each:
+  made from the labeled ``.mat`` when that is the root, copied from a BTS test folder
+  otherwise (when every listed depth file is there; else a note).
+
+Rows have the variant ``gt``, no level, seed 0 and the depth map's size (0 x 0 for the npz,
+whose maps differ in size). ``params`` fingerprints the inputs (file sizes and modification times, and
+for KITTI the frame list), so a rebuild skips ground truth whose file matches its row and
+whose inputs have not changed. A failure (a bad calibration, a truncated scan, a frame of
+another scene) is a failed row, like a broken image.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import RobodepthError
+from .manifest import Row
+
+GT = "gt"  # the variant of ground-truth rows
+KITTI_FILE = "gt_depths.npz"
+NYU_DIR = "gt"
+_VERSION = "1"  # bump when the ground truth of the same inputs changes
+
+
+@dataclass(frozen=True)
+class GtJob:
+    """One ground-truth output of a build."""
+
+    output: str  # relative to OUT
+    source: str  # what it is made from, for the manifest
+    params: str  # fingerprint of the inputs
+    frames: tuple = ()  # KITTI: the KittiFrames; NYU: (NyuFrame,)
+    error: str = ""  # known before any work (a NYU frame not in the labeled file)
+
+
+@dataclass
+class GtPlan:
+    kind: str  # "kitti" or "nyu"
+    root: Path
+    split_name: str
+    jobs: list[GtJob]
+    note: str = ""  # why there is no ground truth, when there is none
+
+
+def _stat(path: Path) -> str:
+    try:
+        st = path.stat()
+    except OSError:
+        return "missing"
+    return f"{st.st_size}:{st.st_mtime_ns}"
+
+
+def _fingerprint(*parts: str) -> str:
+    return hashlib.sha256("\n".join((_VERSION,) + parts).encode()).hexdigest()[:16]
+
+
+def plan_gt(split_format: str, root: Path, split_path: Path, limit: int | None) -> GtPlan:
+    """The ground truth of a build of the first ``limit`` lines of ``split_path`` from
+    ``root`` (a split format of ``eigen`` means KITTI, ``nyu`` NYU)."""
+    root = Path(root)
+    if split_format == "eigen":
+        return _plan_kitti(root, split_path, limit)
+    return _plan_nyu(root, split_path, limit)
+
+
+def _later(command: str) -> str:
+    return f"the images are built; make the ground truth later with: {command}"
+
+
+def _plan_kitti(root: Path, split_path: Path, limit: int | None) -> GtPlan:
+    from . import gt_kitti
+
+    frames = gt_kitti.read_frames(split_path)[:limit]
+    plan = GtPlan("kitti", root, str(split_path), [])
+    missing = gt_kitti.missing_velodyne(root, frames)
+    if missing:
+        more = f" and {len(missing) - 1} other frames" if len(missing) > 1 else ""
+        plan.note = (f"no ground truth: {missing[0].velodyne(root)} (split line {missing[0].line}){more} "
+                     f"missing; " + _later(f"robodepth gt kitti --root KITTI_RAW --split SPLIT "
+                                           f"--out OUT/{KITTI_FILE}"))
+        return plan
+    inputs = [f"{f.folder} {f.frame} {_stat(f.velodyne(root))}" for f in frames]
+    for date in sorted({f.date for f in frames}):
+        inputs += [f"{date}/{name} {_stat(root / date / name)}" for name in (gt_kitti.CAM_TO_CAM, gt_kitti.VELO_TO_CAM)]
+    source = f"{len(frames)} velodyne scans"
+    plan.jobs.append(GtJob(KITTI_FILE, source, _fingerprint(*inputs), tuple(frames)))
+    return plan
+
+
+def _plan_nyu(root: Path, split_path: Path, limit: int | None) -> GtPlan:
+    from . import gt_nyu
+
+    frames = gt_nyu.read_frames(split_path)[:limit]
+    plan = GtPlan("nyu", root, str(split_path), [])
+    if root.is_file():
+        labeled = gt_nyu.opened(root)
+        stat = _stat(root)
+        for f in frames:
+            try:
+                i = gt_nyu.frame_index(labeled, f.rgb)
+            except gt_nyu.NyuError as exc:
+                plan.jobs.append(GtJob(f"{NYU_DIR}/{f.depth}", "", "", (f,), f"{split_path}:{f.line}: {exc}"))
+                continue
+            plan.jobs.append(GtJob(f"{NYU_DIR}/{f.depth}", gt_nyu.source_name(root, i),
+                                   _fingerprint(stat, str(i)), (f,)))
+        return plan
+    missing = [f for f in frames if not (root / f.depth).is_file()]
+    if missing:
+        more = f" and {len(missing) - 1} other depth files" if len(missing) > 1 else ""
+        plan.note = (f"no ground truth: {root / missing[0].depth} (split line {missing[0].line}){more} "
+                     f"missing; " + _later("robodepth gt nyu --root NYU --split SPLIT --out OUT/gt"))
+        return plan
+    for f in frames:
+        plan.jobs.append(GtJob(f"{NYU_DIR}/{f.depth}", f.depth, _fingerprint(_stat(root / f.depth)), (f,)))
+    return plan
+
+
+def _row(job: GtJob, sha: str = "", error: str = "", size: tuple[int, int] = (0, 0)) -> Row:
+    return Row(job.output, job.source, GT, None, 0, size[0], size[1], sha, error, job.params)
+
+
+def _is_done(job: GtJob, out: Path, done: dict[str, Row]) -> Row | None:
+    from .manifest import sha256_file
+
+    r = done.get(job.output)
+    if r is None or r.error or job.error or r.params != job.params or r.source != job.source:
+        return None
+    try:
+        return r if sha256_file(out / job.output) == r.sha256 else None
+    except OSError:
+        return None
+
+
+def run_gt(plan: GtPlan, out: Path, done: dict[str, Row], progress: bool = False):
+    """Make the jobs of ``plan`` that are not done. Yields ``(state, row)`` per job, state
+    one of ``"skipped"``, ``"written"``, ``"failed"``, ``"fatal"`` (a write error)."""
+    from tqdm import tqdm
+
+    out = Path(out)
+    todo = []
+    for job in plan.jobs:
+        r = _is_done(job, out, done)
+        if r is not None:
+            yield "skipped", r
+        else:
+            todo.append(job)
+    if not todo:
+        return
+    if plan.kind == "kitti":
+        yield from _run_kitti(plan, todo[0], out, progress)
+        return
+    with tqdm(total=len(todo), unit="depth", desc="ground truth", disable=None if progress else True,
+              file=sys.stderr, dynamic_ncols=True) as bar:
+        for job in todo:
+            yield _run_nyu(plan, job, out)
+            bar.update(1)
+
+
+def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
+    from threadpoolctl import threadpool_limits
+    from tqdm import tqdm
+
+    from . import gt_kitti
+
+    target = out / job.output
+    with tqdm(total=len(job.frames), unit="frame", desc="ground truth", disable=None if progress else True,
+              file=sys.stderr, dynamic_ncols=True) as bar:
+        try:
+            with threadpool_limits(1, user_api="blas"):
+                maps = list(gt_kitti.depth_maps(plan.root, job.frames, plan.split_name, bar.update))
+        except RobodepthError as exc:
+            target.unlink(missing_ok=True)
+            yield "failed", _row(job, error=str(exc))
+            return
+    try:
+        sha = gt_kitti.save_object_npz(target, maps)
+    except OSError as exc:
+        yield "fatal", _row(job, error=f"{target}: cannot write ({exc.strerror or exc})")
+        return
+    yield "written", _row(job, sha)
+
+
+def _run_nyu(plan: GtPlan, job: GtJob, out: Path):
+    from . import gt_nyu
+    from .imageio import write_atomic
+    from .manifest import sha256_bytes
+
+    target = out / job.output
+    (frame,) = job.frames
+    try:
+        if job.error:
+            raise gt_nyu.NyuError(job.error)
+        if plan.root.is_file():
+            labeled = gt_nyu.opened(plan.root)
+            depth = gt_nyu.sync_depth(labeled.depth(gt_nyu.frame_index(labeled, frame.rgb)))
+            data, size = gt_nyu.encode_depth_png(depth), depth.shape
+        else:
+            data, size = gt_nyu.read_depth_png(plan.root / frame.depth)
+    except RobodepthError as exc:
+        target.unlink(missing_ok=True)
+        return "failed", _row(job, error=str(exc))
+    try:
+        write_atomic(target, data)
+    except OSError as exc:
+        return "fatal", _row(job, error=f"{target}: cannot write ({exc.strerror or exc})")
+    return "written", _row(job, sha256_bytes(data), size=size)
+
+
