@@ -258,7 +258,10 @@ def export(root: Path, frames: Sequence[KittiFrame], out: Path, split_name: str 
     # the CPU, far more wall time on a busy machine) and do not change its result.
     with threadpool_limits(1, user_api="blas"):
         maps = list(depth_maps(root, frames, split_name, progress))
-    save_object_npz(out, maps)
+    try:
+        save_object_npz(out, maps)
+    except OSError as exc:
+        raise GroundTruthError(f"{out}: cannot write ({os_reason(exc)})") from None
     return Path(out)
 
 

@@ -157,11 +157,17 @@ class LabeledFile:
 
     def rgb(self, i: int) -> np.ndarray:
         """Frame ``i``'s image, 480 x 640 x 3 RGB uint8."""
-        return np.ascontiguousarray(self._images[i].T)
+        return np.ascontiguousarray(self._read("images", self._images, i).T)
 
     def depth(self, i: int) -> np.ndarray:
         """Frame ``i``'s raw depth in metres, 480 x 640 float32."""
-        return np.ascontiguousarray(self._depths[i].T)
+        return np.ascontiguousarray(self._read("rawDepths", self._depths, i).T)
+
+    def _read(self, key: str, dataset, i: int) -> np.ndarray:
+        try:
+            return dataset[i]
+        except (OSError, ValueError, KeyError) as exc:  # a damaged or truncated file
+            raise NyuError(f"{self.path}: cannot read {key}[{i}] ({exc})") from None
 
 
 def bts_jpeg(rgb: np.ndarray) -> bytes:
@@ -294,9 +300,15 @@ def export(root: Path, frames: Sequence[NyuFrame], out: Path, *, split_name: str
     file is written; each file is written atomically. Returns ``(relative path, sha256)``
     of every depth file written, in split order.
     """
+    try:
+        return _export(root, frames, Path(out), split_name, rgb, progress)
+    except OSError as exc:  # reads raise NyuError: this is a write into OUT (a full disk, ...)
+        raise NyuError(f"{out}: cannot write ({os_reason(exc)})") from None
+
+
+def _export(root, frames, out, split_name, rgb, progress):
     from .manifest import sha256_bytes
 
-    out = Path(out)
     written = []
     if is_labeled_file(root):
         with LabeledFile(root) as labeled:

@@ -59,10 +59,10 @@ def _bar(total: int, progress: bool):
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def gt_kitti_command(root, split, out, progress):
-    """Write the ground-truth depth of every split frame to OUT, exactly as monodepth2's
-    export_gt_depth.py --split eigen does (camera 2, lidar depth).
+    """monodepth2's gt_depths.npz from velodyne scans.
 
-    OUT is np.savez_compressed(OUT, data=<object array of float32 H x W maps>), in split
+    The ground-truth depth of every split frame, exactly as monodepth2's export_gt_depth.py
+    --split eigen makes it (camera 2, lidar depth). OUT is np.savez_compressed(OUT, data=<object array of float32 H x W maps>), in split
     order; np.load(OUT, allow_pickle=True)["data"] reads it, as monodepth2's and the
     benchmark's evaluation scripts do. The file appears only when every map is made.
     """
@@ -89,9 +89,9 @@ def gt_kitti_command(root, split, out, progress):
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def gt_nyu_command(root, split, out, progress):
-    """Write BTS's NYU test layout for every split frame under OUT.
+    """BTS's NYU test folder from the labeled .mat.
 
-    From the labeled .mat: OUT/SCENE/rgb_NNNNN.jpg (frame NNNNN of the file, outside rows
+    Writes BTS's test layout for every split frame under OUT. From the labeled .mat: OUT/SCENE/rgb_NNNNN.jpg (frame NNNNN of the file, outside rows
     7..473 and columns 7..631 black, JPEG quality 95, as BTS extracts it) and
     OUT/SCENE/sync_depth_NNNNN.png (uint16 millimetres: rawDepths * 1000 in float32,
     truncated). From a BTS folder: its sync_depth files, copied. Every frame is checked
