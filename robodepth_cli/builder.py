@@ -186,7 +186,8 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         claim_out(out)
         tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer)
         executor = executor or LocalExecutor(min(cfg.jobs, len(tasks)))
-        executor.check(root, out, worker_files(cfg), ds.libraries())
+        # A labeled .mat root: the workers must see the folder that holds it.
+        executor.check(root if root.is_dir() else root.parent, out, worker_files(cfg), ds.libraries())
         record = start_record(cfg, ds, root, out, split_path, sources, executor, command)
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1)
