@@ -130,7 +130,7 @@ def _row(job: GtJob, sha: str = "", error: str = "", size: tuple[int, int] = (0,
 
 
 def _is_done(job: GtJob, out: Path, done: dict[str, Row]) -> Row | None:
-    from .manifest import sha256_file
+    from .files import sha256_file
 
     r = done.get(job.output)
     if r is None or r.error or job.error or r.params != job.params or r.source != job.source:
@@ -192,8 +192,8 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
 
 def _run_nyu(plan: GtPlan, job: GtJob, out: Path):
     from . import gt_nyu
-    from .imageio import write_atomic
-    from .manifest import sha256_bytes
+    from .files import write_atomic
+    from .files import sha256_bytes
 
     target = out / job.output
     (frame,) = job.frames

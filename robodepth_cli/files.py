@@ -10,7 +10,9 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
+from typing import BinaryIO, Iterator
 
 _TEMP_PREFIX = "."
 _TEMP_SUFFIX = ".part"
@@ -37,6 +39,28 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
         with os.fdopen(fd, "wb") as fh:
             os.fchmod(fh.fileno(), _FILE_MODE)
             fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+@contextmanager
+def atomic_output(path: str | os.PathLike) -> Iterator[BinaryIO]:
+    """A binary file (opened ``w+b``, so it can be read back) to write ``path``'s contents
+    into, for output too large to hold as one ``bytes``: it replaces ``path`` when the
+    ``with`` block ends without error and is removed otherwise. Same temporary name as
+    :func:`write_atomic`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=path.parent)
+    try:
+        with os.fdopen(fd, "w+b") as fh:
+            os.fchmod(fh.fileno(), _FILE_MODE)
+            yield fh
         os.replace(tmp, path)
     except BaseException:
         try:

@@ -29,9 +29,7 @@ truth is always that of camera 2):
 
 from __future__ import annotations
 
-import os
 import pickle
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -277,34 +275,18 @@ def save_object_npz(path: Path, arrays: Sequence[np.ndarray]) -> str:
     """
     import hashlib
 
-    path = Path(path)
+    from .files import atomic_output
+
     obj = np.empty(len(arrays), dtype=object)
     for i, a in enumerate(arrays):  # item by item: obj[:] = arrays would try to broadcast
         obj[i] = np.ascontiguousarray(a)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w+b") as raw:
-            os.fchmod(raw.fileno(), _file_mode())
-            with zipfile.ZipFile(raw, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
-                with zf.open(NPZ_MEMBER, "w", force_zip64=True) as member:
-                    np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(obj))
-                    pickle.Pickler(member, protocol=5).dump(obj)
-            raw.seek(0)
-            digest = hashlib.sha256()
-            for chunk in iter(lambda: raw.read(1 << 20), b""):
-                digest.update(chunk)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_output(path) as raw:
+        with zipfile.ZipFile(raw, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
+            with zf.open(NPZ_MEMBER, "w", force_zip64=True) as member:
+                np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(obj))
+                pickle.Pickler(member, protocol=5).dump(obj)
+        raw.seek(0)
+        digest = hashlib.sha256()
+        for chunk in iter(lambda: raw.read(1 << 20), b""):
+            digest.update(chunk)
     return digest.hexdigest()
-
-
-def _file_mode() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask

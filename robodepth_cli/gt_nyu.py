@@ -26,7 +26,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .errors import RobodepthError, os_reason
-from .imageio import write_atomic
+from .files import write_atomic
 
 HEIGHT, WIDTH = 480, 640
 # BTS keeps rows 7..473 and columns 7..631 and blacks out the rest (the Kinect
@@ -307,7 +307,7 @@ def export(root: Path, frames: Sequence[NyuFrame], out: Path, *, split_name: str
 
 
 def _export(root, frames, out, split_name, rgb, progress):
-    from .manifest import sha256_bytes
+    from .files import sha256_bytes
 
     written = []
     if is_labeled_file(root):
