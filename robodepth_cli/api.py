@@ -176,6 +176,15 @@ class BuiltDataset:
                 return v
         raise KeyError((name, level))
 
+    def depth_names(self) -> list[str]:
+        """Per image, in split order, the relative path of its ground-truth PNG in a
+        directory of them (a build's ``gt/``, BTS's test folder): the split line's DEPTH
+        field (``bathroom/sync_depth_00045.png``) when the build's split file is still there
+        unchanged, else BTS's naming, ``<scene>/rgb_NNNNN`` -> ``<scene>/sync_depth_NNNNN.png``
+        (other names keep theirs, as ``.png``)."""
+        listed = _split_depths(self.record)
+        return [listed.get(k) or bts_depth_name(k) for k in self.keys]
+
     def ground_truth(self) -> Path | None:
         """The build's own ground truth (``gt_depths.npz`` for KITTI datasets, ``gt/`` for
         NYU), or None when it has none."""
@@ -244,3 +253,40 @@ def _split_keys(record: dict, record_path: Path, ds) -> tuple[str, ...]:
                            "changed since the build; rebuild with this version to record them")
     limit = (record.get("config") or {}).get("limit")
     return tuple(e.key for e in read_split(Path(file), ds.split_format)[:limit])
+
+
+def bts_depth_name(key: str) -> str:
+    """``<scene>/rgb_NNNNN.png`` -> ``<scene>/sync_depth_NNNNN.png`` (BTS's test folder)."""
+    from pathlib import PurePosixPath
+
+    p = PurePosixPath(key)
+    name = p.stem
+    if name.startswith("rgb_"):
+        name = "sync_depth_" + name[len("rgb_"):]
+    return str(p.with_name(name + ".png"))
+
+
+def _split_depths(record: dict) -> dict[str, str]:
+    """{image key: DEPTH field} from the build's NYU-format split file, if it is still
+    there and unchanged; {} otherwise (or for other formats)."""
+    from .datasets import parse_nyu
+    from .manifest import sha256_bytes
+
+    split = record.get("split") or {}
+    try:
+        data = Path(split["path"]).read_bytes()
+    except (KeyError, TypeError, OSError):
+        return {}
+    if sha256_bytes(data) != split.get("sha256"):
+        return {}
+    depths = {}
+    for line in data.decode("utf-8", "replace").splitlines():
+        fields = line.split()
+        if not fields or fields[0].startswith("#"):
+            continue
+        try:
+            key, _ = parse_nyu(fields)
+        except ValueError:
+            return {}  # not an NYU-format split
+        depths[key] = fields[1]
+    return depths

@@ -33,8 +33,9 @@ Predictions (``PRED``) come in either of two forms, per variant:
 Ground truth: KITTI datasets, ``gt_depths.npz`` as monodepth2's ``export_gt_depth.py``
 writes it (``np.load(f, allow_pickle=True)["data"]``: one float map in metres per split
 image, in split order; it is a pickle, so load only files you trust); NYU, a directory of
-16-bit PNGs in millimetres, ``<scene>/sync_depth_NNNNN.png`` for image
-``<scene>/rgb_NNNNN``, as BTS's test set has them. It is read once; each map is kept only as
+16-bit PNGs in millimetres at the split lines' DEPTH paths
+(``<scene>/sync_depth_NNNNN.png`` for image ``<scene>/rgb_NNNNN``), as BTS's test set has
+them. It is read once; each map is kept only as
 its valid pixels when that is smaller (KITTI's sparse lidar maps), else as read.
 """
 
@@ -297,16 +298,6 @@ VALID = {"kitti": kitti_valid, "nyu": nyu_valid}
 
 # --------------------------------------------------------------------------- ground truth
 
-def nyu_gt_name(key: str) -> str:
-    """The ground-truth PNG of NYU image ``key``: ``<scene>/rgb_NNNNN.png`` ->
-    ``<scene>/sync_depth_NNNNN.png`` (BTS's names); other names keep theirs, as ``.png``."""
-    p = PurePosixPath(key)
-    name = p.stem
-    if name.startswith("rgb_"):
-        name = "sync_depth_" + name[len("rgb_"):]
-    return str(p.with_name(name + ".png"))
-
-
 class GroundTruth:
     """The ground-truth maps of a split, read once, in split order.
 
@@ -352,25 +343,26 @@ class GroundTruth:
         return self.shapes[i], index, depth.reshape(-1)[index]
 
 
-def load_ground_truth(path: Path, keys: Sequence[str], protocol: str) -> GroundTruth:
-    """Read the ground truth for ``keys`` (in split order) from ``path``: a ``.npz``/``.npy``
-    file of depth maps in metres (monodepth2's ``gt_depths.npz``), or a directory of 16-bit
-    PNGs in millimetres named as :func:`nyu_gt_name` says. Raises :class:`EvaluationError`
-    naming the file (and map index) for a missing, unreadable or malformed map, and when
-    the file holds another number of maps than the split has images."""
+def load_ground_truth(path: Path, names: Sequence[str], protocol: str) -> GroundTruth:
+    """Read the ground truth of a split's images from ``path``: a ``.npz``/``.npy`` file of
+    depth maps in metres, one per image in split order (monodepth2's ``gt_depths.npz``), or
+    a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
+    image, in split order). Raises :class:`EvaluationError` naming the file (and map index)
+    for a missing, unreadable or malformed map, and when the file holds another number of
+    maps than the split has images."""
     path = Path(path)
     gt = GroundTruth(str(path), protocol)
     if path.is_dir():
-        for i, key in enumerate(keys):
-            file = path / nyu_gt_name(key)
+        for i, name in enumerate(names):
+            file = path / name
             raw = _read_png16(file, f"ground truth of image {i}")
             gt.add(raw.astype(np.float32) / 1000.0, raw, 1000.0,
                    f"{file} (ground truth of image {i})")
         return gt
     maps = _read_gt_file(path)
-    if len(maps) != len(keys):
+    if len(maps) != len(names):
         raise EvaluationError(f"{path}: {len(maps)} ground-truth maps, but the dataset's split has "
-                              f"{len(keys)} images; ground truth and split must match one to one")
+                              f"{len(names)} images; ground truth and split must match one to one")
     for i in range(len(maps)):
         m = np.asarray(maps[i])
         if m.ndim != 2 or m.dtype.kind not in "fiu" or 0 in m.shape:
@@ -689,7 +681,9 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     if gt_path is None:
         raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
                               "NYU); build it with ground truth, run robodepth gt, or pass --gt")
-    truth = load_ground_truth(Path(gt_path), dataset.keys, setup.protocol)
+    gt_path = Path(gt_path)
+    names = dataset.depth_names() if gt_path.is_dir() else dataset.keys
+    truth = load_ground_truth(gt_path, names, setup.protocol)
     n = len(dataset.keys)
     if on_total:
         on_total(n * len(found))

@@ -565,3 +565,34 @@ def test_import_stays_light():
     code = ("import sys, robodepth_cli; assert 'numpy' not in sys.modules; "
             "assert callable(robodepth_cli.open_dataset)")
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
+
+
+def test_nyu_ground_truth_follows_the_split_depth_paths(nyu_c, tmp_path, cli):
+    """A directory of ground truth is read at each split line's DEPTH path; without the
+    split file, at BTS's names (rgb_NNNNN -> sync_depth_NNNNN)."""
+    import hashlib
+
+    out, gts = nyu_c
+    split = tmp_path / "split.txt"
+    split.write_text("bedroom/rgb_00001.jpg depth/first.png 518.8579\n"
+                     "bedroom/rgb_00119.jpg depth/second.png 518.8579\n")
+    record = json.loads((out / "build.json").read_text())
+    record["split"].update(path=str(split), sha256=hashlib.sha256(split.read_bytes()).hexdigest())
+    ds = tmp_path / "NYU"
+    ds.mkdir()
+    (ds / "build.json").write_text(json.dumps(record))
+    (ds / "manifest.csv").write_bytes((out / "manifest.csv").read_bytes())
+    gt_dir = tmp_path / "gt"
+    (gt_dir / "depth").mkdir(parents=True)
+    cv2.imwrite(str(gt_dir / "depth/first.png"), gts[0])
+    cv2.imwrite(str(gt_dir / "depth/second.png"), gts[1])
+    preds = np.stack([g.astype(np.float32) / 1000 * 1.1 for g in gts])
+    pred = write_form1(tmp_path / "P", {"clean": preds, "brightness/1": preds})
+    res = cli("evaluate", ds, "--pred", pred, "--gt", gt_dir, "--out", tmp_path / "r.csv")
+    assert res.exit_code == 0, res.output
+    check_rows(read_csv(tmp_path / "r.csv"), {v: ref_nyu(gts, list(preds)) for v in ("clean", "brightness/1")},
+               NYU_COLS)
+
+    split.write_text("changed since the build\n")
+    res = cli("evaluate", ds, "--pred", pred, "--gt", gt_dir, "--out", tmp_path / "r.csv")
+    assert res.exit_code == 2 and "bedroom/sync_depth_00001.png: no such file" in res.output
