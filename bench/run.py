@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = ("corruptions.py", "build.py", "stylize.py", "cluster.py", "gt.py")
+SCRIPTS = ("corruptions.py", "build.py", "stylize.py", "cluster.py", "gt.py", "evaluate.py")
 
 
 def main() -> int:

@@ -25,18 +25,20 @@ Predictions (``PRED``) come in either of two forms, per variant:
 
 1. one array per variant, N x h x w in split order: ``PRED/clean.npy``,
    ``PRED/<corruption>/<level>.npy``, KITTI-S ``PRED/<style>.npy``; a ``.npz`` holding one
-   array is accepted too. ``.npy`` files are memory-mapped.
+   array is accepted too.
+   A ``.npy`` is read one map at a time.
 2. one file per image, mirroring the dataset tree with the image's name:
    ``PRED/<variant dir>/<image path>`` with the extension ``.npy`` (a 2-D float map) or
    ``.png`` (16-bit, depth = value / ``png_scale``).
 
 Ground truth: KITTI datasets, ``gt_depths.npz`` as monodepth2's ``export_gt_depth.py``
 writes it (``np.load(f, allow_pickle=True)["data"]``: one float map in metres per split
-image, in split order; it is a pickle, so load only files you trust); NYU, a directory of
-16-bit PNGs in millimetres at the split lines' DEPTH paths
-(``<scene>/sync_depth_NNNNN.png`` for image ``<scene>/rgb_NNNNN``), as BTS's test set has
-them. It is read once; each map is kept only as
-its valid pixels when that is smaller (KITTI's sparse lidar maps), else as read.
+image, in split order, as a pickled object array); NYU, a directory of 16-bit PNGs in
+millimetres at the split lines' DEPTH paths (``<scene>/sync_depth_NNNNN.png`` for image
+``<scene>/rgb_NNNNN``), as BTS's test set has them. It is read once, map by map; each map
+is kept only as its valid pixels when that is smaller (KITTI's sparse lidar maps), else as
+read. The pickle is read with only numpy's array reconstructors allowed (see
+:func:`load_ground_truth`).
 """
 
 from __future__ import annotations
@@ -315,19 +317,27 @@ class GroundTruth:
             divisor: float | None = None, where: str | None = None) -> None:
         """Add the next map: ``depth`` in metres; ``raw`` and ``divisor`` (optional) a
         smaller form it can be recomputed from as ``raw.astype(float32) / divisor``."""
+        self.append(self.prepare(depth, raw, divisor,
+                                 where or f"{self.source}: ground-truth map {len(self._items)}"))
+
+    def prepare(self, depth: np.ndarray, raw: np.ndarray | None, divisor: float | None,
+                where: str) -> tuple:
+        """The kept form of one map (see :meth:`add`), not yet added."""
         index = self._valid(depth).astype(np.int32 if depth.size < 2 ** 31 else np.int64)
         if not index.size:
             # The reference would average a NaN into every metric; say which map instead.
-            where = where or f"{self.source}: ground-truth map {len(self._items)}"
             raise EvaluationError(f"{where} has no valid pixel inside the protocol's crop and "
                                   "depth range")
         values = depth.reshape(-1)[index]
         kept = raw if raw is not None else depth
         if index.nbytes + values.nbytes <= kept.nbytes:
-            self._items.append((index, values))
-        else:
-            self._items.append((kept, divisor))
-        self.shapes.append(depth.shape)
+            return depth.shape, (index, values)
+        return depth.shape, (kept, divisor)
+
+    def append(self, prepared: tuple) -> None:
+        shape, item = prepared
+        self._items.append(item)
+        self.shapes.append(shape)
 
     def __len__(self) -> int:
         return len(self._items)
@@ -349,7 +359,13 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str) -> Ground
     a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
     image, in split order). Raises :class:`EvaluationError` naming the file (and map index)
     for a missing, unreadable or malformed map, and when the file holds another number of
-    maps than the split has images."""
+    maps than the split has images.
+
+    A pickled object array (monodepth2's format) is unpickled with nothing but numpy's
+    array and dtype reconstructors allowed, so a crafted file cannot run code, and each map
+    is reduced as soon as it is read: the ~1.3 GB of KITTI maps are never in memory
+    together (peak ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``).
+    """
     path = Path(path)
     gt = GroundTruth(str(path), protocol)
     if path.is_dir():
@@ -359,49 +375,179 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str) -> Ground
             gt.add(raw.astype(np.float32) / 1000.0, raw, 1000.0,
                    f"{file} (ground truth of image {i})")
         return gt
-    maps = _read_gt_file(path)
-    if len(maps) != len(names):
-        raise EvaluationError(f"{path}: {len(maps)} ground-truth maps, but the dataset's split has "
+    count = _read_gt_file(path, gt)
+    if count != len(names):
+        raise EvaluationError(f"{path}: {count} ground-truth maps, but the dataset's split has "
                               f"{len(names)} images; ground truth and split must match one to one")
-    for i in range(len(maps)):
-        m = np.asarray(maps[i])
-        if m.ndim != 2 or m.dtype.kind not in "fiu" or 0 in m.shape:
-            raise EvaluationError(f"{path}: ground-truth map {i} has shape {m.shape} and dtype "
-                                  f"{m.dtype}; expected a 2-D depth map")
-        gt.add(m)
-        maps[i] = None  # release each map once it is reduced to its valid pixels
     return gt
 
 
-def _read_gt_file(path: Path) -> list:
+def _check_gt_map(m, path: Path, i: int) -> np.ndarray:
+    if not isinstance(m, np.ndarray) or m.ndim != 2 or m.dtype.kind not in "fiu" or 0 in m.shape:
+        what = (f"shape {m.shape} and dtype {m.dtype}" if isinstance(m, np.ndarray)
+                else f"a {type(m).__name__}")
+        raise EvaluationError(f"{path}: ground-truth map {i} has {what}; expected a 2-D depth map")
+    return m
+
+
+def _read_gt_file(path: Path, gt: GroundTruth) -> int:
+    """Add every map of a ``.npz``/``.npy`` ground-truth file to ``gt``; return how many.
+
+    monodepth2's file is an object array of differently sized maps, which numpy stores as
+    a pickle. It is unpickled here with only numpy's array and dtype reconstructors allowed
+    (anything else in the file is refused, so a crafted file cannot run code), and each map
+    is reduced to its kept form as soon as it is read: the ~1.3 GB of maps are never in
+    memory together. A plain N x H x W array is read as it is.
+    """
     if not path.exists():
         raise EvaluationError(f"{path}: no such ground-truth file")
     try:
-        # monodepth2's file is a pickled object array of differently sized maps.
-        loaded = np.load(path, allow_pickle=True, encoding="latin1")
+        with open(path, "rb") as raw:
+            if zipfile.is_zipfile(raw):
+                raw.seek(0)
+                with zipfile.ZipFile(raw) as zf:
+                    names = zf.namelist()
+                    member = ("data.npy" if "data.npy" in names
+                              else names[0] if len(names) == 1 else None)
+                    if member is None:
+                        raise EvaluationError(f"{path}: holds {', '.join(names)}; expected 'data' "
+                                              "(monodepth2's gt_depths.npz) or a single array")
+                    with zf.open(member) as fh:
+                        return _read_gt_stream(fh, path, gt)
+            raw.seek(0)
+            return _read_gt_stream(raw, path, gt)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        if isinstance(exc, EvaluationError):
+            raise
         raise EvaluationError(f"{path}: not a numpy .npz/.npy ground-truth file ({exc})") from None
-    if isinstance(loaded, np.lib.npyio.NpzFile):
-        with loaded:
-            names = loaded.files
-            if "data" in names:
-                name = "data"
-            elif len(names) == 1:
-                name = names[0]
-            else:
-                raise EvaluationError(f"{path}: holds arrays {', '.join(names)}; expected 'data' "
-                                      "(monodepth2's gt_depths.npz) or a single array")
-            try:
-                data = loaded[name]
-            except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-                raise EvaluationError(f"{path}: cannot read array {name!r} ({exc})") from None
+
+
+def _read_gt_stream(fh, path: Path, gt: GroundTruth) -> int:
+    fmt = np.lib.format
+    version = fmt.read_magic(fh)
+    if version == (1, 0):
+        shape, fortran, dtype = fmt.read_array_header_1_0(fh)
     else:
-        data = loaded
-    if not isinstance(data, np.ndarray) or data.ndim not in (1, 3):
-        shape = getattr(data, "shape", None)
-        raise EvaluationError(f"{path}: ground truth of shape {shape}; expected N depth maps "
-                              "(an object array of 2-D maps, or N x H x W)")
-    return list(data)
+        shape, fortran, dtype = fmt.read_array_header_2_0(fh)
+    if not dtype.hasobject:
+        if len(shape) != 3:
+            raise EvaluationError(f"{path}: ground truth of shape {shape}; expected N depth maps "
+                                  "(an object array of 2-D maps, or N x H x W)")
+        nbytes = int(np.prod(shape)) * dtype.itemsize
+        buf = fh.read(nbytes)
+        if len(buf) != nbytes:
+            raise EvaluationError(f"{path}: the array ends early (truncated?)")
+        data = np.frombuffer(buf, dtype).reshape(shape, order="F" if fortran else "C")
+        for i in range(len(data)):
+            gt.add(_check_gt_map(data[i], path, i))
+        return len(data)
+    if len(shape) != 1:
+        raise EvaluationError(f"{path}: ground truth of shape {shape}; expected a 1-D object "
+                              "array of 2-D depth maps")
+    counter = iter(range(1 << 62))
+
+    def reduce(m: np.ndarray):
+        i = next(counter)
+        return _Prepared(gt.prepare(_check_gt_map(m, path, i), None, None,
+                                    f"{path}: ground-truth map {i}"))
+
+    data = _MapUnpickler(fh, path, reduce).load()
+    if not isinstance(data, np.ndarray) or data.ndim != 1:
+        raise EvaluationError(f"{path}: does not hold a 1-D array of depth maps")
+    for i, m in enumerate(data):
+        prepared = m if isinstance(m, _Prepared) else getattr(m, "prepared", None)
+        if prepared is None:
+            _check_gt_map(m, path, i)  # raises: not a map
+        gt.append(prepared.value)
+    return len(data)
+
+
+class _Prepared:
+    """A ground-truth map already reduced to its kept form, inside the unpickled array."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value):
+        self.value = value
+
+
+_NUMPY_MODULES = ("numpy", "numpy.core.multiarray", "numpy._core.multiarray",
+                  "numpy.core.numeric", "numpy._core.numeric")
+_ALLOWED = {"ndarray", "dtype", "_reconstruct", "_frombuffer"}
+
+
+class _MapUnpickler:
+    """Unpickles an object array of maps, allowing only numpy's reconstructors and handing
+    each 2-D numeric map to ``reduce`` the moment it is complete (protocol 5:
+    ``_frombuffer``; older protocols: ``ndarray.__setstate__``).
+
+    The unpickler's memo would keep every map's raw bytes alive to the end (pickle
+    memoizes each bytes object and state tuple); every few maps, those large entries are
+    replaced by None. Nothing refers back to them: each map's bytes are its own.
+    """
+
+    PRUNE_EVERY = 8
+    LARGE = 1 << 12  # bytes; the small shared constants (dtype codes, shapes) stay
+
+    def __init__(self, fh, path: Path, reduce):
+        import pickle
+
+        outer = self
+        self._done = 0
+
+        def reduced(arr):
+            result = reduce(arr)
+            outer._done += 1
+            if outer._done % outer.PRUNE_EVERY == 0:
+                outer._prune()
+            return result
+
+        class Map(np.ndarray):
+            def __setstate__(self, state):
+                super().__setstate__(state)
+                if self.dtype.hasobject or self.ndim != 2:
+                    return
+                self.prepared = reduced(np.array(self, copy=True).view(np.ndarray))
+                # Release the pixels: only the reduced form is kept.
+                super().__setstate__((1, (0,), self.dtype, False, b""))
+
+        def frombuffer(*args):
+            arr = outer._frombuffer(*args)
+            if arr.dtype.hasobject or arr.ndim != 2:
+                return arr
+            return reduced(np.array(arr, copy=True))
+
+        # The Python implementation: its memo is a plain dict that can be pruned mid-load.
+        class Unpickler(pickle._Unpickler):
+            def find_class(self, module, name):
+                # Protocol 2 (numpy's np.save before 1.17) spells bytes as _codecs.encode.
+                if (module, name) == ("_codecs", "encode"):
+                    return super().find_class(module, name)
+                if module not in _NUMPY_MODULES or name not in _ALLOWED:
+                    raise EvaluationError(f"{path}: holds a pickled {module}.{name}; ground truth "
+                                          "may hold only numpy arrays (refused, not loaded)")
+                if name == "ndarray":
+                    return Map
+                real = super().find_class(module, name)
+                if name == "_frombuffer":
+                    outer._frombuffer = real
+                    return frombuffer
+                return real
+
+        self._unpickler = Unpickler(fh, encoding="latin1")
+
+    def load(self):
+        return self._unpickler.load()
+
+    def _prune(self) -> None:
+        def large(v) -> bool:
+            if isinstance(v, (bytes, bytearray, str)):
+                return len(v) >= self.LARGE
+            return isinstance(v, tuple) and any(large(x) for x in v)
+
+        memo = self._unpickler.memo
+        for k in [k for k, v in memo.items() if large(v)]:
+            memo[k] = None  # not deleted: new entries are numbered by the memo's length
 
 
 def _read_png16(file: Path, what: str) -> np.ndarray:
@@ -435,12 +581,14 @@ class Predictions:
 
 
 class ArrayPredictions(Predictions):
-    """Form 1: one N x h x w array per variant, ``.npy`` (memory-mapped) or ``.npz``."""
+    """Form 1: one N x h x w array per variant. A ``.npy`` (C order) is read one map at a
+    time from the file; a ``.npz`` (compressed, no random access) is loaded once for its
+    variant."""
 
     def __init__(self, variant: Variant, source: Path):
         self.variant = variant
         self.source = source
-        shape, dtype = _array_header(source)
+        shape, fortran, dtype, self._offset = _array_header(source)
         n = len(variant)
         if len(shape) != 3:
             hint = (" (one axis too many: squeeze it)" if len(shape) == 4 and 1 in shape[1:2]
@@ -452,24 +600,40 @@ class ArrayPredictions(Predictions):
                                   f"{variant.label} (one per image, in split order)")
         if dtype.kind not in "fiu":
             raise EvaluationError(f"{source}: dtype {dtype}; expected numbers")
+        self._shape, self._dtype = shape, dtype
+        self._direct = source.suffix == ".npy" and not fortran
         self._array = None
+        self._fh = None
 
     def read(self, i):
+        where = f"{self.source}: prediction {i}"
+        if self._direct:
+            if self._fh is None:
+                self._fh = open(self.source, "rb")
+            count = self._shape[1] * self._shape[2]
+            self._fh.seek(self._offset + i * count * self._dtype.itemsize)
+            m = np.fromfile(self._fh, dtype=self._dtype, count=count)
+            if m.size != count:
+                raise EvaluationError(f"{where}: the file ends early (truncated?)")
+            return m.reshape(self._shape[1:]), where, False
         if self._array is None:
             if self.source.suffix == ".npz":
                 with np.load(self.source, allow_pickle=False) as z:
                     self._array = z[z.files[0]]
             else:
                 self._array = np.load(self.source, mmap_mode="r", allow_pickle=False)
-        return np.array(self._array[i]), f"{self.source}: prediction {i}", False
+        return np.array(self._array[i]), where, False
 
     def close(self):
         self._array = None
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
 
 
-def _array_header(path: Path) -> tuple[tuple[int, ...], np.dtype]:
-    """Shape and dtype of a ``.npy`` file or of the one array of a ``.npz``, without reading
-    the data."""
+def _array_header(path: Path) -> tuple[tuple[int, ...], bool, np.dtype, int]:
+    """Shape, Fortran order, dtype and data offset of a ``.npy`` file or of the one array of
+    a ``.npz``, without reading the data."""
     fmt = np.lib.format
     try:
         if path.suffix == ".npz":
@@ -491,10 +655,10 @@ def _array_header(path: Path) -> tuple[tuple[int, ...], np.dtype]:
 def _header(fh, fmt):
     version = fmt.read_magic(fh)
     if version == (1, 0):
-        shape, _, dtype = fmt.read_array_header_1_0(fh)
+        shape, fortran, dtype = fmt.read_array_header_1_0(fh)
     else:
-        shape, _, dtype = fmt.read_array_header_2_0(fh)
-    return tuple(shape), dtype
+        shape, fortran, dtype = fmt.read_array_header_2_0(fh)
+    return tuple(shape), fortran, dtype, fh.tell()
 
 
 class FilePredictions(Predictions):

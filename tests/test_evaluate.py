@@ -596,3 +596,51 @@ def test_nyu_ground_truth_follows_the_split_depth_paths(nyu_c, tmp_path, cli):
     split.write_text("changed since the build\n")
     res = cli("evaluate", ds, "--pred", pred, "--gt", gt_dir, "--out", tmp_path / "r.csv")
     assert res.exit_code == 2 and "bedroom/sync_depth_00001.png: no such file" in res.output
+
+
+def _object_npz(path, maps, protocol):
+    """np.savez_compressed(path, data=<object array>) with the given pickle protocol."""
+    import pickle
+    import zipfile
+
+    obj = np.empty(len(maps), object)
+    for i, m in enumerate(maps):
+        obj[i] = m
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        with zf.open("data.npy", "w", force_zip64=True) as member:
+            np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(obj))
+            pickle.Pickler(member, protocol=protocol).dump(obj)
+    return path
+
+
+@pytest.mark.parametrize("protocol", [2, 4, 5])
+def test_ground_truth_file_read_map_by_map(tmp_path, protocol):
+    """The pickled object array is read one map at a time (each reduced to its valid
+    pixels as it arrives); the result is what numpy's own loader gives, for the pickle
+    protocols numpy and the ground-truth writers use."""
+    from robodepth_cli.evaluate import kitti_valid, load_ground_truth
+
+    maps = [lidar_gt((40 + i, 90 + 3 * i), i) for i in range(20)]
+    path = _object_npz(tmp_path / "gt.npz", maps, protocol)
+    loaded = np.load(path, allow_pickle=True)["data"]  # numpy's loader, for comparison
+    gt = load_ground_truth(path, [str(i) for i in range(20)], "kitti")
+    assert len(gt) == 20
+    for i, m in enumerate(loaded):
+        shape, index, values = gt.get(i)
+        assert shape == m.shape
+        assert np.array_equal(index, kitti_valid(m)) and np.array_equal(values, m.reshape(-1)[index])
+
+
+def test_ground_truth_pickle_runs_no_code(kitti_c, kitti_pred, tmp_path, cli):
+    out, gts = kitti_c
+    marker = tmp_path / "ran"
+
+    class Payload:
+        def __reduce__(self):
+            return (Path.touch, (marker,))
+
+    path = _object_npz(tmp_path / "evil.npz", [gts[0], Payload()], 4)
+    res = cli("evaluate", out, "--pred", kitti_pred, "--gt", path, "--out", tmp_path / "r.csv")
+    assert res.exit_code == 2
+    assert "evil.npz: holds a pickled pathlib" in res.output and "may hold only numpy arrays" in res.output
+    assert not marker.exists() and not (tmp_path / "r.csv").exists()
