@@ -270,7 +270,7 @@ def _split_depths(record: dict) -> dict[str, str]:
     """{image key: DEPTH field} from the build's NYU-format split file, if it is still
     there and unchanged; {} otherwise (or for other formats)."""
     from .datasets import parse_nyu
-    from .manifest import sha256_bytes
+    from .files import sha256_bytes
 
     split = record.get("split") or {}
     try:
