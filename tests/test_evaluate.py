@@ -644,3 +644,52 @@ def test_ground_truth_pickle_runs_no_code(kitti_c, kitti_pred, tmp_path, cli):
     assert res.exit_code == 2
     assert "evil.npz: holds a pickled pathlib" in res.output and "may hold only numpy arrays" in res.output
     assert not marker.exists() and not (tmp_path / "r.csv").exists()
+
+
+def test_builds_carry_ground_truth_that_evaluate_reads(fixtures_dir, tmp_path, cli):
+    """No ground truth written by the test: `robodepth build` makes it (KITTI from velodyne
+    scans, NYU from the test folder's sync_depth files) and evaluate finds it. The ground
+    truth itself as the prediction is perfect: abs_rel 0, a1 1 (and silog 0 for NYU)."""
+    import shutil
+
+    raw = tmp_path / "kitti_raw"
+    shutil.copytree(fixtures_dir / "kitti_raw", raw)
+    rng = np.random.default_rng(0)
+    for frame in ("0000000069", "0000000054"):
+        pts = np.column_stack([rng.uniform(5, 70, 30000), rng.uniform(-15, 15, 30000),
+                               rng.uniform(-2, 1, 30000), np.ones(30000)]).astype(np.float32)
+        velo = raw / "2011_09_26/2011_09_26_drive_0002_sync/velodyne_points/data" / f"{frame}.bin"
+        velo.parent.mkdir(parents=True, exist_ok=True)
+        pts.tofile(velo)
+    kitti = tmp_path / "KITTI_C"
+    res = cli("build", "kitti-c", "--root", raw, "--split", fixtures_dir / "kitti_split.txt", "--out", kitti,
+              "--size", "64x96", "--corruptions", "brightness", "--levels", "2", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    assert (kitti / "gt_depths.npz").is_file()
+    maps = np.load(kitti / "gt_depths.npz", allow_pickle=True)["data"]
+    keys = json.loads((kitti / "build.json").read_text())["split"]["keys"]
+    pred = tmp_path / "PK"
+    for v in ("clean", "brightness/2"):
+        for key, m in zip(keys, maps):
+            p = pred / v / key.replace(".png", ".npy")
+            p.parent.mkdir(parents=True, exist_ok=True)
+            np.save(p, np.where(m > 0, m, 1).astype(np.float32))
+    res = cli("evaluate", kitti, "--pred", pred, "--kind", "depth", "--out", tmp_path / "k.csv")
+    assert res.exit_code == 0, res.output
+    for r in read_csv(tmp_path / "k.csv"):
+        assert float(r["abs_rel"]) < 1e-6 and float(r["a1"]) == 1.0
+
+    nyu = tmp_path / "NYU_C"
+    res = cli("build", "nyudepth2-c", "--root", fixtures_dir / "nyu", "--split", fixtures_dir / "nyu_split.txt",
+              "--out", nyu, "--corruptions", "brightness", "--levels", "1", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    pred = tmp_path / "PN"
+    for v in ("clean", "brightness/1"):
+        for n in ("00001", "00119"):
+            p = pred / v / "bedroom" / f"rgb_{n}.png"
+            p.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy(fixtures_dir / "nyu" / "bedroom" / f"sync_depth_{n}.png", p)
+    res = cli("evaluate", nyu, "--pred", pred, "--out", tmp_path / "n.csv")
+    assert res.exit_code == 0, res.output
+    for r in read_csv(tmp_path / "n.csv"):
+        assert float(r["abs_rel"]) < 1e-6 and float(r["a1"]) == 1.0 and abs(float(r["silog"])) < 1e-3
