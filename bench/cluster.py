@@ -8,7 +8,8 @@ plus the clean image (91 PNGs per source) at 192 x 640, alternately:
 - local: ``robodepth build kitti-c ... --jobs 2`` (the joblib pool of 2 processes);
 - cluster: ``robodepth build kitti-c ... --scheduler ADDR`` against a ``dask scheduler``
   and ``dask worker --nworkers 2 --nthreads 1`` started here on 127.0.0.1 (no dashboard),
-  and stopped at the end. The workers are started once and serve every round, as on a
+  with the quieter diagnostics settings README.md recommends (:data:`QUIET`;
+  ``--dask-defaults``: Dask's own), and stopped at the end. The workers are started once and serve every round, as on a
   real cluster; they are stopped (SIGSTOP) while a local build runs, so their idle
   wake-ups do not slow it down.
 
@@ -24,7 +25,7 @@ disturb both alike.
 
 Goal (issue 15): overhead per image under 10% of a local build's time at 192 x 640.
 
-    python bench/cluster.py [--sources N] [--rounds R] [--keep DIR]
+    python bench/cluster.py [--sources N] [--rounds R] [--dask-defaults] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -46,10 +47,21 @@ sys.path.insert(0, str(HERE))
 import build as bench  # noqa: E402  (bench/build.py: input trees and measuring)
 
 GOAL_OVERHEAD = 0.10
+# The settings README.md recommends for build workers: Dask's diagnostics (the dashboard's
+# statistical profiler sampling every task thread every 10 ms, 20 ms event-loop ticks,
+# 0.1-0.5 s monitors) cost each idle worker and nanny several percent of a core.
+QUIET = {
+    "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
+    "DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL": "1s",
+    "DASK_DISTRIBUTED__ADMIN__SYSTEM_MONITOR__INTERVAL": "2s",
+    "DASK_DISTRIBUTED__WORKER__MEMORY__MONITOR_INTERVAL": "1s",
+}
 
 
-def start_cluster(base: Path) -> tuple[list[subprocess.Popen], str]:
+def start_cluster(base: Path, quiet: bool) -> tuple[list[subprocess.Popen], str]:
     env = {k: v for k, v in os.environ.items() if k not in bench.THREAD_VARS}
+    if quiet:
+        env.update(QUIET)
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(bench.REPO), env.get("PYTHONPATH")]))
     sfile = base / "scheduler.json"
     procs = []
@@ -129,6 +141,9 @@ def main(argv=None) -> int:
     ap.add_argument("--sources", type=int, default=16, help="KITTI-C source images (>= 8)")
     ap.add_argument("--rounds", type=int, default=2, help="local/cluster pairs, interleaved")
     ap.add_argument("--keep", type=Path, help="build under this directory and keep it")
+    ap.add_argument("--dask-defaults", action="store_true",
+                    help="start the scheduler and workers with Dask's default diagnostics instead of "
+                         "the quieter settings README.md recommends")
     args = ap.parse_args(argv)
     if args.sources < 8:
         ap.error("--sources must be at least 8")
@@ -137,7 +152,7 @@ def main(argv=None) -> int:
     base = Path(tempfile.mkdtemp(prefix="robodepth-bench-cluster-", dir=args.keep))
     procs = []
     try:
-        procs, address = start_cluster(base)
+        procs, address = start_cluster(base, quiet=not args.dask_defaults)
         return run(base, args, address, procs)
     finally:
         stop_cluster(procs)
@@ -157,7 +172,7 @@ def run(base: Path, args, address: str, procs) -> int:
            str(split), "--size", f"{h}x{w}", "--no-progress"]
     print(f"KITTI-C subset at {h} x {w}: {n} sources x {bench.KITTI_PER_SOURCE + 1} images; "
           f"local pool of {bench.WORKERS} processes vs a Dask cluster of {bench.WORKERS} single-thread "
-          f"workers on 127.0.0.1")
+          f"workers on 127.0.0.1 ({'Dask defaults' if args.dask_defaults else 'quiet settings: ' + ', '.join(f'{k}={v}' for k, v in QUIET.items())})")
     results = {"local": [], "cluster": []}
     for r in range(args.rounds):
         for kind in ("local", "cluster"):

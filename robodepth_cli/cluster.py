@@ -366,12 +366,11 @@ class DaskExecutor:
     def _task_error(self, fut, task) -> Exception:
         name = getattr(task, "key", None) or getattr(getattr(task, "source", None), "key", "a task")
         if fut.status != "error":  # cancelled: the scheduler restarted or we lost it
-            return ClusterError(f"{self.address}: the scheduler dropped the build's tasks ({fut.status}); "
-                                f"finished images are kept")
+            return ClusterError(f"{self.address}: the scheduler dropped the build's tasks ({fut.status})")
         exc = fut.exception()
         if type(exc).__name__ == "KilledWorker":
             return ClusterError(f"{name}: its task killed {self.address}'s workers repeatedly "
-                                f"(out of memory?); finished images are kept")
+                                f"(out of memory?)")
         return exc  # a bug in a task: keep its traceback
 
     def describe(self) -> dict:
