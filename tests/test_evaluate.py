@@ -693,3 +693,37 @@ def test_builds_carry_ground_truth_that_evaluate_reads(fixtures_dir, tmp_path, c
     assert res.exit_code == 0, res.output
     for r in read_csv(tmp_path / "n.csv"):
         assert float(r["abs_rel"]) < 1e-6 and float(r["a1"]) == 1.0 and abs(float(r["silog"])) < 1e-3
+
+
+def test_kitti_s_styles(fixtures_dir, kitti_c, tmp_path, cli):
+    """KITTI-S: one row per style (level 0, like the clean row), the kitti protocol; no
+    robustness scores exist for it, so --score is refused before any work."""
+    from adain_fakes import save_checkpoints
+
+    from robodepth_cli import open_dataset
+
+    _, gts = kitti_c
+    vgg, dec, _, _ = save_checkpoints(tmp_path)
+    out = tmp_path / "KITTI_S"
+    res = cli("build", "kitti-s", "--root", fixtures_dir / "kitti_raw", "--split", fixtures_dir / "kitti_split.txt",
+              "--styles", fixtures_dir / "styles", "--vgg", vgg, "--decoder", dec, "--size", "32x96",
+              "--style-size", "32", "--only-styles", "sketch,cartoon", "--jobs", "1", "--out", out)
+    assert res.exit_code == 0, res.output
+    _object_npz(tmp_path / "gt.npz", gts, 4)
+    ds = open_dataset(out)
+    assert [v.relpath for v in ds.variants()] == ["clean", "cartoon", "sketch"]  # the styles' order
+    preds = {}
+    for k, v in enumerate(ds.variants()):
+        preds[v.relpath] = [fake_disp((32, 96), i, 0.1 * k) for i in range(len(v.images()))]
+        v.save_predictions(tmp_path / "P", preds[v.relpath])
+    assert (tmp_path / "P" / "sketch.npy").is_file()
+    res = cli("evaluate", out, "--pred", tmp_path / "P", "--gt", tmp_path / "gt.npz", "--score",
+              "--out", tmp_path / "s.csv")
+    assert res.exit_code == 2 and "--score: kitti-s has no robustness scores" in res.output
+    assert not (tmp_path / "s.csv").exists()
+    res = cli("evaluate", out, "--pred", tmp_path / "P", "--gt", tmp_path / "gt.npz", "--out", tmp_path / "s.csv")
+    assert res.exit_code == 0, res.output
+    rows = read_csv(tmp_path / "s.csv")
+    assert [(r["corruption"], r["level"]) for r in rows] == [("clean", "0"), ("cartoon", "0"), ("sketch", "0")]
+    check_rows(rows, {(v if v == "clean" else f"{v}/0"): ref_kitti(gts, p)[0] for v, p in preds.items()},
+               KITTI_COLS)
