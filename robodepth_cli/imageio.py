@@ -49,21 +49,52 @@ def as_rgb(img: np.ndarray, *, what: str = "image") -> np.ndarray:
     return np.ascontiguousarray(img)
 
 
+def _float_to_gray(im: Image.Image) -> Image.Image:
+    """A float (mode F) image with values in [0, 1] as 8-bit gray: ``round(v * 255)``, the
+    inverse of the usual ``uint8 / 255`` (so a uint8 image saved as floats comes back
+    exactly). Any other range has no agreed meaning and is refused (:class:`ImageError`
+    without the file name, which the caller adds)."""
+    arr = np.asarray(im, dtype=np.float64)
+    if not np.isfinite(arr).all():
+        raise ImageError("float pixels include NaN or infinity; only floats in 0..1 are read")
+    lo, hi = float(arr.min()), float(arr.max())
+    if lo < 0.0 or hi > 1.0:
+        raise ImageError(f"float pixels range over [{lo:g}, {hi:g}]; only floats in 0..1 are "
+                         f"read (scaled to 0..255); convert the image to 8 bits")
+    return Image.fromarray(np.rint(arr * 255.0).astype(np.uint8), "L")
+
+
 def _pil_to_rgb(im: Image.Image) -> Image.Image:
     if im.mode in ("I;16", "I;16B", "I;16L", "I"):
         # 16-bit grayscale: keep the top 8 bits.
         arr = np.asarray(im, dtype=np.uint32) >> 8
         return Image.fromarray(np.clip(arr, 0, 255).astype(np.uint8), "L").convert("RGB")
+    if im.mode == "F":
+        # Pillow would clip the floats to 0..255 as they are: a 0..1 image comes out black.
+        return _float_to_gray(im).convert("RGB")
     return im.convert("RGB")
 
 
-def read_rgb(path: str | os.PathLike) -> Image.Image:
-    """Open an image file fully decoded as an RGB Pillow image, or raise ``ImageError``."""
+def read_rgb(path: str | os.PathLike, *, orient: bool = False) -> Image.Image:
+    """Open an image file fully decoded as an RGB Pillow image, or raise ``ImageError``.
+
+    Grayscale, palette, RGBA and CMYK images are converted to RGB; 16-bit integer pixels
+    keep their top 8 bits; float (mode F) pixels must lie in 0..1 and become
+    ``round(v * 255)`` (other ranges are refused). With ``orient``, the EXIF orientation tag
+    is applied first, so a phone photo comes out the way viewers show it (used for single
+    images; the benchmark sources carry no such tag and are read as stored).
+    """
     path = Path(path)
     try:
         with Image.open(path) as im:
             im.load()
+            if orient:
+                from PIL import ImageOps
+
+                im = ImageOps.exif_transpose(im)
             rgb = _pil_to_rgb(im)
+    except ImageError as exc:
+        raise ImageError(f"{path}: {exc}") from None
     except FileNotFoundError:
         raise ImageError(f"{path}: no such file") from None
     except IsADirectoryError:
@@ -89,8 +120,11 @@ def resize_lanczos(im: Image.Image, size_hw: tuple[int, int] | None) -> np.ndarr
     return np.asarray(im, dtype=np.uint8).copy()
 
 
-def load_clean(path: str | os.PathLike, size_hw: tuple[int, int] | None) -> np.ndarray:
-    return resize_lanczos(read_rgb(path), size_hw)
+def load_clean(path: str | os.PathLike, size_hw: tuple[int, int] | None, *,
+               orient: bool = False) -> np.ndarray:
+    """The clean image of ``path``: :func:`read_rgb` (``orient`` as there), then
+    :func:`resize_lanczos` to ``size_hw``."""
+    return resize_lanczos(read_rgb(path, orient=orient), size_hw)
 
 
 # How encode_png writes, for the build record: the bytes (not the pixels) depend on it.

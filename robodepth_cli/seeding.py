@@ -21,3 +21,18 @@ def job_seed_sequence(seed: int, dataset: str, variant: str, level: int, relpath
 def job_rng(seed: int, dataset: str, variant: str, level: int, relpath: str) -> np.random.Generator:
     """The generator of one job."""
     return np.random.Generator(np.random.PCG64(job_seed_sequence(seed, dataset, variant, level, relpath)))
+
+
+def check_seed(value, where: str = "--seed") -> int:
+    """``value`` as a seed: an integer >= 0 (text of one is accepted, as flags arrive).
+
+    The one rule for every command, ``build --seed`` and ``corrupt``/``preview -s`` alike;
+    :class:`~robodepth_cli.errors.RobodepthError` naming ``where`` otherwise.
+    """
+    from .errors import RobodepthError
+
+    if isinstance(value, str) and value.strip().lstrip("-").isdigit():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise RobodepthError(f"{where}: expected an integer >= 0, got {value!r}")
+    return value

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -27,14 +28,41 @@ def levels(value: str, flag: str = "--level") -> list[int]:
 
 
 def load_input(image: str, size: str | None) -> np.ndarray:
-    """The clean image of one input file, resized (Lanczos) to ``size`` ("HxW") if given."""
+    """The clean image of one input file, resized (Lanczos) to ``size`` ("HxW") if given.
+    Its EXIF orientation is applied first: a photo is corrupted the way viewers show it."""
     from ..imageio import load_clean, parse_size
 
     try:
         size_hw = parse_size(size) if size else None
     except ValueError as exc:
         raise RobodepthError(str(exc)) from None
-    return load_clean(image, size_hw)
+    return load_clean(image, size_hw, orient=True)
+
+
+def seed(value: int, flag: str = "--seed") -> int:
+    """``value`` if it is a valid seed (the same rule as a build's ``--seed``)."""
+    from ..seeding import check_seed
+
+    return check_seed(value, flag)
+
+
+def means_directory(out: str) -> bool:
+    """Whether ``--out`` as typed names a directory: it ends with a path separator, or it
+    is an existing directory."""
+    return out.endswith(("/", os.sep)) or Path(out).is_dir()
+
+
+def png_output(out: str, default_name: str, flag: str = "--out") -> Path:
+    """The PNG file that ``out`` (as typed) names: ``out`` itself, or ``out/default_name``
+    when it means a directory (:func:`means_directory`). Any other name must end in
+    ``.png``: writing PNG bytes under another extension would mislabel the file."""
+    if means_directory(out):
+        return Path(out) / default_name
+    path = Path(out)
+    if path.suffix.lower() != ".png":
+        raise RobodepthError(f"{flag} {out}: the output is written as PNG; give a .png file "
+                             f"name, or a directory (end it with /)")
+    return path
 
 
 def write_png(path: Path, img: np.ndarray) -> None:

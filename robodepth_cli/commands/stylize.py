@@ -22,7 +22,8 @@ from . import common
               help="Resize the style image so its shorter side is N (bilinear); 0 keeps it.")
 @click.option("--size", metavar="HxW", help="First resize the input (Lanczos) as a build does, "
               "e.g. 192x640; default: keep its size.")
-@click.option("--out", "-o", required=True, type=click.Path(dir_okay=False), help="Output PNG.")
+@click.option("--out", "-o", required=True, type=click.Path(),
+              help="Output .png; a directory (or a name ending with /) receives IMAGE_STYLE.png.")
 def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
     """Stylise one image with AdaIN, as a KITTI-S build does.
 
@@ -32,14 +33,12 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
     """
     from ..styles import check_option, load_style
 
-    out = Path(out)
-    if out.suffix.lower() != ".png":
-        raise RobodepthError(f"{out}: the output is written as PNG; give a .png file name")
+    out = common.png_output(out, f"{Path(image).stem}_{Path(style).stem}.png")
     # The same checks as a KITTI-S build's options, with the same messages.
     opts = {}
     for key, value in (("alpha", alpha), ("style_size", style_size), ("vgg", vgg), ("decoder", decoder)):
         try:
-            opts[key] = check_option(key, value, Path.cwd())
+            opts[key] = check_option(key, value, Path())  # paths kept as typed
         except ValueError as exc:
             raise RobodepthError(f"--{key.replace('_', '-')}: {exc}") from None
     content = common.load_input(image, size)
@@ -49,3 +48,4 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
     stylizer = Stylizer.from_files(opts["vgg"], opts["decoder"])
     result = stylizer.stylize(content, [stylizer.style_features(style_img)], opts["alpha"])[0]
     common.write_png(out, result)
+    click.echo(f"wrote {out} ({result.shape[1]} x {result.shape[0]})")
