@@ -72,6 +72,9 @@ class Results:
     source: str
     clean: float
     dee: dict[str, dict[int, float]] = field(default_factory=dict)  # name -> level -> DEE
+    # Another benchmark these rows are a complete set of ("" if none): a model scored
+    # against the wrong one shows up as missing variants, which would not say why.
+    looks_like: str = ""
 
     def missing(self, benchmark: Benchmark) -> list[tuple[str, int]]:
         """The (corruption, level) variants of ``benchmark`` with no row, in benchmark order."""
@@ -212,15 +215,45 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
                                    for n in benchmark.corruptions if n in table})
 
 
+def other_benchmark(text: str, source: str, benchmark: Benchmark) -> str:
+    """The name of another benchmark of which ``text`` holds every variant, or ""."""
+    for other in BENCHMARKS.values():
+        if other.name == benchmark.name:
+            continue
+        try:
+            if not parse_results(text, source, other).missing(other):
+                return other.name
+        except ScoreError:
+            pass
+    return ""
+
+
+def _looks_like(name: str) -> str:
+    b = BENCHMARKS[name]
+    return (f"the rows look like {name} results ({len(b.corruptions)} corruptions x "
+            f"{b.n_levels} levels): use --benchmark {name}")
+
+
 def read_results(path: str | Path, benchmark: Benchmark) -> Results:
-    """Read and parse a results CSV file; I/O and decoding problems become ScoreError."""
+    """Read and parse a results CSV file; I/O and decoding problems become ScoreError.
+    When the rows do not fit ``benchmark`` but are a complete set of another one, the error
+    (or :attr:`Results.looks_like`, for rows that merely leave variants missing) says so."""
     try:
         text = Path(path).read_bytes().decode("utf-8-sig")
     except UnicodeDecodeError:
         raise ScoreError(f"{path}: not a UTF-8 text file") from None
     except OSError as exc:
         raise ScoreError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    return parse_results(text, str(path), benchmark)
+    try:
+        results = parse_results(text, str(path), benchmark)
+    except ScoreError as exc:
+        other = other_benchmark(text, str(path), benchmark)
+        if other:
+            raise ScoreError(f"{exc}; {_looks_like(other)}") from None
+        raise
+    if results.missing(benchmark):
+        results.looks_like = other_benchmark(text, str(path), benchmark)
+    return results
 
 
 def describe_missing(missing: list[tuple[str, int]], benchmark: Benchmark) -> str:
@@ -243,6 +276,9 @@ def missing_message(results: Results, benchmark: Benchmark) -> str | None:
     if not missing:
         return None
     total = len(benchmark.corruptions) * benchmark.n_levels
+    if results.looks_like:  # the list of missing variants would only bury this
+        return (f"{results.source}: {_looks_like(results.looks_like)} (as {benchmark.name} "
+                f"results, {len(missing)} of {total} variants are missing)")
     return (f"{results.source}: missing {len(missing)} of {total} variants: "
             f"{describe_missing(missing, benchmark)}")
 
@@ -334,6 +370,11 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
     unless ``allow_partial``; then they are listed in ``Scores.missing``.
     """
     baseline = baseline or benchmark.baseline
+    for name in benchmark.corruptions:
+        if name in results.dee and not baseline.dee[name] > 0.0:
+            # CE divides by it; a zero is a broken or placeholder baseline, not a model.
+            raise ScoreError(f"{baseline.name}: the baseline DEE of {name} is "
+                             f"{baseline.dee[name]:g}; CE divides by it, so it must be above 0")
     missing = results.missing(benchmark)
     if missing and not allow_partial:
         check_complete(results, benchmark)

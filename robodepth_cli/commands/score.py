@@ -19,8 +19,9 @@ from . import common
 @click.option("--allow-partial", is_flag=True,
               help="Score the variants present; missing ones are a warning, not an error.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Also write a PNG bar chart of CE per corruption.")
+@click.option("--plot", "plot_path", type=click.Path(),
+              help="Also write a PNG bar chart of CE per corruption (.png; a directory, or a "
+                   "name ending with /, receives RESULTS_ce.png).")
 def score_command(results, benchmark, baseline_file, allow_partial, as_json, plot_path):
     """Robustness scores of a model from its per-corruption results (DEE, CE and RR as the benchmark defines them).
 
@@ -36,6 +37,8 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 
     from .. import scores as S
 
+    plot_file = None if plot_path is None else common.png_output(plot_path, f"{results.stem}_ce.png",
+                                                                 "--plot")
     bench = S.get_benchmark(benchmark)
     res = S.read_results(results, bench)
     base = None
@@ -43,14 +46,14 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         base = S.baseline_from_results(S.read_results(baseline_file, bench), bench)
     missing = S.missing_message(res, bench)
     if missing and not allow_partial:
-        raise RobodepthError(f"{missing} (--allow-partial scores what is there)")
+        raise RobodepthError(missing if res.looks_like else f"{missing} (--allow-partial scores what is there)")
     if missing:
         click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
     result = S.score(res, bench, base, allow_partial=True)
-    if plot_path is not None:
+    if plot_file is not None:
         from ..plot import ce_chart
 
-        common.write_png(plot_path, np.asarray(ce_chart(result)))
+        common.write_png(plot_file, np.asarray(ce_chart(result)))
     if as_json:
         click.echo(json.dumps(result.to_json(), indent=2))
     else:
