@@ -140,10 +140,11 @@ def read_state_dict(path: str | os.PathLike) -> dict[str, torch.Tensor]:
             obj = torch.load(path, map_location="cpu", weights_only=True)
     except (pickle.UnpicklingError, RuntimeError, EOFError, zipfile.BadZipFile, ValueError,
             AttributeError, TypeError, ImportError, IndexError, KeyError, OSError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise CheckpointError(
-            f"{path}: not a PyTorch state_dict loadable with weights_only=True ({first[:200]})"
-        ) from None
+        # torch's own text advises turning weights_only off (which would run arbitrary code
+        # from the file) and runs over several lines: say what is wrong in our own words.
+        raise CheckpointError(f"{path}: not a PyTorch state_dict ({_load_problem(path, exc)}); "
+                              f"expected a checkpoint of the AdaIN release such as "
+                              f"vgg_normalised.pth or decoder.pth") from None
     if not isinstance(obj, dict):
         raise CheckpointError(
             f"{path}: expected a state_dict (tensor names -> tensors), got {type(obj).__name__}")
@@ -153,6 +154,20 @@ def read_state_dict(path: str | os.PathLike) -> dict[str, torch.Tensor]:
                 f"{path}: expected a state_dict (tensor names -> tensors); entry {key!r} "
                 f"is a {type(value).__name__}")
     return obj
+
+
+def _load_problem(path: Path, exc: BaseException) -> str:
+    """What a failed ``torch.load`` means, in one short clause."""
+    if isinstance(exc, EOFError):
+        empty = path.stat().st_size == 0 if path.is_file() else False
+        return "the file is empty" if empty else "the file ends too early"
+    if isinstance(exc, zipfile.BadZipFile) or (isinstance(exc, RuntimeError) and "zip" in str(exc)):
+        return "its zip archive is damaged or incomplete; download it again"
+    if isinstance(exc, pickle.UnpicklingError):
+        return "it holds Python objects besides tensors, which are never loaded"
+    if isinstance(exc, OSError):
+        return f"cannot read it: {exc.strerror or exc}"
+    return "the file is not in PyTorch's format"
 
 
 def validate_state_dict(state: dict[str, torch.Tensor], layout: Sequence[tuple], *,

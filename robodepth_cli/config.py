@@ -20,6 +20,7 @@ have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -44,7 +45,7 @@ class ConfigError(RobodepthError):
 class BuildConfig:
     preset: str
     dataset: str
-    split: str  # a standard split name, or an absolute path to a split file
+    split: str  # a standard split name, or a split file's path as typed (joined to its config file's directory)
     size: tuple[int, int]  # (H, W)
     variants: tuple[str, ...]
     levels: tuple[int, ...]
@@ -170,9 +171,32 @@ class _Resolver:
     def dataset(self):
         return get_dataset(self.values["dataset"])
 
+    @classmethod
+    def keys_of(cls, ds) -> tuple[str, ...]:
+        """The config keys dataset ``ds`` takes (no ``levels`` for one without levels)."""
+        return (tuple(k for k in cls.KEYS if k != "levels" or ds.leveled)
+                + (ds.variant_key,) + tuple(ds.options()) + cls.ONE_OF)
+
     def valid_keys(self) -> tuple[str, ...]:
-        ds = self.dataset  # set by the preset, which is applied first
-        return self.KEYS + (ds.variant_key,) + tuple(ds.options()) + self.ONE_OF
+        return self.keys_of(self.dataset)  # set by the preset, which is applied first
+
+    def _elsewhere(self, where: str, key: str) -> str:
+        """For a key another dataset takes: the message saying it does not apply here."""
+        from .datasets import DATASETS
+
+        ds = self.dataset
+        others = [d.name for d in DATASETS.values() if d.name != ds.name and key in self.keys_of(d)]
+        if not others:
+            return ""
+        flag = where.startswith("--")
+        what = where if flag else f"{where}: key {key!r}"
+        hint = ""
+        if key == "levels":
+            hint = f"; {ds.name} has no levels (one output per {ds.variant_noun})"
+        elif any(key == d.variant_key for d in DATASETS.values()):
+            pick = f"--{ds.variant_key.replace('_', '-')}" if flag else repr(ds.variant_key)
+            hint = f"; {ds.name} picks its {ds.variant_noun}s with {pick}"
+        return f"{what} does not apply to {ds.name} (it is a setting of {', '.join(others)}){hint}"
 
     def apply(self, where: str, raw: dict[str, Any], base: Path) -> None:
         if "dataset" in raw:
@@ -181,6 +205,9 @@ class _Resolver:
             if key == "dataset":
                 continue
             if key not in self.valid_keys():
+                elsewhere = self._elsewhere(where, key)
+                if elsewhere:
+                    raise ConfigError(elsewhere)
                 raise ConfigError(f"{where}: unknown key {key!r}; valid keys: {', '.join(self.valid_keys())}")
             self.values[key] = self._check(_loc(where, key), key, value, base)
             self.origin[key] = where
@@ -226,7 +253,12 @@ class _Resolver:
             # A dataset without levels accepts the key and ignores it.
             return choose_levels(loc, v, ds.levels() if ds.leveled else None, owner=ds.name)
         if key == "seed":
-            return _int(loc, v, 0)
+            from .seeding import check_seed
+
+            try:
+                return check_seed(v, loc)  # the rule of every command's seed
+            except RobodepthError as exc:
+                raise ConfigError(str(exc)) from None
         if key == "jobs":
             return _int(loc, v, 1)
         if key == "limit":
@@ -275,8 +307,8 @@ def resolve(preset: str, config_file: Path | None = None,
         raise ConfigError(f"{preset_file}: dataset: missing")
     r.apply(str(preset_file), raw, preset_file.parent)
     if config_file is not None:
-        r.apply(str(config_file), load_yaml(config_file), Path(config_file).resolve().parent)
+        r.apply(str(config_file), load_yaml(config_file), Path(config_file).parent)
     for key, value in (flags or {}).items():
         if value is not None:
-            r.apply(f"--{key.replace('_', '-')}", {key: value}, Path.cwd())
+            r.apply(f"--{key.replace('_', '-')}", {key: value}, Path())
     return r.result()

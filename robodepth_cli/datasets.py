@@ -11,7 +11,6 @@ job's generator, so a PNG and a JPEG copy of a frame get the same noise.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Iterator, Protocol, Sequence
@@ -113,6 +112,9 @@ def parse_nyu(fields: list[str]) -> tuple[str, tuple[str, ...]]:
 
 
 PARSERS = {"eigen": parse_eigen, "nyu": parse_nyu}
+# What a line of each format looks like, for the message when a split of the other one is given.
+SPLIT_KINDS = {"eigen": "a KITTI (Eigen) split (lines 'DATE/DRIVE FRAME SIDE')",
+               "nyu": "an NYU Depth V2 split (lines 'RGB DEPTH FOCAL')"}
 
 
 def read_split(path: Path, split_format: str) -> list[Entry]:
@@ -121,7 +123,8 @@ def read_split(path: Path, split_format: str) -> list[Entry]:
     a split without entries."""
     parse = PARSERS[split_format]
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        # utf-8-sig: a byte-order mark (Windows editors write one) is not part of the first path.
+        text = Path(path).read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise SplitError(f"{path}: not a text file") from None
     except OSError as exc:
@@ -134,6 +137,10 @@ def read_split(path: Path, split_format: str) -> list[Entry]:
         try:
             key, cands = parse(line.split())
         except ValueError as exc:
+            other = _other_format(line, split_format)
+            if other:
+                raise SplitError(f"{path}:{n}: this looks like {SPLIT_KINDS[other]}; this dataset "
+                                 f"needs {SPLIT_KINDS[split_format]}") from None
             raise SplitError(f"{path}:{n}: {exc}") from None
         if key in seen:
             raise SplitError(f"{path}:{n}: duplicate of line {seen[key]} ({key})")
@@ -144,17 +151,30 @@ def read_split(path: Path, split_format: str) -> list[Entry]:
     return entries
 
 
+def _other_format(line: str, split_format: str) -> str:
+    """The other split format that ``line`` parses as, or ""."""
+    for fmt, parse in PARSERS.items():
+        if fmt == split_format:
+            continue
+        try:
+            parse(line.split())
+        except ValueError:
+            continue
+        return fmt
+    return ""
+
+
 def locate(root: Path, entry: Entry) -> tuple[str, Path]:
-    """The first existing candidate of ``entry`` under ``root`` (an already resolved
-    directory), as (path relative to the root, absolute path). Raises :class:`ImageError`
-    if none exists or if it leads outside the root through a symlink."""
+    """The first existing candidate of ``entry`` under ``root``, as (path relative to the
+    root, path under the root). Raises :class:`ImageError` if none exists.
+
+    Symlinks under the root are followed wherever they lead: a KITTI root is often a
+    directory of links to date folders on other disks, and every link in it is the user's
+    own. A split entry itself can never leave the root (no absolute paths, no ``..``).
+    """
     for rel in entry.candidates:
         path = root / rel
         if path.is_file():
-            real = Path(os.path.realpath(path))
-            if not real.is_relative_to(root):
-                raise ImageError(f"{path}: resolves to {real} (through a symlink), outside the root "
-                                 f"{root}; refused")
             return rel, path
     for rel in entry.candidates:
         if (root / rel).is_dir():

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import urllib.error
 import urllib.request
 from dataclasses import dataclass
@@ -65,9 +66,11 @@ def record(name: str) -> SplitRecord:
 
 def check_choice(value, split_format: str, base: Path, owner: str = "this dataset") -> str:
     """The split a configuration names: a standard split name whose format is
-    ``split_format`` (e.g. "eigen"), kept as the name, or a split file, returned as an
-    absolute path (relative to ``base``). ``ValueError`` for anything else; the file itself
-    is read later."""
+    ``split_format`` (e.g. "eigen"), kept as the name, or a split file, returned as typed
+    (joined to ``base``, e.g. a config file's directory), so messages show what the user
+    wrote. ``ValueError`` for anything else, including a bare word that is neither a
+    standard name nor a file (the message lists the standard names); the file itself is
+    read later."""
     if not isinstance(value, str) or not value:
         raise ValueError(f"expected a standard split name or a file, got {value!r}")
     recs = records()
@@ -77,7 +80,13 @@ def check_choice(value, split_format: str, base: Path, owner: str = "this datase
             raise ValueError(f"{value!r} is not a split of {owner}; valid: "
                              f"{', '.join(fits)} or a split file")
         return value
-    return str((Path(base) / Path(value).expanduser()).resolve())
+    path = Path(base) / Path(value).expanduser()
+    if not path.exists() and "/" not in value and os.sep not in value and not Path(value).suffix:
+        # A bare word such as 'eigen' was meant as a standard split name.
+        fits = [r.name for r in recs.values() if r.format == split_format]
+        raise ValueError(f"no standard split named {value!r} (and no such file); standard splits "
+                         f"of {owner}: {', '.join(fits)}; or give a split file")
+    return str(path)
 
 
 def split_path(choice: str) -> Path:
@@ -123,22 +132,30 @@ def standard_split(name: str, *, url: str | None = None, cache: Path | None = No
     """
     rec = record(name)
     target = (cache or cache_dir()) / "splits" / rec.file
+    stale = ""
     try:
-        if sha256_bytes(target.read_bytes()) == rec.sha256:
-            return target
+        cached = sha256_bytes(target.read_bytes())
     except OSError:
-        pass  # not cached yet (or unreadable): fetch it
+        cached = None  # not cached yet (or unreadable): fetch it
+    if cached == rec.sha256:
+        return target
+    if cached is not None:
+        # Say so before fetching: an edited copy would otherwise vanish without a word.
+        stale = f"the cached copy {target} has sha256 {cached[:12]}..., expected {rec.sha256[:12]}..."
+        print(f"robodepth: warning: {stale} (changed or damaged); downloading the {name} split again",
+              file=sys.stderr)
+        stale = f" ({stale}, so it was not used)"
     src = url or url_for(rec)
     hint = "download it yourself and pass it with --split FILE"
     try:
         data = _download(src, timeout)
     except urllib.error.HTTPError as exc:  # the server answered: not an offline problem
         raise SplitError(f"cannot download the {name} split from {src} (HTTP {exc.code} {exc.reason}); "
-                         f"{hint}") from None
+                         f"{hint}{stale}") from None
     except (urllib.error.URLError, OSError, ValueError) as exc:
         reason = getattr(exc, "reason", None) or exc
         raise SplitError(f"cannot download the {name} split from {src} ({reason}); "
-                         f"offline? {hint}") from None
+                         f"offline? {hint}{stale}") from None
     got = sha256_bytes(data)
     if got != rec.sha256:
         raise SplitError(f"the {name} split downloaded from {src} has sha256 {got}, expected "

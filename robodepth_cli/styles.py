@@ -134,7 +134,7 @@ def check_option(key: str, value, base: Path):
             return None
         if not isinstance(value, str) or not value:
             raise ValueError(f"expected a path, got {value!r}")
-        path = (Path(base) / Path(value).expanduser()).resolve()
+        path = Path(base) / Path(value).expanduser()  # as typed, for messages
         if key == "styles":
             if not path.is_dir():
                 raise ValueError(f"{path}: the style directory "
@@ -202,7 +202,9 @@ class StyleRenderer:
         weights = f"{sha256_file(vgg)}:{sha256_file(decoder)}:{alpha!r}:{style_size!r}"
         fingerprints = {name: hashlib.sha256(f"{weights}:{sha256_file(path)}".encode()).hexdigest()[:16]
                         for name, path in style_images.items()}
-        return cls(str(vgg), str(decoder), alpha, threads or cores, features, fingerprints)
+        # Absolute: the workers that load them need not share this process's directory.
+        return cls(os.path.abspath(vgg), os.path.abspath(decoder), alpha, threads or cores,
+                   features, fingerprints)
 
     def fingerprint(self, variant: str) -> str:
         """Digest of the checkpoints, the style image, alpha and the style size: a rebuild
@@ -226,7 +228,7 @@ _STYLIZERS_LOCK = threading.Lock()  # a Dask worker runs tasks in several thread
 
 def _stylizer(vgg: str, decoder: str, threads: int):
     """One :class:`adain.Stylizer` per process and checkpoint pair."""
-    k = (vgg, decoder)
+    k = (os.path.abspath(vgg), os.path.abspath(decoder))  # the same files, typed or absolute
     with _STYLIZERS_LOCK:
         if k not in _STYLIZERS:
             from . import adain

@@ -240,29 +240,11 @@ def _directory(root, data, tmp_path):
     return _frame(data), "is a directory, not an image file"
 
 
-def _file_link_out_of_root(root, data, tmp_path):
-    secret = save(tmp_path / "secret.png", random_image(60, 200, 9))
-    _frame(data).unlink()
-    _frame(data).symlink_to(secret)
-    return _frame(data), f"resolves to {secret} (through a symlink), outside the root {root}; refused"
-
-
-def _dir_link_out_of_root(root, data, tmp_path):
-    camera = data.parent  # .../image_03, moved out of the root and linked back in
-    elsewhere = tmp_path / "elsewhere"
-    camera.rename(elsewhere)
-    camera.symlink_to(elsewhere, target_is_directory=True)
-    return _frame(data), (f"resolves to {elsewhere}/data/{_frame(data).name} (through a symlink), "
-                          f"outside the root {root}; refused")
-
-
 PER_IMAGE = {
     "truncated PNG": _truncated_png, "truncated JPEG": _truncated_jpg, "garbage bytes": _garbage,
     "absurd size (decompression bomb)": _bomb,
     "empty file": _empty, "1 x 1 image": _tiny(1), "16 x 16 image": _tiny(16),
     "listed but absent": _absent, "a directory": _directory,
-    "symlink out of the root": _file_link_out_of_root,
-    "directory symlink out of the root": _dir_link_out_of_root,
 }
 
 
