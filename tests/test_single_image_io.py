@@ -5,17 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from PIL import Image
 
-from robodepth_cli.cli import main
 from robodepth_cli.corruptions import corrupt
 from robodepth_cli.imageio import ImageError, read_rgb
 from robodepth_cli.seeding import job_rng
 
-
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 def one_line_error(res, *parts):
@@ -49,42 +44,42 @@ def results_csv(tmp_path):
 
 # --- --out ending with a separator is a directory ------------------------------------------
 
-def test_corrupt_one_level_into_a_directory(tmp_path, monkeypatch):
+def test_corrupt_one_level_into_a_directory(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     src = image(tmp_path)
-    res = run("corrupt", src, "-c", "contrast", "-l", "2", "--out", "shots/")
+    res = cli("corrupt", src, "-c", "contrast", "-l", "2", "--out", "shots/")
     assert res.exit_code == 0, res.output
     assert files_under(tmp_path / "shots") == ["contrast/2.png"]
     assert res.output.strip() == "wrote shots/contrast/2.png (64 x 48)"
 
 
-def test_preview_into_a_directory(tmp_path, monkeypatch):
+def test_preview_into_a_directory(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     src = image(tmp_path, "frame.png")
-    res = run("preview", src, "-c", "contrast", "--thumb-width", "32", "--out", "sheets/")
+    res = cli("preview", src, "-c", "contrast", "--thumb-width", "32", "--out", "sheets/")
     assert res.exit_code == 0, res.output
     assert files_under(tmp_path / "sheets") == ["frame_preview.png"]
     assert res.output.startswith("wrote sheets/frame_preview.png (")
     # An existing directory without the separator means the same.
-    assert run("preview", src, "-c", "contrast", "--out", "sheets").exit_code == 0
+    assert cli("preview", src, "-c", "contrast", "--out", "sheets").exit_code == 0
 
 
-def test_score_plot_into_a_directory(tmp_path, monkeypatch):
+def test_score_plot_into_a_directory(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    res = run("score", results_csv(tmp_path), "-b", "kitti-c", "--plot", "plots/")
+    res = cli("score", results_csv(tmp_path), "-b", "kitti-c", "--plot", "plots/")
     assert res.exit_code == 0, res.output
     assert files_under(tmp_path / "plots") == ["model_ce.png"]
     assert Image.open(tmp_path / "plots" / "model_ce.png").format == "PNG"
 
 
-def test_file_like_out_for_several_levels_is_refused(tmp_path, monkeypatch):
+def test_file_like_out_for_several_levels_is_refused(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    res = run("corrupt", image(tmp_path), "-c", "fog", "--out", "fog.png")
+    res = cli("corrupt", image(tmp_path), "-c", "fog", "--out", "fog.png")
     one_line_error(res, "--out fog.png: looks like a file name", "fog at levels 1,2,3,4,5",
                    "-c NAME -l N", "end the name with /")
     assert not (tmp_path / "fog.png").exists()
     # Without an extension it is a directory, as before.
-    res = run("corrupt", image(tmp_path), "-c", "contrast", "-l", "1,2", "--out", "contrasts")
+    res = cli("corrupt", image(tmp_path), "-c", "contrast", "-l", "1,2", "--out", "contrasts")
     assert res.exit_code == 0, res.output
     assert files_under(tmp_path / "contrasts") == ["contrast/1.png", "contrast/2.png"]
     assert res.output.strip() == "wrote 2 images under contrasts"
@@ -95,23 +90,23 @@ def test_file_like_out_for_several_levels_is_refused(tmp_path, monkeypatch):
     ["preview", "-c", "contrast"],
 ])
 @pytest.mark.parametrize("name", ["out.jpg", "out.JPEG", "out"])
-def test_output_that_is_not_png_is_refused(tmp_path, monkeypatch, command, name):
+def test_output_that_is_not_png_is_refused(cli, tmp_path, monkeypatch, command, name):
     monkeypatch.chdir(tmp_path)
-    res = run(command[0], image(tmp_path), *command[1:], "--out", name)
+    res = cli(command[0], image(tmp_path), *command[1:], "--out", name)
     one_line_error(res, f"--out {name}: the output is written as PNG; give a .png file name")
     assert not (tmp_path / name).exists()
 
 
-def test_plot_that_is_not_png_is_refused(tmp_path, monkeypatch):
+def test_plot_that_is_not_png_is_refused(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    res = run("score", results_csv(tmp_path), "-b", "kitti-c", "--plot", "ce.jpg")
+    res = cli("score", results_csv(tmp_path), "-b", "kitti-c", "--plot", "ce.jpg")
     one_line_error(res, "--plot ce.jpg: the output is written as PNG")
     assert not (tmp_path / "ce.jpg").exists()
 
 
 # --- inputs ---------------------------------------------------------------------------------
 
-def test_float_tiff_in_0_1_is_scaled_to_0_255(tmp_path):
+def test_float_tiff_in_0_1_is_scaled_to_0_255(cli, tmp_path):
     rng = np.random.default_rng(0)
     values = rng.random((40, 50)).astype(np.float32)
     values[0, 0], values[0, 1] = 0.0, 1.0
@@ -123,7 +118,7 @@ def test_float_tiff_in_0_1_is_scaled_to_0_255(tmp_path):
     assert np.array_equal(got[..., 0], expected) and np.array_equal(got[..., 2], expected)
     # The command line reads it the same way (it came out all black before).
     out = tmp_path / "o.png"
-    res = run("corrupt", path, "-c", "color_quant", "-l", "1", "--out", out)
+    res = cli("corrupt", path, "-c", "color_quant", "-l", "1", "--out", out)
     assert res.exit_code == 0, res.output
     assert np.array_equal(np.asarray(Image.open(out))[..., 1], expected & 0b11111000)
 
@@ -133,17 +128,17 @@ def test_float_tiff_in_0_1_is_scaled_to_0_255(tmp_path):
     (np.full((40, 50), -0.5, np.float32), "float pixels range over [-0.5, -0.5]"),
     (np.full((40, 50), np.nan, np.float32), "float pixels include NaN or infinity"),
 ])
-def test_float_tiff_in_other_ranges_is_refused(tmp_path, values, problem):
+def test_float_tiff_in_other_ranges_is_refused(cli, tmp_path, values, problem):
     path = tmp_path / "f.tif"
     Image.fromarray(values, "F").save(path)
     with pytest.raises(ImageError) as err:
         read_rgb(path)
     assert str(err.value).startswith(f"{path}: {problem}")
-    res = run("corrupt", path, "-c", "contrast", "-l", "1", "--out", tmp_path / "o.png")
+    res = cli("corrupt", path, "-c", "contrast", "-l", "1", "--out", tmp_path / "o.png")
     one_line_error(res, f"{path}: {problem}")
 
 
-def test_exif_orientation_is_applied_to_single_images(tmp_path):
+def test_exif_orientation_is_applied_to_single_images(cli, tmp_path):
     # Stored 64 wide x 48 high, tagged "rotate 90 clockwise to display" (orientation 6).
     stored = np.zeros((48, 64, 3), np.uint8)
     stored[:, :8] = 255  # a white band on the stored image's left edge
@@ -152,7 +147,7 @@ def test_exif_orientation_is_applied_to_single_images(tmp_path):
     path = tmp_path / "phone.jpg"
     Image.fromarray(stored).save(path, exif=exif, quality=95)
     out = tmp_path / "o.png"
-    res = run("corrupt", path, "-c", "color_quant", "-l", "1", "--out", out)
+    res = cli("corrupt", path, "-c", "color_quant", "-l", "1", "--out", out)
     assert res.exit_code == 0, res.output
     shown = np.asarray(Image.open(out))
     assert shown.shape == (64, 48, 3)  # displayed upright: 48 wide, 64 high
@@ -163,9 +158,9 @@ def test_exif_orientation_is_applied_to_single_images(tmp_path):
 
 # --- what is printed; seeds -----------------------------------------------------------------
 
-def test_single_corrupt_says_what_it_wrote(tmp_path):
+def test_single_corrupt_says_what_it_wrote(cli, tmp_path):
     out = tmp_path / "z.png"
-    res = run("corrupt", image(tmp_path), "-c", "contrast", "-l", "3", "--out", out)
+    res = cli("corrupt", image(tmp_path), "-c", "contrast", "-l", "3", "--out", out)
     assert res.exit_code == 0
     assert res.output.strip() == f"wrote {out} (64 x 48)"
 
@@ -174,20 +169,20 @@ def test_single_corrupt_says_what_it_wrote(tmp_path):
     ["corrupt", "IMG", "-c", "contrast", "-l", "1", "-s", "-1", "--out", "o.png"],
     ["preview", "IMG", "-c", "contrast", "-s", "-1", "--out", "o.png"],
 ])
-def test_negative_seed_is_refused_as_build_refuses_it(tmp_path, monkeypatch, command):
+def test_negative_seed_is_refused_as_build_refuses_it(cli, tmp_path, monkeypatch, command):
     monkeypatch.chdir(tmp_path)
     src = image(tmp_path)
-    res = run(*[src if a == "IMG" else a for a in command])
+    res = cli(*[src if a == "IMG" else a for a in command])
     one_line_error(res, "--seed: expected an integer >= 0, got -1")
     assert not (tmp_path / "o.png").exists()
-    build = run("build", "kitti-c", "--root", tmp_path, "--out", tmp_path / "b", "--seed", "-1")
+    build = cli("build", "kitti-c", "--root", tmp_path, "--out", tmp_path / "b", "--seed", "-1")
     one_line_error(build, "--seed: expected an integer >= 0, got -1")
 
 
-def test_seed_zero_and_up_still_work(tmp_path):
+def test_seed_zero_and_up_still_work(cli, tmp_path):
     src = image(tmp_path)
     out = tmp_path / "n.png"
-    assert run("corrupt", src, "-c", "gaussian_noise", "-l", "1", "-s", "7", "--out", out).exit_code == 0
+    assert cli("corrupt", src, "-c", "gaussian_noise", "-l", "1", "-s", "7", "--out", out).exit_code == 0
     from robodepth_cli.imageio import load_clean
 
     expected = corrupt(load_clean(src, None), "gaussian_noise", 1, job_rng(7, "image", "gaussian_noise", 1, "img.png"))

@@ -8,11 +8,9 @@ import socket
 import numpy as np
 import pytest
 import torch
-from click.testing import CliRunner
 
 from _trees import KITTI_DRIVE, kitti_key, kitti_tree, nyu_tree
 from robodepth_cli import splits
-from robodepth_cli.cli import main
 from robodepth_cli.config import ConfigError, resolve
 from robodepth_cli.corruptions import NAMES
 from robodepth_cli.datasets import read_split
@@ -21,9 +19,6 @@ from robodepth_cli.splits import SplitError
 SMALL = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1", "--jobs", "1"]
 NYU_NAMES = [n for n in NAMES if n not in ("fog", "frost", "snow")]
 
-
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args] + ["--no-progress"] * (args[0] in ("build", "verify")))
 
 
 def one_line_error(res, *parts):
@@ -44,49 +39,49 @@ def dee_csv(path, names, n_levels, dee=0.2, clean=0.1):
 
 # --- score ----------------------------------------------------------------------------------
 
-def test_zero_baseline_dee_is_a_one_line_error(tmp_path):
+def test_zero_baseline_dee_is_a_one_line_error(cli, tmp_path):
     results = dee_csv(tmp_path / "model.csv", NAMES, 5)
     base = tmp_path / "base.csv"
     dee_csv(base, NAMES, 5)
     base.write_text(base.read_text().replace("snow,1,0.2", "snow,1,0").replace("snow,2,0.2", "snow,2,0")
                     .replace("snow,3,0.2", "snow,3,0").replace("snow,4,0.2", "snow,4,0")
                     .replace("snow,5,0.2", "snow,5,0"))
-    res = run("score", results, "-b", "kitti-c", "--baseline", base)
+    res = cli("score", results, "-b", "kitti-c", "--baseline", base)
     one_line_error(res, f"{base}: the baseline DEE of snow is 0; CE divides by it")
 
 
-def test_nyu_results_scored_as_kitti_c_say_which_benchmark_they_fit(tmp_path):
+def test_nyu_results_scored_as_kitti_c_say_which_benchmark_they_fit(cli, tmp_path):
     nyu = dee_csv(tmp_path / "nyu.csv", NYU_NAMES, 4)
-    res = run("score", nyu, "-b", "kitti-c")
+    res = cli("score", nyu, "-b", "kitti-c")
     one_line_error(res, f"{nyu}: the rows look like nyudepth2-c results (15 corruptions x 4 levels): "
                         "use --benchmark nyudepth2-c (as kitti-c results, 30 of 90 variants are missing)")
     assert "--allow-partial" not in res.output
     kitti = dee_csv(tmp_path / "kitti.csv", NAMES, 5)
-    res = run("score", kitti, "-b", "nyudepth2-c")
+    res = cli("score", kitti, "-b", "nyudepth2-c")
     one_line_error(res, "the rows look like kitti-c results (18 corruptions x 5 levels): "
                         "use --benchmark kitti-c")
     # Rows that fit neither get no such guess.
     part = dee_csv(tmp_path / "part.csv", NYU_NAMES[:3], 4)
-    res = run("score", part, "-b", "kitti-c")
+    res = cli("score", part, "-b", "kitti-c")
     one_line_error(res, "missing", "--allow-partial")
     assert "look like" not in res.output
 
 
 # --- splits ---------------------------------------------------------------------------------
 
-def test_split_file_with_a_byte_order_mark_is_read(tmp_path):
+def test_split_file_with_a_byte_order_mark_is_read(cli, tmp_path):
     root = tmp_path / "kitti_raw"
     split = kitti_tree(root, [(1, "l", ".png"), (2, "l", ".png")])
     split.write_bytes(b"\xef\xbb\xbf" + split.read_bytes())
     assert [e.key for e in read_split(split, "eigen")] == [kitti_key(1), kitti_key(2)]
-    res = run("build", "kitti-c", "--root", root, "--split", split, "--out", tmp_path / "out", *SMALL)
+    res = cli("build", "kitti-c", "--root", root, "--split", split, "--out", tmp_path / "out", *SMALL)
     assert res.exit_code == 0, res.output
 
 
-def test_kitti_split_given_to_the_nyu_build_says_so(tmp_path):
+def test_kitti_split_given_to_the_nyu_build_says_so(cli, tmp_path):
     root = tmp_path / "kitti_raw"
     split = kitti_tree(root, [(1, "l", ".png")])
-    res = run("build", "nyudepth2-c", "--root", root, "--split", split, "--out", tmp_path / "out")
+    res = cli("build", "nyudepth2-c", "--root", root, "--split", split, "--out", tmp_path / "out")
     one_line_error(res, f"{split}:1: this looks like a KITTI (Eigen) split",
                    "this dataset needs an NYU Depth V2 split (lines 'RGB DEPTH FOCAL')")
     nyu_split = nyu_tree(tmp_path / "nyu", ["bathroom/rgb_00045.jpg"])
@@ -94,12 +89,12 @@ def test_kitti_split_given_to_the_nyu_build_says_so(tmp_path):
         read_split(nyu_split, "eigen")
 
 
-def test_unknown_split_name_lists_the_standard_ones(tmp_path, monkeypatch):
+def test_unknown_split_name_lists_the_standard_ones(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    res = run("build", "kitti-c", "--root", tmp_path, "--split", "eigen", "--out", tmp_path / "out")
+    res = cli("build", "kitti-c", "--root", tmp_path, "--split", "eigen", "--out", tmp_path / "out")
     one_line_error(res, "--split: no standard split named 'eigen'",
                    "standard splits of kitti-c: eigen_test; or give a split file")
-    res = run("build", "nyudepth2-c", "--root", tmp_path, "--split", "nyu", "--out", tmp_path / "out")
+    res = cli("build", "nyudepth2-c", "--root", tmp_path, "--split", "nyu", "--out", tmp_path / "out")
     one_line_error(res, "standard splits of nyudepth2-c: nyu_test")
 
 
@@ -154,17 +149,17 @@ def test_kitti_s_does_not_list_levels_as_a_key(tmp_path):
 
 # --- files ----------------------------------------------------------------------------------
 
-def test_paths_in_messages_are_as_typed(tmp_path, monkeypatch):
+def test_paths_in_messages_are_as_typed(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "real").mkdir()
     (tmp_path / "link").symlink_to(tmp_path / "real", target_is_directory=True)
-    res = run("build", "kitti-c", "--root", tmp_path, "--split", "link/none.txt", "--out", "out")
+    res = cli("build", "kitti-c", "--root", tmp_path, "--split", "link/none.txt", "--out", "out")
     one_line_error(res, "robodepth: error: link/none.txt: cannot read the split")
-    res = run("build", "kitti-s", "--root", tmp_path, "--styles", "link/styles", "--out", "out")
+    res = cli("build", "kitti-s", "--root", tmp_path, "--styles", "link/styles", "--out", "out")
     one_line_error(res, "--styles: link/styles: the style directory does not exist")
     f = tmp_path / "link" / "mine.yaml"
     f.write_text("split: few.txt\n")
-    res = run("build", "kitti-c", "--root", tmp_path, "--config", "link/mine.yaml", "--out", "out")
+    res = cli("build", "kitti-c", "--root", tmp_path, "--config", "link/mine.yaml", "--out", "out")
     one_line_error(res, "robodepth: error: link/few.txt: cannot read the split")
 
 
@@ -198,7 +193,7 @@ def test_checkpoint_with_other_objects_never_suggests_unsafe_loading(tmp_path):
 
 # --- sources --------------------------------------------------------------------------------
 
-def test_root_made_of_symlinked_date_folders_builds(tmp_path):
+def test_root_made_of_symlinked_date_folders_builds(cli, tmp_path):
     disk = tmp_path / "disk2"
     root = tmp_path / "kitti_raw"
     split = kitti_tree(disk, [(1, "l", ".png"), (2, "r", ".png")])
@@ -206,11 +201,11 @@ def test_root_made_of_symlinked_date_folders_builds(tmp_path):
     date = KITTI_DRIVE.split("/")[0]
     (root / date).symlink_to(disk / date, target_is_directory=True)
     out = tmp_path / "out"
-    res = run("build", "kitti-c", "--root", root, "--split", split, "--out", out, *SMALL)
+    res = cli("build", "kitti-c", "--root", root, "--split", split, "--out", out, *SMALL)
     assert res.exit_code == 0, res.output
     assert (out / "contrast" / "1" / kitti_key(2, "r")).is_file()
     reference = tmp_path / "reference"
-    assert run("build", "kitti-c", "--root", disk, "--split", split, "--out", reference, *SMALL).exit_code == 0
+    assert cli("build", "kitti-c", "--root", disk, "--split", split, "--out", reference, *SMALL).exit_code == 0
     for key in (kitti_key(1), kitti_key(2, "r")):
         assert (out / "contrast/1" / key).read_bytes() == (reference / "contrast/1" / key).read_bytes()
     shutil.rmtree(reference)
