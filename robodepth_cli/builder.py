@@ -3,16 +3,18 @@
 :func:`build` reads as the list of its steps; everything that can make the whole build
 impossible is checked before the first image is touched:
 
-1. :func:`find_sources`: check the root, read the split (a standard one is downloaded and
-   checked on first use) and find every listed image, one :class:`Source` per entry;
-   abort if none is there;
+1. :func:`find_sources`: check the root (and that it and OUT do not overlap), read the
+   split (a standard one is downloaded and checked on first use) and find every listed
+   image, one :class:`Source` per entry; abort if none is there, if one resolves into OUT,
+   or if OUT holds a build of another dataset, size or seed (:mod:`.buildchecks`);
 2. ``Dataset.renderer``: the object that turns a clean image into its variants (KITTI-S
    checks its checkpoints and style images here, still before OUT is touched);
 3. :func:`prepare_out` and :func:`claim_out`: create OUT, prove it writable, take its lock,
    refuse symlinks in it that lead outside it, delete temporary files a killed build left;
 4. :func:`plan`: one :class:`Task` per source, holding its jobs (clean + variants x levels)
-   and, for each output already in the manifest with the current settings, the sha256 to
-   check it against;
+   and, for each output already in the manifest with the current settings and made from
+   the source as it is now (same size; same sha256, which the worker checks), the sha256
+   to check it against;
 5. :func:`run_tasks`: the executor runs :func:`run_task` on every task (in-process or in a
    pool of workers). A worker hashes the outputs that may be done and, only if something
    is left, decodes and resizes the source once, writes the clean image and renders the
@@ -40,7 +42,7 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-from . import __version__, manifest, splits
+from . import __version__, buildchecks, manifest, splits
 from .config import BuildConfig
 from .datasets import CLEAN, Dataset, Entry, Job, Renderer, get_dataset, locate, read_split
 from .imageio import PNG_ENCODER, ImageError, load_clean, resize_lanczos, write_png
@@ -76,14 +78,19 @@ class Source:
     path: str | None  # the image's absolute path; None when it was not found
     error: str = ""  # why the image cannot be used; "" when it was found
     frame: int | None = None  # the image's index when ``path`` is NYU's labeled .mat file
+    size: int | None = None  # bytes, when found (a file of its own)
+    mtime: int | None = None  # modification time in ns since the epoch, when found
 
     @classmethod
     def find(cls, root: Path, entry: Entry) -> "Source":
         try:
             rel, path = locate(root, entry)
+            st = path.stat()
         except ImageError as exc:
             return cls(entry.key, "", None, str(exc))
-        return cls(entry.key, rel, str(path))
+        except OSError as exc:  # vanished or unreadable between the two calls
+            return cls(entry.key, "", None, f"{root / entry.candidates[0]}: {exc.strerror or exc}")
+        return cls(entry.key, rel, str(path), size=st.st_size, mtime=st.st_mtime_ns)
 
 
 @dataclass(frozen=True)
@@ -93,6 +100,12 @@ class Task:
     source: Source
     jobs: tuple[Job, ...]
     expected: tuple[str | None, ...]  # per job: sha256 of a matching manifest row, else None
+    # sha256 of the source recorded by those rows ("" if none): a source with other bytes
+    # (same size, even the same time) redoes every output.
+    source_sha256: str = ""
+    # Whether some matching row predates the recorded source size/time/hash: its skipped
+    # outputs get their row again, now with them.
+    refresh: bool = False
 
 
 @dataclass(frozen=True)
@@ -177,18 +190,30 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     (Ctrl-C; the manifest and record are saved first).
     """
     ds = get_dataset(cfg.dataset)
-    root = check_root(root, labeled_ok=ds.split_format == "nyu")
+    typed_root, root = root, check_root(root, labeled_ok=ds.split_format == "nyu")
+    buildchecks.check_apart(typed_root, out)
     split_path = splits.split_path(cfg.split)
-    sources = find_sources(root, split_path, ds, cfg.limit)
+    sources = find_sources(root, split_path, ds, cfg.limit, shown_root=typed_root)
+    buildchecks.check_sources_outside((s.path for s in sources), out)
+    previous = buildchecks.read_record(out) if Path(out).is_dir() else None
+    buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
     renderer = make_renderer(ds, cfg)
     out = prepare_out(out)
     with manifest.BuildLock(out):
         claim_out(out)
         tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer)
-        executor = executor or LocalExecutor(min(cfg.jobs, len(tasks)))
+        if executor is None:
+            executor = LocalExecutor(min(cfg.jobs, len(tasks)))  # never more workers than images
+            _warn_above_cpus(executor.workers, cfg.jobs)
         # A labeled .mat root: the workers must see the folder that holds it.
         executor.check(root if root.is_dir() else root.parent, out, worker_files(cfg), ds.libraries())
-        record = start_record(cfg, ds, root, out, split_path, sources, executor, command)
+        if any(e is None for t in tasks for e in t.expected):
+            # Work to do: let the renderer get ready once here rather than in every worker
+            # (KITTI-S computes its style statistics); a rerun with nothing to do skips it.
+            getattr(renderer, "warm_up", lambda: None)()
+        plans = buildchecks.merge_plans(previous, buildchecks.plan_entry(
+            cfg.variants, cfg.levels, [s.key for s in sources]))
+        record = start_record(cfg, ds, root, out, split_path, sources, executor, command, plans)
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1)
         summary = run_tasks(tasks, ctx, executor, out, progress)
@@ -198,29 +223,40 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     return summary
 
 
+def _warn_above_cpus(workers: int, jobs: int) -> None:
+    cpus = os.cpu_count() or 1
+    if workers > cpus:
+        # Each worker holds its own images: past one per CPU they only add memory and contention.
+        print(f"robodepth: warning: {workers} workers (--jobs {jobs}) on {cpus} CPU"
+              f"{'s' if cpus > 1 else ''}: the extra workers only add memory and contention "
+              f"(--jobs auto: one per CPU)", file=sys.stderr)
+
+
 def check_root(root: Path, labeled_ok: bool = False) -> Path:
-    """The resolved root: a directory, or with ``labeled_ok`` also a file (NYU's official
-    labeled .mat)."""
+    """``root`` as an absolute path (symlinks kept, so messages name what the user typed,
+    and workers in other directories can still read it): a directory, or with
+    ``labeled_ok`` also a file (NYU's official labeled .mat); :class:`BuildError` otherwise."""
     root = Path(root)
     if not root.exists():
         raise BuildError(f"{root}: the root directory does not exist")
     if not root.is_dir() and not (labeled_ok and root.is_file()):
         raise BuildError(f"{root}: the root is not a directory")
-    return Path(os.path.realpath(root))
+    return Path(os.path.abspath(root))
 
 
-def find_sources(root: Path, split_path: Path, ds: Dataset, limit: int | None = None) -> list[Source]:
+def find_sources(root: Path, split_path: Path, ds: Dataset, limit: int | None = None, *,
+                 shown_root: Path | None = None) -> list[Source]:
     """One :class:`Source` per entry of the split (its first ``limit`` entries), in split
-    order, under the resolved directory ``root``. Raises :class:`BuildError` when none of
-    them is there (most likely the wrong root)."""
+    order, under the absolute directory ``root``. Raises :class:`BuildError` when none of
+    them is there (most likely the wrong root), naming ``shown_root`` (default ``root``)."""
     entries = read_split(split_path, ds.split_format)[:limit]
     if root.is_file():
         sources = labeled_sources(root, split_path, entries)
     else:
         sources = [Source.find(root, e) for e in entries]
     if all(s.error for s in sources):
-        raise BuildError(f"{root}: none of the {len(sources)} images of {split_path} is there; "
-                         f"wrong --root? (first: {sources[0].error})")
+        raise BuildError(f"{shown_root or root}: none of the {len(sources)} images of {split_path} "
+                         f"is there; wrong --root? (first: {sources[0].error})")
     return sources
 
 
@@ -291,33 +327,54 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
     fingerprints = {job.variant: _fingerprint(renderer, job) for job in jobs}
     tasks = []
     for src in sources:
-        expected = []
+        expected, hashes, refresh = [], set(), False
         for job in jobs:
             r = done.get(job.path(src.key))
             # A source that has gone missing does not spoil the outputs already made from it.
-            same = (r is not None and not r.error and (r.source == src.rel or bool(src.error))
+            same = (r is not None and not r.error
+                    and ((r.source == src.rel and _same_source(r, src)) or bool(src.error))
                     and r.seed == cfg.seed and (r.height, r.width) == cfg.size
                     and r.params == fingerprints[job.variant])
             expected.append(r.sha256 if same else None)
-        tasks.append(Task(src, jobs, tuple(expected)))
+            if same:
+                hashes.add(r.source_sha256)
+                refresh = refresh or (not src.error and r.source_size is None)
+        # Rows made from different bytes of this source (or with none recorded): no claim.
+        source_sha = hashes.pop() if len(hashes) == 1 else ""
+        tasks.append(Task(src, jobs, tuple(expected), source_sha, refresh))
     return tasks
 
 
 def worker_files(cfg: BuildConfig) -> list[str]:
     """Files named in the configuration that workers read besides the images (KITTI-S:
-    the checkpoints); a cluster's workers must see them too."""
-    return [v for v in cfg.extra.values() if isinstance(v, str) and os.path.isfile(v)]
+    the checkpoints), as absolute paths; a cluster's workers must see them too."""
+    return [os.path.abspath(v) for v in cfg.extra.values() if isinstance(v, str) and os.path.isfile(v)]
+
+
+def _same_source(row: Row, src: Source) -> bool:
+    """Whether ``row`` was made from the source as it is now, as far as its size and time
+    tell: a different size always means a change; with a recorded hash (compared by the
+    worker) the time does not matter, so a copied root is not rebuilt; without one, a
+    different time counts as a change. Rows written before sources were recorded pass."""
+    if row.source_size is None:
+        return True
+    if row.source_size != src.size:
+        return False
+    return bool(row.source_sha256) or row.source_mtime == src.mtime
 
 
 def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split_path: Path,
-                 sources: list[Source], executor: Executor, command: list[str] | None) -> dict:
+                 sources: list[Source], executor: Executor, command: list[str] | None,
+                 plans: list[dict] | None = None) -> dict:
     """Write the build record of a build that starts now (status ``running``) and return it.
-    ``split.keys`` lists the entries built, in split order."""
+    ``split.keys`` lists the entries built, in split order; ``plans`` every request made
+    into this OUT so far (see :mod:`robodepth_cli.buildchecks`), which verify checks."""
     record = {
         "robodepth": __version__, "command": command or [], "dataset": ds.name,
         "config": cfg.as_dict(), "seed": cfg.seed, "root": str(root), "out": str(out.resolve()),
-        "split": {"path": str(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
+        "split": {"path": os.path.abspath(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
                   "images": len(sources), "keys": [s.key for s in sources]},
+        "plans": plans or [buildchecks.plan_entry(cfg.variants, cfg.levels, [s.key for s in sources])],
         "versions": library_versions(ds), "png_compress_level": PNG_COMPRESS_LEVEL,
         "png_encoder": PNG_ENCODER,
         "executor": executor.describe(),
@@ -357,10 +414,13 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
         return
     bar = tqdm(total=summary.total, unit="img", disable=None if progress else True,
                file=sys.stderr, dynamic_ncols=True, smoothing=0.05)
+    # Outputs whose rows predate the source records: written again even when skipped.
+    refresh = {job.path(t.source.key) for t in tasks if t.refresh for job in t.jobs}
     with bar, writer:
         for results in executor.map_unordered(functools.partial(run_task, ctx=ctx), tasks):
             try:
-                writer.append([r for state, r in results if state is not JobState.SKIPPED])
+                writer.append([r for state, r in results
+                               if state is not JobState.SKIPPED or r.output in refresh])
             except OSError as exc:  # these images exist but are not recorded: a rerun redoes them
                 summary.fatal = _cannot_write(writer.path, exc)
             for state, r in results:
@@ -439,14 +499,20 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     out = Path(ctx.out)
     src = task.source
     h, w = ctx.size
+    # A frame inside a container (NYU's labeled .mat) is not hashed: that would read the
+    # whole multi-GB file for every image.
+    source_sha = (_sha_or_none(Path(src.path)) or "") if src.path and src.frame is None else ""
+    expected = task.expected
+    if task.source_sha256 and source_sha and source_sha != task.source_sha256:
+        expected = (None,) * len(task.jobs)  # the source's bytes changed: redo everything
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
         return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, h, w, sha, error,
-                   _fingerprint(ctx.renderer, job))
+                   _fingerprint(ctx.renderer, job), src.size, src.mtime, source_sha)
 
     results: list[tuple[JobState, Row]] = []
     todo: list[Job] = []
-    for job, sha in zip(task.jobs, task.expected):
+    for job, sha in zip(task.jobs, expected):
         if sha is not None and _sha_or_none(out / job.path(src.key)) == sha:
             results.append((JobState.SKIPPED, row(job, sha)))
         else:

@@ -260,7 +260,12 @@ class _Resolver:
             except RobodepthError as exc:
                 raise ConfigError(str(exc)) from None
         if key == "jobs":
-            return _int(loc, v, 1)
+            if v in ("auto", -1, "-1"):
+                return os.cpu_count() or 1  # one worker per CPU
+            try:
+                return _int(loc, v, 1)
+            except ConfigError as exc:
+                raise ConfigError(f"{exc} (or 'auto' or -1: one worker per CPU)") from None
         if key == "limit":
             return None if v is None else _int(loc, v, 1)
         if key == "scheduler":

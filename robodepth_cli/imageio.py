@@ -15,6 +15,7 @@ from .errors import RobodepthError
 from .files import write_atomic
 
 MIN_SIDE = 32
+MAX_SIDE = 8192  # an output side; larger ones need tens of GB per worker (fog's map alone is side^2)
 
 
 class ImageError(RobodepthError):
@@ -175,4 +176,6 @@ def parse_size(text: str) -> tuple[int, int]:
     h, w = int(parts[0]), int(parts[1])
     if h < MIN_SIDE or w < MIN_SIDE:
         raise ValueError(f"size {text!r}: both sides must be at least {MIN_SIDE}")
+    if h > MAX_SIDE or w > MAX_SIDE:
+        raise ValueError(f"size {text!r}: both sides must be at most {MAX_SIDE}")
     return h, w

@@ -6,10 +6,14 @@
   reading and cut off before appending. A finished build rewrites the file with one row per
   path, sorted, so the same build gives the same manifest whatever the worker count.
   A row with an ``error`` is a job that failed; its file does not exist.
+  Columns are read by the header's names: a manifest written before a column existed
+  (e.g. without the source's size, time and hash) still reads, the missing values empty,
+  and is rewritten with every column before anything is appended to it.
 - ``OUT/build.json``: the build record (resolved config, seed, split, library versions,
   summary), rewritten at the start and at the end of every build.
-- ``OUT/.robodepth.lock``: held (``flock``) by the running build; the kernel releases it
-  when the process ends, however it ends.
+- ``OUT/.robodepth.lock``: held (``flock``) by the running build, and removed by it when
+  it ends; if the process dies, the kernel releases the lock and the next build reuses the
+  file.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ import io
 import json
 import os
 import re
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from .files import is_temporary, sha256_file, write_atomic
@@ -51,28 +55,49 @@ class Row:
     # Fingerprint of whatever else decided the pixels (KITTI-S: checkpoints, style image,
     # alpha, style size); "" when seed and size say it all (the corruptions).
     params: str = ""
+    # The source when this output was made: size in bytes, modification time (ns since the
+    # epoch) and sha256 of its bytes; None/"" in rows written before these were recorded.
+    # A source whose size or hash changed since redoes its outputs.
+    source_size: int | None = None
+    source_mtime: int | None = None
+    source_sha256: str = ""
 
 
 FIELDS = tuple(f.name for f in fields(Row))
 HEADER = ",".join(FIELDS) + "\n"
+_REQUIRED = ("output", "source", "variant", "level", "seed", "height", "width", "sha256", "error")
+_INTS = ("seed", "height", "width")
+_OPTIONAL_INTS = ("level", "source_size", "source_mtime")
 
 
 def _to_fields(row: Row) -> list[str]:
     return ["" if v is None else str(v) for v in (getattr(row, f) for f in FIELDS)]
 
 
-def _from_fields(values: list[str]) -> Row:
-    """Parse one CSV record; ``ValueError`` if it is not a complete row."""
-    if len(values) != len(FIELDS):
-        raise ValueError(f"{len(values)} fields, expected {len(FIELDS)}")
-    d = dict(zip(FIELDS, values))
-    row = Row(output=d["output"], source=d["source"], variant=d["variant"],
-              level=int(d["level"]) if d["level"] else None, seed=int(d["seed"]),
-              height=int(d["height"]), width=int(d["width"]), sha256=d["sha256"], error=d["error"],
-              params=d["params"])
+def _from_fields(values: list[str], names: tuple[str, ...] = FIELDS) -> Row:
+    """Parse one CSV record whose columns are ``names``; ``ValueError`` if it is not a
+    complete row."""
+    if len(values) != len(names):
+        raise ValueError(f"{len(values)} fields, expected {len(names)}")
+    d: dict = dict(zip(names, values))
+    for k in _INTS:
+        d[k] = int(d[k])
+    for k in _OPTIONAL_INTS:
+        if k in d:
+            d[k] = int(d[k]) if d[k] else None
+    row = Row(**d)
     if not row.output or bool(row.error) == bool(_SHA.fullmatch(row.sha256)):
         raise ValueError("needs either a sha256 or an error")
     return row
+
+
+def _header(line: str, path: Path) -> tuple[str, ...]:
+    """The column names of a manifest's first line; :class:`ManifestError` unless they are
+    robodepth's (the current columns or an older subset of them)."""
+    names = tuple(next(csv.reader([line])))
+    if not set(_REQUIRED) <= set(names) or not set(names) <= set(FIELDS) or len(set(names)) != len(names):
+        raise ManifestError(f"{path}: not a robodepth manifest (first line should be {HEADER.strip()!r})")
+    return names
 
 
 def format_rows(rows) -> str:
@@ -93,19 +118,31 @@ def read_manifest(out: Path) -> dict[str, Row]:
         raise ManifestError(f"{path}: cannot read the manifest ({exc})") from None
     if not text:
         return {}
-    if not text.startswith(HEADER):
-        raise ManifestError(f"{path}: not a robodepth manifest (first line should be {HEADER.strip()!r})")
     lines = text.splitlines(keepends=True)
+    names = _header(lines[0], path)
     if not lines[-1].endswith("\n"):
         lines.pop()
     rows: dict[str, Row] = {}
     for n, values in enumerate(csv.reader(lines[1:]), 2):
         try:
-            row = _from_fields(values)
-        except ValueError as exc:
-            raise ManifestError(f"{path}:{n}: damaged row ({exc})") from None
+            row = _from_fields(values, names)
+        except (ValueError, TypeError) as exc:
+            raise ManifestError(
+                f"{path}:{n}: damaged row ({exc}); to recover, delete that line (or the whole "
+                f"{MANIFEST}) and rerun the build command: it makes again whatever the manifest "
+                f"no longer lists") from None
         rows[row.output] = row
     return rows
+
+
+def manifest_is_current(out: Path) -> bool:
+    """Whether ``out``'s manifest is absent, empty or has every current column."""
+    try:
+        with open(Path(out) / MANIFEST, encoding="utf-8") as fh:
+            first = fh.readline()
+    except FileNotFoundError:
+        return True
+    return first in ("", HEADER)
 
 
 class ManifestWriter:
@@ -114,6 +151,8 @@ class ManifestWriter:
     def __init__(self, out: Path):
         self.path = Path(out) / MANIFEST
         read_manifest(out)  # refuse a foreign or damaged file before touching it
+        if not manifest_is_current(out):
+            compact_manifest(out)  # an older manifest gets every column before rows are appended
         self._fh = open(self.path, "a+b")
         self._fh.seek(0)
         data = self._fh.read()
@@ -155,7 +194,12 @@ def write_record(out: Path, record: dict) -> None:
 
 class BuildLock:
     """An exclusive lock on ``OUT/.robodepth.lock`` for the duration of a ``with`` block.
-    A second build into the same OUT gets :class:`ManifestError` instead of waiting."""
+    A second build into the same OUT gets :class:`ManifestError` instead of waiting.
+
+    The file is removed when the block ends (a refused or finished build leaves none). A
+    process that opened the file just before it was removed would lock an orphan inode, so
+    after locking, the inode is compared with the path's and the lock taken again if they
+    differ."""
 
     def __init__(self, out: Path):
         self.path = Path(out) / LOCK
@@ -164,22 +208,51 @@ class BuildLock:
     def __enter__(self):
         import fcntl
 
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
-            os.close(fd)
-            raise ManifestError(f"{self.path.parent}: another build (pid {holder}) is writing here; "
-                                f"wait for it to finish or choose another --out") from None
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
+                os.close(fd)
+                raise ManifestError(f"{self.path.parent}: another build (pid {holder}) is writing here; "
+                                    f"wait for it to finish or choose another --out") from None
+            try:
+                same = os.stat(self.path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)  # the file was removed by the build that held it: lock the new one
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()}\n".encode())
         self._fd = fd
         return self
 
     def __exit__(self, *exc):
-        os.close(self._fd)  # releases the lock; the file stays, so no one locks a stale inode
+        try:
+            os.unlink(self.path)  # while still locked: see the class docstring
+        except FileNotFoundError:
+            pass
+        os.close(self._fd)
         self._fd = None
+
+
+def lock_holder(out: Path) -> str | None:
+    """The pid (as written) of the build holding ``out``'s lock, or None if none does."""
+    import fcntl
+
+    try:
+        fd = os.open(Path(out) / LOCK, os.O_RDONLY)
+    except FileNotFoundError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return os.read(fd, 64).decode(errors="replace").strip() or "unknown"
+    finally:
+        os.close(fd)
+    return None
 
 
 def remove_temporaries(out: Path) -> int:
@@ -218,10 +291,25 @@ class VerifyReport:
     changed: list[str]  # on disk with other bytes than the manifest says
     extra: list[str]  # on disk, not in the manifest
     failed: list[str]  # jobs the build recorded as failed
+    reasons: dict[str, str] = field(default_factory=dict)  # failed output -> its error
+    planned: int | None = None  # outputs the recorded plan asks for (None: no plan recorded)
+    unbuilt: list[str] = field(default_factory=list)  # planned, with no manifest row at all
+    built: int = 0  # planned outputs with a manifest row and no error
+    status: str = ""  # the build record's status
 
     @property
     def ok(self) -> bool:
-        return not (self.missing or self.changed or self.extra or self.failed)
+        return not (self.missing or self.changed or self.extra or self.failed or self.unbuilt)
+
+    def incomplete(self) -> str:
+        """``"incomplete: 728 of 3640 outputs (build interrupted; rerun the build command
+        to finish)"``, or "" when every planned output was built (or failed)."""
+        if not self.unbuilt:
+            return ""
+        why = {"running": "build interrupted", "interrupted": "build interrupted",
+               "stopped": "build stopped by an error"}.get(self.status, "not built yet")
+        return (f"incomplete: {self.built} of {self.planned} outputs ({why}; rerun the build "
+                f"command to finish)")
 
 
 def tree_files(out: Path) -> set[str]:
@@ -241,14 +329,22 @@ def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
     files are checked."""
     from concurrent.futures import ThreadPoolExecutor
 
+    from .buildchecks import planned_outputs, read_record
+
     out = Path(out)
     if not out.exists():
         raise ManifestError(f"{out}: does not exist")
     if not out.is_dir():
         raise ManifestError(f"{out}: not a directory")
+    holder = lock_holder(out)
+    if holder:
+        raise ManifestError(f"{out}: a build (pid {holder}) is writing here right now; verify "
+                            f"when it has finished")
     if not (out / MANIFEST).is_file():
         raise ManifestError(f"{out}: no {MANIFEST}; not a robodepth build output")
     rows = read_manifest(out)
+    record = read_record(out)
+    planned = planned_outputs(record)
     on_disk = tree_files(out)
     failed = sorted(p for p, r in rows.items() if r.error)
     listed = {p: r for p, r in rows.items() if not r.error}
@@ -266,4 +362,11 @@ def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
                 changed.append(p)
             if progress:
                 progress(1)
-    return VerifyReport(len(present), missing, changed, extra, failed)
+    report = VerifyReport(len(present), missing, changed, extra, failed,
+                          reasons={p: rows[p].error for p in failed},
+                          status=(record or {}).get("status", ""))
+    if planned is not None:
+        report.planned = len(planned)
+        report.unbuilt = sorted(p for p in planned if p not in rows)
+        report.built = sum(1 for p in planned if p in listed)
+    return report

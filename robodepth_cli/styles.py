@@ -154,7 +154,7 @@ def check_option(key: str, value, base: Path):
 def make_renderer(config) -> "StyleRenderer":
     """The renderer of a resolved KITTI-S build configuration: checks that the style
     directory, the checkpoints and a style image for every selected style are there, loads
-    and validates the checkpoints and computes the style statistics. ``ValueError``
+    and validates the checkpoints and the style images. ``ValueError``
     subclasses (naming the file) for anything missing or unusable."""
     opts = config.extra
     for key, flag, what in (("styles", "--styles", "STYLE_DIR (one image per style)"),
@@ -177,9 +177,12 @@ def make_renderer(config) -> "StyleRenderer":
 class StyleRenderer:
     """Renders the style jobs of one clean image with one batched AdaIN call.
 
-    Made in the main process by :meth:`prepare`, which loads the checkpoints (refusing bad
-    ones) and computes every style's feature statistics once; a worker receives those
-    statistics (a few kB) and loads the encoder/decoder once per process.
+    Made in the main process by :meth:`prepare`, which loads the checkpoints and the style
+    images (refusing bad ones) and fingerprints them. The style statistics are computed by
+    :meth:`warm_up`, once, in the main process when the build has work to do (a rerun with
+    nothing to do never pays for them); a worker receives them (a few kB) and loads the
+    encoder/decoder once per process. A worker that meets work the plan did not foresee
+    (an output deleted since) computes them itself.
     """
 
     vgg: str
@@ -188,23 +191,37 @@ class StyleRenderer:
     threads: int
     features: dict[str, Any] = field(default_factory=dict)  # style -> adain.StyleFeatures
     fingerprints: dict[str, str] = field(default_factory=dict)  # style -> digest of its inputs
+    style_images: dict[str, str] = field(default_factory=dict)  # style -> image path
+    style_size: int | None = DEFAULT_STYLE_SIZE
 
     @classmethod
     def prepare(cls, vgg, decoder, style_images: dict[str, Path], *, alpha: float = 1.0,
                 style_size: int | None = DEFAULT_STYLE_SIZE, threads: int = 0) -> "StyleRenderer":
         """Load and check the checkpoints and style images. ``alpha`` and ``style_size`` are
         values :func:`check_option` accepted. ``threads``: torch threads of each rendering
-        process (0: every core); the style statistics are computed here with every core."""
+        process (0: every core); :meth:`warm_up` computes the style statistics with every
+        core."""
         cores = os.cpu_count() or 1
-        stylizer = _stylizer(str(vgg), str(decoder), cores)
-        features = {name: stylizer.style_features(load_style(path, style_size))
-                    for name, path in style_images.items()}
+        _stylizer(str(vgg), str(decoder), cores)  # loads and checks both checkpoints
+        for path in style_images.values():
+            load_style(path, style_size)  # an unreadable style image is refused now
         weights = f"{sha256_file(vgg)}:{sha256_file(decoder)}:{alpha!r}:{style_size!r}"
         fingerprints = {name: hashlib.sha256(f"{weights}:{sha256_file(path)}".encode()).hexdigest()[:16]
                         for name, path in style_images.items()}
         # Absolute: the workers that load them need not share this process's directory.
         return cls(os.path.abspath(vgg), os.path.abspath(decoder), alpha, threads or cores,
-                   features, fingerprints)
+                   fingerprints=fingerprints,
+                   style_images={n: os.path.abspath(p) for n, p in style_images.items()},
+                   style_size=style_size)
+
+    def warm_up(self) -> None:
+        """Compute the statistics of every style not done yet (with every core)."""
+        todo = [n for n in self.style_images if n not in self.features]
+        if todo:
+            stylizer = _stylizer(self.vgg, self.decoder, os.cpu_count() or 1)
+            for name in todo:
+                self.features[name] = stylizer.style_features(load_style(self.style_images[name],
+                                                                         self.style_size))
 
     def fingerprint(self, variant: str) -> str:
         """Digest of the checkpoints, the style image, alpha and the style size: a rebuild
@@ -214,6 +231,8 @@ class StyleRenderer:
     def render(self, clean, key, jobs):
         try:
             stylizer = _stylizer(self.vgg, self.decoder, self.threads)
+            if any(j.variant not in self.features for j in jobs):
+                self.warm_up()
             images = stylizer.stylize(clean, [self.features[j.variant] for j in jobs], self.alpha)
         except Exception as exc:  # reported per job by the builder; the other images go on
             for job in jobs:

@@ -151,19 +151,6 @@ def test_resume_redoes_only_missing_or_changed(kitti, tmp_path, cli, build_kitti
     assert cli("verify", out).exit_code == 0
 
 
-def test_changed_seed_redoes_everything(kitti, tmp_path, build_kitti):
-    root, split = kitti
-    out = tmp_path / "out"
-    flags = ["--size", "64x96", "--corruptions", "gaussian_noise", "--levels", "1", "--jobs", "1"]
-    assert build_kitti(root, split, out, *flags).exit_code == 0
-    noisy = f"gaussian_noise/1/{kitti_key(5)}"
-    first = (out / noisy).read_bytes()
-    res = build_kitti(root, split, out, *flags, "--seed", "1")
-    assert "4 written, 0 skipped" in res.output
-    assert (out / noisy).read_bytes() != first
-    assert {r["seed"] for r in manifest_rows(out)} == {"1"}
-
-
 def test_killed_build_leftovers_are_repaired(kitti, tmp_path, cli, build_kitti):
     """A torn manifest line and a temporary file, as SIGKILL leaves them, do not survive a rerun."""
     root, split = kitti

@@ -152,15 +152,19 @@ def test_kitti_s_does_not_list_levels_as_a_key(tmp_path):
 def test_paths_in_messages_are_as_typed(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "real").mkdir()
+    (tmp_path / "root").mkdir()
     (tmp_path / "link").symlink_to(tmp_path / "real", target_is_directory=True)
-    res = cli("build", "kitti-c", "--root", tmp_path, "--split", "link/none.txt", "--out", "out")
+    res = cli("build", "kitti-c", "--root", "root", "--split", "link/none.txt", "--out", "out")
     one_line_error(res, "robodepth: error: link/none.txt: cannot read the split")
-    res = cli("build", "kitti-s", "--root", tmp_path, "--styles", "link/styles", "--out", "out")
+    res = cli("build", "kitti-s", "--root", "root", "--styles", "link/styles", "--out", "out")
     one_line_error(res, "--styles: link/styles: the style directory does not exist")
     f = tmp_path / "link" / "mine.yaml"
     f.write_text("split: few.txt\n")
-    res = cli("build", "kitti-c", "--root", tmp_path, "--config", "link/mine.yaml", "--out", "out")
+    res = cli("build", "kitti-c", "--root", "root", "--config", "link/mine.yaml", "--out", "out")
     one_line_error(res, "robodepth: error: link/few.txt: cannot read the split")
+    f.write_text("2011_09_26/2011_09_26_drive_0001_sync 1 l\n")
+    res = cli("build", "kitti-c", "--root", "link/../root", "--split", f, "--out", "out")
+    one_line_error(res, "robodepth: error: link/../root: none of the 1 images")
 
 
 @pytest.mark.parametrize("content", [b"", b"hello, not a checkpoint\n" * 40, b"PK\x03\x04" + bytes(200)],

@@ -26,7 +26,7 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--corruptions", metavar="A,B|all", help="Comma-separated corruption names, or 'all'.")
 @click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3), or 'all'.")
 @click.option("--size", metavar="HxW", help="Output size HxW (e.g. 320x1024).")
-@click.option("--jobs", "-j", metavar="N", help="Worker processes (preset: 2).")
+@click.option("--jobs", "-j", metavar="N|auto", help="Worker processes (preset: 2); 'auto' or -1: one per CPU.")
 @click.option("--seed", metavar="S", help="Global seed (preset: 0).")
 @click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
 @click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
@@ -121,10 +121,13 @@ def _raise_keyboard_interrupt(signum, frame):
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def verify_command(out, progress):
-    """Re-hash every file in OUT against OUT/manifest.csv.
+    """Re-hash every file in OUT against OUT/manifest.csv and the build's plan.
 
-    Reports files that are missing, changed or extra (not in the manifest), and images the
-    build recorded as failed. Exit status 0 when everything matches, 1 otherwise.
+    Reports a build that did not finish (outputs its plan asks for that were never made),
+    files that are missing, changed or extra (not in the manifest), and images the build
+    recorded as failed, with the reason. Exit status 0 when everything matches, 1
+    otherwise; 2 if OUT cannot be verified (no manifest, a damaged one, or a build writing
+    there right now).
     """
     from tqdm import tqdm
 
@@ -132,16 +135,32 @@ def verify_command(out, progress):
 
     with tqdm(unit="file", disable=None if progress else True, file=sys.stderr) as bar:
         report = verify(out, progress=bar.update)
-    for kind in ("missing", "changed", "extra", "failed"):
+    if report.incomplete():
+        click.echo(report.incomplete())
+    for kind in ("missing", "changed", "extra"):
         paths = getattr(report, kind)
         if paths:
             click.echo(f"{kind}: {len(paths)}")
-            for p in paths[:_LISTED]:
-                click.echo(f"  {p}")
-            if len(paths) > _LISTED:
-                click.echo(f"  ... and {len(paths) - _LISTED} more")
+            _list(paths, "  ")
+    if report.failed:
+        click.echo(f"failed: {len(report.failed)}")
+        by_reason: dict[str, list[str]] = {}
+        for p in report.failed:
+            by_reason.setdefault(report.reasons.get(p) or "no reason recorded", []).append(p)
+        for reason, paths in list(by_reason.items())[:_LISTED]:
+            click.echo(f"  {reason}")
+            _list(paths, "    ")
+        if len(by_reason) > _LISTED:
+            click.echo(f"  ... and {len(by_reason) - _LISTED} more reasons")
     if report.ok:
         click.echo(f"{out}: {report.checked} files match the manifest")
     else:
         click.echo(f"{out}: {report.checked} files checked; the tree does not match its manifest", err=True)
         sys.exit(1)
+
+
+def _list(paths: list[str], indent: str) -> None:
+    for p in paths[:_LISTED]:
+        click.echo(f"{indent}{p}")
+    if len(paths) > _LISTED:
+        click.echo(f"{indent}... and {len(paths) - _LISTED} more")

@@ -1,0 +1,153 @@
+"""Checks that keep one output directory holding one build, and the build's plan.
+
+- :func:`check_apart`: ROOT and OUT must not overlap (a build would overwrite its sources);
+- :func:`check_sources_outside`: no source may resolve into OUT through a symlink;
+- :func:`check_same_build`: a build into an OUT made by another dataset, size or seed is
+  refused; ``--limit`` and subsets of the same build extend it;
+- :func:`plans` / :func:`planned_outputs`: the record of what was asked for, which
+  ``robodepth verify`` compares the tree against (an interrupted build is incomplete, not
+  fine).
+
+The plan of an OUT is kept in ``build.json`` as ``plans``: one entry per distinct request
+(``variants``, ``levels``, ``keys`` of the split entries), so that a ``--limit 2`` look
+followed by the full build, or one corruption now and another later, all count.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Iterable
+
+from .errors import RobodepthError
+
+
+class OutputDirError(RobodepthError):
+    """An output directory this build must not write into."""
+
+
+def _real(path: Path) -> Path:
+    return Path(os.path.realpath(path))
+
+
+def check_apart(root: Path, out: Path) -> None:
+    """Refuse when ``root`` and ``out`` are the same directory or one lies inside the other,
+    after resolving symlinks (``out`` need not exist yet). The paths are named as typed."""
+    r, o = _real(root), _real(out)
+    if r == o:
+        relation = "are the same directory"
+    elif o.is_relative_to(r):
+        relation = "lies inside --root"
+    elif r.is_relative_to(o):
+        relation = "contains --root"
+    else:
+        return
+    via = ""
+    if (str(r), str(o)) != (os.path.abspath(root), os.path.abspath(out)):
+        via = f" (through symlinks: {r} and {o})"
+    what = (f"--root {root} and --out {out} {relation}" if r == o
+            else f"--out {out} {relation} {root}")
+    raise OutputDirError(f"{what}{via}; a build would overwrite or mix with its own source "
+                         f"images: choose an output directory outside the root")
+
+
+def check_sources_outside(paths: Iterable[str | None], out: Path) -> None:
+    """Refuse when a source image resolves (through a symlink under the root) into ``out``:
+    writing that output could overwrite or delete the source itself."""
+    o = _real(out)
+    for p in paths:
+        if p is not None:
+            real = _real(Path(p))
+            if real.is_relative_to(o):
+                raise OutputDirError(f"{p}: resolves to {real} (through a symlink), inside --out "
+                                     f"{out}; a build never reads its own outputs")
+
+
+# --- one build per OUT ---------------------------------------------------------------------
+
+def read_record(out: Path) -> dict[str, Any] | None:
+    """The build record of ``out`` (None when there is none)."""
+    from .manifest import RECORD
+
+    path = Path(out) / RECORD
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise OutputDirError(f"{path}: cannot read the build record ({exc})") from None
+    try:
+        record = json.loads(text)
+    except ValueError as exc:
+        raise OutputDirError(f"{path}: not a build record ({exc}); choose another --out, or "
+                             f"delete the file if this directory is yours to reuse") from None
+    if not isinstance(record, dict):
+        raise OutputDirError(f"{path}: not a build record (a JSON {type(record).__name__})")
+    return record
+
+
+def _size_text(size) -> str:
+    return f"{size[0]}x{size[1]}" if isinstance(size, (list, tuple)) and len(size) == 2 else str(size)
+
+
+def check_same_build(out: Path, dataset: str, size: tuple[int, int], seed: int,
+                     previous: dict[str, Any] | None) -> None:
+    """Refuse to build ``dataset`` at ``size`` with ``seed`` into ``out`` when its record
+    ``previous`` says it holds another dataset, size or seed (naming the difference)."""
+    if not previous:
+        return
+    config = previous.get("config") or {}
+    old = {"dataset": previous.get("dataset", config.get("dataset")),
+           "size": tuple(config.get("size") or ()), "seed": previous.get("seed", config.get("seed"))}
+    new = {"dataset": dataset, "size": tuple(size), "seed": seed}
+    shown = {"dataset": lambda v: str(v), "size": _size_text, "seed": lambda v: str(v)}
+    flag = {"dataset": "the dataset", "size": "--size", "seed": "--seed"}
+    diffs = [f"{flag[k]} {shown[k](new[k])} (it holds {shown[k](old[k])})"
+             for k in ("dataset", "size", "seed") if old[k] is not None and old[k] != new[k]
+             and not (k == "size" and not old[k])]
+    if diffs:
+        raise OutputDirError(f"{out}: holds another build ({'; '.join(diffs)}); one output "
+                             f"directory holds one build: choose another --out")
+
+
+# --- the plan ------------------------------------------------------------------------------
+
+def plan_entry(variants, levels, keys) -> dict[str, list]:
+    return {"variants": list(variants), "levels": list(levels), "keys": list(keys)}
+
+
+def plans(record: dict[str, Any] | None) -> list[dict[str, list]]:
+    """The requests recorded in ``record``: its ``plans``, or for a record written before
+    they were kept, the one its config and split keys describe ([] if it has neither)."""
+    if not record:
+        return []
+    if isinstance(record.get("plans"), list):
+        return record["plans"]
+    config, split = record.get("config") or {}, record.get("split") or {}
+    if "keys" in split and "variants" in config:
+        return [plan_entry(config["variants"], config.get("levels") or [], split["keys"])]
+    return []
+
+
+def merge_plans(previous: dict[str, Any] | None, current: dict[str, list]) -> list[dict[str, list]]:
+    """The plans of ``previous`` plus ``current`` (once)."""
+    merged = [p for p in plans(previous) if p != current]
+    return merged + [current]
+
+
+def planned_outputs(record: dict[str, Any] | None) -> set[str] | None:
+    """Every output path the recorded plans ask for, or None when the record keeps no plan
+    (a build made before plans were recorded: only the manifest can be checked)."""
+    entries = plans(record)
+    if not entries:
+        return None
+    from .datasets import get_dataset
+
+    ds = get_dataset(record.get("dataset") or (record.get("config") or {}).get("dataset"))
+    paths: set[str] = set()
+    for p in entries:
+        jobs = ds.jobs(p["variants"], p["levels"])
+        for key in p["keys"]:
+            paths.update(job.path(key) for job in jobs)
+    return paths
