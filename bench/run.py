@@ -12,7 +12,8 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = ("corruptions.py", "build.py", "stylize.py", "cluster.py", "gt.py", "evaluate.py", "source_hash.py")
+SCRIPTS = ("corruptions.py", "build.py", "stylize.py", "cluster.py", "gt.py", "evaluate.py",
+           "source_hash.py")
 
 
 def main() -> int:
