@@ -41,7 +41,7 @@ def disk_kernel(radius: int, alias: float) -> np.ndarray:
     return k
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=6)  # ~9 MB each at 1024 x 2048; three FFT levels per image size
 def _kernel_spectrum(radius: int, alias: float, shape: tuple[int, int]) -> np.ndarray:
     k = disk_kernel(radius, alias).astype(np.float64)
     spec = scipy.fft.rfft2(k, s=shape)[:, :, None].astype(np.complex64)

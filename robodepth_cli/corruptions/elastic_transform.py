@@ -13,7 +13,7 @@ from .registry import register
 LEVELS = (0.05, 0.065, 0.085, 0.1, 0.12)
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=4)  # 64 MB at 2048 x 4096: a few sizes only
 def _offset_grid(h: int, w: int, shift: float) -> np.ndarray:
     """H x W x 2 float32 of ``(column - shift, row - shift)``: the identity map of
     ``cv2.remap`` moved by a constant."""
@@ -40,6 +40,11 @@ def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np
     channel is resampled at ``(row + dy, col + dx)``, bilinear with a half-sample symmetric
     border (SciPy ``map_coordinates(order=1, mode='reflect')`` = OpenCV
     ``BORDER_REFLECT``); clipped and truncated.
+
+    Size rule (as imagecorruptions-imaug 1.1.5): everything scales with the image: the
+    smoothing sigma is 1% of the height and width, and the displacement ``0.005 H * 250 k``
+    uses the height for both directions (a wide image is warped as much as a square one
+    of the same height).
 
     The uniforms are drawn on [0, 1) and mapped to [-m, m) after the smoothing, which is
     linear and keeps constants: ``alpha * gaussian(U(-m, m)) = 2 m alpha * gaussian(U(0, 1))

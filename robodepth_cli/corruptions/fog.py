@@ -118,6 +118,11 @@ def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     smallest power of two >= max(H, W)) and decay ``d``, ``g = f + t * P[:H, :W]`` on every
     channel; result ``clip01(g * m / (m + t))``, truncated to uint8.
 
+    Size rule: the map's side ``N`` grows with the image (64 for 37 x 53, 2048 for
+    375 x 1242 and 1024 x 2048, 4096 for 2048 x 4096), so the fractal's largest features
+    scale with the image, and only the top-left H x W of it is used (a wide image sees a
+    band of the square map), as imagecorruptions-imaug 1.1.5 does.
+
     Computed in float32 in the 0..255 domain: ``(x + 255 t P) * m / (m + t)``.
     """
     t, d = LEVELS[level - 1]

@@ -72,7 +72,9 @@ def scaled_size(texture_hw, image_hw) -> tuple[int, int]:
     return int(math.ceil(tw * q)), int(math.ceil(th * q))
 
 
-@lru_cache(maxsize=32)  # every image of a dataset has the same size: one resize per process
+# One image size's five textures: a preset build has one size (one resize per process);
+# a build of mixed sizes re-resizes (~10 ms) instead of holding ~30 MB per large texture.
+@lru_cache(maxsize=5)
 def scaled_texture(index: int, image_hw: tuple[int, int]) -> np.ndarray:
     """Texture ``index`` resized for an image of ``image_hw`` (bicubic, OpenCV) and
     converted to RGB (channel order does not affect the resize). Read-only."""
@@ -112,6 +114,11 @@ def frost(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     (drawn in that order), convert it to RGB; result ``clip(a * x + b * crop, 0, 255)``
     in the 0..255 domain, truncated to uint8 (through the exact table
     :func:`blend_table`).
+
+    Size rule: a texture smaller than the image in either dimension is scaled up by the
+    larger of the ratios so that it covers the image (e.g. all five for 1024 x 2048), with
+    a 1.1 margin always applied, so the crop offsets always have room (as
+    imagecorruptions-imaug 1.1.5 does); frost's grain therefore grows with the image.
 
     Raises :class:`FrostTextureError` if the ``imagecorruptions-imaug`` textures are not
     installed.

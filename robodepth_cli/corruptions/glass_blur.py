@@ -59,6 +59,11 @@ def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarra
     data (tests/data/reference) and the ``imagecorruptions`` oracle both follow the copy,
     so that is what is done here.
 
+    Size rule (as imagecorruptions-imaug 1.1.5): sigma and delta are in pixels at any size;
+    the scan writes rows ``delta + 1 .. H - delta`` and the same span of columns, leaving
+    the first ``delta + 1`` and the last ``delta - 1`` unwritten; ``iterations *
+    (H - 2 delta) * (W - 2 delta)`` offset pairs are drawn.
+
     All offsets are drawn up front (:func:`swap_offsets`) and the swaps run in a numba
     kernel (:func:`shuffle_pixels`). The blurs run in float64 on ``x / 255`` as the
     benchmark does: in flat regions ``gauss(k / 255) * 255`` lands a rounding error below

@@ -76,7 +76,13 @@ def snow(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """On ``f = x / 255`` in float32: ``g = beta * f + (1 - beta) * max(f, gray(f) * 1.5 +
     0.5)`` with ``gray`` OpenCV's RGB-to-gray, then ``clip01(g + S + rot180(S))`` with ``S``
     the :func:`snow_layer` rounded to 1/255 and cropped to H x W, on every channel;
-    truncated to uint8 (fused in :func:`_blend`)."""
+    truncated to uint8 (fused in :func:`_blend`).
+
+    Size rule (as imagecorruptions-imaug 1.1.5): the noise is drawn at the image size and
+    zoomed by the fixed factor ``z``, so flakes are ``z`` pixels wide at any size; the
+    blur's radius is fixed in pixels, its taps stop at the layer's border
+    (:func:`~.motion_blur.motion_taps`); the zoomed layer, ``round(ceil(H / z) * z)`` by
+    ``round(ceil(W / z) * z)``, is at least H x W and is cropped to its top-left H x W."""
     mu, sigma, z, tau, radius, s, beta = LEVELS[level - 1]
     h, w = x.shape[:2]
     layer = snow_layer((h, w), mu, sigma, z, tau, radius, s, rng)

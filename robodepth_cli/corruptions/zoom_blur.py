@@ -103,7 +103,7 @@ def _tables(h: int, w: int, factors, keep_h: int, keep_w: int, *, crop: bool = T
     return out
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=16)
 def zoom_table(h: int, w: int, factors: tuple) -> tuple:
     """Resampling tables of :func:`clipped_zoom` by every factor in ``factors`` for an
     ``h`` x ``w`` image, keeping only the outputs inside the top-left ``h`` x ``w``.
@@ -187,7 +187,13 @@ def zoom_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray
     (:func:`level_factors`):
     ``clip01((f + sum_z clipped_zoom(f, z)[:H, :W]) / (n + 1))`` on ``f = x / 255`` in
     float32, ``n`` the number of factors; a layer smaller than H x W adds only to its
-    top-left part. Truncated to uint8."""
+    top-left part. Truncated to uint8.
+
+    Size rule (as imagecorruptions-imaug 1.1.5): the factors are relative, so the blur's
+    streaks grow with the image; each layer is the centre crop of ``ceil(H / z)`` x
+    ``ceil(W / z)`` zoomed to ``round(ch * z)`` x ``round(cw * z)``, which can differ from
+    H x W by a pixel either way: extra rows and columns are dropped, missing ones add
+    nothing."""
     h, w = x.shape[:2]
     f = x.astype(np.float32) * np.float32(1 / 255)
     factors = level_factors(level)
