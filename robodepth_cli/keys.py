@@ -1,0 +1,45 @@
+"""From a source image's path to the *key* a build names and seeds its outputs with.
+
+A build seeds every job with the key of its source (``<variant>/<level>/<key>`` is also the
+output path). The manifest records the source path as found under the root; this module
+turns that path back into the key, so code outside a build (the PyTorch transforms) can
+draw exactly what a build draws for that image.
+
+* ``custom``: the path relative to the root with its extension replaced by ``.png``
+  (``city/a.JPG`` -> ``city/a.png``; no extension: ``.png`` appended).
+* ``kitti-c``, ``kitti-c-hr``, ``kitti-s``: ``kitti_data/`` + the path with its image
+  extension replaced by ``.png`` (a key that already starts with ``kitti_data/`` is kept).
+* ``nyudepth2-c``: the path with its image extension replaced by ``.png``.
+"""
+
+from __future__ import annotations
+
+from pathlib import PurePosixPath
+
+KITTI_PREFIX = "kitti_data"
+# The extensions a preset split's source may have (a custom source's is always replaced).
+PRESET_EXTS = (".png", ".jpg", ".jpeg")
+
+
+def custom_key(rel: str) -> str:
+    """``rel`` (posix, relative to the root) with its extension replaced by ``.png``."""
+    p = PurePosixPath(rel)
+    return str(p.with_suffix(".png")) if p.suffix else f"{rel}.png"
+
+
+def _png(rel: str) -> str:
+    p = PurePosixPath(rel)
+    return str(p.with_suffix(".png")) if p.suffix.lower() in PRESET_EXTS else f"{rel}.png"
+
+
+def seed_key(dataset: str, path: str) -> str:
+    """The key a build of ``dataset`` uses for the source recorded as ``path`` (the
+    manifest's ``source`` column, or the key itself, or an output path relative to OUT
+    is *not* accepted: strip ``<variant>/<level>/`` first)."""
+    rel = str(path).replace("\\", "/").lstrip("/")
+    if dataset == "custom":
+        return custom_key(rel)
+    if dataset.startswith("kitti"):
+        rel = _png(rel)
+        return rel if rel.startswith(KITTI_PREFIX + "/") else f"{KITTI_PREFIX}/{rel}"
+    return _png(rel)

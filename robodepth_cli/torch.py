@@ -1,0 +1,294 @@
+"""On-the-fly corruption for PyTorch: transforms and a dataset of a built benchmark.
+
+This is the only module of the package that imports torch.
+
+* :class:`Corrupt` applies one corruption at one level. Given ``key=`` (the source path as
+  a build's manifest records it) it draws exactly what ``robodepth build`` draws for that
+  image, so the pixels equal the built file's; without a key it draws from its own
+  generator.
+* :class:`RandomCorrupt` picks a corruption and a level at random, for augmentation-style
+  experiments. The RoboDepth challenge rules forbid training on the benchmark's
+  corruptions for results submitted to it: this is for research on robustness, not for
+  leaderboard entries.
+* :class:`KittiC` reads one corruption and level of a build (KITTI-C, NYUDepth2-C or a
+  custom build) in split order, from disk or computed from the build's clean images.
+
+Every generator is per process: a transform copied into ``DataLoader`` workers gives each
+worker its own stream (derived from the seed and the worker's seed), and keyed draws do
+not depend on any state at all. Nothing uses numpy's or torch's global random state.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import torch
+from PIL import Image
+
+from . import corruptions, seeding
+from .errors import RobodepthError
+from .keys import seed_key
+
+__all__ = ["Corrupt", "RandomCorrupt", "KittiC"]
+
+
+class TorchAPIError(RobodepthError):
+    """A bad argument to a transform or dataset of :mod:`robodepth_cli.torch`."""
+
+
+# --- image types ---------------------------------------------------------------------------
+
+def _to_array(img):
+    """``(uint8 H x W x 3 array, function turning a result back into img's type)``."""
+    if isinstance(img, Image.Image):
+        return np.asarray(img.convert("RGB")), lambda a: Image.fromarray(a, "RGB")
+    if isinstance(img, np.ndarray):
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+            raise TorchAPIError(f"expected an H x W x 3 uint8 array, got {img.dtype} {img.shape}")
+        return img, lambda a: a
+    if isinstance(img, torch.Tensor):
+        if img.ndim != 3 or img.shape[0] != 3:
+            raise TorchAPIError(f"expected a 3 x H x W tensor, got shape {tuple(img.shape)}")
+        t = img.detach().cpu()
+        if t.dtype == torch.uint8:
+            arr = t.permute(1, 2, 0).numpy()
+            return np.ascontiguousarray(arr), lambda a: torch.from_numpy(a).permute(2, 0, 1).contiguous().to(img.device)
+        if t.is_floating_point():
+            # Rounded: a uint8 image put through ToTensor (k / 255) comes back exactly.
+            arr = (t.clamp(0, 1) * 255).round().to(torch.uint8).permute(1, 2, 0).numpy()
+            return (np.ascontiguousarray(arr),
+                    lambda a: (torch.from_numpy(a).permute(2, 0, 1).to(img.dtype) / 255).to(img.device))
+        raise TorchAPIError(f"expected a uint8 or floating-point tensor, got {t.dtype}")
+    raise TorchAPIError(f"expected a PIL image, numpy array or tensor, got {type(img).__name__}")
+
+
+# --- per-process generators ----------------------------------------------------------------
+
+def _worker_tag() -> tuple:
+    """What distinguishes this process's stream: the pid, and inside a DataLoader worker the
+    worker's seed (different for every worker and every epoch)."""
+    info = torch.utils.data.get_worker_info()
+    return (os.getpid(), None if info is None else int(info.seed))
+
+
+class _ProcessGenerator:
+    """A numpy Generator re-created in every process (and DataLoader worker) that uses it."""
+
+    def __init__(self, seed: int | None):
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+            raise TorchAPIError(f"seed must be an integer >= 0 or None, got {seed!r}")
+        self.seed = None if seed is None else int(seed)
+        self._tag = None
+        self._rng = None
+
+    def get(self) -> np.random.Generator:
+        tag = _worker_tag()
+        if tag != self._tag:
+            worker_seed = tag[1]
+            if self.seed is None:
+                self._rng = np.random.default_rng()  # fresh OS entropy in this process
+            elif worker_seed is None:
+                self._rng = np.random.default_rng(self.seed)
+            else:
+                self._rng = np.random.default_rng([self.seed, worker_seed % (1 << 63)])
+            self._tag = tag
+        return self._rng
+
+    def __getstate__(self):
+        return {"seed": self.seed, "_tag": None, "_rng": None}
+
+
+def _check(name: str, level) -> tuple[str, int]:
+    try:
+        c = corruptions.get(name)
+        return c.name, corruptions.check_level(c, level)
+    except ValueError as exc:
+        raise TorchAPIError(str(exc)) from None
+
+
+# --- transforms ----------------------------------------------------------------------------
+
+class Corrupt:
+    """Apply corruption ``name`` at ``level``.
+
+    Parameters
+    ----------
+    name, level : a corruption of ``robodepth list`` and one of its levels.
+    seed : the build's ``--seed`` when used with ``key=``; otherwise the seed of this
+        transform's own generator (``None``: fresh entropy in every process).
+    dataset : the dataset whose seeding ``key=`` follows: ``"custom"`` (default),
+        ``"kitti-c"`` or ``"nyudepth2-c"``.
+
+    Calling it with a PIL image, an H x W x 3 uint8 array or a 3 x H x W tensor (uint8, or
+    floating point in [0, 1], rounded to uint8 levels first) returns the same type.
+    ``key=`` is the source path as the manifest records it (``row.source``; for a custom
+    build the path relative to ``--root``): the image is then corrupted with the generator
+    the build uses for that (seed, dataset, corruption, level, key), so given the build's
+    clean image the result equals the built file pixel for pixel. Without a key each call
+    draws from the transform's own generator.
+    """
+
+    def __init__(self, name: str, level: int, seed: int | None = 0, dataset: str = "custom"):
+        self.name, self.level = _check(name, level)
+        self.dataset = str(dataset)
+        self._gen = _ProcessGenerator(seed)
+
+    @property
+    def seed(self):
+        return self._gen.seed
+
+    def rng_for(self, key: str | None) -> np.random.Generator:
+        if key is None:
+            return self._gen.get()
+        if self.seed is None:
+            raise TorchAPIError("key= needs the build's seed: create the transform with seed=N")
+        return seeding.job_rng(self.seed, self.dataset, self.name, self.level,
+                               seed_key(self.dataset, key))
+
+    def __call__(self, img, key: str | None = None):
+        arr, back = _to_array(img)
+        try:
+            out = corruptions.corrupt(arr, self.name, self.level, self.rng_for(key))
+        except RobodepthError:
+            raise
+        except ValueError as exc:  # e.g. an image below 32 x 32
+            raise TorchAPIError(str(exc)) from None
+        return back(out)
+
+    def __repr__(self) -> str:
+        return f"Corrupt({self.name!r}, {self.level}, seed={self.seed}, dataset={self.dataset!r})"
+
+
+class RandomCorrupt:
+    """With probability ``p``, one corruption of ``names`` at one level of ``levels``, both
+    chosen uniformly; otherwise the image unchanged (the same object).
+
+    All draws (whether to corrupt, which corruption and level, the corruption's own
+    randomness) come from one generator per process seeded from ``seed``
+    (``None``: fresh entropy). Defaults: all 18 corruptions, levels 1 to 5.
+    """
+
+    def __init__(self, names: Sequence[str] | None = None, levels: Sequence[int] | None = None,
+                 p: float = 0.5, seed: int | None = None):
+        names = tuple(corruptions.NAMES if names is None else names)
+        levels = tuple(range(1, 6) if levels is None else levels)
+        if not names or not levels:
+            raise TorchAPIError("names and levels must not be empty")
+        for n in names:
+            for lv in levels:
+                _check(n, lv)
+        if not 0.0 <= float(p) <= 1.0:
+            raise TorchAPIError(f"p must be in [0, 1], got {p!r}")
+        self.names, self.levels, self.p = names, tuple(int(lv) for lv in levels), float(p)
+        self._gen = _ProcessGenerator(seed)
+
+    def __call__(self, img):
+        rng = self._gen.get()
+        if rng.random() >= self.p:
+            return img
+        name = self.names[rng.integers(len(self.names))]
+        level = self.levels[rng.integers(len(self.levels))]
+        arr, back = _to_array(img)
+        return back(corruptions.corrupt(arr, name, level, rng))
+
+    def __repr__(self) -> str:
+        return f"RandomCorrupt(names={list(self.names)}, levels={list(self.levels)}, p={self.p})"
+
+
+# --- a built dataset -----------------------------------------------------------------------
+
+def _read_build(root: Path) -> tuple[dict, list[str]]:
+    """The build record of ``root`` and its image keys in split order."""
+    from .datasets import get_dataset, read_split
+
+    record_path = root / "build.json"
+    try:
+        record = json.loads(record_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise TorchAPIError(f"{root}: no build.json; not an output directory of robodepth build") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise TorchAPIError(f"{record_path}: cannot read the build record ({exc})") from None
+    split = record.get("split") or {}
+    keys = split.get("keys")
+    if isinstance(keys, list) and keys:
+        return record, [str(k) for k in keys]
+    path = split.get("path")
+    try:
+        ds = get_dataset(record.get("dataset"))
+        entries = read_split(Path(path), ds.split_format)
+    except (TypeError, ValueError) as exc:
+        raise TorchAPIError(f"{record_path}: cannot recover the split order ({exc})") from None
+    limit = (record.get("config") or {}).get("limit")
+    return record, [e.key for e in entries[:limit]]
+
+
+class KittiC(torch.utils.data.Dataset):
+    """One corruption at one level of a build made by ``robodepth build`` (KITTI-C, also
+    NYUDepth2-C and custom builds), item ``i`` being the ``i``-th image of the split.
+
+    ``root`` is the build's output directory. With ``on_the_fly=False`` the images are
+    read from ``root/<corruption>/<level>/<key>``; with ``on_the_fly=True`` they are
+    computed from ``root/clean/<key>`` with :class:`Corrupt` seeded as the build was (its
+    seed and dataset from ``build.json``), which gives the same pixels: only the clean
+    images need to be on disk.
+
+    An item is a dict: ``key`` (str), ``image`` (3 x H x W uint8 tensor, or whatever
+    ``transform`` makes of the H x W x 3 array) and, when ``root/gt_depths.npz`` exists
+    (``robodepth gt``), ``depth`` (the ground-truth map of that image, float32 tensor).
+    """
+
+    def __init__(self, root, corruption: str, level: int, on_the_fly: bool = False, transform=None):
+        self.root = Path(root)
+        record, self.keys = _read_build(self.root)
+        self.dataset = str(record.get("dataset"))
+        self.seed = int(record.get("seed", 0))
+        self.corruption = Corrupt(corruption, level, seed=self.seed, dataset=self.dataset)
+        self.level = self.corruption.level
+        self.on_the_fly = bool(on_the_fly)
+        self.transform = transform
+        self._gt_path = self.root / "gt_depths.npz"
+        self._gt = None
+        first = self._path(0) if self.keys else None
+        if first is not None and not first.is_file():
+            raise TorchAPIError(f"{first}: missing; was {'clean' if self.on_the_fly else f'{corruption} level {level}'} "
+                                f"built into {self.root}?")
+
+    def _path(self, i: int) -> Path:
+        if self.on_the_fly:
+            return self.root / "clean" / self.keys[i]
+        return self.root / self.corruption.name / str(self.level) / self.keys[i]
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def _depth(self, i: int):
+        if self._gt is None:
+            if not self._gt_path.is_file():
+                return None
+            # Opened lazily in each process (a DataLoader worker gets its own handle).
+            self._gt = np.load(self._gt_path, allow_pickle=True)["data"]
+        return torch.from_numpy(np.asarray(self._gt[i], dtype=np.float32))
+
+    def __getitem__(self, i: int) -> dict:
+        if not 0 <= i < len(self.keys):
+            raise IndexError(i)
+        from .imageio import read_rgb
+
+        img = np.asarray(read_rgb(self._path(i)))
+        if self.on_the_fly:
+            img = corruptions.corrupt(img, self.corruption.name, self.level, self.corruption.rng_for(self.keys[i]))
+        item = {"key": self.keys[i]}
+        item["image"] = self.transform(img) if self.transform else torch.from_numpy(img.copy()).permute(2, 0, 1)
+        depth = self._depth(i)
+        if depth is not None:
+            item["depth"] = depth
+        return item
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_gt"] = None
+        return state
