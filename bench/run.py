@@ -13,7 +13,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 SCRIPTS = ("corruptions.py", "build.py", "stylize.py", "cluster.py", "gt.py", "evaluate.py",
-           "source_hash.py")
+           "source_hash.py", "large.py")
 
 
 def main() -> int:

@@ -6,7 +6,8 @@ impossible is checked before the first image is touched:
 1. :func:`find_sources`: check the root (and that it and OUT do not overlap), read the
    split (a standard one is downloaded and checked on first use) and find every listed
    image, one :class:`Source` per entry; abort if none is there, if one resolves into OUT,
-   or if OUT holds a build of another dataset, size or seed (:mod:`.buildchecks`);
+   or if OUT holds a build of another dataset, size or seed (:mod:`.buildchecks`); a custom
+   build finds its images under the root instead (:func:`gather_sources`);
 2. ``Dataset.renderer``: the object that turns a clean image into its variants (KITTI-S
    checks its checkpoints and style images here, still before OUT is touched);
 3. :func:`prepare_out` and :func:`claim_out`: create OUT, prove it writable, take its lock,
@@ -106,6 +107,7 @@ class Task:
     # Whether some matching row predates the recorded source size/time/hash: its skipped
     # outputs get their row again, now with them.
     refresh: bool = False
+    size: tuple[int, int] | None = None  # the outputs' (H, W) when known before decoding
 
 
 @dataclass(frozen=True)
@@ -113,7 +115,7 @@ class Context:
     """What every task of a build shares."""
 
     out: str
-    size: tuple[int, int]
+    size: tuple[int, int] | None  # None: every image at its own size
     seed: int
     renderer: Renderer
     single_thread: bool  # True in pool workers: the pool already uses every core
@@ -192,8 +194,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     ds = get_dataset(cfg.dataset)
     typed_root, root = root, check_root(root, labeled_ok=ds.split_format == "nyu")
     buildchecks.check_apart(typed_root, out)
-    split_path = splits.split_path(cfg.split)
-    sources = find_sources(root, split_path, ds, cfg.limit, shown_root=typed_root)
+    sources, split = gather_sources(ds, cfg, root, Path(out), typed_root)
     buildchecks.check_sources_outside((s.path for s in sources), out)
     previous = buildchecks.read_record(out) if Path(out).is_dir() else None
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
@@ -213,12 +214,13 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             getattr(renderer, "warm_up", lambda: None)()
         plans = buildchecks.merge_plans(previous, buildchecks.plan_entry(
             cfg.variants, cfg.levels, [s.key for s in sources]))
-        record = start_record(cfg, ds, root, out, split_path, sources, executor, command, plans)
+        record = start_record(cfg, ds, root, out, split, executor, command, plans)
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1)
         summary = run_tasks(tasks, ctx, executor, out, progress)
-        if gt and not (summary.interrupted or summary.fatal):
-            add_ground_truth(ds, cfg, root, split_path, out, summary, progress)
+        # A custom build has no ground truth to add.
+        if gt and not ds.discovers_sources and not (summary.interrupted or summary.fatal):
+            add_ground_truth(ds, cfg, root, Path(split["path"]), out, summary, progress)
         finish(out, record, summary)
     return summary
 
@@ -283,6 +285,26 @@ def labeled_sources(path: Path, split_path: Path, entries: list[Entry]) -> list[
     return sources
 
 
+def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
+                   shown_root: Path | None = None) -> tuple[list[Source], dict]:
+    """The sources of the build and the record's ``split`` entry (how they were chosen;
+    ``keys``: the entries built, in order): a preset's split file, or for a custom build the
+    images found under the root or listed in ``--list`` (:mod:`robodepth_cli.custom`)."""
+    if ds.discovers_sources:
+        from . import custom
+
+        found, split = custom.find_sources(root, cfg, out)
+        sources = [Source.find(root, Entry(n, key, (rel,))) for n, (key, rel) in enumerate(found, 1)]
+        if all(s.error for s in sources):
+            raise BuildError(f"{shown_root or root}: none of the {len(sources)} images of {split['path'] or 'the root'} is usable; "
+                             f"wrong --root? (first: {sources[0].error})")
+        return sources, split
+    split_path = splits.split_path(cfg.split)
+    sources = find_sources(root, split_path, ds, cfg.limit, shown_root=shown_root)
+    return sources, {"path": os.path.abspath(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
+                     "images": len(sources), "keys": [s.key for s in sources]}
+
+
 def make_renderer(ds: Dataset, cfg: BuildConfig) -> Renderer:
     """The dataset's renderer; it may check the user's files (KITTI-S loads and validates
     the checkpoints and style images), which is why this runs before OUT is touched."""
@@ -327,13 +349,14 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
     fingerprints = {job.variant: _fingerprint(renderer, job) for job in jobs}
     tasks = []
     for src in sources:
+        size = cfg.size or native_size(src)
         expected, hashes, refresh = [], set(), False
         for job in jobs:
             r = done.get(job.path(src.key))
             # A source that has gone missing does not spoil the outputs already made from it.
             same = (r is not None and not r.error
                     and ((r.source == src.rel and _same_source(r, src)) or bool(src.error))
-                    and r.seed == cfg.seed and (r.height, r.width) == cfg.size
+                    and r.seed == cfg.seed and (r.height, r.width) == size
                     and r.params == fingerprints[job.variant])
             expected.append(r.sha256 if same else None)
             if same:
@@ -341,14 +364,30 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
                 refresh = refresh or (not src.error and r.source_size is None)
         # Rows made from different bytes of this source (or with none recorded): no claim.
         source_sha = hashes.pop() if len(hashes) == 1 else ""
-        tasks.append(Task(src, jobs, tuple(expected), source_sha, refresh))
+        tasks.append(Task(src, jobs, tuple(expected), source_sha, refresh, size))
     return tasks
 
 
 def worker_files(cfg: BuildConfig) -> list[str]:
     """Files named in the configuration that workers read besides the images (KITTI-S:
     the checkpoints), as absolute paths; a cluster's workers must see them too."""
-    return [os.path.abspath(v) for v in cfg.extra.values() if isinstance(v, str) and os.path.isfile(v)]
+    # A custom build's --list is read by the main process only.
+    return [os.path.abspath(v) for k, v in cfg.extra.items()
+            if k != "list" and isinstance(v, str) and os.path.isfile(v)]
+
+
+def native_size(src: Source) -> tuple[int, int] | None:
+    """The (H, W) of a source image from its header, None if it cannot be read (its task
+    will say why)."""
+    if src.error or not src.path:
+        return None
+    from PIL import Image
+
+    try:
+        with Image.open(src.path) as im:
+            return im.height, im.width
+    except Exception:  # anything unreadable fails in its task, with the reason
+        return None
 
 
 def _same_source(row: Row, src: Source) -> bool:
@@ -363,18 +402,18 @@ def _same_source(row: Row, src: Source) -> bool:
     return bool(row.source_sha256) or row.source_mtime == src.mtime
 
 
-def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split_path: Path,
-                 sources: list[Source], executor: Executor, command: list[str] | None,
+def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: dict,
+                 executor: Executor, command: list[str] | None,
                  plans: list[dict] | None = None) -> dict:
     """Write the build record of a build that starts now (status ``running``) and return it.
-    ``split.keys`` lists the entries built, in split order; ``plans`` every request made
+    ``split`` is :func:`gather_sources`' account of the sources (``keys``: the entries
+    built, in order); ``plans`` every request made
     into this OUT so far (see :mod:`robodepth_cli.buildchecks`), which verify checks."""
     record = {
         "robodepth": __version__, "command": command or [], "dataset": ds.name,
         "config": cfg.as_dict(), "seed": cfg.seed, "root": str(root), "out": str(out.resolve()),
-        "split": {"path": os.path.abspath(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
-                  "images": len(sources), "keys": [s.key for s in sources]},
-        "plans": plans or [buildchecks.plan_entry(cfg.variants, cfg.levels, [s.key for s in sources])],
+        "split": split,
+        "plans": plans or [buildchecks.plan_entry(cfg.variants, cfg.levels, split["keys"])],
         "versions": library_versions(ds), "png_compress_level": PNG_COMPRESS_LEVEL,
         "png_encoder": PNG_ENCODER,
         "executor": executor.describe(),
@@ -498,7 +537,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     _configure_worker(ctx.single_thread)
     out = Path(ctx.out)
     src = task.source
-    h, w = ctx.size
+    hw = list(task.size or ctx.size or (0, 0))  # the decoded image's own, once decoded
     # A frame inside a container (NYU's labeled .mat) is not hashed: that would read the
     # whole multi-GB file for every image.
     source_sha = (_sha_or_none(Path(src.path)) or "") if src.path and src.frame is None else ""
@@ -507,7 +546,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
         expected = (None,) * len(task.jobs)  # the source's bytes changed: redo everything
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
-        return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, h, w, sha, error,
+        return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
                    _fingerprint(ctx.renderer, job), src.size, src.mtime, source_sha)
 
     results: list[tuple[JobState, Row]] = []
@@ -531,6 +570,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
         return results
 
     clean.flags.writeable = False
+    hw[:] = clean.shape[:2]
     # Lazily, so only one rendered image is alive at a time.
     rendered = itertools.chain(
         ((j, clean) for j in todo if j.variant == CLEAN),

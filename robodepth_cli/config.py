@@ -46,7 +46,7 @@ class BuildConfig:
     preset: str
     dataset: str
     split: str  # a standard split name, or a split file's path as typed (joined to its config file's directory)
-    size: tuple[int, int]  # (H, W)
+    size: tuple[int, int] | None  # (H, W); None: every image at its own size (custom)
     variants: tuple[str, ...]
     levels: tuple[int, ...]
     seed: int
@@ -58,7 +58,7 @@ class BuildConfig:
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
-        d["size"] = list(self.size)
+        d["size"] = None if self.size is None else list(self.size)
         d["variants"] = list(self.variants)
         d["levels"] = list(self.levels)
         return d
@@ -233,11 +233,16 @@ class _Resolver:
     def _check(self, loc: str, key: str, v, base: Path):
         ds = self.dataset
         if key == "split":
+            if ds.discovers_sources:
+                raise ConfigError(f"{loc}: {ds.name} has no split: it builds the images found under "
+                                  f"--root (--pattern), or those of --list FILE")
             try:
                 return splits.check_choice(v, ds.split_format, base, owner=ds.name)
             except ValueError as exc:
                 raise ConfigError(f"{loc}: {exc}") from None
         if key == "size":
+            if v is None and ds.discovers_sources:
+                return None  # each image at its own size
             if isinstance(v, list) and len(v) == 2 and all(_is_int(s) for s in v):
                 v = f"{v[0]}x{v[1]}"
             if not isinstance(v, str):
@@ -283,15 +288,16 @@ class _Resolver:
             raise ConfigError(f"{loc}: {exc}") from None
 
     def result(self) -> BuildConfig:
-        missing = [k for k in ("dataset", "split", "size", self.dataset.variant_key, "seed", "jobs")
-                   if k not in self.values]
+        required = ("dataset", "split", "size", self.dataset.variant_key, "seed", "jobs")
+        missing = [k for k in required if k not in self.values
+                   and not (k == "split" and self.dataset.discovers_sources)]
         if missing:
             raise ConfigError(f"preset {self.preset!r}: missing keys {', '.join(missing)}")
         ds = self.dataset
         variants = self.values[ds.variant_key]
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
-        return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values["split"],
+        return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),
                            size=self.values["size"], variants=tuple(variants), levels=tuple(levels),
                            seed=self.values["seed"], jobs=self.values["jobs"],
                            limit=self.values.get("limit"), extra=extra,

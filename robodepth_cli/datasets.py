@@ -216,6 +216,7 @@ class Dataset:
     variant_noun: str = "corruption"  # in messages: "unknown corruption 'x'"
     corruptions: tuple[str, ...] = CORRUPTIONS  # this dataset's own, in benchmark order
     n_levels: int = N_LEVELS  # levels 1..n_levels
+    discovers_sources: bool = False  # True: images found under the root, no split (custom)
 
     def variant_names(self) -> tuple[str, ...]:
         """The variants this dataset has; ``all`` in a configuration means these."""
@@ -297,10 +298,30 @@ def _benchmark_dataset(name: str, split_format: str) -> Dataset:
     return Dataset(name, split_format, corruptions=b.corruptions, n_levels=b.n_levels)
 
 
+@dataclass(frozen=True)
+class CustomDataset(Dataset):
+    """Any folder of images (``build custom``): the sources are found under the root by
+    pattern or listed in a file, each at its own size unless a size is given; see
+    :mod:`robodepth_cli.custom`."""
+
+    discovers_sources: bool = True
+
+    def options(self) -> tuple[str, ...]:
+        from .custom import OPTIONS
+
+        return OPTIONS
+
+    def check_option(self, key: str, value, base: Path):
+        from .custom import check_option
+
+        return check_option(key, value, base)
+
+
 DATASETS: dict[str, Dataset] = {
     "kitti-c": _benchmark_dataset("kitti-c", "eigen"),
     "nyudepth2-c": _benchmark_dataset("nyudepth2-c", "nyu"),
     "kitti-s": StyleDataset("kitti-s", "eigen"),
+    "custom": CustomDataset("custom", ""),
 }
 
 

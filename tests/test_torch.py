@@ -176,3 +176,22 @@ def test_bad_arguments(make):
 def test_not_a_build(tmp_path):
     with pytest.raises(TorchAPIError, match="build.json"):
         KittiC(tmp_path, "fog", 1)
+
+
+def test_key_reproduces_a_custom_build(tmp_path):
+    from _trees import save
+
+    root = tmp_path / "frames"
+    save(root / "cam" / "a.JPG", random_image(40, 70, seed=7))
+    save(root / "b.png", random_image(52, 44, seed=8))
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["build", "custom", "--root", str(root), "--out", str(out),
+                                  "--corruptions", "fog,shot_noise", "--levels", "3",
+                                  "--no-progress"])
+    assert r.exit_code == 0, r.output
+    for rel, key in (("cam/a.JPG", "cam/a.png"), ("b.png", "b.png")):
+        with Image.open(root / rel) as im:
+            img = im.convert("RGB")  # the source itself: a custom build keeps its size
+        for name in ("fog", "shot_noise"):
+            got = Corrupt(name, 3, seed=0)(img, key=rel)
+            np.testing.assert_array_equal(np.asarray(got), load(out / name / "3" / key))

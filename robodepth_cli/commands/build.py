@@ -17,7 +17,7 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.command("build")
 @click.argument("dataset", metavar="DATASET")
 @click.option("--root", required=True, type=click.Path(path_type=Path),
-              help="KITTI raw root (holds 2011_09_26/...) or the NYU Depth V2 test root.")
+              help="KITTI raw root (holds 2011_09_26/...), the NYU Depth V2 test root, or (custom) any folder of images.")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output directory; rerunning into it resumes.")
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
@@ -25,10 +25,12 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test) or a split file.")
 @click.option("--corruptions", metavar="A,B|all", help="Comma-separated corruption names, or 'all'.")
 @click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3), or 'all'.")
-@click.option("--size", metavar="HxW", help="Output size HxW (e.g. 320x1024).")
+@click.option("--size", metavar="HxW", help="Output size HxW (e.g. 320x1024); custom: each image's own size unless given.")
 @click.option("--jobs", "-j", metavar="N|auto", help="Worker processes (preset: 2); 'auto' or -1: one per CPU.")
 @click.option("--seed", metavar="S", help="Global seed (preset: 0).")
 @click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
+@click.option("--pattern", metavar="GLOB,GLOB", help="custom: which files under ROOT (default: png, jpg, jpeg, bmp, tif, webp at any depth, any case), e.g. '**/*_leftImg8bit.png'.")
+@click.option("--list", metavar="FILE", help="custom: build exactly these images, in this order (one path relative to ROOT a line).")
 @click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
 @click.option("--only-styles", metavar="A,B|all", help="kitti-s: comma-separated style names, or 'all'.")
 @click.option("--vgg", metavar="FILE", help="kitti-s: AdaIN encoder checkpoint (vgg_normalised.pth).")
@@ -45,7 +47,7 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
-    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s) from ROOT into OUT.
+    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom) from ROOT into OUT.
 
     Writes OUT/clean/<image> and OUT/<corruption>/<level>/<image> (kitti-s:
     OUT/<style>/<image>) as PNG, where <image> is
@@ -73,6 +75,8 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
           --decoder decoder.pth --out KITTI_S
       robodepth build kitti-c --root /shared/kitti_raw --out /shared/KITTI_C \\
           --scheduler tcp://head:8786
+      robodepth build custom --root cityscapes/leftImg8bit/val --out CITYSCAPES_C \\
+          --pattern '**/*_leftImg8bit.png' --levels 3
     """
     from ..builder import build
     from ..config import resolve

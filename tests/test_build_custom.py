@@ -1,0 +1,202 @@
+"""`robodepth build custom`: any folder of images, each at its own size or a given one."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from robodepth_cli import corruptions, seeding
+from robodepth_cli.cli import main
+from robodepth_cli.custom import compile_pattern
+
+from _trees import random_image, save, tree
+
+VARIANTS = "fog,gaussian_noise,pixelate"
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args] + ["--no-progress"] * (args[0] == "build"))
+
+
+def build(root, out, *flags):
+    return run("build", "custom", "--root", root, "--out", out, "--corruptions", VARIANTS,
+               "--levels", "1,3", *flags)
+
+
+def rows(out):
+    with open(out / "manifest.csv", newline="") as fh:
+        return {r["output"]: r for r in csv.DictReader(fh)}
+
+
+def load(path):
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB")).copy()
+
+
+@pytest.fixture
+def folder(tmp_path):
+    """Three images of three sizes, nested, with upper-case and jpg extensions, plus a
+    file that is not an image."""
+    root = tmp_path / "city"
+    save(root / "berlin" / "f_000.png", random_image(40, 64, seed=1))
+    save(root / "berlin" / "f_001.PNG", random_image(48, 36, seed=2))
+    save(root / "bonn" / "deep" / "g.jpg", random_image(33, 90, seed=3))
+    (root / "notes.txt").write_text("not an image")
+    return root
+
+
+KEYS = {"berlin/f_000.png": (40, 64), "berlin/f_001.png": (48, 36), "bonn/deep/g.png": (33, 90)}
+SOURCES = {"berlin/f_000.png": "berlin/f_000.png", "berlin/f_001.png": "berlin/f_001.PNG",
+           "bonn/deep/g.png": "bonn/deep/g.jpg"}
+
+
+def test_layout_own_sizes_and_pixels(folder, tmp_path):
+    out = tmp_path / "out"
+    r = build(folder, out, "--seed", "3")
+    assert r.exit_code == 0, r.output
+    m = rows(out)
+    expected = {f"clean/{k}" for k in KEYS} | {f"{v}/{lv}/{k}" for k in KEYS
+                                               for v in VARIANTS.split(",") for lv in (1, 3)}
+    assert set(tree(out)) == expected == set(m)
+    for key, (h, w) in KEYS.items():
+        source = load(folder / SOURCES[key])
+        clean = load(out / "clean" / key)
+        np.testing.assert_array_equal(clean, source)  # no --size: not resized
+        for v in VARIANTS.split(","):
+            for lv in (1, 3):
+                row = m[f"{v}/{lv}/{key}"]
+                assert (row["source"], int(row["height"]), int(row["width"])) == (SOURCES[key], h, w)
+                # seeded from (seed, "custom", variant, level, key), as SPEC section 4 says
+                rng = seeding.job_rng(3, "custom", v, lv, key)
+                np.testing.assert_array_equal(load(out / v / str(lv) / key),
+                                              corruptions.corrupt(clean, v, lv, rng))
+    record = json.loads((out / "build.json").read_text())
+    assert record["dataset"] == "custom" and record["config"]["size"] is None
+    assert record["split"]["keys"] == sorted(KEYS)
+
+
+def test_size_resizes_with_lanczos(folder, tmp_path):
+    out = tmp_path / "out"
+    r = build(folder, out, "--size", "32x48")
+    assert r.exit_code == 0, r.output
+    for key in KEYS:
+        with Image.open(folder / SOURCES[key]) as im:
+            ref = np.asarray(im.convert("RGB").resize((48, 32), Image.LANCZOS))
+        np.testing.assert_array_equal(load(out / "clean" / key), ref)
+    assert {(r["height"], r["width"]) for r in rows(out).values()} == {("32", "48")}
+
+
+def test_jobs_1_and_2_identical_and_resume(folder, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert build(folder, a, "--jobs", "1").exit_code == 0
+    assert build(folder, b, "--jobs", "2").exit_code == 0
+    assert tree(a) == tree(b)
+    before = {p: os.stat(a / p).st_mtime_ns for p in tree(a)}
+    (a / "fog" / "3" / "bonn" / "deep" / "g.png").unlink()
+    r = build(folder, a, "--jobs", "2")
+    assert r.exit_code == 0 and "1 written" in r.output
+    assert tree(a) == tree(b)
+    assert all(os.stat(a / p).st_mtime_ns == t for p, t in before.items()
+               if p != "fog/3/bonn/deep/g.png")
+    # a different size redoes everything
+    r = build(folder, a, "--size", "40x40")
+    assert r.exit_code == 0 and f"{len(before)} written" in r.output
+
+
+def test_list_restricts_and_orders(folder, tmp_path):
+    lst = tmp_path / "list.txt"
+    lst.write_text("# two of them\nbonn/deep/g.jpg\n\nberlin/f_000.png\n")
+    out = tmp_path / "out"
+    r = build(folder, out, "--list", lst)
+    assert r.exit_code == 0, r.output
+    assert {p.split("/", 1)[1] for p in tree(out) if p.startswith("clean/")} == {"bonn/deep/g.png", "berlin/f_000.png"}
+    assert json.loads((out / "build.json").read_text())["split"]["keys"] == ["bonn/deep/g.png", "berlin/f_000.png"]
+
+
+def test_config_file_and_limit(folder, tmp_path):
+    cfg = tmp_path / "mine.yaml"
+    cfg.write_text("pattern: 'berlin/*.png'\ncorruptions: [contrast]\nlevels: [2]\n")
+    out = tmp_path / "out"
+    r = run("build", "custom", "--root", folder, "--out", out, "--config", cfg, "--limit", "1")
+    assert r.exit_code == 0, r.output
+    # case-insensitive: f_001.PNG matches too, and sorts after f_000.png; the limit keeps one
+    assert set(tree(out)) == {"clean/berlin/f_000.png", "contrast/2/berlin/f_000.png"}
+
+
+def test_collision_refused_before_any_work(folder, tmp_path):
+    save(folder / "berlin" / "f_000.jpg", random_image(40, 40, seed=9))
+    out = tmp_path / "out"
+    r = build(folder, out)
+    assert r.exit_code == 2
+    assert "berlin/f_000.jpg and berlin/f_000.png would both be written as berlin/f_000.png" in r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("flags,message", [
+    (["--pattern", "**/*.{png,jpg}"], "braces are not supported"),
+    (["--pattern", "a**/*.png"], "'**' must be a whole path component"),
+    (["--pattern", "**/[ab.png"], "unclosed '['"),
+    (["--pattern", "../*.png"], "'..' component"),
+    (["--pattern", "**/*.gif"], "no file matches **/*.gif"),
+    (["--split", "eigen_test"], "custom has no split"),
+])
+def test_bad_input_is_one_line(folder, tmp_path, flags, message):
+    out = tmp_path / "out"
+    r = build(folder, out, *flags)
+    assert r.exit_code == 2, r.output
+    assert message in r.output and r.output.startswith("robodepth: error:")
+    assert len(r.output.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("line", ["../outside.png", "/etc/passwd", "berlin/../../x.png"])
+def test_list_line_escaping_the_root(folder, tmp_path, line):
+    lst = tmp_path / "list.txt"
+    lst.write_text(f"berlin/f_000.png\n{line}\n")
+    r = build(folder, tmp_path / "out", "--list", lst)
+    assert r.exit_code == 2 and f"{lst}:2:" in r.output, r.output
+
+
+def test_pattern_and_list_together_refused(folder, tmp_path):
+    lst = tmp_path / "list.txt"
+    lst.write_text("berlin/f_000.png\n")
+    r = build(folder, tmp_path / "out", "--list", lst, "--pattern", "**/*.png")
+    assert r.exit_code == 2 and "give one of them" in r.output
+
+
+def test_small_image_and_symlink_out_fail_alone(folder, tmp_path):
+    save(folder / "tiny.png", random_image(20, 50, seed=4))
+    outside = save(tmp_path / "elsewhere.png", random_image(40, 40, seed=5))
+    os.symlink(outside, folder / "link.png")
+    out = tmp_path / "out"
+    r = build(folder, out)
+    assert r.exit_code == 1, r.output
+    m = rows(out)
+    assert "too small" in m["clean/tiny.png"]["error"]
+    assert "outside the root" in m["clean/link.png"]["error"]
+    assert all(not m[f"clean/{k}"]["error"] for k in KEYS)
+
+
+def test_out_inside_root_is_not_a_source(folder):
+    out = folder / "corrupted"
+    assert build(folder, out).exit_code == 0
+    r = build(folder, out)
+    assert r.exit_code == 0 and "0 written" in r.output, r.output
+
+
+def test_pattern_semantics():
+    rx = compile_pattern("**/*_leftImg8bit.png")
+    assert rx.fullmatch("a_leftImg8bit.png") and rx.fullmatch("val/berlin/a_leftimg8bit.PNG")
+    assert not rx.fullmatch("val/a_leftImg8bit.png.bak")
+    rx = compile_pattern("val/*/f_?.jpg")
+    assert rx.fullmatch("val/x/f_1.jpg") and not rx.fullmatch("val/x/y/f_1.jpg")
+    assert not rx.fullmatch("val/x/f_12.jpg")
+    rx = compile_pattern("[!a]*.png")
+    assert rx.fullmatch("b.png") and not rx.fullmatch("a.png") and not rx.fullmatch("d/b.png")
