@@ -144,7 +144,7 @@ def test_whole_build_problem_is_one_line_and_exit_2(case, kitti, tmp_path, cli):
 def test_unknown_dataset(kitti, tmp_path, cli):
     root, split = kitti
     res = cli("build", "kitti-x", "--root", root, "--split", split, "--out", tmp_path / "o2")
-    one_line_error(res, "unknown dataset 'kitti-x'; valid: kitti-c, kitti-c-hr")
+    one_line_error(res, "unknown dataset 'kitti-x'; valid: custom, kitti-c, kitti-c-hr")
     assert not (tmp_path / "o2").exists()
 
 
