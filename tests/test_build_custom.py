@@ -8,11 +8,9 @@ import os
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from PIL import Image
 
 from robodepth_cli import corruptions, seeding
-from robodepth_cli.cli import main
 from robodepth_cli.custom import compile_pattern
 
 from _trees import random_image, save, tree
@@ -20,13 +18,15 @@ from _trees import random_image, save, tree
 VARIANTS = "fog,gaussian_noise,pixelate"
 
 
-def run(*args):
-    return CliRunner().invoke(main, [str(a) for a in args] + ["--no-progress"] * (args[0] == "build"))
+@pytest.fixture
+def build(cli):
+    """``build(root, out, *flags)``: ``robodepth build custom`` with three corruptions at
+    levels 1 and 3."""
+    def run(root, out, *flags):
+        return cli("build", "custom", "--root", root, "--out", out, "--corruptions", VARIANTS,
+                   "--levels", "1,3", *flags)
 
-
-def build(root, out, *flags):
-    return run("build", "custom", "--root", root, "--out", out, "--corruptions", VARIANTS,
-               "--levels", "1,3", *flags)
+    return run
 
 
 def rows(out):
@@ -56,7 +56,7 @@ SOURCES = {"berlin/f_000.png": "berlin/f_000.png", "berlin/f_001.png": "berlin/f
            "bonn/deep/g.png": "bonn/deep/g.jpg"}
 
 
-def test_layout_own_sizes_and_pixels(folder, tmp_path):
+def test_layout_own_sizes_and_pixels(folder, tmp_path, build):
     out = tmp_path / "out"
     r = build(folder, out, "--seed", "3")
     assert r.exit_code == 0, r.output
@@ -81,7 +81,7 @@ def test_layout_own_sizes_and_pixels(folder, tmp_path):
     assert record["split"]["keys"] == sorted(KEYS)
 
 
-def test_size_resizes_with_lanczos(folder, tmp_path):
+def test_size_resizes_with_lanczos(folder, tmp_path, build):
     out = tmp_path / "out"
     r = build(folder, out, "--size", "32x48")
     assert r.exit_code == 0, r.output
@@ -92,7 +92,7 @@ def test_size_resizes_with_lanczos(folder, tmp_path):
     assert {(r["height"], r["width"]) for r in rows(out).values()} == {("32", "48")}
 
 
-def test_jobs_1_and_2_identical_and_resume(folder, tmp_path):
+def test_jobs_1_and_2_identical_and_resume(folder, tmp_path, build):
     a, b = tmp_path / "a", tmp_path / "b"
     assert build(folder, a, "--jobs", "1").exit_code == 0
     assert build(folder, b, "--jobs", "2").exit_code == 0
@@ -109,7 +109,7 @@ def test_jobs_1_and_2_identical_and_resume(folder, tmp_path):
     assert r.exit_code == 0 and f"{len(before)} written" in r.output
 
 
-def test_list_restricts_and_orders(folder, tmp_path):
+def test_list_restricts_and_orders(folder, tmp_path, build):
     lst = tmp_path / "list.txt"
     lst.write_text("# two of them\nbonn/deep/g.jpg\n\nberlin/f_000.png\n")
     out = tmp_path / "out"
@@ -119,17 +119,17 @@ def test_list_restricts_and_orders(folder, tmp_path):
     assert json.loads((out / "build.json").read_text())["split"]["keys"] == ["bonn/deep/g.png", "berlin/f_000.png"]
 
 
-def test_config_file_and_limit(folder, tmp_path):
+def test_config_file_and_limit(folder, tmp_path, cli):
     cfg = tmp_path / "mine.yaml"
     cfg.write_text("pattern: 'berlin/*.png'\ncorruptions: [contrast]\nlevels: [2]\n")
     out = tmp_path / "out"
-    r = run("build", "custom", "--root", folder, "--out", out, "--config", cfg, "--limit", "1")
+    r = cli("build", "custom", "--root", folder, "--out", out, "--config", cfg, "--limit", "1")
     assert r.exit_code == 0, r.output
     # case-insensitive: f_001.PNG matches too, and sorts after f_000.png; the limit keeps one
     assert set(tree(out)) == {"clean/berlin/f_000.png", "contrast/2/berlin/f_000.png"}
 
 
-def test_collision_refused_before_any_work(folder, tmp_path):
+def test_collision_refused_before_any_work(folder, tmp_path, build):
     save(folder / "berlin" / "f_000.jpg", random_image(40, 40, seed=9))
     out = tmp_path / "out"
     r = build(folder, out)
@@ -147,7 +147,7 @@ def test_collision_refused_before_any_work(folder, tmp_path):
     (["--pattern", "**/*.gif"], "no file matches **/*.gif"),
     (["--split", "eigen_test"], "custom has no split"),
 ])
-def test_bad_input_is_one_line(folder, tmp_path, flags, message):
+def test_bad_input_is_one_line(folder, tmp_path, flags, message, build):
     out = tmp_path / "out"
     r = build(folder, out, *flags)
     assert r.exit_code == 2, r.output
@@ -157,21 +157,21 @@ def test_bad_input_is_one_line(folder, tmp_path, flags, message):
 
 
 @pytest.mark.parametrize("line", ["../outside.png", "/etc/passwd", "berlin/../../x.png"])
-def test_list_line_escaping_the_root(folder, tmp_path, line):
+def test_list_line_escaping_the_root(folder, tmp_path, line, build):
     lst = tmp_path / "list.txt"
     lst.write_text(f"berlin/f_000.png\n{line}\n")
     r = build(folder, tmp_path / "out", "--list", lst)
     assert r.exit_code == 2 and f"{lst}:2:" in r.output, r.output
 
 
-def test_pattern_and_list_together_refused(folder, tmp_path):
+def test_pattern_and_list_together_refused(folder, tmp_path, build):
     lst = tmp_path / "list.txt"
     lst.write_text("berlin/f_000.png\n")
     r = build(folder, tmp_path / "out", "--list", lst, "--pattern", "**/*.png")
     assert r.exit_code == 2 and "give one of them" in r.output
 
 
-def test_small_image_and_symlink_out_fail_alone(folder, tmp_path):
+def test_small_image_and_symlink_out_fail_alone(folder, tmp_path, build):
     save(folder / "tiny.png", random_image(20, 50, seed=4))
     outside = save(tmp_path / "elsewhere.png", random_image(40, 40, seed=5))
     os.symlink(outside, folder / "link.png")
@@ -184,7 +184,7 @@ def test_small_image_and_symlink_out_fail_alone(folder, tmp_path):
     assert all(not m[f"clean/{k}"]["error"] for k in KEYS)
 
 
-def test_out_inside_root_is_not_a_source(folder):
+def test_out_inside_root_is_not_a_source(folder, build):
     out = folder / "corrupted"
     assert build(folder, out).exit_code == 0
     r = build(folder, out)

@@ -7,11 +7,9 @@ import csv
 import numpy as np
 import pytest
 import torch
-from click.testing import CliRunner
 from PIL import Image
 
 from robodepth_cli import corruptions
-from robodepth_cli.cli import main
 from robodepth_cli.torch import Corrupt, KittiC, RandomCorrupt, TorchAPIError
 
 from _trees import kitti_tree, random_image
@@ -26,15 +24,13 @@ def load(path) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def kitti_build(tmp_path_factory):
+def kitti_build(tmp_path_factory, cli):
     tmp = tmp_path_factory.mktemp("kitti")
     root = tmp / "kitti_raw"
     split = kitti_tree(root, FRAMES, size=(48, 96))
     out = tmp / "out"
-    r = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(root), "--split", str(split),
-                                  "--out", str(out), "--size", "40x80", "--seed", "5",
-                                  "--corruptions", ",".join(VARIANTS), "--levels", "2,4",
-                                  "--no-progress"])
+    r = cli("build", "kitti-c", "--root", root, "--split", split, "--out", out, "--size", "40x80",
+            "--seed", "5", "--corruptions", ",".join(VARIANTS), "--levels", "2,4")
     assert r.exit_code == 0, r.output
     with open(out / "manifest.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
@@ -178,16 +174,15 @@ def test_not_a_build(tmp_path):
         KittiC(tmp_path, "fog", 1)
 
 
-def test_key_reproduces_a_custom_build(tmp_path):
+def test_key_reproduces_a_custom_build(tmp_path, cli):
     from _trees import save
 
     root = tmp_path / "frames"
     save(root / "cam" / "a.JPG", random_image(40, 70, seed=7))
     save(root / "b.png", random_image(52, 44, seed=8))
     out = tmp_path / "out"
-    r = CliRunner().invoke(main, ["build", "custom", "--root", str(root), "--out", str(out),
-                                  "--corruptions", "fog,shot_noise", "--levels", "3",
-                                  "--no-progress"])
+    r = cli("build", "custom", "--root", root, "--out", out, "--corruptions", "fog,shot_noise",
+            "--levels", "3")
     assert r.exit_code == 0, r.output
     for rel, key in (("cam/a.JPG", "cam/a.png"), ("b.png", "b.png")):
         with Image.open(root / rel) as im:
