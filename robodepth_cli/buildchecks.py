@@ -91,7 +91,7 @@ def _size_text(size) -> str:
     return f"{size[0]}x{size[1]}" if isinstance(size, (list, tuple)) and len(size) == 2 else str(size)
 
 
-def check_same_build(out: Path, dataset: str, size: tuple[int, int], seed: int,
+def check_same_build(out: Path, dataset: str, size: tuple[int, int] | None, seed: int,
                      previous: dict[str, Any] | None) -> None:
     """Refuse to build ``dataset`` at ``size`` with ``seed`` into ``out`` when its record
     ``previous`` says it holds another dataset, size or seed (naming the difference)."""
@@ -100,7 +100,7 @@ def check_same_build(out: Path, dataset: str, size: tuple[int, int], seed: int,
     config = previous.get("config") or {}
     old = {"dataset": previous.get("dataset", config.get("dataset")),
            "size": tuple(config.get("size") or ()), "seed": previous.get("seed", config.get("seed"))}
-    new = {"dataset": dataset, "size": tuple(size), "seed": seed}
+    new = {"dataset": dataset, "size": tuple(size or ()), "seed": seed}  # None: own sizes (custom)
     shown = {"dataset": lambda v: str(v), "size": _size_text, "seed": lambda v: str(v)}
     flag = {"dataset": "the dataset", "size": "--size", "seed": "--seed"}
     diffs = [f"{flag[k]} {shown[k](new[k])} (it holds {shown[k](old[k])})"

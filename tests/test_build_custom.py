@@ -104,7 +104,7 @@ def test_jobs_1_and_2_identical_and_resume(folder, tmp_path, build):
     assert tree(a) == tree(b)
     assert all(os.stat(a / p).st_mtime_ns == t for p, t in before.items()
                if p != "fog/3/bonn/deep/g.png")
-    # a different size redoes everything
+    # a fixed size after own sizes redoes everything
     r = build(folder, a, "--size", "40x40")
     assert r.exit_code == 0 and f"{len(before)} written" in r.output
 
@@ -171,7 +171,7 @@ def test_pattern_and_list_together_refused(folder, tmp_path, build):
     assert r.exit_code == 2 and "give one of them" in r.output
 
 
-def test_small_image_and_symlink_out_fail_alone(folder, tmp_path, build):
+def test_small_image_fails_alone_symlink_out_is_followed(folder, tmp_path, build):
     save(folder / "tiny.png", random_image(20, 50, seed=4))
     outside = save(tmp_path / "elsewhere.png", random_image(40, 40, seed=5))
     os.symlink(outside, folder / "link.png")
@@ -180,15 +180,14 @@ def test_small_image_and_symlink_out_fail_alone(folder, tmp_path, build):
     assert r.exit_code == 1, r.output
     m = rows(out)
     assert "too small" in m["clean/tiny.png"]["error"]
-    assert "outside the root" in m["clean/link.png"]["error"]
+    # symlinks under the root are followed wherever they lead, as for the presets
+    assert not m["clean/link.png"]["error"]
     assert all(not m[f"clean/{k}"]["error"] for k in KEYS)
 
 
-def test_out_inside_root_is_not_a_source(folder, build):
-    out = folder / "corrupted"
-    assert build(folder, out).exit_code == 0
-    r = build(folder, out)
-    assert r.exit_code == 0 and "0 written" in r.output, r.output
+def test_out_inside_root_is_refused(folder, build):
+    r = build(folder, folder / "corrupted")
+    assert r.exit_code == 2 and "inside --root" in r.output, r.output
 
 
 def test_pattern_semantics():
