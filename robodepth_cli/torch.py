@@ -238,9 +238,9 @@ class KittiC(torch.utils.data.Dataset):
 
     An item is a dict: ``key`` (str), ``image`` (3 x H x W uint8 tensor, or whatever
     ``transform`` makes of the H x W x 3 array) and, when ``root/gt_depths.npz`` exists
-    (``robodepth gt``), ``depth`` (the ground-truth map of that image, float32 tensor, at
-    the raw frame's size, which varies between KITTI drives: batch with ``batch_size=1``
-    or a ``collate_fn`` of your own).
+    (``robodepth gt``; a pickle: open only builds you trust), ``depth`` (the ground-truth
+    map of that image, float32 tensor, at the raw frame's size, which varies between KITTI
+    drives: batch with ``batch_size=1`` or a ``collate_fn`` of your own).
     """
 
     def __init__(self, root, corruption: str, level: int, on_the_fly: bool = False, transform=None):
