@@ -32,28 +32,16 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same directory and a
     rename, so a reader never sees a partial file. The temporary file is removed on error;
     parent directories are created as needed."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            os.fchmod(fh.fileno(), _FILE_MODE)
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_output(path) as fh:
+        fh.write(data)
 
 
 @contextmanager
 def atomic_output(path: str | os.PathLike) -> Iterator[BinaryIO]:
     """A binary file (opened ``w+b``, so it can be read back) to write ``path``'s contents
     into, for output too large to hold as one ``bytes``: it replaces ``path`` when the
-    ``with`` block ends without error and is removed otherwise. Same temporary name as
-    :func:`write_atomic`."""
+    ``with`` block ends without error and is removed otherwise (:func:`is_temporary`
+    recognises the temporary file a killed process leaves)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=path.parent)

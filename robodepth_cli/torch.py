@@ -20,7 +20,6 @@ not depend on any state at all. Nothing uses numpy's or torch's global random st
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Sequence
@@ -30,6 +29,7 @@ import torch
 from PIL import Image
 
 from . import corruptions, seeding
+from .api import open_dataset
 from .errors import RobodepthError
 from .keys import seed_key
 
@@ -201,31 +201,6 @@ class RandomCorrupt:
 
 # --- a built dataset -----------------------------------------------------------------------
 
-def _read_build(root: Path) -> tuple[dict, list[str]]:
-    """The build record of ``root`` and its image keys in split order."""
-    from .datasets import get_dataset, read_split
-
-    record_path = root / "build.json"
-    try:
-        record = json.loads(record_path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise TorchAPIError(f"{root}: no build.json; not an output directory of robodepth build") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise TorchAPIError(f"{record_path}: cannot read the build record ({exc})") from None
-    split = record.get("split") or {}
-    keys = split.get("keys")
-    if isinstance(keys, list) and keys:
-        return record, [str(k) for k in keys]
-    path = split.get("path")
-    try:
-        ds = get_dataset(record.get("dataset"))
-        entries = read_split(Path(path), ds.split_format)
-    except (TypeError, ValueError) as exc:
-        raise TorchAPIError(f"{record_path}: cannot recover the split order ({exc})") from None
-    limit = (record.get("config") or {}).get("limit")
-    return record, [e.key for e in entries[:limit]]
-
-
 class KittiC(torch.utils.data.Dataset):
     """One corruption at one level of a build made by ``robodepth build`` (KITTI-C, also
     NYUDepth2-C and custom builds), item ``i`` being the ``i``-th image of the split.
@@ -245,9 +220,10 @@ class KittiC(torch.utils.data.Dataset):
 
     def __init__(self, root, corruption: str, level: int, on_the_fly: bool = False, transform=None):
         self.root = Path(root)
-        record, self.keys = _read_build(self.root)
-        self.dataset = str(record.get("dataset"))
-        self.seed = int(record.get("seed", 0))
+        built = open_dataset(self.root)  # the build record and the split order, checked
+        self.keys = list(built.keys)
+        self.dataset = built.name
+        self.seed = int(built.record.get("seed", 0))
         self.corruption = Corrupt(corruption, level, seed=self.seed, dataset=self.dataset)
         self.level = self.corruption.level
         self.on_the_fly = bool(on_the_fly)

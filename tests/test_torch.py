@@ -170,7 +170,9 @@ def test_bad_arguments(make):
 
 
 def test_not_a_build(tmp_path):
-    with pytest.raises(TorchAPIError, match="build.json"):
+    from robodepth_cli.api import DatasetError
+
+    with pytest.raises(DatasetError, match="no build.json"):
         KittiC(tmp_path, "fog", 1)
 
 
