@@ -155,7 +155,7 @@ def read_list(path: Path) -> list[tuple[int, str]]:
     from .datasets import _relative_parts
 
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        text = Path(path).read_text(encoding="utf-8-sig")  # a byte-order mark, as in split files
     except UnicodeDecodeError:
         raise CustomSourceError(f"{path}: not a text file") from None
     except OSError as exc:

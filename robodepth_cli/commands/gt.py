@@ -23,22 +23,17 @@ def gt_command():
     """
 
 
-def _split(value: str, split_format: str, default: str) -> Path:
-    """The split file ``value`` names: a standard split (downloaded and checked on first
-    use) of the right format, or a file."""
+def _split(value: str, split_format: str, owner: str) -> Path:
+    """The split file ``value`` names, chosen by the same rule as a build's ``--split``: a
+    standard split of the right format (downloaded and checked on first use) or a file."""
     from .. import splits
 
-    name = value or default
-    records = splits.records()
-    if name in records:
-        if records[name].format != split_format:
-            raise RobodepthError(f"--split {name}: a {records[name].format} split; this needs a "
-                                 f"{split_format} split such as {default}")
-        return splits.standard_split(name)
-    path = Path(name)
+    try:
+        path = splits.split_path(splits.check_choice(value, split_format, Path.cwd(), owner))
+    except ValueError as exc:
+        raise RobodepthError(f"--split: {exc}") from None
     if not path.is_file():
-        raise RobodepthError(f"--split {name}: no such file, and not a standard split "
-                             f"({', '.join(r for r, rec in records.items() if rec.format == split_format)})")
+        raise RobodepthError(f"--split: {value}: {'not a file' if path.exists() else 'no such file'}")
     return path
 
 
@@ -72,7 +67,7 @@ def gt_kitti_command(root, split, out, progress):
         raise RobodepthError(f"--root {root}: not a directory (the KITTI raw root)")
     if out.is_dir():
         raise RobodepthError(f"--out {out}: is a directory; give a file name such as gt_depths.npz")
-    split_path = _split(split, "eigen", "eigen_test")
+    split_path = _split(split, "eigen", "KITTI ground truth")
     frames = gt_kitti.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
         gt_kitti.export(root, frames, out, split_name=str(split_path), progress=bar.update)
@@ -103,7 +98,7 @@ def gt_nyu_command(root, split, out, progress):
         raise RobodepthError(f"--root {root}: no such file or directory")
     if out.exists() and not out.is_dir():
         raise RobodepthError(f"--out {out}: exists and is not a directory")
-    split_path = _split(split, "nyu", "nyu_test")
+    split_path = _split(split, "nyu", "NYU ground truth")
     frames = gt_nyu.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
         gt_nyu.export(root, frames, out, split_name=str(split_path), progress=bar.update)
