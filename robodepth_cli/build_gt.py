@@ -84,7 +84,8 @@ def _plan_kitti(root: Path, split_path: Path, limit: int | None) -> GtPlan:
     plan = GtPlan("kitti", root, str(split_path), [])
     missing = gt_kitti.missing_velodyne(root, frames)
     if missing:
-        more = f" and {len(missing) - 1} other frames" if len(missing) > 1 else ""
+        others = len(missing) - 1
+        more = f" and {others} other frame{'s' if others > 1 else ''}" if others else ""
         plan.note = (f"no ground truth: {missing[0].velodyne(root)} (split line {missing[0].line}){more} "
                      f"missing; " + _later(f"robodepth gt kitti --root KITTI_RAW --split SPLIT "
                                            f"--out OUT/{KITTI_FILE}"))
