@@ -70,7 +70,7 @@ def read_frames(split: Path) -> list[KittiFrame]:
     from .datasets import read_split
 
     entries = read_split(split, "eigen")
-    lines = Path(split).read_text(encoding="utf-8").splitlines()
+    lines = Path(split).read_text(encoding="utf-8-sig").splitlines()  # as read_split reads it
     frames = []
     for e in entries:
         folder, frame, _side = lines[e.line - 1].split()

@@ -183,3 +183,17 @@ def test_bad_arguments(kitti, tmp_path, run):
     _fail(run("--root", root, "--split", "nyu_test", "--out", tmp_path / "o.npz"), "nyu_test", "eigen")
     _fail(run("--root", tmp_path / "nowhere", "--split", split_file, "--out", tmp_path / "o.npz"), "--root")
     _fail(run("--root", root, "--split", split_file, "--out", tmp_path), "--out", "is a directory")
+
+
+def test_split_with_a_byte_order_mark_gives_the_same_maps(kitti, tmp_path, run):
+    """A split saved with a UTF-8 byte-order mark (as Windows editors do) names the same
+    first frame: the mark is not part of its folder."""
+    root, split_file, lines = kitti
+    marked = tmp_path / "marked.txt"
+    marked.write_bytes(b"\xef\xbb\xbf" + split_file.read_bytes())
+    assert run("--root", root, "--split", split_file, "--out", tmp_path / "plain.npz").exit_code == 0
+    res = run("--root", root, "--split", marked, "--out", tmp_path / "marked.npz")
+    assert res.exit_code == 0, res.output
+    plain = np.load(tmp_path / "plain.npz", allow_pickle=True)["data"]
+    got = np.load(tmp_path / "marked.npz", allow_pickle=True)["data"]
+    assert len(got) == len(lines) and all(np.array_equal(a, b) for a, b in zip(plain, got))
