@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from robodepth_cli.benchmarks import BENCHMARKS  # noqa: E402
 from robodepth_cli.corruptions import corrupt  # noqa: E402
 from robodepth_cli.imageio import encode_png, load_clean  # noqa: E402
-from robodepth_cli.manifest import sha256_file  # noqa: E402
+from robodepth_cli.files import sha256_file  # noqa: E402
 from robodepth_cli.seeding import job_rng  # noqa: E402
 
 

@@ -18,7 +18,6 @@ it says which variants and levels the build has (a subset build has only its own
 
 from __future__ import annotations
 
-import json
 import os
 import tempfile
 from dataclasses import dataclass
@@ -200,19 +199,16 @@ def open_dataset(path: str | os.PathLike) -> BuiltDataset:
     naming the file when the directory is not a build or its record is unusable.
     """
     from .datasets import get_dataset
-    from .manifest import MANIFEST, RECORD, ManifestError, read_manifest
+    from .manifest import MANIFEST, RECORD, ManifestError, read_manifest, read_record
 
     path = Path(path)
     if not path.is_dir():
         raise DatasetError(f"{path}: not a directory (expected a dataset made by robodepth build)")
     record_path = path / RECORD
-    try:
-        record = json.loads(record_path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise DatasetError(f"{path}: no {RECORD}; not a dataset made by robodepth build") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise DatasetError(f"{record_path}: cannot read the build record ({exc})") from None
-    if not isinstance(record, dict) or not isinstance(record.get("dataset"), str):
+    record = read_record(path)
+    if record is None:
+        raise DatasetError(f"{path}: no {RECORD}; not a dataset made by robodepth build")
+    if not isinstance(record.get("dataset"), str):
         raise DatasetError(f"{record_path}: not a robodepth build record (no dataset)")
     try:
         ds = get_dataset(record["dataset"])

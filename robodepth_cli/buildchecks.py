@@ -15,7 +15,6 @@ followed by the full build, or one corruption now and another later, all count.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Any, Iterable
@@ -66,27 +65,6 @@ def check_sources_outside(paths: Iterable[str | None], out: Path) -> None:
 
 # --- one build per OUT ---------------------------------------------------------------------
 
-def read_record(out: Path) -> dict[str, Any] | None:
-    """The build record of ``out`` (None when there is none)."""
-    from .manifest import RECORD
-
-    path = Path(out) / RECORD
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        return None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise OutputDirError(f"{path}: cannot read the build record ({exc})") from None
-    try:
-        record = json.loads(text)
-    except ValueError as exc:
-        raise OutputDirError(f"{path}: not a build record ({exc}); choose another --out, or "
-                             f"delete the file if this directory is yours to reuse") from None
-    if not isinstance(record, dict):
-        raise OutputDirError(f"{path}: not a build record (a JSON {type(record).__name__})")
-    return record
-
-
 def _size_text(size) -> str:
     return f"{size[0]}x{size[1]}" if isinstance(size, (list, tuple)) and len(size) == 2 else str(size)
 
@@ -134,6 +112,13 @@ def merge_plans(previous: dict[str, Any] | None, current: dict[str, list]) -> li
     """The plans of ``previous`` plus ``current`` (once)."""
     merged = [p for p in plans(previous) if p != current]
     return merged + [current]
+
+
+def built_keys(entries: list[dict[str, list]]) -> list[str]:
+    """Every source key the plans ``entries`` ask for, each once, in the order first asked:
+    the extent of the whole build, which a later ``--limit`` look does not shrink. (A
+    preset's requests are prefixes of its split, so this is the split's order.)"""
+    return list(dict.fromkeys(k for p in entries for k in p["keys"]))
 
 
 def planned_outputs(record: dict[str, Any] | None) -> set[str] | None:

@@ -196,7 +196,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     buildchecks.check_apart(typed_root, out)
     sources, split = gather_sources(ds, cfg, root, Path(out), typed_root)
     buildchecks.check_sources_outside((s.path for s in sources), out)
-    previous = buildchecks.read_record(out) if Path(out).is_dir() else None
+    previous = manifest.read_record(out) if Path(out).is_dir() else None
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
     renderer = make_renderer(ds, cfg)
     out = prepare_out(out)
@@ -214,13 +214,17 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             getattr(renderer, "warm_up", lambda: None)()
         plans = buildchecks.merge_plans(previous, buildchecks.plan_entry(
             cfg.variants, cfg.levels, [s.key for s in sources]))
+        # The record describes the whole build in OUT, not only this request: a `--limit 2`
+        # look into a finished build must not shrink what evaluation and ground truth see.
+        keys = buildchecks.built_keys(plans)
+        split = {**split, "images": len(keys), "keys": keys}
         record = start_record(cfg, ds, root, out, split, executor, command, plans)
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1)
         summary = run_tasks(tasks, ctx, executor, out, progress)
         # A custom build has no ground truth to add.
         if gt and not ds.discovers_sources and not (summary.interrupted or summary.fatal):
-            add_ground_truth(ds, cfg, root, Path(split["path"]), out, summary, progress)
+            add_ground_truth(ds, root, Path(split["path"]), len(keys), out, summary, progress)
         finish(out, record, summary)
     return summary
 
@@ -469,13 +473,14 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
                 return
 
 
-def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: Path, out: Path,
+def add_ground_truth(ds: Dataset, root: Path, split_path: Path, frames: int, out: Path,
                      summary: Summary, progress: bool) -> None:
-    """Write the ground truth of the built frames (see :mod:`robodepth_cli.build_gt`) as
-    manifest rows counted in ``summary``; when it cannot be made at all, only a note."""
+    """Write the ground truth of the first ``frames`` split entries, the ones the build in
+    ``out`` holds (see :mod:`robodepth_cli.build_gt`), as manifest rows counted in
+    ``summary``; when it cannot be made at all, only a note."""
     from . import build_gt
 
-    plan = build_gt.plan_gt(ds.split_format, root, split_path, cfg.limit)
+    plan = build_gt.plan_gt(ds.split_format, root, split_path, frames)
     if plan.note:
         summary.notes.append(plan.note)
         return

@@ -27,7 +27,6 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from .files import is_temporary, sha256_file, write_atomic
-from .files import sha256_bytes  # noqa: F401 (still importable from here by older callers)
 from .errors import RobodepthError
 
 MANIFEST = "manifest.csv"
@@ -188,6 +187,26 @@ def compact_manifest(out: Path) -> None:
     write_atomic(Path(out) / MANIFEST, (HEADER + format_rows(rows[k] for k in sorted(rows))).encode("utf-8"))
 
 
+def read_record(out: Path) -> dict | None:
+    """The build record of ``out`` (None when there is none); :class:`ManifestError` naming
+    the file when it cannot be read or is not a record."""
+    path = Path(out) / RECORD
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ManifestError(f"{path}: cannot read the build record ({exc})") from None
+    try:
+        record = json.loads(text)
+    except ValueError as exc:
+        raise ManifestError(f"{path}: not a build record ({exc}); if this directory is yours to "
+                            f"reuse, delete the file") from None
+    if not isinstance(record, dict):
+        raise ManifestError(f"{path}: not a build record (a JSON {type(record).__name__})")
+    return record
+
+
 def write_record(out: Path, record: dict) -> None:
     write_atomic(Path(out) / RECORD, (json.dumps(record, indent=2, sort_keys=True) + "\n").encode("utf-8"))
 
@@ -329,7 +348,7 @@ def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
     files are checked."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from .buildchecks import planned_outputs, read_record
+    from .buildchecks import planned_outputs
 
     out = Path(out)
     if not out.exists():

@@ -34,6 +34,24 @@ def kitti(tmp_path, fixtures_dir):
     return root, split, lines
 
 
+def test_a_limited_look_into_a_finished_build_keeps_its_extent(kitti, tmp_path, build_kitti):
+    """A `--limit 1` rerun into a complete build neither shrinks the ground truth to one map
+    nor the split order that evaluation and the Python API read from the record."""
+    from robodepth_cli import open_dataset
+
+    root, split, lines = kitti
+    out = tmp_path / "out"
+    assert build_kitti(root, split, out, *KITTI_FLAGS).exit_code == 0
+    stamp = (out / "gt_depths.npz").stat().st_mtime_ns
+    res = build_kitti(root, split, out, *KITTI_FLAGS, "--limit", "1")
+    assert res.exit_code == 0 and "0 written" in res.output, res.output
+    assert (out / "gt_depths.npz").stat().st_mtime_ns == stamp
+    assert len(np.load(out / "gt_depths.npz", allow_pickle=True)["data"]) == len(lines)
+    ds = open_dataset(out)
+    assert len(ds.keys) == len(lines)
+    assert all(len(v.images()) == len(lines) for v in ds.variants())
+
+
 def test_kitti_build_writes_checks_and_resumes_gt(kitti, tmp_path, cli, build_kitti):
     root, split, lines = kitti
     out = tmp_path / "out"
