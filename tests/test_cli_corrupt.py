@@ -46,11 +46,12 @@ def test_list_json_has_parameters_per_level(cli):
     assert "Poisson" in by_name["shot_noise"]["formula"]  # the function's docstring
 
 
-def test_readme_table_comes_from_the_registry(cli):
+def test_docs_table_comes_from_the_registry(cli):
     from _paths import REPO
 
     table = cli("list", "--format", "markdown").output.strip()
-    assert table in (REPO / "README.md").read_text(), "README's corruption table is stale: paste `robodepth list --format markdown`"
+    assert table in (REPO / "docs" / "corruptions.md").read_text(), \
+        "docs/corruptions.md's corruption table is stale: paste `robodepth list --format markdown`"
 
 
 def test_corrupt_one_writes_the_png(tmp_path, cli):

@@ -533,14 +533,15 @@ def test_save_predictions_writes_form_1(kitti_c, tmp_path):
 
 def _readme_blocks():
     text = (REPO / "README.md").read_text()
-    section = text[text.index("## Evaluating a model"):]
+    section = text[text.index("## The loop: build, predict, evaluate, score"):]
     section = section[:section.index("\n## ", 3)]
     return (re.findall(r"```python\n(.*?)```", section, re.S),
             re.findall(r"```sh\n(.*?)```", section, re.S))
 
 
 def test_readme_example_runs(kitti_c, tmp_path, monkeypatch, cli):
-    """The README's evaluation example, exactly as printed, with a stand-in model."""
+    """The README's loop (its Python prediction step and evaluate command), exactly as printed,
+    with a stand-in model."""
     out, _ = kitti_c
     python, shell = _readme_blocks()
     assert len(python) == 1 and 5 <= len(python[0].strip().splitlines()) <= 14
