@@ -2,6 +2,9 @@
 
 A job's generator depends only on (global seed, dataset, variant, level, relative source
 path), so its output does not depend on worker count, order or what was built before.
+A level is keyed by its canonical text (``3``; ``2.5`` for a decimal level), so integer
+levels keep the streams they always had. A chain's step ``k`` is keyed by (global seed,
+dataset, the chain's canonical text, ``step k``, relative source path).
 """
 
 from __future__ import annotations
@@ -10,17 +13,31 @@ import hashlib
 
 import numpy as np
 
+from .corruptions.severity import level_text
 
-def job_seed_sequence(seed: int, dataset: str, variant: str, level: int, relpath: str) -> np.random.SeedSequence:
-    key = "\x1f".join((str(int(seed)), dataset, variant, str(int(level)), relpath.replace("\\", "/")))
+
+def job_seed_sequence(seed: int, dataset: str, variant: str, level, relpath: str) -> np.random.SeedSequence:
+    return _seed_sequence(seed, dataset, variant, level_text(level), relpath)
+
+
+def _seed_sequence(seed: int, dataset: str, variant: str, level: str, relpath: str) -> np.random.SeedSequence:
+    key = "\x1f".join((str(int(seed)), dataset, variant, level, relpath.replace("\\", "/")))
     digest = hashlib.sha256(key.encode("utf-8")).digest()
     # 256 bits of the digest as entropy: distinct keys give independent streams.
     return np.random.SeedSequence([int.from_bytes(digest[i:i + 4], "little") for i in range(0, 32, 4)])
 
 
-def job_rng(seed: int, dataset: str, variant: str, level: int, relpath: str) -> np.random.Generator:
+def job_rng(seed: int, dataset: str, variant: str, level, relpath: str) -> np.random.Generator:
     """The generator of one job."""
     return np.random.Generator(np.random.PCG64(job_seed_sequence(seed, dataset, variant, level, relpath)))
+
+
+def chain_rngs(seed: int, dataset: str, chain, relpath: str) -> list[np.random.Generator]:
+    """One generator per step of ``chain`` (a :class:`~.corruptions.chains.Chain`) for the
+    image ``relpath``: step ``k`` (from 1) keyed by the chain's canonical text and
+    ``step k``, so each step has its own stream and none is a single corruption's."""
+    return [np.random.Generator(np.random.PCG64(_seed_sequence(seed, dataset, chain.text, f"step {k}", relpath)))
+            for k in range(1, len(chain.steps) + 1)]
 
 
 def check_seed(value, where: str = "--seed") -> int:

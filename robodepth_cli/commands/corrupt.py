@@ -24,7 +24,8 @@ def list_command(fmt):
 
         click.echo(json.dumps([
             {"name": c.name, "category": c.category, "deterministic": c.deterministic,
-             "levels": [c.params(lv) for lv in range(1, c.n_levels + 1)], "formula": c.doc}
+             "levels": [c.params(lv) for lv in range(1, c.n_levels + 1)],
+             "between_levels": dict(zip(c.fields, c.rules)), "formula": c.doc}
             for c in REGISTRY.values()], indent=2))
     else:
         click.echo(corruption_table(markdown=(fmt == "markdown")))

@@ -6,6 +6,7 @@ import numpy as np
 
 from ._jit import njit
 from .registry import register
+from .severity import interpolate
 
 LEVELS = (0.1, 0.2, 0.3, 0.4, 0.5)
 
@@ -65,5 +66,7 @@ def _brighten(x, c, out):
 def brightness(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Raise the HSV value: ``hsv = rgb2hsv(f)``, ``V = clip01(V + c)``,
     ``clip01(hsv2rgb(hsv))`` truncated to uint8, with scikit-image's HSV conversions
-    (``f = x / 255``, float64), evaluated pixel by pixel (see :func:`_brighten`)."""
-    return _brighten(x, LEVELS[level - 1], np.empty_like(x))
+    (``f = x / 255``, float64), evaluated pixel by pixel (see :func:`_brighten`).
+
+    Between integer levels: ``c`` linear."""
+    return _brighten(x, interpolate(LEVELS, level), np.empty_like(x))

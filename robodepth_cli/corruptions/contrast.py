@@ -7,6 +7,7 @@ import numpy as np
 
 from ._ops import truncate_to_uint8
 from .registry import register
+from .severity import interpolate
 
 LEVELS = (0.4, 0.3, 0.2, 0.1, 0.05)
 
@@ -21,8 +22,10 @@ def contrast(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     The output of a channel depends only on that channel's value, so the formula is
     evaluated in float64 once per value (a 256-entry table per channel) and applied with
     ``cv2.LUT``.
+
+    Between integer levels: ``c`` linear.
     """
-    c = LEVELS[level - 1]
+    c = interpolate(LEVELS, level)
     m = np.asarray(cv2.mean(np.ascontiguousarray(x))[:3], dtype=np.float64) / 255.0
     table = truncate_to_uint8((_VALUES - m) * c + m)
     return cv2.LUT(x, table.reshape(256, 1, 3))

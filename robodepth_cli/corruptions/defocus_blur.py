@@ -4,12 +4,15 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import math
+
 import cv2
 import numpy as np
 import scipy.fft
 
 from ._ops import truncate_to_uint8
 from .registry import register
+from .severity import interpolate
 
 LEVELS = ((3, 0.1), (4, 0.5), (6, 0.5), (8, 0.5), (10, 0.5))
 
@@ -18,18 +21,19 @@ _DIRECT_MAX = 11
 
 
 @lru_cache(maxsize=None)
-def disk_kernel(radius: int, alias: float) -> np.ndarray:
+def disk_kernel(radius: float, alias: float) -> np.ndarray:
     """The benchmark's defocus kernel, trimmed of its all-zero border rows and columns.
 
     Coordinates ``-8..8`` with a 3 x 3 Gaussian if ``radius <= 8``, else
-    ``-radius..radius`` with 5 x 5; disk = ``X^2 + Y^2 <= radius^2`` normalised to sum 1
-    in float32, then ``cv2.GaussianBlur`` of that size with sigma ``alias`` (its own
+    ``-ceil(radius)..ceil(radius)`` with 5 x 5; disk = ``X^2 + Y^2 <= radius^2`` (a
+    fractional radius, from a decimal level, is used as it is) normalised to sum 1 in float32, then ``cv2.GaussianBlur`` of that size with sigma ``alias`` (its own
     reflect-101 border included). Trimming exact zeros changes no convolution result.
     """
     if radius <= 8:
         coords, ksize = np.arange(-8, 9), (3, 3)
     else:
-        coords, ksize = np.arange(-radius, radius + 1), (5, 5)
+        span = math.ceil(radius)
+        coords, ksize = np.arange(-span, span + 1), (5, 5)
     xx, yy = np.meshgrid(coords, coords)
     d = np.asarray(xx ** 2 + yy ** 2 <= radius ** 2, dtype=np.float32)
     d /= np.sum(d)
@@ -42,14 +46,14 @@ def disk_kernel(radius: int, alias: float) -> np.ndarray:
 
 
 @lru_cache(maxsize=6)  # ~9 MB each at 1024 x 2048; three FFT levels per image size
-def _kernel_spectrum(radius: int, alias: float, shape: tuple[int, int]) -> np.ndarray:
+def _kernel_spectrum(radius: float, alias: float, shape: tuple[int, int]) -> np.ndarray:
     k = disk_kernel(radius, alias).astype(np.float64)
     spec = scipy.fft.rfft2(k, s=shape)[:, :, None].astype(np.complex64)
     spec.flags.writeable = False
     return spec
 
 
-def filter2d_fft(x: np.ndarray, radius: int, alias: float) -> np.ndarray:
+def filter2d_fft(x: np.ndarray, radius: float, alias: float) -> np.ndarray:
     """``cv2.filter2D(x, CV_32F, disk_kernel(radius, alias))`` (reflect-101 border) on the
     channels of uint8 ``x`` through a float32 FFT of the border-padded image. The disk is
     symmetric, so correlation and convolution coincide."""
@@ -73,8 +77,12 @@ def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndar
     large ones), which matches the float64 formula to about 1e-4 of a level. Where the
     float64 kernel sums to just under 1 (levels 1-3, by ~1e-8) the formula puts flat areas
     a hair below an integer, which truncates one level lower than float32 resolves; that
-    accounts for the 0.02-0.05 mean difference seen at level 1."""
-    radius, alias = LEVELS[level - 1]
+    accounts for the 0.02-0.05 mean difference seen at level 1.
+
+    Between integer levels: ``radius`` and ``alias`` linear; the disk takes the pixels
+    within the fractional radius, so it grows by whole rings of pixels as ``radius``
+    passes each distance ``sqrt(X^2 + Y^2)``."""
+    radius, alias = interpolate(LEVELS, level)
     k = disk_kernel(radius, alias)
     if k.shape[0] <= _DIRECT_MAX:
         # float32 in, not uint8 in with a float32 output: OpenCV's mixed-type path is far slower.

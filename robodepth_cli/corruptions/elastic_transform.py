@@ -9,6 +9,7 @@ import numpy as np
 
 from ._ops import gaussian, truncate_to_uint8
 from .registry import register
+from .severity import interpolate
 
 LEVELS = (0.05, 0.065, 0.085, 0.1, 0.12)
 
@@ -50,9 +51,11 @@ def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np
     linear and keeps constants: ``alpha * gaussian(U(-m, m)) = 2 m alpha * gaussian(U(0, 1))
     - m alpha``, folded into the sampling coordinates. The resampling is
     ``cv2.remap`` with float coordinates on the 0..255 values in float32.
+
+    Between integer levels: ``k`` linear.
     """
     h, w = x.shape[:2]
-    m_alpha = 0.005 * h * 250 * LEVELS[level - 1]
+    m_alpha = 0.005 * h * 250 * interpolate(LEVELS, level)
     coords = smoothed_uniforms((h, w), rng)
     coords *= np.float32(2 * m_alpha)
     coords += _offset_grid(h, w, m_alpha)

@@ -6,6 +6,7 @@ import numpy as np
 
 from ._ops import truncate_to_uint8
 from .registry import register
+from .severity import interpolate
 
 # (t, d): fog thickness and the plasma's wibble decay
 LEVELS = ((1.5, 2.0), (2.0, 2.0), (2.5, 1.7), (2.5, 1.5), (3.0, 1.4))
@@ -124,8 +125,11 @@ def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     band of the square map), as imagecorruptions-imaug 1.1.5 does.
 
     Computed in float32 in the 0..255 domain: ``(x + 255 t P) * m / (m + t)``.
+
+    Between integer levels: ``t`` and ``d`` linear (the fractal draws the same uniforms at
+    every level; only their decay changes).
     """
-    t, d = LEVELS[level - 1]
+    t, d = interpolate(LEVELS, level)
     height, width = x.shape[:2]
     plasma = plasma_fractal(next_power_of_two(max(height, width)), d, rng, (height, width))
     m = float(x.max()) / 255.0

@@ -17,6 +17,7 @@ import numpy as np
 
 from ._jit import njit
 from .registry import register
+from .severity import interpolate
 from ..errors import RobodepthError
 
 # (a, b): weights of the image and of the frost texture
@@ -86,10 +87,10 @@ def scaled_texture(index: int, image_hw: tuple[int, int]) -> np.ndarray:
 
 
 @lru_cache(maxsize=None)
-def blend_table(level: int) -> np.ndarray:
+def blend_table(level) -> np.ndarray:
     """``T[v, u] = uint8(floor(clip(a * v + b * u, 0, 255)))`` for image value ``v`` and
     texture value ``u``, in float64 as the benchmark computes it."""
-    a, b = LEVELS[level - 1]
+    a, b = interpolate(LEVELS, level)
     v = np.arange(256, dtype=np.float64)
     table = np.clip(a * v[:, None] + b * v[None, :], 0, 255).astype(np.uint8)
     table.flags.writeable = False
@@ -119,6 +120,10 @@ def frost(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     larger of the ratios so that it covers the image (e.g. all five for 1024 x 2048), with
     a 1.1 margin always applied, so the crop offsets always have room (as
     imagecorruptions-imaug 1.1.5 does); frost's grain therefore grows with the image.
+
+    Between integer levels: ``a`` and ``b`` linear. The texture and the crop are drawn the
+    same way at every level (the level does not choose the texture), so a decimal level
+    changes only the blend weights.
 
     Raises :class:`FrostTextureError` if the ``imagecorruptions-imaug`` textures are not
     installed.

@@ -7,6 +7,7 @@ import numpy as np
 from ._jit import njit
 from ._ops import gaussian, truncate_to_uint8
 from .registry import register
+from .severity import LINEAR, NEAREST, interpolate
 
 # (sigma, delta, iterations)
 LEVELS = ((0.7, 1, 2), (0.9, 2, 1), (1.0, 2, 3), (1.1, 3, 2), (1.5, 4, 2))
@@ -43,7 +44,12 @@ def shuffle_pixels(img, offsets, delta):
     return img
 
 
-@register(("sigma", "delta", "iterations"), LEVELS)
+# delta and iterations do not rise together (levels 1 -> 2: delta 1 -> 2, passes 2 -> 1), so
+# they switch together, to the nearer level's pair, instead of being rounded one by one.
+RULES = (LINEAR, NEAREST, NEAREST)
+
+
+@register(("sigma", "delta", "iterations"), LEVELS, rules=RULES)
 def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Glass blur: ``y = uint8(floor(gauss(f, sigma) * 255))`` with ``gauss`` scikit-image's
     ``filters.gaussian`` per channel (mode ``nearest``, truncate 4); then ``iterations``
@@ -68,8 +74,12 @@ def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarra
     kernel (:func:`shuffle_pixels`). The blurs run in float64 on ``x / 255`` as the
     benchmark does: in flat regions ``gauss(k / 255) * 255`` lands a rounding error below
     or above ``k``, and truncation turns that into ``k - 1`` or ``k``.
+
+    Between integer levels: ``sigma`` linear; ``delta`` and ``iterations`` are those of the
+    nearest integer level (a half goes to the upper level), so level 1.5 shuffles like
+    level 2 and blurs with sigma 0.8.
     """
-    sigma, delta, iterations = LEVELS[level - 1]
+    sigma, delta, iterations = interpolate(LEVELS, level, RULES)
     offsets = swap_offsets(x.shape, delta, iterations, rng)
     y = truncate_to_uint8(gaussian(x / 255.0, sigma, truncate=4.0, mode="nearest"))
     shuffle_pixels(y, offsets, delta)

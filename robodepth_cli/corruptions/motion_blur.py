@@ -16,6 +16,7 @@ import numpy as np
 from ._jit import njit
 from ._ops import truncate_to_uint8
 from .registry import register
+from .severity import LINEAR, ROUND, interpolate
 
 LEVELS = ((10, 3), (15, 5), (15, 8), (15, 12), (20, 15))
 
@@ -108,7 +109,10 @@ def shift_blur(img: np.ndarray, radius: int, sigma: float, angle: float) -> np.n
     return out[..., 0] if flat else out
 
 
-@register(("radius", "sigma"), LEVELS)
+RULES = (ROUND, LINEAR)
+
+
+@register(("radius", "sigma"), LEVELS, rules=RULES)
 def motion_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """:func:`shift_blur` of the 0..255 image with ``(radius, sigma)`` of the level and an
     angle drawn uniformly from [-45, 45) degrees; clipped to [0, 255] and truncated.
@@ -116,7 +120,10 @@ def motion_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarr
     Size rule (as imagecorruptions-imaug 1.1.5): the radius is in pixels whatever the image
     size (a 2048-wide frame is blurred over the same 21..41 pixels as a 640-wide one), and
     the taps stop at the first shift that reaches the image's height or width, which only
-    matters for images smaller than the kernel (e.g. 37 x 53 at level 5)."""
-    radius, sigma = LEVELS[level - 1]
+    matters for images smaller than the kernel (e.g. 37 x 53 at level 5).
+
+    Between integer levels: ``sigma`` linear; ``radius`` linear, rounded to the nearest
+    integer (halves up). The angle is drawn the same way at every level."""
+    radius, sigma = interpolate(LEVELS, level, RULES)
     angle = rng.uniform(-45, 45)
     return truncate_to_uint8(shift_blur(x, radius, sigma, angle), 1.0)

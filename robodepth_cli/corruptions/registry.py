@@ -2,7 +2,7 @@
 
 Each corruption module defines a pure function ``name(x, level, rng) -> uint8 image`` and
 registers it with :func:`register`, declaring its parameter table (one entry per level,
-levels 1..5). Its category and its place in every listing come from
+levels 1..5) and how each parameter is interpolated between levels (:mod:`.severity`). Its category and its place in every listing come from
 :mod:`robodepth_cli.benchmarks`, which names the corruptions that exist.
 """
 
@@ -14,6 +14,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..benchmarks import CATEGORY, CORRUPTIONS, N_LEVELS
+from .severity import LINEAR, RULES, interpolate
 
 CorruptionFn = Callable[[np.ndarray, int, np.random.Generator], np.ndarray]
 
@@ -24,6 +25,7 @@ class Corruption:
     category: str
     fields: tuple[str, ...]
     levels: tuple  # one parameter entry per level, levels 1..len(levels)
+    rules: tuple[str, ...]  # per field, how it is interpolated between levels
     deterministic: bool
     fn: CorruptionFn
     doc: str
@@ -32,9 +34,11 @@ class Corruption:
     def n_levels(self) -> int:
         return len(self.levels)
 
-    def params(self, level: int) -> dict:
-        """The named parameters of ``level`` (1-based)."""
-        entry = self.levels[level - 1]
+    def params(self, level) -> dict:
+        """The named parameters of ``level``, an integer 1..5 or a decimal in between
+        (interpolated by each field's rule; a ``blend`` field gives a
+        :class:`~.severity.Blend`)."""
+        entry = interpolate(self.levels, level, self.rules)
         # With one field the entry is the value itself, even when that value is a sequence
         # (zoom_blur's factor sets).
         values = (entry,) if len(self.fields) == 1 else entry
@@ -44,9 +48,13 @@ class Corruption:
 _REGISTRY: dict[str, Corruption] = {}
 
 
-def register(fields: Sequence[str], levels: Sequence, *, deterministic: bool = False):
+def register(fields: Sequence[str], levels: Sequence, *, rules: Sequence[str] | None = None,
+             deterministic: bool = False):
     """Decorator: add a corruption function to the registry under its own name, which must
-    be one of :data:`robodepth_cli.benchmarks.CORRUPTIONS`."""
+    be one of :data:`robodepth_cli.benchmarks.CORRUPTIONS`. ``rules`` names, per field, how
+    it is interpolated between integer levels (default: all ``linear``); the function
+    itself applies them (through :func:`~.severity.interpolate`)."""
+    rules = tuple(rules) if rules is not None else (LINEAR,) * len(fields)
 
     def decorate(fn: CorruptionFn) -> CorruptionFn:
         name = fn.__name__
@@ -54,6 +62,8 @@ def register(fields: Sequence[str], levels: Sequence, *, deterministic: bool = F
             raise ValueError(f"{name!r} is not a benchmark corruption")
         if len(levels) != N_LEVELS:
             raise ValueError(f"{name}: {len(levels)} parameter entries, expected one per level 1..{N_LEVELS}")
+        if len(rules) != len(fields) or not set(rules) <= set(RULES):
+            raise ValueError(f"{name}: rules {rules} do not match fields {tuple(fields)}")
         if name in _REGISTRY:
             raise ValueError(f"{name!r} registered twice")
         _REGISTRY[name] = Corruption(
@@ -61,6 +71,7 @@ def register(fields: Sequence[str], levels: Sequence, *, deterministic: bool = F
             category=CATEGORY[name],
             fields=tuple(fields),
             levels=tuple(levels),
+            rules=rules,
             deterministic=deterministic,
             fn=fn,
             doc=(fn.__doc__ or "").strip(),

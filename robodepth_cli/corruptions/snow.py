@@ -8,6 +8,7 @@ import numpy as np
 from ._jit import njit
 from .motion_blur import shift_blur
 from .registry import register
+from .severity import LINEAR, ROUND, interpolate
 from .zoom_blur import linear_zoom, zoom_axis
 
 LEVELS = (
@@ -71,7 +72,11 @@ def _blend(x, layer, beta, out):
     return out
 
 
-@register(("mu", "sigma", "z", "tau", "r", "s", "beta"), LEVELS)
+# The blur radius is a whole number of pixels; every other parameter is continuous.
+RULES = (LINEAR, LINEAR, LINEAR, LINEAR, ROUND, LINEAR, LINEAR)
+
+
+@register(("mu", "sigma", "z", "tau", "r", "s", "beta"), LEVELS, rules=RULES)
 def snow(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """On ``f = x / 255`` in float32: ``g = beta * f + (1 - beta) * max(f, gray(f) * 1.5 +
     0.5)`` with ``gray`` OpenCV's RGB-to-gray, then ``clip01(g + S + rot180(S))`` with ``S``
@@ -82,8 +87,12 @@ def snow(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     zoomed by the fixed factor ``z``, so flakes are ``z`` pixels wide at any size; the
     blur's radius is fixed in pixels, its taps stop at the layer's border
     (:func:`~.motion_blur.motion_taps`); the zoomed layer, ``round(ceil(H / z) * z)`` by
-    ``round(ceil(W / z) * z)``, is at least H x W and is cropped to its top-left H x W."""
-    mu, sigma, z, tau, radius, s, beta = LEVELS[level - 1]
+    ``round(ceil(W / z) * z)``, is at least H x W and is cropped to its top-left H x W.
+
+    Between integer levels: ``mu``, ``sigma``, ``z`` (a fractional zoom is resampled like
+    any other), ``tau``, ``s`` and ``beta`` linear; the blur radius ``r`` linear, rounded to
+    the nearest integer (halves up)."""
+    mu, sigma, z, tau, radius, s, beta = interpolate(LEVELS, level, RULES)
     h, w = x.shape[:2]
     layer = snow_layer((h, w), mu, sigma, z, tau, radius, s, rng)
     return _blend(x, layer[:h, :w], beta, np.empty_like(x))

@@ -16,6 +16,7 @@ import numpy as np
 from ._jit import njit
 from ._ops import truncate_to_uint8
 from .registry import register
+from .severity import BLEND, Blend, interpolate
 
 # (start, stop, step) of numpy.arange with float steps, exactly as the benchmark writes
 # them: the float steps decide the last factor (arange(1, 1.11, .01) ends at 1.11).
@@ -29,7 +30,7 @@ LEVELS = (
 
 
 def level_factors(level: int) -> tuple[float, ...]:
-    """The zoom factors of ``level``: 12, 16, 11, 13 and 11 of them for levels 1..5."""
+    """The zoom factors of integer ``level``: 12, 16, 11, 13 and 11 of them for levels 1..5."""
     return tuple(float(z) for z in np.arange(*LEVELS[level - 1]))
 
 
@@ -181,7 +182,7 @@ def clipped_zoom(img: np.ndarray, z: float) -> np.ndarray:
     return linear_zoom(img[top:top + ch, left:left + cw], z)
 
 
-@register(("start", "stop", "step"), LEVELS, deterministic=True)
+@register(("start", "stop", "step"), LEVELS, rules=(BLEND,) * 3, deterministic=True)
 def zoom_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Average of the image and its clipped zooms by every factor of the level
     (:func:`level_factors`):
@@ -193,10 +194,28 @@ def zoom_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray
     streaks grow with the image; each layer is the centre crop of ``ceil(H / z)`` x
     ``ceil(W / z)`` zoomed to ``round(ch * z)`` x ``round(cw * z)``, which can differ from
     H x W by a pixel either way: extra rows and columns are dropped, missing ones add
-    nothing."""
-    h, w = x.shape[:2]
+    nothing.
+
+    Between integer levels (a factor set has no value in between): the blend
+    ``(1 - t) * A_i + t * A_{i+1}`` of the two neighbouring levels' averages (float32,
+    before the clip and truncation), ``t`` the fractional part of the level."""
     f = x.astype(np.float32) * np.float32(1 / 255)
+    entry = interpolate(LEVELS, level, (BLEND,))
+    if not isinstance(entry, Blend):
+        return truncate_to_uint8(_average(f, level))
+    i = int(level)
+    t = np.float32(entry.t)
+    mixed = _average(f, i)
+    mixed *= np.float32(1) - t
+    mixed += t * _average(f, i + 1)
+    return truncate_to_uint8(mixed)
+
+
+def _average(f: np.ndarray, level: int) -> np.ndarray:
+    """``(f + sum_z clipped_zoom(f, z)[:H, :W]) / (n + 1)`` over the factors of integer
+    ``level``, float32, unclipped."""
+    h, w = f.shape[:2]
     factors = level_factors(level)
     acc = _accumulate(f, *zoom_table(h, w, factors), f.copy())
     acc /= np.float32(len(factors) + 1)
-    return truncate_to_uint8(acc)
+    return acc

@@ -1,0 +1,85 @@
+"""The corruption engine: every corruption module loaded, the registry, and the checked
+entry points :func:`corrupt` and :func:`corrupt_chain`. Reached through the package
+(``robodepth_cli.corruptions.REGISTRY`` etc.), which loads it on first use."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..imageio import as_rgb
+from .registry import Corruption, registry
+from .chains import Chain, parse_chain
+from .severity import parse_level
+
+# Importing a module registers its corruption(s).
+from . import (  # noqa: F401  (imported for registration)
+    brightness, dark, fog, frost, snow, contrast,
+    defocus_blur, glass_blur, motion_blur, zoom_blur, elastic_transform, color_quant,
+    gaussian_noise, impulse_noise, shot_noise, iso_noise, pixelate, jpeg_compression,
+)
+
+REGISTRY: dict[str, Corruption] = registry()
+NAMES: tuple[str, ...] = tuple(REGISTRY)
+
+def get(name: str) -> Corruption:
+    """The registry record of ``name``; ``ValueError`` listing the valid names otherwise."""
+    try:
+        return REGISTRY[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown corruption {name!r}; valid: {', '.join(NAMES)}") from None
+
+
+def check_level(corruption: Corruption, level) -> int | float:
+    """``level`` checked for ``corruption``: a number in ``1..5``, decimals allowed; an
+    ``int`` for a whole level. :class:`~.severity.LevelError` naming both otherwise."""
+    return parse_level(level, top=corruption.n_levels, what=corruption.name)
+
+
+def corrupt(image: np.ndarray, name: str, level, rng: np.random.Generator) -> np.ndarray:
+    """Apply corruption ``name`` at ``level`` (1..5, decimals allowed: see
+    :mod:`.severity`) to ``image``.
+
+    ``image`` is uint8 RGB H x W x 3 with H, W >= 32; grayscale and RGBA are converted.
+    All randomness comes from ``rng`` (a ``numpy.random.Generator``). Returns a new uint8
+    H x W x 3 array; the input is never modified.
+    """
+    c = get(name)
+    level = check_level(c, level)
+    _check_rng(rng)
+    return _apply(c, as_rgb(image), level, rng)
+
+
+def corrupt_chain(image: np.ndarray, chain: Chain | str, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+    """Apply the steps of ``chain`` (a :class:`~.chains.Chain` or its text) in order, step
+    ``k`` drawing from ``rngs[k]`` (one generator per step:
+    :func:`robodepth_cli.seeding.chain_rngs` gives the reproducible ones).
+
+    Each step is exactly :func:`corrupt` of the previous step's output, so a chain of
+    deterministic steps equals applying them one after another."""
+    if not isinstance(chain, Chain):
+        chain = parse_chain(chain)
+    rngs = list(rngs)
+    if len(rngs) != len(chain.steps):
+        raise ValueError(f"chain {chain.text}: {len(chain.steps)} steps but {len(rngs)} generators")
+    for rng in rngs:
+        _check_rng(rng)
+    out = as_rgb(image)
+    for step, rng in zip(chain.steps, rngs):
+        out = _apply(get(step.name), out, step.level, rng)
+    return out
+
+
+def _check_rng(rng) -> None:
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+
+
+def _apply(c: Corruption, image: np.ndarray, level, rng: np.random.Generator) -> np.ndarray:
+    x = image.view()
+    x.flags.writeable = False  # corruption functions are pure: writing to the input fails loudly
+    out = c.fn(x, level, rng)
+    if out.dtype != np.uint8 or out.shape != x.shape:
+        raise AssertionError(f"{c.name} returned {out.dtype} {out.shape} for {x.shape}")
+    return out

@@ -1,0 +1,120 @@
+"""Compound corruptions: chains such as ``fog:3+gaussian_noise:2.5``.
+
+A chain is 1..8 steps joined by ``+``; each step is ``NAME:LEVEL``, a corruption of
+``robodepth list`` and a level in its range (decimals allowed). The steps apply in the order
+written, each to the previous step's output. Spaces around ``+`` and ``:`` are ignored.
+
+Names:
+
+- :attr:`Chain.text` is the canonical text (no spaces, levels as :func:`~.severity.level_text`
+  writes them: ``fog:3+gaussian_noise:2.5``). It is the variant's name in manifests,
+  results files and scores, and it keys the random streams, so ``fog:3.0 + gaussian_noise:2.50``
+  is the same chain, with the same bytes, as ``fog:3+gaussian_noise:2.5``.
+- :attr:`Chain.dirname` names its directory in a build: ``:`` (not allowed in Windows and
+  macOS file names) becomes ``-``, which no corruption name contains, so
+  ``fog-3+gaussian_noise-2.5``; ``+`` and ``.`` are safe on every file system.
+  :func:`parse_chain` reads either form back.
+
+Random streams: step ``k`` (from 1) draws from its own generator, keyed by the seed, the
+dataset, the chain's canonical text, ``k`` and the image's key
+(:func:`robodepth_cli.seeding.chain_rngs`). So the same chain gives the same bytes in any
+process, and no step, not even the first, reuses the random draws of the single corruption
+at the same seed: ``fog:3+gaussian_noise:2`` starts from another fog than ``fog`` level 3.
+A deterministic step (brightness, contrast, defocus_blur, zoom_blur, color_quant, pixelate,
+jpeg_compression) draws nothing, so a chain of deterministic steps equals applying them one
+after another.
+
+This module is light (no numpy): configurations, results files and scores parse chains
+without loading the corruption engine.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from ..benchmarks import CATEGORY, CORRUPTIONS, N_LEVELS
+from ..errors import RobodepthError
+from .severity import LevelError, level_text, parse_level
+
+MAX_STEPS = 8
+_STEP = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*[:\-]\s*(\S.*?)\s*$")
+
+
+class ChainError(RobodepthError):
+    """A chain string that cannot be used; the message names the chain and the problem."""
+
+
+@dataclass(frozen=True)
+class Step:
+    name: str
+    level: int | float
+
+    @property
+    def text(self) -> str:
+        return f"{self.name}:{level_text(self.level)}"
+
+
+@dataclass(frozen=True)
+class Chain:
+    steps: tuple[Step, ...]
+
+    @property
+    def text(self) -> str:
+        """Canonical form, e.g. ``fog:3+gaussian_noise:2.5``."""
+        return "+".join(s.text for s in self.steps)
+
+    @property
+    def dirname(self) -> str:
+        """File-system-safe directory name, e.g. ``fog-3+gaussian_noise-2.5``."""
+        return "+".join(f"{s.name}-{level_text(s.level)}" for s in self.steps)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.steps)
+
+    def __str__(self) -> str:
+        return self.text
+
+
+def looks_like_chain(text: str) -> bool:
+    """Whether a variant name is meant as a chain (it has a ``:`` or a ``+``) rather than a
+    single corruption's name."""
+    return isinstance(text, str) and (":" in text or "+" in text)
+
+
+def parse_chain(text: str, *, top: int = N_LEVELS, where: str = "") -> Chain:
+    """The chain ``text`` describes (its canonical or directory form).
+
+    ``top`` is the highest level allowed (5; a benchmark may allow fewer: NYUDepth2-C 4).
+    :class:`ChainError`, one line naming ``where`` (a flag or file), the chain and the
+    problem, for: an empty chain or step, a step that is not ``NAME:LEVEL``, an unknown
+    name, a level that is not a number in ``1..top``, more than 8 steps."""
+    at = f"{where}: " if where else ""
+    if not isinstance(text, str):
+        raise ChainError(f"{at}chain {text!r}: expected text such as 'fog:3+gaussian_noise:2.5'")
+    shown = text.strip()
+
+    def fail(problem: str) -> ChainError:
+        return ChainError(f"{at}chain {shown!r}: {problem}")
+
+    if not shown:
+        raise fail("empty; write steps NAME:LEVEL joined by '+', e.g. 'fog:3+gaussian_noise:2.5'")
+    parts = shown.split("+")
+    if len(parts) > MAX_STEPS:
+        raise fail(f"{len(parts)} steps; a chain has at most {MAX_STEPS}")
+    steps = []
+    for k, part in enumerate(parts, 1):
+        if not part.strip():
+            raise fail(f"step {k} is empty (a '+' with nothing on one side)")
+        m = _STEP.match(part)
+        if not m:
+            raise fail(f"step {k} {part.strip()!r} is not NAME:LEVEL (e.g. 'fog:3')")
+        name, level = m.group(1), m.group(2)
+        if name not in CATEGORY:
+            raise fail(f"step {k}: unknown corruption {name!r}; valid: {', '.join(CORRUPTIONS)}")
+        try:
+            steps.append(Step(name, parse_level(level, top=top, what=f"step {k} ({name})")))
+        except LevelError as exc:
+            raise fail(str(exc)) from None
+    return Chain(tuple(steps))

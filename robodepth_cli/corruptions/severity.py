@@ -1,0 +1,114 @@
+"""Continuous severity: any level ``s`` in [1, 5], between the five integer levels.
+
+Every corruption keeps its table of five parameter entries; a level ``s = i + t``
+(``i`` an integer, ``0 <= t < 1``) takes each parameter from entries ``i`` and ``i + 1`` by the
+rule its corruption declares for it:
+
+- ``linear``: ``p_i + t * (p_{i+1} - p_i)``, for continuous parameters;
+- ``round``: the linear value rounded to the nearest integer, halves up
+  (``floor(v + 0.5)``), for integer parameters with many values in between (a blur radius,
+  a JPEG quality);
+- ``nearest``: the value of the nearest integer level, a half going to the upper one
+  (``p_{floor(s + 0.5)}``), for small integer parameters that do not move together in one
+  direction (glass blur's shuffle distance and passes switch together);
+- ``blend``: the output is ``(1 - t) * out_i + t * out_{i+1}``, the two neighbouring
+  levels' outputs mixed before the final truncation, for parameters whose in-between value
+  has no meaning (a bit depth, a set of zoom factors).
+
+At an integer level every rule gives that level's own entry (the very same values), so
+the output is byte-identical to the integer level's.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import NamedTuple, Sequence
+
+from ..errors import RobodepthError
+
+LINEAR, ROUND, NEAREST, BLEND = "linear", "round", "nearest", "blend"
+RULES = (LINEAR, ROUND, NEAREST, BLEND)
+
+
+class LevelError(RobodepthError):
+    """A severity level that is not a number in the allowed range."""
+
+
+class Blend(NamedTuple):
+    """A ``blend`` parameter between two levels: the lower and upper level's values and the
+    upper one's weight ``t``."""
+
+    lower: object
+    upper: object
+    t: float
+
+
+def parse_level(value, *, top: int, what: str = "level", bottom: int = 1) -> int | float:
+    """``value`` (a number, or its text as typed) as a severity level in ``bottom..top``:
+    an ``int`` when it is a whole number (``2.0`` is level 2), else a ``float``.
+
+    The one check of every level anywhere (``corrupt -l``, ``build --levels``, a chain's
+    step, the torch transforms): :class:`LevelError` naming ``what``, the value and the
+    range otherwise."""
+    raw = value
+    if isinstance(value, str):
+        try:
+            value = float(value.strip())
+        except ValueError:
+            value = None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise LevelError(f"{what}: {raw!r} is not a number; levels are {bottom}..{top} "
+                         f"(decimals allowed, e.g. 2.5)")
+    v = float(value)
+    if not math.isfinite(v) or not bottom <= v <= top:
+        shown = raw.strip() if isinstance(raw, str) else level_text(v) if math.isfinite(v) else raw
+        raise LevelError(f"{what}: level {shown} is out of range {bottom}..{top}")
+    return int(v) if v == int(v) else v
+
+
+def level_text(level) -> str:
+    """The canonical text of a level: ``3`` for an integer level (as every name, seed and
+    manifest row has always written it), the shortest round-trip decimal otherwise
+    (``2.5``, ``1.25``). It names directories and keys random streams."""
+    v = float(level)
+    return str(int(v)) if v == int(v) else repr(v)
+
+
+def bracket(level) -> tuple[int, float]:
+    """``(i, t)`` with ``level = i + t``, ``i`` the integer level below (or at) ``level``
+    and ``0 <= t < 1``; ``t`` is exactly 0 at an integer level."""
+    v = float(level)
+    i = math.floor(v)
+    return int(i), v - i
+
+
+def _one(lo, hi, t: float, rule: str, near):
+    if rule == LINEAR:
+        return lo + t * (hi - lo)
+    if rule == ROUND:
+        return int(math.floor(lo + t * (hi - lo) + 0.5))
+    if rule == NEAREST:
+        return near
+    if rule == BLEND:
+        return Blend(lo, hi, t)
+    raise ValueError(f"unknown interpolation rule {rule!r}")
+
+
+def interpolate(table: Sequence, level, rules: Sequence[str] | None = None):
+    """The parameter entry of ``level`` from ``table`` (one entry per integer level, a tuple
+    per level when there are several parameters, the value itself when there is one),
+    each parameter by its rule in ``rules`` (default: all ``linear``).
+
+    At an integer level this is ``table[level - 1]`` itself."""
+    i, t = bracket(level)
+    if t == 0.0:
+        return table[i - 1]
+    lower, upper = table[i - 1], table[i]
+    nearest = upper if t >= 0.5 else lower
+    if rules is None:
+        rules = (LINEAR,) * (len(lower) if isinstance(lower, tuple) else 1)
+    if len(rules) == 1:
+        return _one(lower, upper, t, rules[0], nearest)
+    return tuple(_one(lo, hi, t, rule, near)
+                 for lo, hi, rule, near in zip(lower, upper, rules, nearest))
