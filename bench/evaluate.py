@@ -23,9 +23,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from robodepth_cli import manifest  # noqa: E402
+from robodepth_cli.output import manifest  # noqa: E402
 from robodepth_cli.api import open_dataset  # noqa: E402
-from robodepth_cli.evaluate import evaluate, make_setup  # noqa: E402
+from robodepth_cli.evaluation.evaluate import evaluate  # noqa: E402
+from robodepth_cli.evaluation.protocols import make_setup  # noqa: E402
 
 
 def fake_dataset(root: Path, name: str, keys: list[str], variants: list[tuple[str, int | None]]):

@@ -7,7 +7,7 @@ convolution does not depend on its weights).
 - straightforward: one (content, style) pair at a time, as the public AdaIN test script
   does it: encode the content, encode the style, AdaIN, decode; default (NCHW) tensors,
   torch's default threads (every core).
-- ours (robodepth_cli.adain.Stylizer): the 12 style statistics computed once (reported
+- ours (robodepth_cli.styles.adain.Stylizer): the 12 style statistics computed once (reported
   apart; a build does it once for its 8,364 images), the content encoded once for its 12
   styles, decoding batched over styles in chunks, channels-last tensors, inference mode.
   Timed for several chunk sizes, without channels-last, and as 1 process x 2 threads
@@ -38,9 +38,9 @@ sys.path.insert(0, str(REPO))
 import torch  # noqa: E402
 from joblib import Parallel, delayed  # noqa: E402
 
-from robodepth_cli import adain  # noqa: E402
-from robodepth_cli.datasets import Job  # noqa: E402
-from robodepth_cli.styles import STYLES, StyleRenderer  # noqa: E402
+from robodepth_cli.styles import adain  # noqa: E402
+from robodepth_cli.sources.datasets import Job  # noqa: E402
+from robodepth_cli.styles.inputs import STYLES, StyleRenderer  # noqa: E402
 
 BUDGET_S = 0.8
 MIN_SPEEDUP = 4.0

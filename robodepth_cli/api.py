@@ -198,8 +198,8 @@ def open_dataset(path: str | os.PathLike) -> BuiltDataset:
     ``manifest.csv`` (which variants and levels were built). Raises :class:`DatasetError`
     naming the file when the directory is not a build or its record is unusable.
     """
-    from .datasets import get_dataset
-    from .manifest import MANIFEST, RECORD, ManifestError, read_manifest, read_record
+    from .sources.datasets import get_dataset
+    from .output.manifest import MANIFEST, RECORD, ManifestError, read_manifest, read_record
 
     path = Path(path)
     if not path.is_dir():
@@ -235,7 +235,7 @@ def _split_keys(record: dict, record_path: Path, ds) -> tuple[str, ...]:
     keys = split.get("keys")
     if isinstance(keys, list) and all(isinstance(k, str) for k in keys) and keys:
         return tuple(keys)
-    from .datasets import read_split
+    from .sources.datasets import read_split
     from .files import sha256_bytes
 
     file = split.get("path")
@@ -265,7 +265,7 @@ def bts_depth_name(key: str) -> str:
 def _split_depths(record: dict) -> dict[str, str]:
     """{image key: DEPTH field} from the build's NYU-format split file, if it is still
     there and unchanged; {} otherwise (or for other formats)."""
-    from .datasets import parse_nyu
+    from .sources.datasets import parse_nyu
     from .files import sha256_bytes
 
     split = record.get("split") or {}

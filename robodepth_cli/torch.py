@@ -247,8 +247,10 @@ class KittiC(torch.utils.data.Dataset):
         if self._gt is None:
             if not self._gt_path.is_file():
                 return None
-            # Opened lazily in each process (a DataLoader worker gets its own handle).
-            self._gt = np.load(self._gt_path, allow_pickle=True)["data"]
+            from .evaluation.groundtruth import read_depth_maps
+
+            # Read lazily in each process (a DataLoader worker reads its own copy).
+            self._gt = read_depth_maps(self._gt_path)
         return torch.from_numpy(np.asarray(self._gt[i], dtype=np.float32))
 
     def __getitem__(self, i: int) -> dict:

@@ -1,6 +1,6 @@
 """Random-weight AdaIN checkpoints in the published layout, and a per-pair reference.
 
-Written independently of ``robodepth_cli.adain``: the layouts below are spelled out module
+Written independently of ``robodepth_cli.styles.adain``: the layouts below are spelled out module
 by module from the public AdaIN ``net.py`` description, including the VGG
 layers past relu4_1 that ``vgg_normalised.pth`` holds, and :func:`reference_stylize` is
 the AdaIN stylisation rule taken literally, one content/style pair at a time.

@@ -10,7 +10,8 @@ import torch
 from PIL import Image
 
 from adain_fakes import adain_decoder, full_vgg, reference_stylize, save_checkpoints, smooth_image
-from robodepth_cli import adain, styles
+from robodepth_cli.styles import adain
+from robodepth_cli.styles import inputs as styles
 from robodepth_cli.imageio import ImageError
 
 
@@ -281,7 +282,7 @@ def test_engine_is_self_contained():
     import subprocess
     import sys
 
-    code = "import sys, robodepth_cli.adain; print('robodepth_cli.styles' in sys.modules)"
+    code = "import sys, robodepth_cli.styles.adain; print('robodepth_cli.styles.inputs' in sys.modules)"
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "False"

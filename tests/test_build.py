@@ -11,9 +11,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from robodepth_cli import builder, corruptions, datasets, seeding
+from robodepth_cli import corruptions, seeding
+
+from robodepth_cli.build import pipeline as builder
+
+from robodepth_cli.sources import datasets
 from robodepth_cli.corruptions import NAMES
-from robodepth_cli.manifest import BuildLock
+from robodepth_cli.output.manifest import BuildLock
 
 from _trees import expected_paths, kitti_key, kitti_tree, tree
 
@@ -99,8 +103,8 @@ def test_all_18_corruptions_5_levels_on_one_image(fixtures_dir, tmp_path, cli):
 
 def test_full_dataset_job_counts(splits_dir):
     """The presets and the real splits give the published image counts."""
-    from robodepth_cli.config import resolve
-    from robodepth_cli.datasets import get_dataset, read_split
+    from robodepth_cli.build.config import resolve
+    from robodepth_cli.sources.datasets import get_dataset, read_split
 
     for preset, split, n_images, n_corrupted in [("kitti-c", "eigen_test_files.txt", 697, 62730),
                                                  ("nyudepth2-c", "nyudepthv2_test_files_with_gt.txt", 654, 39240)]:

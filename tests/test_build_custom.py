@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from robodepth_cli import corruptions, seeding
-from robodepth_cli.custom import compile_pattern
+from robodepth_cli.sources.custom import compile_pattern
 
 from _trees import random_image, save, tree
 

@@ -12,9 +12,10 @@ import pytest
 from PIL import Image
 
 from _trees import KITTI_DRIVE, kitti_key, kitti_tree, nyu_tree, random_image, save, tree
-from robodepth_cli import builder, manifest
-from robodepth_cli.config import ConfigError, resolve
-from robodepth_cli.manifest import LOCK, BuildLock
+from robodepth_cli.build import pipeline as builder
+from robodepth_cli.output import manifest
+from robodepth_cli.build.config import ConfigError, resolve
+from robodepth_cli.output.manifest import LOCK, BuildLock
 
 SMALL = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1,2", "--jobs", "1"]
 FRAMES = [(1, "l", ".png"), (2, "r", ".png")]
@@ -330,7 +331,7 @@ def test_lock_taken_again_if_its_file_was_removed_meanwhile(tmp_path, monkeypatc
 def test_kitti_s_rerun_with_nothing_to_do_computes_no_style_statistics(tmp_path, fixtures_dir, cli,
                                                                      monkeypatch):
     from adain_fakes import save_checkpoints
-    from robodepth_cli import adain
+    from robodepth_cli.styles import adain
 
     vgg, dec, _, _ = save_checkpoints(tmp_path, seed=3)
     args = ["build", "kitti-s", "--root", fixtures_dir / "kitti_raw", "--split",

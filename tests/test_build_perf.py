@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import pickle
 
-from robodepth_cli import builder, config
-from robodepth_cli.datasets import get_dataset
+from robodepth_cli.build import pipeline as builder
+
+from robodepth_cli.build import config
+from robodepth_cli.sources.datasets import get_dataset
 
 from _trees import kitti_tree
 

@@ -199,7 +199,7 @@ def test_kitti_s_on_the_cluster_loads_the_checkpoints_once_per_worker(cli, clust
     assert tree(tmp_path / "cluster") == tree(tmp_path / "local")
     assert rows(tmp_path / "cluster") == rows(tmp_path / "local")
     # Each worker process keeps one loaded model for these checkpoints, reused by every task.
-    held = cluster.client.run(lambda: list(__import__("robodepth_cli.styles").styles._STYLIZERS))
+    held = cluster.client.run(lambda: list(__import__("robodepth_cli.styles.inputs").styles.inputs._STYLIZERS))
     assert any(held.values()) and all(v in ([], [(str(vgg), str(dec))]) for v in held.values()), held
 
 
@@ -304,7 +304,7 @@ def test_worker_that_cannot_see_the_root_is_refused_before_any_work(build, clust
 def test_probe_names_each_problem(tmp_path):
     """The probe itself, in this process: what a worker on a host without the shared
     paths, or with other files or versions, reports."""
-    from robodepth_cli import cluster
+    from robodepth_cli.build import cluster
 
     root, out = tmp_path / "root", tmp_path / "out"
     (root / "2011_09_26").mkdir(parents=True)
@@ -341,7 +341,7 @@ def test_probe_names_each_problem(tmp_path):
 
 
 def test_scheduler_config_keys(tmp_path):
-    from robodepth_cli.config import ConfigError, resolve
+    from robodepth_cli.build.config import ConfigError, resolve
 
     f = tmp_path / "c.yaml"
     f.write_text("scheduler_file: run/scheduler.json\n")
@@ -362,7 +362,7 @@ def test_scheduler_config_keys(tmp_path):
 def test_unreachable_scheduler_and_bad_scheduler_file(build, tmp_path, monkeypatch):
     import socket
 
-    from robodepth_cli import cluster
+    from robodepth_cli.build import cluster
 
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 2)
 

@@ -348,7 +348,7 @@ def test_corner_aligned_upsampling_is_pytorchs():
     """AdaBins upsamples with torch's interpolate(bilinear, align_corners=True)."""
     import torch
 
-    from robodepth_cli.evaluate import upsample_corners
+    from robodepth_cli.evaluation.protocols import upsample_corners
 
     rng = np.random.default_rng(0)
     for (h, w), (H, W) in (((240, 320), (480, 640)), ((7, 5), (13, 11)), ((1, 4), (3, 9))):
@@ -619,7 +619,8 @@ def test_ground_truth_file_read_map_by_map(tmp_path, protocol):
     """The pickled object array is read one map at a time (each reduced to its valid
     pixels as it arrives); the result is what numpy's own loader gives, for the pickle
     protocols numpy and the ground-truth writers use."""
-    from robodepth_cli.evaluate import kitti_valid, load_ground_truth
+    from robodepth_cli.evaluation.groundtruth import load_ground_truth
+    from robodepth_cli.evaluation.protocols import kitti_valid
 
     maps = [lidar_gt((40 + i, 90 + 3 * i), i) for i in range(20)]
     path = _object_npz(tmp_path / "gt.npz", maps, protocol)

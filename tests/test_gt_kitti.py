@@ -114,7 +114,7 @@ def test_export_equals_reference(kitti, tmp_path, run):
 
 def test_depth_map_drops_points_outside(tmp_path, fixtures_dir):
     """Points behind the sensor or outside the image leave no trace; one in the frame does."""
-    from robodepth_cli.gt_kitti import Calibration, depth_map
+    from robodepth_cli.sources.kitti_raw import Calibration, depth_map
 
     calib = Calibration.load(fixtures_dir / "kitti_raw" / DATE1)
     proj, (h, w) = projection(fixtures_dir / "kitti_raw", DATE1)

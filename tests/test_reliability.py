@@ -27,7 +27,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from robodepth_cli import builder, imageio, manifest
+from robodepth_cli import imageio
+
+from robodepth_cli.build import pipeline as builder
+
+from robodepth_cli.output import manifest
 
 from _trees import KITTI_DRIVE, kitti_key, kitti_tree, random_image, save, tree
 

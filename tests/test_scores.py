@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from robodepth_cli import scores as S
+from robodepth_cli.evaluation import scores as S
 from robodepth_cli.corruptions import DATA, NAMES, SENSOR, WEATHER
-from robodepth_cli.plot import COLOURS, ce_chart
+from robodepth_cli.evaluation.plot import COLOURS, ce_chart
 
 KITTI = S.get_benchmark("kitti-c")
 NYU = S.get_benchmark("nyudepth2-c")

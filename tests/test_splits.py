@@ -12,10 +12,10 @@ from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
 
-from robodepth_cli import splits
-from robodepth_cli.datasets import locate, read_split
+from robodepth_cli.sources import splits
+from robodepth_cli.sources.datasets import locate, read_split
 from robodepth_cli.imageio import ImageError
-from robodepth_cli.splits import SplitError
+from robodepth_cli.sources.splits import SplitError
 
 
 class _QuietHandler(SimpleHTTPRequestHandler):

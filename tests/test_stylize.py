@@ -13,7 +13,7 @@ from PIL import Image
 
 from adain_fakes import reference_stylize, save_checkpoints, smooth_image
 from _paths import REPO
-from robodepth_cli import styles
+from robodepth_cli.styles import inputs as styles
 from robodepth_cli.imageio import load_clean
 
 FRAME = "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
@@ -111,7 +111,9 @@ def test_help_and_kitti_c_build_do_not_import_torch(tmp_path, fixtures_dir):
         from robodepth_cli.cli import main
         r = CliRunner().invoke(main, ["--help"])
         assert r.exit_code == 0, r.output
-        from robodepth_cli import builder, config, datasets, styles  # noqa: F401
+        from robodepth_cli.build import pipeline, config  # noqa: F401
+        from robodepth_cli.sources import datasets  # noqa: F401
+        from robodepth_cli.styles import inputs  # noqa: F401
         r = CliRunner().invoke(main, ["build", "kitti-c", "--root", {str(fixtures_dir / 'kitti_raw')!r},
                                       "--split", {str(fixtures_dir / 'kitti_split.txt')!r},
                                       "--out", {str(tmp_path / 'out')!r}, "--corruptions", "contrast",

@@ -10,11 +10,11 @@ import pytest
 import torch
 
 from _trees import KITTI_DRIVE, kitti_key, kitti_tree, nyu_tree
-from robodepth_cli import splits
-from robodepth_cli.config import ConfigError, resolve
+from robodepth_cli.sources import splits
+from robodepth_cli.build.config import ConfigError, resolve
 from robodepth_cli.corruptions import NAMES
-from robodepth_cli.datasets import read_split
-from robodepth_cli.splits import SplitError
+from robodepth_cli.sources.datasets import read_split
+from robodepth_cli.sources.splits import SplitError
 
 SMALL = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1", "--jobs", "1"]
 NYU_NAMES = [n for n in NAMES if n not in ("fog", "frost", "snow")]
@@ -170,7 +170,7 @@ def test_paths_in_messages_are_as_typed(cli, tmp_path, monkeypatch):
 @pytest.mark.parametrize("content", [b"", b"hello, not a checkpoint\n" * 40, b"PK\x03\x04" + bytes(200)],
                          ids=["empty", "text", "broken zip"])
 def test_garbage_checkpoint_is_one_clear_sentence(tmp_path, content):
-    from robodepth_cli import adain
+    from robodepth_cli.styles import adain
 
     bad = tmp_path / "vgg_normalised.pth"
     bad.write_bytes(content)
@@ -184,7 +184,7 @@ def test_garbage_checkpoint_is_one_clear_sentence(tmp_path, content):
 
 
 def test_checkpoint_with_other_objects_never_suggests_unsafe_loading(tmp_path):
-    from robodepth_cli import adain
+    from robodepth_cli.styles import adain
 
     bad = tmp_path / "decoder.pth"
     torch.save({"0.weight": np.zeros(3)}, bad)  # a numpy array: refused by weights_only

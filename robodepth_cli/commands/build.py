@@ -78,8 +78,8 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
       robodepth build custom --root cityscapes/leftImg8bit/val --out CITYSCAPES_C \\
           --pattern '**/*_leftImg8bit.png' --levels 3
     """
-    from ..builder import build
-    from ..config import resolve
+    from ..build.pipeline import build
+    from ..build.config import resolve
 
     interrupted = "robodepth: interrupted; rerun the same command to resume"
     # A scheduler's SIGTERM (end of a job's time) stops the build as cleanly as Ctrl-C.
@@ -111,7 +111,7 @@ def _executor(cfg):
     nothing (the builder's local pool), and dask is never imported."""
     if not (cfg.scheduler or cfg.scheduler_file):
         return contextlib.nullcontext()
-    from ..cluster import DaskExecutor
+    from ..build.cluster import DaskExecutor
 
     return DaskExecutor(cfg.scheduler, cfg.scheduler_file)
 
@@ -135,7 +135,7 @@ def verify_command(out, progress):
     """
     from tqdm import tqdm
 
-    from ..manifest import verify
+    from ..output.manifest import verify
 
     with tqdm(unit="file", disable=None if progress else True, file=sys.stderr) as bar:
         report = verify(out, progress=bar.update)

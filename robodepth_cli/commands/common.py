@@ -13,7 +13,7 @@ from ..errors import RobodepthError, os_reason
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     """The corruptions ``value`` selects ('all', a name or a comma list), in order."""
     from ..benchmarks import CORRUPTIONS
-    from ..config import choose_names
+    from ..build.config import choose_names
 
     return list(choose_names(flag, value, CORRUPTIONS, "corruption"))
 
@@ -22,7 +22,7 @@ def levels(value: str, flag: str = "--level") -> list[int]:
     """The levels ``value`` selects ('all', a level or a comma list), sorted, checked by
     the same rule as a build's ``--levels``: every corruption has levels 1..5."""
     from ..benchmarks import N_LEVELS
-    from ..config import choose_levels
+    from ..build.config import choose_levels
 
     return list(choose_levels(flag, value, tuple(range(1, N_LEVELS + 1))))
 

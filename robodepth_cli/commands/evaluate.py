@@ -57,12 +57,13 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
 
     from tqdm import tqdm
 
-    from .. import evaluate as E
-    from .. import scores as S
+    from ..evaluation import evaluate as E
+    from ..evaluation.protocols import make_setup
+    from ..evaluation import scores as S
     from ..api import open_dataset
 
     dataset = open_dataset(dataset_dir)
-    setup = E.make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
+    setup = make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
                          kind, stereo, png_scale)
     bench = None
     if with_score:

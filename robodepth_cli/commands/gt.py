@@ -26,7 +26,7 @@ def gt_command():
 def _split(value: str, split_format: str, owner: str) -> Path:
     """The split file ``value`` names, chosen by the same rule as a build's ``--split``: a
     standard split of the right format (downloaded and checked on first use) or a file."""
-    from .. import splits
+    from ..sources import splits
 
     try:
         path = splits.split_path(splits.check_choice(value, split_format, Path.cwd(), owner))
@@ -61,7 +61,7 @@ def gt_kitti_command(root, split, out, progress):
     order; np.load(OUT, allow_pickle=True)["data"] reads it, as monodepth2's and the
     benchmark's evaluation scripts do. The file appears only when every map is made.
     """
-    from .. import gt_kitti
+    from ..sources import kitti_raw as gt_kitti
 
     if not root.is_dir():
         raise RobodepthError(f"--root {root}: not a directory (the KITTI raw root)")
@@ -92,7 +92,7 @@ def gt_nyu_command(root, split, out, progress):
     truncated). From a BTS folder: its sync_depth files, copied. Every frame is checked
     (index, scene) before anything is written.
     """
-    from .. import gt_nyu
+    from ..sources import nyu_labeled as gt_nyu
 
     if not root.exists():
         raise RobodepthError(f"--root {root}: no such file or directory")

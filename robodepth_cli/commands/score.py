@@ -35,7 +35,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     """
     import json
 
-    from .. import scores as S
+    from ..evaluation import scores as S
 
     plot_file = None if plot_path is None else common.png_output(plot_path, f"{results.stem}_ce.png",
                                                                  "--plot")
@@ -51,7 +51,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
     result = S.score(res, bench, base, allow_partial=True)
     if plot_file is not None:
-        from ..plot import ce_chart
+        from ..evaluation.plot import ce_chart
 
         common.write_png(plot_file, np.asarray(ce_chart(result)))
     if as_json:

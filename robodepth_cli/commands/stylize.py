@@ -31,7 +31,7 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
     robodepth stylize frame.png --style styles/sketch.jpg --vgg vgg_normalised.pth \\
         --decoder decoder.pth --size 192x640 --out sketch.png
     """
-    from ..styles import check_option, load_style
+    from ..styles.inputs import check_option, load_style
 
     out = common.png_output(out, f"{Path(image).stem}_{Path(style).stem}.png")
     # The same checks as a KITTI-S build's options, with the same messages.
@@ -43,7 +43,7 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
             raise RobodepthError(f"--{key.replace('_', '-')}: {exc}") from None
     content = common.load_input(image, size)
     style_img = load_style(style, opts["style_size"])
-    from ..adain import Stylizer
+    from ..styles.adain import Stylizer
 
     stylizer = Stylizer.from_files(opts["vgg"], opts["decoder"])
     result = stylizer.stylize(content, [stylizer.style_features(style_img)], opts["alpha"])[0]

@@ -43,13 +43,16 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-from . import __version__, buildchecks, manifest, splits
+from .. import __version__
+from . import checks as buildchecks
+from ..output import manifest
+from ..sources import splits
 from .config import BuildConfig
-from .datasets import CLEAN, Dataset, Entry, Job, Renderer, get_dataset, locate, read_split
-from .imageio import PNG_ENCODER, ImageError, load_clean, resize_lanczos, write_png
-from .files import sha256_bytes, sha256_file
-from .manifest import Row
-from .errors import RobodepthError
+from ..sources.datasets import CLEAN, Dataset, Entry, Job, Renderer, get_dataset, locate, read_split
+from ..imageio import PNG_ENCODER, ImageError, load_clean, resize_lanczos, write_png
+from ..files import sha256_bytes, sha256_file
+from ..output.manifest import Row
+from ..errors import RobodepthError
 from .executors import Executor, ExecutorError, LocalExecutor
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
@@ -271,7 +274,7 @@ def labeled_sources(path: Path, split_path: Path, entries: list[Entry]) -> list[
     the file for ``SCENE/rgb_N``. A line whose frame is not in the file, or is of another
     scene, is that image's failure; a file that is not the labeled file is a
     :class:`BuildError`."""
-    from . import gt_nyu
+    from ..sources import nyu_labeled as gt_nyu
 
     try:
         labeled = gt_nyu.opened(path)
@@ -293,9 +296,9 @@ def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
                    shown_root: Path | None = None) -> tuple[list[Source], dict]:
     """The sources of the build and the record's ``split`` entry (how they were chosen;
     ``keys``: the entries built, in order): a preset's split file, or for a custom build the
-    images found under the root or listed in ``--list`` (:mod:`robodepth_cli.custom`)."""
+    images found under the root or listed in ``--list`` (:mod:`robodepth_cli.sources.custom`)."""
     if ds.discovers_sources:
-        from . import custom
+        from ..sources import custom
 
         found, split = custom.find_sources(root, cfg, out)
         sources = [Source.find(root, Entry(n, key, (rel,))) for n, (key, rel) in enumerate(found, 1)]
@@ -412,7 +415,7 @@ def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: di
     """Write the build record of a build that starts now (status ``running``) and return it.
     ``split`` is :func:`gather_sources`' account of the sources (``keys``: the entries
     built, in order); ``plans`` every request made
-    into this OUT so far (see :mod:`robodepth_cli.buildchecks`), which verify checks."""
+    into this OUT so far (see :mod:`robodepth_cli.build.checks`), which verify checks."""
     record = {
         "robodepth": __version__, "command": command or [], "dataset": ds.name,
         "config": cfg.as_dict(), "seed": cfg.seed, "root": str(root), "out": str(out.resolve()),
@@ -476,9 +479,9 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
 def add_ground_truth(ds: Dataset, root: Path, split_path: Path, frames: int, out: Path,
                      summary: Summary, progress: bool) -> None:
     """Write the ground truth of the first ``frames`` split entries, the ones the build in
-    ``out`` holds (see :mod:`robodepth_cli.build_gt`), as manifest rows counted in
+    ``out`` holds (see :mod:`robodepth_cli.build.groundtruth`), as manifest rows counted in
     ``summary``; when it cannot be made at all, only a note."""
-    from . import build_gt
+    from . import groundtruth as build_gt
 
     plan = build_gt.plan_gt(ds.split_format, root, split_path, frames)
     if plan.note:
@@ -635,7 +638,7 @@ def _load(src: Source, size: tuple[int, int]):
         return None, src.error
     try:
         if src.frame is not None:
-            from .gt_nyu import source_image
+            from ..sources.nyu_labeled import source_image
 
             return resize_lanczos(source_image(src.path, src.frame), size), ""
         return load_clean(src.path, size), ""

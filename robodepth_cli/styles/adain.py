@@ -11,7 +11,7 @@ of its styles, and decoding is batched over styles. The result equals stylising 
 (content, style) pair on its own up to float rounding.
 
 This module imports torch at import time and nothing of the package's KITTI-S inputs
-(:mod:`robodepth_cli.styles` imports it, never the reverse); import it only when style
+(:mod:`robodepth_cli.styles.inputs` imports it, never the reverse); import it only when style
 work runs.
 """
 
@@ -30,8 +30,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from .imageio import as_rgb
-from .errors import RobodepthError
+from ..imageio import as_rgb
+from ..errors import RobodepthError
 
 EPS = 1e-5
 

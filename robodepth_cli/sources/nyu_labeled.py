@@ -25,8 +25,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .errors import RobodepthError, os_reason
-from .files import write_atomic
+from ..errors import RobodepthError, os_reason
+from ..files import write_atomic
 
 HEIGHT, WIDTH = 480, 640
 # BTS keeps rows 7..473 and columns 7..631 and blacks out the rest (the Kinect
@@ -70,7 +70,7 @@ class NyuFrame:
 
 def read_frames(split: Path) -> list[NyuFrame]:
     """The frames of a NYU-format split file, with the checks every split gets
-    (:func:`robodepth_cli.datasets.read_split`)."""
+    (:func:`robodepth_cli.sources.datasets.read_split`)."""
     from .datasets import read_split
 
     entries = read_split(split, "nyu")
@@ -307,7 +307,7 @@ def export(root: Path, frames: Sequence[NyuFrame], out: Path, *, split_name: str
 
 
 def _export(root, frames, out, split_name, rgb, progress):
-    from .files import sha256_bytes
+    from ..files import sha256_bytes
 
     written = []
     if is_labeled_file(root):

@@ -1,11 +1,11 @@
 """The ground truth a build writes beside its images, so the dataset can be evaluated as it is.
 
 - KITTI-C, KITTI-C-HR, KITTI-S (Eigen-format splits): ``OUT/gt_depths.npz``, the depth maps
-  of the built frames in split order (:mod:`robodepth_cli.gt_kitti`), one manifest row.
+  of the built frames in split order (:mod:`robodepth_cli.sources.kitti_raw`), one manifest row.
   Made only when every frame has its velodyne file; otherwise a note says which is missing
   and that ``robodepth gt kitti`` can make it later.
 - NYUDepth2-C (NYU-format splits): ``OUT/gt/<depth path of the split line>``, e.g.
-  ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.gt_nyu`), one row each:
+  ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.sources.nyu_labeled`), one row each:
   made from the labeled ``.mat`` when that is the root, copied from a BTS test folder
   otherwise (when every listed depth file is there; else a note).
 
@@ -23,8 +23,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import RobodepthError
-from .manifest import Row
+from ..errors import RobodepthError
+from ..output.manifest import Row
 
 GT = "gt"  # the variant of ground-truth rows
 KITTI_FILE = "gt_depths.npz"
@@ -78,7 +78,7 @@ def _later(command: str) -> str:
 
 
 def _plan_kitti(root: Path, split_path: Path, limit: int | None) -> GtPlan:
-    from . import gt_kitti
+    from ..sources import kitti_raw as gt_kitti
 
     frames = gt_kitti.read_frames(split_path)[:limit]
     plan = GtPlan("kitti", root, str(split_path), [])
@@ -99,7 +99,7 @@ def _plan_kitti(root: Path, split_path: Path, limit: int | None) -> GtPlan:
 
 
 def _plan_nyu(root: Path, split_path: Path, limit: int | None) -> GtPlan:
-    from . import gt_nyu
+    from ..sources import nyu_labeled as gt_nyu
 
     frames = gt_nyu.read_frames(split_path)[:limit]
     plan = GtPlan("nyu", root, str(split_path), [])
@@ -131,7 +131,7 @@ def _row(job: GtJob, sha: str = "", error: str = "", size: tuple[int, int] = (0,
 
 
 def _is_done(job: GtJob, out: Path, done: dict[str, Row]) -> Row | None:
-    from .files import sha256_file
+    from ..files import sha256_file
 
     r = done.get(job.output)
     if r is None or r.error or job.error or r.params != job.params or r.source != job.source:
@@ -171,7 +171,7 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
     from threadpoolctl import threadpool_limits
     from tqdm import tqdm
 
-    from . import gt_kitti
+    from ..sources import kitti_raw as gt_kitti
 
     target = out / job.output
     with tqdm(total=len(job.frames), unit="frame", desc="ground truth", disable=None if progress else True,
@@ -192,9 +192,9 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
 
 
 def _run_nyu(plan: GtPlan, job: GtJob, out: Path):
-    from . import gt_nyu
-    from .files import write_atomic
-    from .files import sha256_bytes
+    from ..sources import nyu_labeled as gt_nyu
+    from ..files import write_atomic
+    from ..files import sha256_bytes
 
     target = out / job.output
     (frame,) = job.frames

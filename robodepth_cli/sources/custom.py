@@ -26,8 +26,8 @@ import os
 import re
 from pathlib import Path
 
-from .errors import RobodepthError
-from .keys import custom_key
+from ..errors import RobodepthError
+from ..keys import custom_key
 
 IMAGE_EXTS = ("png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp")
 DEFAULT_PATTERNS = tuple(f"**/*.{e}" for e in IMAGE_EXTS)
@@ -196,7 +196,7 @@ def check_keys(rels, where: str) -> list[str]:
 def find_sources(root: Path, cfg, out: Path | None = None):
     """The sources of a custom build: ``(list of (key, rel), split record)`` where the
     record describes how they were found (for ``build.json``)."""
-    from .files import sha256_bytes
+    from ..files import sha256_bytes
 
     listed = cfg.extra.get("list")
     patterns = cfg.extra.get("pattern") or DEFAULT_PATTERNS

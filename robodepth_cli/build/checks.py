@@ -19,7 +19,7 @@ import os
 from pathlib import Path
 from typing import Any, Iterable
 
-from .errors import RobodepthError
+from ..errors import RobodepthError
 
 
 class OutputDirError(RobodepthError):
@@ -127,7 +127,7 @@ def planned_outputs(record: dict[str, Any] | None) -> set[str] | None:
     entries = plans(record)
     if not entries:
         return None
-    from .datasets import get_dataset
+    from ..sources.datasets import get_dataset
 
     ds = get_dataset(record.get("dataset") or (record.get("config") or {}).get("dataset"))
     paths: set[str] = set()

@@ -17,8 +17,8 @@ from typing import Iterator, Protocol, Sequence
 
 import numpy as np
 
-from .benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS
-from .imageio import ImageError
+from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS
+from ..imageio import ImageError
 from .splits import SplitError
 SOURCE_EXTS = (".png", ".jpg", ".jpeg")  # tried in this order when a split names no extension
 KITTI_PREFIX = "kitti_data"
@@ -191,7 +191,7 @@ class CorruptionRenderer:
         self.seed = seed
 
     def render(self, clean, key, jobs):
-        from . import corruptions, seeding
+        from .. import corruptions, seeding
 
         for job in jobs:
             rng = seeding.job_rng(self.seed, self.dataset, job.variant, job.level, key)
@@ -259,14 +259,14 @@ class Dataset:
 @dataclass(frozen=True)
 class StyleDataset(Dataset):
     """KITTI-S: one AdaIN-stylised output per style, no levels. The style logic lives in
-    :mod:`robodepth_cli.styles`; torch is loaded only by its renderer."""
+    :mod:`robodepth_cli.styles.inputs`; torch is loaded only by its renderer."""
 
     variant_key: str = "only_styles"
     leveled: bool = False
     variant_noun: str = "style"
 
     def variant_names(self) -> tuple[str, ...]:
-        from .styles import STYLES
+        from ..styles.inputs import STYLES
 
         return STYLES
 
@@ -274,17 +274,17 @@ class StyleDataset(Dataset):
         return self.variant_names()
 
     def options(self) -> tuple[str, ...]:
-        from .styles import OPTIONS
+        from ..styles.inputs import OPTIONS
 
         return OPTIONS
 
     def check_option(self, key: str, value, base: Path):
-        from .styles import check_option
+        from ..styles.inputs import check_option
 
         return check_option(key, value, base)
 
     def renderer(self, config) -> Renderer:
-        from .styles import make_renderer
+        from ..styles.inputs import make_renderer
 
         return make_renderer(config)
 
@@ -302,7 +302,7 @@ def _benchmark_dataset(name: str, split_format: str) -> Dataset:
 class CustomDataset(Dataset):
     """Any folder of images (``build custom``): the sources are found under the root by
     pattern or listed in a file, each at its own size unless a size is given; see
-    :mod:`robodepth_cli.custom`."""
+    :mod:`robodepth_cli.sources.custom`."""
 
     discovers_sources: bool = True
 

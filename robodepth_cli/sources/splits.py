@@ -1,6 +1,6 @@
 """Which split a build reads: a standard split (from its record and a checked local cache)
 or the user's own file. Reading a split's lines is the dataset's business
-(:func:`robodepth_cli.datasets.read_split`); choosing and obtaining the file happens here.
+(:func:`robodepth_cli.sources.datasets.read_split`); choosing and obtaining the file happens here.
 
 The project does not ship the split files. ``splits/splits.json`` (at the top of the
 repository) records, for each standard split, its public address, sha256 and number of
@@ -24,9 +24,9 @@ import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import data_dir
-from .files import sha256_bytes, write_atomic
-from .errors import RobodepthError
+from .. import data_dir
+from ..files import sha256_bytes, write_atomic
+from ..errors import RobodepthError
 
 RECORDS_FILE = data_dir("splits") / "splits.json"
 TIMEOUT_S = 30.0

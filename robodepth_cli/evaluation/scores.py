@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from .benchmarks import (BENCHMARKS, CATEGORIES, CATEGORY, CLEAN, CORRUPTIONS, Baseline,  # noqa: F401
+from ..benchmarks import (BENCHMARKS, CATEGORIES, CATEGORY, CLEAN, CORRUPTIONS, Baseline,  # noqa: F401
                          Benchmark, get_benchmark)
-from .errors import RobodepthError
+from ..errors import RobodepthError
 
 
 class ScoreError(RobodepthError):

@@ -28,10 +28,11 @@ from typing import Any
 
 import yaml
 
-from . import data_dir, splits
-from .datasets import get_dataset
-from .imageio import parse_size
-from .errors import RobodepthError
+from .. import data_dir
+from ..sources import splits
+from ..sources.datasets import get_dataset
+from ..imageio import parse_size
+from ..errors import RobodepthError
 
 CONFIG_DIR = data_dir("configs")
 ALL = "all"
@@ -182,7 +183,7 @@ class _Resolver:
 
     def _elsewhere(self, where: str, key: str) -> str:
         """For a key another dataset takes: the message saying it does not apply here."""
-        from .datasets import DATASETS
+        from ..sources.datasets import DATASETS
 
         ds = self.dataset
         others = [d.name for d in DATASETS.values() if d.name != ds.name and key in self.keys_of(d)]
@@ -258,7 +259,7 @@ class _Resolver:
             # A dataset without levels accepts the key and ignores it.
             return choose_levels(loc, v, ds.levels() if ds.leveled else None, owner=ds.name)
         if key == "seed":
-            from .seeding import check_seed
+            from ..seeding import check_seed
 
             try:
                 return check_seed(v, loc)  # the rule of every command's seed

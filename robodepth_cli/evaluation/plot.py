@@ -11,7 +11,7 @@ import math
 
 from PIL import Image, ImageDraw, ImageFont
 
-from .benchmarks import CATEGORIES
+from ..benchmarks import CATEGORIES
 from .scores import Scores
 
 # One colour per category, in CATEGORIES order (colour-blind-safe Okabe-Ito hues).

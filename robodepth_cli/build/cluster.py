@@ -44,8 +44,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
 
-from . import __version__
-from .errors import RobodepthError, os_reason
+from .. import __version__
+from ..errors import RobodepthError, os_reason
 from .executors import ExecutorError
 
 CONNECT_TIMEOUT_S = 30  # to reach the scheduler
@@ -359,7 +359,7 @@ class DaskExecutor:
             remove_token(req)
             if done < len(futures) or set(client.nthreads()) != before:
                 # A worker that died or a task cancelled mid-write may leave a temporary file.
-                from .manifest import remove_temporaries
+                from ..output.manifest import remove_temporaries
 
                 remove_temporaries(Path(req.out))
 

@@ -26,8 +26,8 @@ import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from .files import is_temporary, sha256_file, write_atomic
-from .errors import RobodepthError
+from ..files import is_temporary, sha256_file, write_atomic
+from ..errors import RobodepthError
 
 MANIFEST = "manifest.csv"
 RECORD = "build.json"
@@ -348,7 +348,7 @@ def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
     files are checked."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from .buildchecks import planned_outputs
+    from ..build.checks import planned_outputs
 
     out = Path(out)
     if not out.exists():

@@ -2,7 +2,7 @@
 
 Nothing here imports torch at import time: the dataset definition and the configuration
 checks run in every build, and only a KITTI-S build that has images to render loads torch
-(through :mod:`robodepth_cli.adain`).
+(through :mod:`robodepth_cli.styles.adain`).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Any, Sequence
 import numpy as np
 from PIL import Image
 
-from .imageio import MIN_SIDE, read_rgb
-from .files import sha256_file
-from .errors import RobodepthError
+from ..imageio import MIN_SIDE, read_rgb
+from ..files import sha256_file
+from ..errors import RobodepthError
 
 # The 12 KITTI-S styles in the benchmark's order; also the output directory names.
 STYLES: tuple[str, ...] = (

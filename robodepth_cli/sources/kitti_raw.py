@@ -37,7 +37,7 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
-from .errors import RobodepthError, os_reason
+from ..errors import RobodepthError, os_reason
 
 CAM_TO_CAM = "calib_cam_to_cam.txt"
 VELO_TO_CAM = "calib_velo_to_cam.txt"
@@ -66,7 +66,7 @@ class KittiFrame:
 
 def read_frames(split: Path) -> list[KittiFrame]:
     """The frames of an Eigen-format split file (``DATE/DRIVE FRAME SIDE`` per line), with
-    the checks every split gets (:func:`robodepth_cli.datasets.read_split`)."""
+    the checks every split gets (:func:`robodepth_cli.sources.datasets.read_split`)."""
     from .datasets import read_split
 
     entries = read_split(split, "eigen")
@@ -275,7 +275,7 @@ def save_object_npz(path: Path, arrays: Sequence[np.ndarray]) -> str:
     """
     import hashlib
 
-    from .files import atomic_output
+    from ..files import atomic_output
 
     obj = np.empty(len(arrays), dtype=object)
     for i, a in enumerate(arrays):  # item by item: obj[:] = arrays would try to broadcast

@@ -1,0 +1,202 @@
+"""``robodepth evaluate``: a model's predictions on a built dataset, scored under the
+protocol of its benchmark (:mod:`.protocols`) against its ground truth (:mod:`.groundtruth`),
+into the results CSV that ``robodepth score`` reads.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..api import CLEAN, BuiltDataset, Variant
+from ..errors import os_reason
+from .groundtruth import GroundTruth, load_ground_truth
+from .predictions import Predictions, check_values, find_predictions
+from .protocols import EvaluationError, Setup, kitti_image, nyu_image
+
+@dataclass
+class VariantResult:
+    variant: Variant
+    metrics: dict[str, float]  # mean over the images
+    ratios: np.ndarray | None = None  # median-scaling ratio per image (mono kitti only)
+
+    @property
+    def csv_key(self) -> tuple[str, int]:
+        """(corruption, level) as the results CSV names it: clean and styles have level 0."""
+        return self.variant.name, self.variant.level or 0
+
+    def ratio_summary(self) -> tuple[float, float] | None:
+        """(median of the ratios, std of ratio / median), as monodepth2 prints them."""
+        if self.ratios is None or not len(self.ratios):
+            return None
+        med = np.median(self.ratios)
+        return float(med), float(np.std(self.ratios / med))
+
+
+@dataclass
+class Evaluation:
+    dataset: str
+    setup: Setup
+    predictions: str
+    ground_truth: str
+    images: int  # per variant
+    results: list[VariantResult] = field(default_factory=list)
+    missing: list[Variant] = field(default_factory=list)  # no predictions (--allow-partial)
+
+    def csv_text(self) -> str:
+        """The results CSV: ``corruption,level`` then the metrics, one row per variant,
+        full float precision (``repr``)."""
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(("corruption", "level") + self.setup.metrics)
+        for r in self.results:
+            name, level = r.csv_key
+            w.writerow([name, level] + [repr(r.metrics[m]) for m in self.setup.metrics])
+        return buf.getvalue()
+
+    def to_json(self) -> dict:
+        rows = []
+        for r in self.results:
+            name, level = r.csv_key
+            row = {"corruption": name, "level": level, **r.metrics}
+            summary = r.ratio_summary()
+            if summary:
+                row["scaling_ratio"] = {"median": summary[0], "std": summary[1]}
+            rows.append(row)
+        return {"dataset": self.dataset, "protocol": self.setup.protocol,
+                "kind": self.setup.kind, "stereo": self.setup.stereo,
+                "median_scaling": self.setup.median_scaling, "predictions": self.predictions,
+                "ground_truth": self.ground_truth, "images": self.images, "results": rows,
+                "partial": bool(self.missing),
+                "missing": [{"corruption": v.name, "level": v.level or 0} for v in self.missing]}
+
+    def summary(self) -> str:
+        """A table of the metrics per variant (3 decimals) and, with median scaling, the
+        ratios' median and spread per variant as monodepth2 prints them."""
+        metrics = self.setup.metrics
+        width = max([len("variant")] + [len(r.variant.label) for r in self.results]) + 2
+        head = f"{'variant':<{width}}" + "".join(f"{m:>10}" for m in metrics)
+        if self.setup.median_scaling:
+            head += f"{'ratio med':>11}{'std':>7}"
+        lines = [f"{self.dataset}: {len(self.results)} variants x {self.images} images, "
+                 f"{self.setup.describe()}", head]
+        for r in self.results:
+            line = f"{r.variant.label:<{width}}" + "".join(f"{r.metrics[m]:>10.3f}" for m in metrics)
+            summary = r.ratio_summary()
+            if summary:
+                line += f"{summary[0]:>11.3f}{summary[1]:>7.3f}"
+            lines.append(line)
+        if self.missing:
+            lines.append(f"partial: no predictions for {len(self.missing)} variants: "
+                         f"{_list(self.missing)}")
+        return "\n".join(lines) + "\n"
+
+
+def _list(variants: Sequence[Variant], most: int = 12) -> str:
+    names = [v.relpath for v in variants]
+    more = f", ... ({len(names) - most} more)" if len(names) > most else ""
+    return ", ".join(names[:most]) + more
+
+
+def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None = None,
+             allow_partial: bool = False, require_clean: bool = False,
+             progress: Callable[[int], None] | None = None,
+             on_total: Callable[[int], None] | None = None) -> Evaluation:
+    """Evaluate the predictions under ``pred`` for every variant of ``dataset``.
+
+    Everything that can be checked without reading the data is checked first: the
+    predictions of every variant (presence, count, shape) and the ground truth (present,
+    one map per split image). Missing variants are an error unless ``allow_partial``.
+    ``progress(n)`` is called as images are done; ``on_total(n)`` once with their number.
+    Raises :class:`EvaluationError` for any bad input; nothing is written here.
+    """
+    pred = Path(pred)
+    if not pred.is_dir():
+        raise EvaluationError(f"{pred}: no such predictions directory")
+    variants = dataset.variants()
+    found: list[tuple[Variant, Predictions]] = []
+    missing: list[Variant] = []
+    for v in variants:
+        p = find_predictions(pred, v, setup.png_scale)
+        if p is None:
+            missing.append(v)
+        else:
+            found.append((v, p))
+    if not found:
+        raise EvaluationError(f"{pred}: no predictions for any of the {len(variants)} variants of "
+                              f"{dataset.path} (expected e.g. {variants[0].prediction_file(pred)})")
+    if missing and not allow_partial:
+        raise EvaluationError(f"{pred}: no predictions for {len(missing)} of {len(variants)} "
+                              f"variants: {_list(missing)} (--allow-partial evaluates the rest)")
+    if require_clean and variants[0].name == CLEAN and variants[0] in missing:
+        raise EvaluationError(f"{pred}: no predictions for the clean images; the scores need "
+                              "them (resilience rates divide by the clean DEE)")
+    gt_path = gt if gt is not None else dataset.ground_truth()
+    if gt_path is None:
+        raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
+                              "NYU); build it with ground truth, run robodepth gt, or pass --gt")
+    gt_path = Path(gt_path)
+    names = dataset.depth_names() if gt_path.is_dir() else dataset.keys
+    truth = load_ground_truth(gt_path, names, setup.protocol)
+    n = len(dataset.keys)
+    if on_total:
+        on_total(n * len(found))
+    result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing)
+    for v, p in found:
+        try:
+            result.results.append(_evaluate_variant(v, p, truth, setup, dataset.size, progress))
+        finally:
+            p.close()
+    return result
+
+
+def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, setup: Setup,
+                      image_size, progress) -> VariantResult:
+    errors = []
+    ratios = []
+    for i in range(len(variant)):
+        m, where, is_png = preds.read(i)
+        if m.dtype not in (np.float32, np.float64):
+            m = m.astype(np.float32)  # OpenCV and the reference code work in float32
+        check_values(m, where)
+        shape, index, gt = truth.get(i)
+        if is_png and shape != m.shape and tuple(m.shape) != tuple(image_size or ()):
+            raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}; a PNG prediction must "
+                                  f"have the ground truth's size {shape[0]} x {shape[1]} or the "
+                                  "image's")
+        kind = setup.kind
+        if is_png:
+            if setup.kind_given and setup.kind != "depth":
+                raise EvaluationError(f"{where}: a PNG prediction is a depth (value / "
+                                      f"--png-scale), not --kind {setup.kind}")
+            kind = "depth"
+        if setup.protocol == "kitti":
+            errs, ratio = kitti_image(m, kind, setup.stereo, shape, index, gt)
+            if ratio is not None:
+                ratios.append(ratio)
+        else:
+            if m.shape[0] > shape[0] or m.shape[1] > shape[1]:
+                raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}, larger than its "
+                                      f"ground truth ({shape[0]} x {shape[1]})")
+            errs = nyu_image(m, shape, index, gt)
+        errors.append(errs)
+        if progress:
+            progress(1)
+    means = np.array(errors, dtype=np.float64).mean(0)
+    return VariantResult(variant, {k: float(v) for k, v in zip(setup.metrics, means)},
+                         np.array(ratios, dtype=np.float64) if setup.median_scaling else None)
+
+
+def write_results(path: Path, text: str) -> None:
+    """Write the results CSV atomically (a temporary file, then a rename)."""
+    from ..files import write_atomic
+
+    try:
+        write_atomic(path, text.encode("utf-8"))
+    except OSError as exc:
+        raise EvaluationError(f"{path}: cannot write ({os_reason(exc)})") from None

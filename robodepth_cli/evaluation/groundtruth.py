@@ -1,0 +1,316 @@
+"""The ground truth of a built dataset, read safely and once, map by map.
+
+Ground truth: KITTI datasets, ``gt_depths.npz`` as monodepth2's ``export_gt_depth.py``
+writes it (``np.load(f, allow_pickle=True)["data"]``: one float map in metres per split
+image, in split order, as a pickled object array); NYU, a directory of 16-bit PNGs in
+millimetres at the split lines' DEPTH paths (``<scene>/sync_depth_NNNNN.png`` for image
+``<scene>/rgb_NNNNN``), as BTS's test set has them. It is read once, map by map; each map
+is kept only as its valid pixels when that is smaller (KITTI's sparse lidar maps), else as
+read. The pickle is read with only numpy's array reconstructors allowed (see
+:func:`load_ground_truth`).
+
+The same reader serves ``robodepth evaluate``, :func:`robodepth_cli.open_dataset` and
+``robodepth_cli.torch.KittiC`` (:func:`read_depth_maps`): no part of the package unpickles
+ground truth with ``allow_pickle=True``.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .protocols import VALID, EvaluationError
+
+
+class GroundTruth:
+    """The ground-truth maps of a split, read once, in split order.
+
+    Each map is kept as its valid pixels (flat indices and depths) when that is smaller
+    than the map itself, else as read and prepared again on each use.
+    """
+
+    def __init__(self, source: str, protocol: str):
+        self.source = source
+        self._valid = VALID[protocol]
+        self._items: list = []
+        self.shapes: list[tuple[int, int]] = []
+
+    def add(self, depth: np.ndarray, raw: np.ndarray | None = None,
+            divisor: float | None = None, where: str | None = None) -> None:
+        """Add the next map: ``depth`` in metres; ``raw`` and ``divisor`` (optional) a
+        smaller form it can be recomputed from as ``raw.astype(float32) / divisor``."""
+        self.append(self.prepare(depth, raw, divisor,
+                                 where or f"{self.source}: ground-truth map {len(self._items)}"))
+
+    def prepare(self, depth: np.ndarray, raw: np.ndarray | None, divisor: float | None,
+                where: str) -> tuple:
+        """The kept form of one map (see :meth:`add`), not yet added."""
+        index = self._valid(depth).astype(np.int32 if depth.size < 2 ** 31 else np.int64)
+        if not index.size:
+            # The reference would average a NaN into every metric; say which map instead.
+            raise EvaluationError(f"{where} has no valid pixel inside the protocol's crop and "
+                                  "depth range")
+        values = depth.reshape(-1)[index]
+        kept = raw if raw is not None else depth
+        if index.nbytes + values.nbytes <= kept.nbytes:
+            return depth.shape, (index, values)
+        return depth.shape, (kept, divisor)
+
+    def append(self, prepared: tuple) -> None:
+        shape, item = prepared
+        self._items.append(item)
+        self.shapes.append(shape)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def get(self, i: int) -> tuple[tuple[int, int], np.ndarray, np.ndarray]:
+        """(shape, flat indices of the valid pixels, their ground-truth depths) of map ``i``."""
+        item = self._items[i]
+        if isinstance(item[1], np.ndarray):
+            return self.shapes[i], item[0], item[1]
+        kept, divisor = item
+        depth = kept if divisor is None else kept.astype(np.float32) / divisor
+        index = self._valid(depth)
+        return self.shapes[i], index, depth.reshape(-1)[index]
+
+
+def load_ground_truth(path: Path, names: Sequence[str], protocol: str) -> GroundTruth:
+    """Read the ground truth of a split's images from ``path``: a ``.npz``/``.npy`` file of
+    depth maps in metres, one per image in split order (monodepth2's ``gt_depths.npz``), or
+    a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
+    image, in split order). Raises :class:`EvaluationError` naming the file (and map index)
+    for a missing, unreadable or malformed map, and when the file holds another number of
+    maps than the split has images.
+
+    A pickled object array (monodepth2's format) is unpickled with nothing but numpy's
+    array and dtype reconstructors allowed, so a crafted file cannot run code, and each map
+    is reduced as soon as it is read: the ~1.3 GB of KITTI maps are never in memory
+    together (peak ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``).
+    """
+    path = Path(path)
+    gt = GroundTruth(str(path), protocol)
+    if path.is_dir():
+        for i, name in enumerate(names):
+            file = path / name
+            raw = read_png16(file, f"ground truth of image {i}")
+            gt.add(raw.astype(np.float32) / 1000.0, raw, 1000.0,
+                   f"{file} (ground truth of image {i})")
+        return gt
+    count = _read_gt_file(path, gt)
+    if count != len(names):
+        raise EvaluationError(f"{path}: {count} ground-truth maps, but the dataset's split has "
+                              f"{len(names)} images; ground truth and split must match one to one")
+    return gt
+
+
+def read_depth_maps(path: Path) -> list[np.ndarray]:
+    """Every depth map of a ``.npz``/``.npy`` ground-truth file, as stored (metres), in order;
+    read with the same safe unpickler as :func:`load_ground_truth`."""
+    maps = _Maps()
+    _read_gt_file(Path(path), maps)
+    return maps
+
+
+class _Maps(list):
+    """Keeps each map whole: the part of :class:`GroundTruth`'s interface the file readers use."""
+
+    def prepare(self, depth, raw, divisor, where):
+        return depth
+
+    def add(self, depth):
+        self.append(depth)
+
+
+def _check_gt_map(m, path: Path, i: int) -> np.ndarray:
+    if not isinstance(m, np.ndarray) or m.ndim != 2 or m.dtype.kind not in "fiu" or 0 in m.shape:
+        what = (f"shape {m.shape} and dtype {m.dtype}" if isinstance(m, np.ndarray)
+                else f"a {type(m).__name__}")
+        raise EvaluationError(f"{path}: ground-truth map {i} has {what}; expected a 2-D depth map")
+    return m
+
+
+def _read_gt_file(path: Path, gt: GroundTruth) -> int:
+    """Add every map of a ``.npz``/``.npy`` ground-truth file to ``gt``; return how many.
+
+    monodepth2's file is an object array of differently sized maps, which numpy stores as
+    a pickle. It is unpickled here with only numpy's array and dtype reconstructors allowed
+    (anything else in the file is refused, so a crafted file cannot run code), and each map
+    is reduced to its kept form as soon as it is read: the ~1.3 GB of maps are never in
+    memory together. A plain N x H x W array is read as it is.
+    """
+    if not path.exists():
+        raise EvaluationError(f"{path}: no such ground-truth file")
+    try:
+        with open(path, "rb") as raw:
+            if zipfile.is_zipfile(raw):
+                raw.seek(0)
+                with zipfile.ZipFile(raw) as zf:
+                    names = zf.namelist()
+                    member = ("data.npy" if "data.npy" in names
+                              else names[0] if len(names) == 1 else None)
+                    if member is None:
+                        raise EvaluationError(f"{path}: holds {', '.join(names)}; expected 'data' "
+                                              "(monodepth2's gt_depths.npz) or a single array")
+                    with zf.open(member) as fh:
+                        return _read_gt_stream(fh, path, gt)
+            raw.seek(0)
+            return _read_gt_stream(raw, path, gt)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        if isinstance(exc, EvaluationError):
+            raise
+        raise EvaluationError(f"{path}: not a numpy .npz/.npy ground-truth file ({exc})") from None
+
+
+def _read_gt_stream(fh, path: Path, gt: GroundTruth) -> int:
+    shape, fortran, dtype = read_npy_header(fh)
+    if not dtype.hasobject:
+        if len(shape) != 3:
+            raise EvaluationError(f"{path}: ground truth of shape {shape}; expected N depth maps "
+                                  "(an object array of 2-D maps, or N x H x W)")
+        nbytes = int(np.prod(shape)) * dtype.itemsize
+        buf = fh.read(nbytes)
+        if len(buf) != nbytes:
+            raise EvaluationError(f"{path}: the array ends early (truncated?)")
+        data = np.frombuffer(buf, dtype).reshape(shape, order="F" if fortran else "C")
+        for i in range(len(data)):
+            gt.add(_check_gt_map(data[i], path, i))
+        return len(data)
+    if len(shape) != 1:
+        raise EvaluationError(f"{path}: ground truth of shape {shape}; expected a 1-D object "
+                              "array of 2-D depth maps")
+    counter = iter(range(1 << 62))
+
+    def reduce(m: np.ndarray):
+        i = next(counter)
+        return _Prepared(gt.prepare(_check_gt_map(m, path, i), None, None,
+                                    f"{path}: ground-truth map {i}"))
+
+    data = _MapUnpickler(fh, path, reduce).load()
+    if not isinstance(data, np.ndarray) or data.ndim != 1:
+        raise EvaluationError(f"{path}: does not hold a 1-D array of depth maps")
+    for i, m in enumerate(data):
+        prepared = m if isinstance(m, _Prepared) else getattr(m, "prepared", None)
+        if prepared is None:
+            _check_gt_map(m, path, i)  # raises: not a map
+        gt.append(prepared.value)
+    return len(data)
+
+
+class _Prepared:
+    """A ground-truth map already reduced to its kept form, inside the unpickled array."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value):
+        self.value = value
+
+
+_NUMPY_MODULES = ("numpy", "numpy.core.multiarray", "numpy._core.multiarray",
+                  "numpy.core.numeric", "numpy._core.numeric")
+_ALLOWED = {"ndarray", "dtype", "_reconstruct", "_frombuffer"}
+
+
+class _MapUnpickler:
+    """Unpickles an object array of maps, allowing only numpy's reconstructors and handing
+    each 2-D numeric map to ``reduce`` the moment it is complete (protocol 5:
+    ``_frombuffer``; older protocols: ``ndarray.__setstate__``).
+
+    The unpickler's memo would keep every map's raw bytes alive to the end (pickle
+    memoizes each bytes object and state tuple); every few maps, those large entries are
+    replaced by None. Nothing refers back to them: each map's bytes are its own.
+    """
+
+    PRUNE_EVERY = 8
+    LARGE = 1 << 12  # bytes; the small shared constants (dtype codes, shapes) stay
+
+    def __init__(self, fh, path: Path, reduce):
+        import pickle
+
+        outer = self
+        self._done = 0
+
+        def reduced(arr):
+            result = reduce(arr)
+            outer._done += 1
+            if outer._done % outer.PRUNE_EVERY == 0:
+                outer._prune()
+            return result
+
+        class Map(np.ndarray):
+            def __setstate__(self, state):
+                super().__setstate__(state)
+                if self.dtype.hasobject or self.ndim != 2:
+                    return
+                self.prepared = reduced(np.array(self, copy=True).view(np.ndarray))
+                # Release the pixels: only the reduced form is kept.
+                super().__setstate__((1, (0,), self.dtype, False, b""))
+
+        def frombuffer(*args):
+            arr = outer._frombuffer(*args)
+            if arr.dtype.hasobject or arr.ndim != 2:
+                return arr
+            return reduced(np.array(arr, copy=True))
+
+        # The Python implementation: its memo is a plain dict that can be pruned mid-load.
+        class Unpickler(pickle._Unpickler):
+            def find_class(self, module, name):
+                # Protocol 2 (numpy's np.save before 1.17) spells bytes as _codecs.encode.
+                if (module, name) == ("_codecs", "encode"):
+                    return super().find_class(module, name)
+                if module not in _NUMPY_MODULES or name not in _ALLOWED:
+                    raise EvaluationError(f"{path}: holds a pickled {module}.{name}; ground truth "
+                                          "may hold only numpy arrays (refused, not loaded)")
+                if name == "ndarray":
+                    return Map
+                real = super().find_class(module, name)
+                if name == "_frombuffer":
+                    outer._frombuffer = real
+                    return frombuffer
+                return real
+
+        self._unpickler = Unpickler(fh, encoding="latin1")
+
+    def load(self):
+        return self._unpickler.load()
+
+    def _prune(self) -> None:
+        def large(v) -> bool:
+            if isinstance(v, (bytes, bytearray, str)):
+                return len(v) >= self.LARGE
+            return isinstance(v, tuple) and any(large(x) for x in v)
+
+        memo = self._unpickler.memo
+        for k in [k for k, v in memo.items() if large(v)]:
+            memo[k] = None  # not deleted: new entries are numbered by the memo's length
+
+
+def read_npy_header(fh) -> tuple[tuple[int, ...], bool, np.dtype]:
+    """Shape, Fortran order and dtype of the ``.npy`` stream ``fh``, which is left at the
+    first byte of the data."""
+    fmt = np.lib.format
+    version = fmt.read_magic(fh)
+    if version == (1, 0):
+        shape, fortran, dtype = fmt.read_array_header_1_0(fh)
+    else:
+        shape, fortran, dtype = fmt.read_array_header_2_0(fh)
+    return tuple(shape), fortran, dtype
+
+
+def read_png16(file: Path, what: str) -> np.ndarray:
+    """A 16-bit single-channel PNG (depth maps of BTS's test set and of PNG predictions);
+    ``what`` says in messages whose file it is."""
+    import cv2
+
+    if not file.is_file():
+        raise EvaluationError(f"{file}: no such file ({what})")
+    raw = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
+    if raw is None:
+        raise EvaluationError(f"{file}: not a readable PNG ({what})")
+    if raw.ndim != 2 or raw.dtype != np.uint16:
+        got = f"{raw.dtype.itemsize * 8}-bit" + (f", {raw.shape[2]} channels" if raw.ndim == 3 else "")
+        raise EvaluationError(f"{file}: {got}; expected a 16-bit single-channel PNG ({what})")
+    return raw
