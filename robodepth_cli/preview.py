@@ -7,24 +7,26 @@ from typing import Iterable
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from .corruptions import REGISTRY, corrupt
-from .seeding import job_rng
+from .corruptions import REGISTRY, level_text, render
+from .corruptions.chains import expand_chain, looks_like_chain
 
 _BG = (255, 255, 255)
 _FG = (20, 20, 20)
 _PAD = 4
 
 
-def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable[int], *,
+def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
                   seed: int = 0, key: str = "image", thumb_width: int = 320) -> Image.Image:
-    """One row per corruption (label, then one cell per level) under a first row holding the
-    clean image. Cells are the corrupted images scaled to ``thumb_width`` pixels wide."""
+    """One row per corruption or chain (label, then one cell per level) under a first row
+    holding the clean image. Cells are the corrupted images scaled to ``thumb_width`` pixels
+    wide. A chain's steps written without a level take the column's level
+    (``fog+gaussian_noise``); the others keep theirs."""
     names, levels = list(names), list(levels)
     h, w = clean.shape[:2]
     tw = min(thumb_width, w)
     th = max(1, round(h * tw / w))
     font = ImageFont.load_default()
-    label_w = 150
+    label_w = max([150] + [8 + 6 * len(n) for n in names if looks_like_chain(n)])
     head_h = 18
     cols = len(levels)
     sheet_w = label_w + cols * (tw + _PAD) + _PAD
@@ -36,18 +38,23 @@ def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable[int]
         return Image.fromarray(img).resize((tw, th), Image.BILINEAR)
 
     for j, level in enumerate(levels):
-        draw.text((label_w + j * (tw + _PAD) + _PAD, 3), f"level {level}", fill=_FG, font=font)
+        draw.text((label_w + j * (tw + _PAD) + _PAD, 3), f"level {level_text(level)}", fill=_FG, font=font)
     y = head_h
     draw.text((_PAD, y + th // 2 - 6), "clean", fill=_FG, font=font)
     sheet.paste(thumb(clean), (label_w + _PAD, y))
     for name in names:
         y += th + _PAD
-        c = REGISTRY[name]
+        chained = looks_like_chain(name)
         draw.text((_PAD, y + th // 2 - 12), name, fill=_FG, font=font)
-        draw.text((_PAD, y + th // 2 + 2), c.category, fill=(110, 110, 110), font=font)
+        draw.text((_PAD, y + th // 2 + 2), "chain" if chained else REGISTRY[name].category,
+                  fill=(110, 110, 110), font=font)
         for j, level in enumerate(levels):
-            if level > c.n_levels:
+            if chained:
+                out = render(clean, expand_chain(name, [level])[0].text, None,
+                             seed=seed, dataset="preview", key=key)
+            elif level <= REGISTRY[name].n_levels:
+                out = render(clean, name, level, seed=seed, dataset="preview", key=key)
+            else:
                 continue
-            out = corrupt(clean, name, level, job_rng(seed, "preview", name, level, key))
             sheet.paste(thumb(out), (label_w + j * (tw + _PAD) + _PAD, y))
     return sheet

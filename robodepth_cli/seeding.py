@@ -40,6 +40,12 @@ def chain_rngs(seed: int, dataset: str, chain, relpath: str) -> list[np.random.G
             for k in range(1, len(chain.steps) + 1)]
 
 
+def sample_rng(seed: int, purpose: str, epoch: int, key: str) -> np.random.Generator:
+    """The generator of one training sample's draws (``purpose`` names the transform):
+    keyed by (seed, purpose, epoch, key), so it is the same in any process or worker."""
+    return np.random.Generator(np.random.PCG64(_seed_sequence(seed, purpose, f"epoch {int(epoch)}", "draw", key)))
+
+
 def check_seed(value, where: str = "--seed") -> int:
     """``value`` as a seed: an integer >= 0 (text of one is accepted, as flags arrive).
 

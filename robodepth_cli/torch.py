@@ -7,7 +7,8 @@ This is the only module of the package that imports torch.
   image, so the pixels equal the built file's; without a key it draws from its own
   generator.
 * :class:`RandomCorrupt` picks a corruption and a level at random, for augmentation-style
-  experiments. The RoboDepth challenge rules forbid training on the benchmark's
+  experiments; :class:`RandomChain` draws a whole chain at decimal severities,
+  reproducibly per sample and epoch, and says what it applied. The RoboDepth challenge rules forbid training on the benchmark's
   corruptions for results submitted to it: this is for research on robustness, not for
   leaderboard entries.
 * :class:`KittiC` reads one corruption and level of a build (KITTI-C, NYUDepth2-C or a
@@ -33,7 +34,7 @@ from .api import open_dataset
 from .errors import RobodepthError
 from .keys import seed_key
 
-__all__ = ["Corrupt", "RandomCorrupt", "KittiC"]
+__all__ = ["Corrupt", "RandomCorrupt", "RandomChain", "KittiC"]
 
 
 class TorchAPIError(RobodepthError):
@@ -102,7 +103,7 @@ class _ProcessGenerator:
         return {"seed": self.seed, "_tag": None, "_rng": None}
 
 
-def _check(name: str, level) -> tuple[str, int]:
+def _check(name: str, level) -> tuple[str, int | float]:
     try:
         c = corruptions.get(name)
         return c.name, corruptions.check_level(c, level)
@@ -117,7 +118,9 @@ class Corrupt:
 
     Parameters
     ----------
-    name, level : a corruption of ``robodepth list`` and one of its levels.
+    name, level : a corruption of ``robodepth list`` and a level 1..5 (decimals allowed);
+        or a chain such as ``"fog:3+gaussian_noise:2.5"`` (``level`` unused), drawing per
+        step as a build draws for that chain.
     seed : the build's ``--seed`` when used with ``key=``; otherwise the seed of this
         transform's own generator (``None``: fresh entropy in every process).
     dataset : the dataset whose seeding ``key=`` follows: ``"custom"`` (default),
@@ -132,8 +135,18 @@ class Corrupt:
     draws from the transform's own generator.
     """
 
-    def __init__(self, name: str, level: int, seed: int | None = 0, dataset: str = "custom"):
-        self.name, self.level = _check(name, level)
+    def __init__(self, name: str, level=None, seed: int | None = 0, dataset: str = "custom"):
+        from .corruptions.chains import ChainError, looks_like_chain, parse_chain
+
+        if looks_like_chain(name):
+            try:
+                self.chain = parse_chain(name)
+            except ChainError as exc:
+                raise TorchAPIError(str(exc)) from None
+            self.name, self.level = self.chain.text, None
+        else:
+            self.chain = None
+            self.name, self.level = _check(name, level)
         self.dataset = str(dataset)
         self._gen = _ProcessGenerator(seed)
 
@@ -146,13 +159,23 @@ class Corrupt:
             return self._gen.get()
         if self.seed is None:
             raise TorchAPIError("key= needs the build's seed: create the transform with seed=N")
-        return seeding.job_rng(self.seed, self.dataset, self.name, self.level,
+        return seeding.job_rng(self.seed, self.dataset, self.name, self.level or 1,
                                seed_key(self.dataset, key))
+
+    def _apply(self, arr: np.ndarray, key: str | None) -> np.ndarray:
+        if self.chain is None:
+            return corruptions.corrupt(arr, self.name, self.level, self.rng_for(key))
+        if key is None:
+            rngs = [self._gen.get()] * len(self.chain.steps)
+        else:
+            self.rng_for(key)  # the same refusal without a seed
+            rngs = seeding.chain_rngs(self.seed, self.dataset, self.chain, seed_key(self.dataset, key))
+        return corruptions.corrupt_chain(arr, self.chain, rngs)
 
     def __call__(self, img, key: str | None = None):
         arr, back = _to_array(img)
         try:
-            out = corruptions.corrupt(arr, self.name, self.level, self.rng_for(key))
+            out = self._apply(arr, key)
         except RobodepthError:
             raise
         except ValueError as exc:  # e.g. an image below 32 x 32
@@ -160,7 +183,8 @@ class Corrupt:
         return back(out)
 
     def __repr__(self) -> str:
-        return f"Corrupt({self.name!r}, {self.level}, seed={self.seed}, dataset={self.dataset!r})"
+        level = "" if self.chain else f", {self.level}"
+        return f"Corrupt({self.name!r}{level}, seed={self.seed}, dataset={self.dataset!r})"
 
 
 class RandomCorrupt:
@@ -199,14 +223,121 @@ class RandomCorrupt:
         return f"RandomCorrupt(names={list(self.names)}, levels={list(self.levels)}, p={self.p})"
 
 
+class RandomChain:
+    """A random chain of corruptions at random decimal severities, reproducible per sample
+    and epoch, for training on compound corruptions.
+
+    Parameters
+    ----------
+    names : the corruptions a chain may draw (default: all 18).
+    steps : how many steps, an integer or an inclusive ``(min, max)`` range drawn
+        uniformly (default ``(1, 3)``; at most 8).
+    severity : the range ``(low, high)`` in [1, 5] each step's level is drawn from,
+        uniformly, rounded to 0.01 (default ``(1, 5)``); or a dict giving some names their
+        own range (the others keep ``(1, 5)``).
+    distinct : no corruption twice in one chain (default True).
+    p : probability of applying a chain at all (default 1); otherwise the image is returned
+        unchanged with the empty chain ``""``.
+    seed : an integer >= 0.
+
+    ``t(img, key, epoch=None)`` returns ``(image, chain)``: the corrupted image (same type
+    as ``img``, see :class:`Corrupt`) and the canonical text of the chain applied
+    (``"fog:2.37+gaussian_noise:1.5"``), to log or to pass to ``robodepth corrupt -c``.
+    Everything drawn for a sample (the chain, then each step's randomness, as
+    :func:`robodepth_cli.seeding.chain_rngs` keys it) depends only on ``seed``, ``key``
+    (the sample's index or path) and the epoch, never on the process: a DataLoader worker,
+    a rerun or another machine draws the same. ``epoch`` defaults to the one set with
+    :meth:`set_epoch` (0 at first); set it in the main process before each epoch's
+    iterator is created, as with ``DistributedSampler``. :meth:`draw` gives the chain
+    without applying it.
+    """
+
+    def __init__(self, names: Sequence[str] | None = None, steps=(1, 3), severity=(1.0, 5.0),
+                 distinct: bool = True, p: float = 1.0, seed: int = 0):
+        from .corruptions.chains import MAX_STEPS
+
+        self.names = tuple(corruptions.NAMES if names is None else names)
+        if not self.names:
+            raise TorchAPIError("names must not be empty")
+        for n in self.names:
+            _check(n, 1)
+        lo, hi = (steps, steps) if isinstance(steps, (int, np.integer)) else tuple(steps)
+        if not (isinstance(lo, (int, np.integer)) and isinstance(hi, (int, np.integer)) and 1 <= lo <= hi <= MAX_STEPS):
+            raise TorchAPIError(f"steps must be an integer or a range (min, max) within 1..{MAX_STEPS}, got {steps!r}")
+        if distinct and hi > len(self.names):
+            raise TorchAPIError(f"steps: up to {hi} distinct corruptions, but names has only {len(self.names)}")
+        self.steps = (int(lo), int(hi))
+        ranges = dict(severity) if isinstance(severity, dict) else {n: severity for n in self.names}
+        unknown = sorted(set(ranges) - set(self.names))
+        if unknown:
+            raise TorchAPIError(f"severity names {', '.join(unknown)}, which are not among names")
+        self.severity = {n: self._range(n, ranges.get(n, (1.0, 5.0))) for n in self.names}
+        if not 0.0 <= float(p) <= 1.0:
+            raise TorchAPIError(f"p must be in [0, 1], got {p!r}")
+        self.p = float(p)
+        self.distinct = bool(distinct)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise TorchAPIError(f"seed must be an integer >= 0, got {seed!r}")
+        self.seed = int(seed)
+        self.epoch = 0
+
+    @staticmethod
+    def _range(name: str, r) -> tuple[float, float]:
+        try:
+            lo, hi = (_check(name, v)[1] for v in r)
+        except (TypeError, ValueError) as exc:
+            raise TorchAPIError(f"severity of {name}: expected (low, high) within 1..5, got {r!r} ({exc})") from None
+        if lo > hi:
+            raise TorchAPIError(f"severity of {name}: low {lo} above high {hi}")
+        return float(lo), float(hi)
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = int(epoch)
+
+    def _epoch(self, epoch) -> int:
+        return self.epoch if epoch is None else int(epoch)
+
+    def draw(self, key, epoch: int | None = None):
+        """The :class:`~robodepth_cli.corruptions.chains.Chain` drawn for sample ``key`` in
+        ``epoch``, or None when the draw (probability ``1 - p``) applies nothing."""
+        from .corruptions.chains import Chain, Step
+
+        rng = seeding.sample_rng(self.seed, "random-chain", self._epoch(epoch), str(key))
+        if rng.random() >= self.p:
+            return None
+        n = int(rng.integers(self.steps[0], self.steps[1] + 1))
+        picks = rng.choice(len(self.names), size=n, replace=not self.distinct)
+        steps = []
+        for i in picks:
+            name = self.names[int(i)]
+            lo, hi = self.severity[name]
+            level = round(float(rng.uniform(lo, hi)), 2)
+            steps.append(Step(name, _check(name, min(max(level, lo), hi))[1]))
+        return Chain(tuple(steps))
+
+    def __call__(self, img, key, epoch: int | None = None):
+        chain = self.draw(key, epoch)
+        if chain is None:
+            return img, ""
+        arr, back = _to_array(img)
+        rngs = seeding.chain_rngs(self.seed, f"random-chain epoch {self._epoch(epoch)}", chain, str(key))
+        return back(corruptions.corrupt_chain(arr, chain, rngs)), chain.text
+
+    def __repr__(self) -> str:
+        return (f"RandomChain(names={list(self.names)}, steps={self.steps}, p={self.p}, "
+                f"distinct={self.distinct}, seed={self.seed})")
+
+
 # --- a built dataset -----------------------------------------------------------------------
 
 class KittiC(torch.utils.data.Dataset):
     """One corruption at one level of a build made by ``robodepth build`` (KITTI-C, also
     NYUDepth2-C and custom builds), item ``i`` being the ``i``-th image of the split.
 
-    ``root`` is the build's output directory. With ``on_the_fly=False`` the images are
-    read from ``root/<corruption>/<level>/<key>``; with ``on_the_fly=True`` they are
+    ``root`` is the build's output directory. ``corruption`` may be a chain of the build
+    (``"fog:3+gaussian_noise:2.5"``, no level) and ``level`` a decimal one. With
+    ``on_the_fly=False`` the images are read from ``root/<corruption>/<level>/<key>``
+    (a chain: ``root/<chain directory name>/<key>``); with ``on_the_fly=True`` they are
     computed from ``root/clean/<key>`` with :class:`Corrupt` seeded as the build was (its
     seed and dataset from ``build.json``), which gives the same pixels: only the clean
     images need to be on disk.
@@ -218,7 +349,7 @@ class KittiC(torch.utils.data.Dataset):
     drives: batch with ``batch_size=1`` or a ``collate_fn`` of your own).
     """
 
-    def __init__(self, root, corruption: str, level: int, on_the_fly: bool = False, transform=None):
+    def __init__(self, root, corruption: str, level=None, on_the_fly: bool = False, transform=None):
         self.root = Path(root)
         built = open_dataset(self.root)  # the build record and the split order, checked
         self.keys = list(built.keys)
@@ -232,13 +363,17 @@ class KittiC(torch.utils.data.Dataset):
         self._gt = None
         first = self._path(0) if self.keys else None
         if first is not None and not first.is_file():
-            raise TorchAPIError(f"{first}: missing; was {'clean' if self.on_the_fly else f'{corruption} level {level}'} "
+            what = ("clean" if self.on_the_fly else self.corruption.name if self.corruption.chain
+                    else f"{self.corruption.name} level {self.level}")
+            raise TorchAPIError(f"{first}: missing; was {what} "
                                 f"built into {self.root}?")
 
     def _path(self, i: int) -> Path:
         if self.on_the_fly:
             return self.root / "clean" / self.keys[i]
-        return self.root / self.corruption.name / str(self.level) / self.keys[i]
+        if self.corruption.chain is not None:
+            return self.root / self.corruption.chain.dirname / self.keys[i]
+        return self.root / self.corruption.name / corruptions.level_text(self.level) / self.keys[i]
 
     def __len__(self) -> int:
         return len(self.keys)
@@ -260,7 +395,7 @@ class KittiC(torch.utils.data.Dataset):
 
         img = np.asarray(read_rgb(self._path(i)))
         if self.on_the_fly:
-            img = corruptions.corrupt(img, self.corruption.name, self.level, self.corruption.rng_for(self.keys[i]))
+            img = self.corruption._apply(img, self.keys[i])
         item = {"key": self.keys[i]}
         item["image"] = self.transform(img) if self.transform else torch.from_numpy(img.copy()).permute(2, 0, 1)
         depth = self._depth(i)

@@ -30,7 +30,7 @@ def test_a_chain_has_a_canonical_text_and_a_safe_directory_name():
 
 def test_a_benchmark_range_limits_the_steps():
     assert parse_chain("dark:4+contrast:1.5", top=4).steps[0].level == 4
-    with pytest.raises(ChainError, match=r"step 1 \(dark\): level 4.5 is out of range 1..4"):
+    with pytest.raises(ChainError, match=r"step 1 \(dark\): level 4.5 is out of range; valid levels: 1..4"):
         parse_chain("dark:4.5", top=4)
 
 
@@ -42,8 +42,8 @@ def test_a_benchmark_range_limits_the_steps():
     ("fog3+snow:1", "--compose: chain 'fog3+snow:1': step 1 'fog3' is not NAME:LEVEL (e.g. 'fog:3')"),
     ("fog:+snow:1", "--compose: chain 'fog:+snow:1': step 1 'fog:' is not NAME:LEVEL (e.g. 'fog:3')"),
     ("fog:3+snwo:1", "--compose: chain 'fog:3+snwo:1': step 2: unknown corruption 'snwo'; valid: brightness, "),
-    ("fog:6", "--compose: chain 'fog:6': step 1 (fog): level 6 is out of range 1..5"),
-    ("fog:0.5+snow:1", "--compose: chain 'fog:0.5+snow:1': step 1 (fog): level 0.5 is out of range 1..5"),
+    ("fog:6", "--compose: chain 'fog:6': step 1 (fog): level 6 is out of range; valid levels: 1..5"),
+    ("fog:0.5+snow:1", "--compose: chain 'fog:0.5+snow:1': step 1 (fog): level 0.5 is out of range; valid levels: 1..5"),
     ("fog:x", "--compose: chain 'fog:x': step 1 (fog): 'x' is not a number; levels are 1..5"),
     ("+".join(["fog:1"] * 9), "--compose: chain 'fog:1+fog:1+fog:1+fog:1+fog:1+fog:1+fog:1+fog:1+fog:1': "
                               "9 steps; a chain has at most 8"),

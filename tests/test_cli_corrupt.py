@@ -92,9 +92,9 @@ def test_corrupt_matches_library_call_and_seed(tmp_path, cli):
 @pytest.mark.parametrize("args,message", [
     (["-c", "fogg", "-l", "1"], "unknown corruption 'fogg'; valid: brightness, dark"),
     (["-c", ",", "-l", "1"], "--corruption: expected a non-empty list"),
-    (["-c", "fog", "-l", "6"], "--level: level 6 does not exist; valid levels: 1..5"),
-    (["-c", "fog", "-l", "0"], "--level: expected an integer >= 1, got 0"),
-    (["-c", "fog", "-l", "two"], "expected an integer"),
+    (["-c", "fog", "-l", "6"], "--level: level 6 is out of range; valid levels: 1..5"),
+    (["-c", "fog", "-l", "0"], "--level: level 0 is out of range; valid levels: 1..5"),
+    (["-c", "fog", "-l", "two"], "--level: 'two' is not a number; levels are 1..5"),
     (["-c", "contrast", "-l", "1", "--size", "12x40"], "at least 32"),
 ])
 def test_corrupt_bad_options_exit_with_one_line(tmp_path, args, message, cli):

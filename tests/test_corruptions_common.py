@@ -62,7 +62,7 @@ def test_other_inputs_are_a_value_error_saying_what_is_wrong(bad, message):
     ("fogg", 1, np.random.default_rng(0), "unknown corruption 'fogg'; valid: brightness"),
     ("fog", 0, np.random.default_rng(0), "out of range"),
     ("fog", 6, np.random.default_rng(0), "out of range"),
-    ("fog", 5.01, np.random.default_rng(0), r"fog: level 5.01 is out of range 1..5"),
+    ("fog", 5.01, np.random.default_rng(0), r"fog: level 5.01 is out of range; valid levels: 1..5"),
     ("fog", float("nan"), np.random.default_rng(0), "out of range"),
     ("fog", "two", np.random.default_rng(0), "not a number"),
     ("fog", True, np.random.default_rng(0), "not a number"),

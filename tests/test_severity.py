@@ -160,10 +160,10 @@ def test_levels_parse_to_int_when_whole(value, top, expected):
 
 
 @pytest.mark.parametrize("value,top,message", [
-    ("0.5", 5, "-l: level 0.5 is out of range 1..5"),
-    (5.5, 5, "-l: level 5.5 is out of range 1..5"),
-    ("4.5", 4, "-l: level 4.5 is out of range 1..4"),
-    ("inf", 5, "-l: level inf is out of range 1..5"),
+    ("0.5", 5, "-l: level 0.5 is out of range; valid levels: 1..5"),
+    (5.5, 5, "-l: level 5.5 is out of range; valid levels: 1..5"),
+    ("4.5", 4, "-l: level 4.5 is out of range; valid levels: 1..4"),
+    ("inf", 5, "-l: level inf is out of range; valid levels: 1..5"),
     ("two", 5, "-l: 'two' is not a number; levels are 1..5 (decimals allowed, e.g. 2.5)"),
     (None, 5, "-l: None is not a number; levels are 1..5 (decimals allowed, e.g. 2.5)"),
 ])

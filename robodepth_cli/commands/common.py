@@ -18,13 +18,47 @@ def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     return list(choose_names(flag, value, CORRUPTIONS, "corruption"))
 
 
-def levels(value: str, flag: str = "--level") -> list[int]:
-    """The levels ``value`` selects ('all', a level or a comma list), sorted, checked by
-    the same rule as a build's ``--levels``: every corruption has levels 1..5."""
+def levels(value: str, flag: str = "--level") -> list:
+    """The levels ``value`` selects ('all': 1..5, a level or a comma list; decimals such as
+    2.5 allowed), sorted, each checked by the one level rule of every command."""
     from ..benchmarks import N_LEVELS
-    from ..build.config import choose_levels
+    from ..corruptions.severity import parse_levels
 
-    return list(choose_levels(flag, value, tuple(range(1, N_LEVELS + 1))))
+    return list(parse_levels(value, top=N_LEVELS, what=flag))
+
+
+def items(corruption: str, level_list: list, flag: str = "--corruption") -> list[str]:
+    """The corruptions and chains ``-c`` names, in order: 'all' and comma lists expanded,
+    chains checked (against ``level_list`` for a step written without a level)."""
+    from ..corruptions.chains import expand_chain, looks_like_chain
+
+    parts = [p.strip() for p in corruption.split(",") if p.strip()]
+    if not parts:
+        corruption_names(corruption, flag)  # refuses, with the message every list gets
+    out: list[str] = []
+    for part in parts:
+        if looks_like_chain(part):
+            expand_chain(part, level_list, where=flag)
+            out.append(part)
+        else:
+            out += corruption_names(part, flag)
+    return list(dict.fromkeys(out))
+
+
+def variants(corruption: str, level_list: list, flag: str = "--corruption") -> list[tuple[str, str, object]]:
+    """What ``-c`` and ``-l`` ask for, in order: ``(file name, variant, level)`` for every
+    corruption at every level (``NAME/LEVEL.png``) and every chain (``CHAIN.png``, its
+    directory name; a step written without a level takes each level of ``level_list``)."""
+    from ..corruptions.chains import expand_chain, looks_like_chain
+    from ..corruptions.severity import level_text
+
+    out: list[tuple[str, str, object]] = []
+    for item in items(corruption, level_list, flag):
+        if looks_like_chain(item):
+            out += [(f"{c.dirname}.png", c.text, None) for c in expand_chain(item, level_list)]
+        else:
+            out += [(f"{item}/{level_text(lv)}.png", item, lv) for lv in level_list]
+    return list(dict.fromkeys(out))
 
 
 def load_input(image: str, size: str | None) -> np.ndarray:

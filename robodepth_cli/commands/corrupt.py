@@ -33,61 +33,68 @@ def list_command(fmt):
 
 @click.command("corrupt")
 @click.argument("image", type=click.Path(dir_okay=False))
-@click.option("--corruption", "-c", "corruption", required=True, metavar="NAME|all",
-              help="A corruption name (see `robodepth list`), a comma list, or 'all'.")
-@click.option("--level", "-l", default="all", show_default=True, metavar="N|all",
-              help="Level 1..5, a comma list, or 'all'.")
+@click.option("--corruption", "-c", "corruption", required=True, metavar="NAME|CHAIN|all",
+              help="A corruption name (see `robodepth list`), a chain such as "
+                   "fog:3+gaussian_noise:2.5 (a step without :LEVEL takes each -l level), a "
+                   "comma list of these, or 'all'.")
+@click.option("--level", "-l", default="all", show_default=True, metavar="S|all",
+              help="Level 1..5, decimals allowed (2.5), a comma list, or 'all' (1,2,3,4,5).")
 @click.option("--seed", "-s", default=0, show_default=True, type=int,
               help="Seed of the random corruptions (an integer >= 0).")
 @click.option("--size", metavar="HxW", help="First resize the input as a build does (Lanczos), e.g. 192x640.")
 @click.option("--out", "-o", required=True, type=click.Path(),
-              help="Output .png for one corruption at one level; otherwise (or ending with /) "
-                   "a directory receiving NAME/LEVEL.png.")
+              help="Output .png for one image; otherwise (or ending with /) a directory "
+                   "receiving NAME/LEVEL.png and CHAIN.png (e.g. fog-3+gaussian_noise-2.5.png).")
 def corrupt_command(image, corruption, level, seed, size, out):
     """Corrupt one image (its EXIF orientation applied first).
 
     \b
     robodepth corrupt frame.png -c zoom_blur -l 3 --out zoom3.png
+    robodepth corrupt frame.png -c fog -l 1,1.5,2 --out fog/
+    robodepth corrupt frame.png -c fog:3+gaussian_noise:2.5 --out fog_noise.png
     robodepth corrupt frame.png -c all -l all --size 192x640 --out corrupted/
     """
-    from ..corruptions import corrupt
-    from ..seeding import job_rng
+    from ..corruptions import render
 
     seed = common.seed(seed)
-    names = common.corruption_names(corruption)
-    levels = common.levels(level)
-    single = len(names) == 1 and len(levels) == 1 and corruption != "all" and level != "all"
+    level_list = common.levels(level)
+    jobs = common.variants(corruption, level_list)
+    single = len(jobs) == 1 and "all" not in corruption.replace(" ", "").split(",")
     directory = Path(out)
     if single:
-        target = common.png_output(out, f"{names[0]}/{levels[0]}.png")
+        target = common.png_output(out, jobs[0][0])
     elif not common.means_directory(out):
         if directory.exists():
             raise RobodepthError(f"{out}: is a file; several outputs need a directory")
         if directory.suffix:
             raise RobodepthError(
-                f"--out {out}: looks like a file name, but {_describe(names, levels)} make "
-                f"{len(names) * len(levels)} images, which go into a directory; pick one "
-                f"corruption and one level (-c NAME -l N) to write that file, or end the name "
-                f"with / to make it a directory")
+                f"--out {out}: looks like a file name, but {_describe(jobs, level_list)} make "
+                f"{len(jobs)} images, which go into a directory; pick one corruption and one "
+                f"level (-c NAME -l N), or one chain, to write that file, or end the name with / "
+                f"to make it a directory")
     clean = common.load_input(image, size)
     key = Path(image).name
-    written = 0
-    for name in names:
-        for lv in levels:
-            img = corrupt(clean, name, lv, job_rng(seed, "image", name, lv, key))
-            common.write_png(target if single else directory / name / f"{lv}.png", img)
-            written += 1
+    for name, variant, lv in jobs:
+        img = render(clean, variant, lv, seed=seed, dataset="image", key=key)
+        common.write_png(target if single else directory / name, img)
     if single:
         click.echo(f"wrote {target} ({img.shape[1]} x {img.shape[0]})")
     else:
-        click.echo(f"wrote {written} images under {out}")
+        click.echo(f"wrote {len(jobs)} images under {out}")
 
 
-def _describe(names: list[str], levels: list[int]) -> str:
-    """``"fog at levels 1,2,3,4,5"`` or ``"3 corruptions at level 2"``, for messages."""
-    what = names[0] if len(names) == 1 else f"{len(names)} corruptions"
-    at = f"level {levels[0]}" if len(levels) == 1 else f"levels {','.join(map(str, levels))}"
-    return f"{what} at {at}"
+def _describe(jobs: list, level_list: list) -> str:
+    """``"fog at levels 1,2,3,4,5"`` or ``"3 corruptions and chains at level 2"``, for messages."""
+    from ..corruptions import level_text
+
+    names = list(dict.fromkeys(v for _, v, lv in jobs if lv is not None))
+    chains = [v for _, v, lv in jobs if lv is None]
+    what = (names[0] if len(names) == 1 and not chains else chains[0] if len(chains) == 1 and not names
+            else f"{len(names) + len(chains)} corruptions and chains")
+    if not names:
+        return what
+    levels = ",".join(map(level_text, level_list))
+    return f"{what} at level{'s' if len(level_list) > 1 else ''} {levels}"
 
 
 @click.command("preview")
@@ -95,22 +102,31 @@ def _describe(names: list[str], levels: list[int]) -> str:
 @click.option("--out", "-o", required=True, type=click.Path(),
               help="The contact sheet (.png); a directory (or a name ending with /) receives "
                    "IMAGE_preview.png.")
-@click.option("--corruption", "-c", "corruption", default="all", show_default=True, metavar="NAME|all",
-              help="Rows: 'all' or a comma list of corruptions.")
+@click.option("--corruption", "-c", "corruption", default="all", show_default=True, metavar="NAME|CHAIN|all",
+              help="Rows: 'all' or a comma list of corruptions and chains (a chain step without "
+                   ":LEVEL takes each column's level, e.g. fog+gaussian_noise).")
+@click.option("--levels", "-l", "level", default="all", show_default=True, metavar="S|all",
+              help="Columns: levels 1..5, decimals allowed, as a comma list (1,1.5,2), or 'all' (1..5).")
 @click.option("--size", metavar="HxW", help="First resize the input (Lanczos), e.g. 192x640.")
 @click.option("--seed", "-s", default=0, show_default=True, type=int, help="An integer >= 0.")
 @click.option("--thumb-width", default=320, show_default=True, type=click.IntRange(32, 2000),
               help="Width of each cell in pixels.")
-def preview_command(image, out, corruption, size, seed, thumb_width):
-    """A labelled contact sheet: the clean image, then one row per corruption and one column per level."""
-    from ..benchmarks import N_LEVELS
+def preview_command(image, out, corruption, level, size, seed, thumb_width):
+    """A labelled contact sheet: the clean image, then one row per corruption or chain and
+    one column per level.
+
+    \b
+    robodepth preview frame.png -c fog,contrast --out sheet.png
+    robodepth preview frame.png -c fog,fog+gaussian_noise -l 1,1.5,2,2.5,3 --out sheet.png
+    """
     from ..preview import contact_sheet
 
     seed = common.seed(seed)
     target = common.png_output(out, f"{Path(image).stem}_preview.png")
-    names = common.corruption_names(corruption)
+    level_list = common.levels(level, "--levels")
+    rows = common.items(corruption, level_list)
     clean = common.load_input(image, size)
-    sheet = contact_sheet(clean, names, range(1, N_LEVELS + 1), seed=seed, key=Path(image).name,
+    sheet = contact_sheet(clean, rows, level_list, seed=seed, key=Path(image).name,
                           thumb_width=thumb_width)
     common.write_png(target, np.asarray(sheet))
     click.echo(f"wrote {target} ({sheet.width} x {sheet.height})")

@@ -16,7 +16,7 @@ import importlib
 from ..benchmarks import CATEGORIES, CATEGORY, DATA, SENSOR, WEATHER
 from .severity import LevelError, level_text, parse_level
 
-_ENGINE = ("REGISTRY", "NAMES", "Corruption", "corrupt", "corrupt_chain", "get", "check_level")
+_ENGINE = ("REGISTRY", "NAMES", "Corruption", "corrupt", "corrupt_chain", "render", "get", "check_level")
 
 __all__ = ["CATEGORIES", "WEATHER", "SENSOR", "DATA", "LevelError", "level_text", "parse_level",
            *_ENGINE]

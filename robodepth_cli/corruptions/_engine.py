@@ -10,7 +10,7 @@ import numpy as np
 
 from ..imageio import as_rgb
 from .registry import Corruption, registry
-from .chains import Chain, parse_chain
+from .chains import Chain, looks_like_chain, parse_chain
 from .severity import parse_level
 
 # Importing a module registers its corruption(s).
@@ -69,6 +69,20 @@ def corrupt_chain(image: np.ndarray, chain: Chain | str, rngs: Sequence[np.rando
     for step, rng in zip(chain.steps, rngs):
         out = _apply(get(step.name), out, step.level, rng)
     return out
+
+
+def render(clean: np.ndarray, variant: str, level, *, seed: int, dataset: str, key: str) -> np.ndarray:
+    """The image of one job: corruption ``variant`` at ``level``, or, when ``variant`` is a
+    chain (its text; ``level`` is then unused), that chain; every draw from the job's own
+    generators (:func:`~robodepth_cli.seeding.job_rng`,
+    :func:`~robodepth_cli.seeding.chain_rngs`). The one rule by which ``corrupt``,
+    ``preview``, a build and the torch transforms turn a job into pixels."""
+    from .. import seeding
+
+    if looks_like_chain(variant):
+        chain = parse_chain(variant)
+        return corrupt_chain(clean, chain, seeding.chain_rngs(seed, dataset, chain, key))
+    return corrupt(clean, variant, level, seeding.job_rng(seed, dataset, variant, level, key))
 
 
 def _check_rng(rng) -> None:

@@ -3,6 +3,9 @@
 A chain is 1..8 steps joined by ``+``; each step is ``NAME:LEVEL``, a corruption of
 ``robodepth list`` and a level in its range (decimals allowed). The steps apply in the order
 written, each to the previous step's output. Spaces around ``+`` and ``:`` are ignored.
+Where a command also takes levels (``corrupt -l``, ``preview --levels``, ``build
+--levels``), a step written without one (``fog+gaussian_noise``) is a template: it takes
+each of those levels in turn (:func:`expand_chain`).
 
 Names:
 
@@ -39,6 +42,7 @@ from .severity import LevelError, level_text, parse_level
 
 MAX_STEPS = 8
 _STEP = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*[:\-]\s*(\S.*?)\s*$")
+_NAME = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*$")
 
 
 class ChainError(RobodepthError):
@@ -90,6 +94,14 @@ def parse_chain(text: str, *, top: int = N_LEVELS, where: str = "") -> Chain:
     :class:`ChainError`, one line naming ``where`` (a flag or file), the chain and the
     problem, for: an empty chain or step, a step that is not ``NAME:LEVEL``, an unknown
     name, a level that is not a number in ``1..top``, more than 8 steps."""
+    return expand_chain(text, (), top=top, where=where)[0]
+
+
+def expand_chain(text: str, levels, *, top: int = N_LEVELS, where: str = "") -> list[Chain]:
+    """The chains of a chain *template*: steps written without a level (``fog+gaussian_noise``,
+    ``fog+contrast:2``) take each of ``levels`` in turn, one chain per level; a chain whose
+    steps all have levels is itself, whatever ``levels`` holds. With no ``levels`` every step
+    needs its own. Refused as :func:`parse_chain` refuses."""
     at = f"{where}: " if where else ""
     if not isinstance(text, str):
         raise ChainError(f"{at}chain {text!r}: expected text such as 'fog:3+gaussian_noise:2.5'")
@@ -103,18 +115,31 @@ def parse_chain(text: str, *, top: int = N_LEVELS, where: str = "") -> Chain:
     parts = shown.split("+")
     if len(parts) > MAX_STEPS:
         raise fail(f"{len(parts)} steps; a chain has at most {MAX_STEPS}")
-    steps = []
+    steps: list[tuple[str, int | float | None]] = []
     for k, part in enumerate(parts, 1):
         if not part.strip():
             raise fail(f"step {k} is empty (a '+' with nothing on one side)")
         m = _STEP.match(part)
-        if not m:
+        bare = _NAME.match(part) if levels else None
+        if not m and not bare:
             raise fail(f"step {k} {part.strip()!r} is not NAME:LEVEL (e.g. 'fog:3')")
-        name, level = m.group(1), m.group(2)
+        name = (m or bare).group(1)
         if name not in CATEGORY:
             raise fail(f"step {k}: unknown corruption {name!r}; valid: {', '.join(CORRUPTIONS)}")
+        if m:
+            try:
+                steps.append((name, parse_level(m.group(2), top=top, what=f"step {k} ({name})")))
+            except LevelError as exc:
+                raise fail(str(exc)) from None
+        else:
+            steps.append((name, None))
+    if all(lv is not None for _, lv in steps):
+        return [Chain(tuple(Step(n, lv) for n, lv in steps))]
+    out = []
+    for level in levels:
         try:
-            steps.append(Step(name, parse_level(level, top=top, what=f"step {k} ({name})")))
+            level = parse_level(level, top=top, what="level")
         except LevelError as exc:
             raise fail(str(exc)) from None
-    return Chain(tuple(steps))
+        out.append(Chain(tuple(Step(n, level if lv is None else lv) for n, lv in steps)))
+    return list(dict.fromkeys(out))

@@ -44,13 +44,13 @@ class Blend(NamedTuple):
     t: float
 
 
-def parse_level(value, *, top: int, what: str = "level", bottom: int = 1) -> int | float:
+def parse_level(value, *, top: int, what: str = "level", owner: str = "", bottom: int = 1) -> int | float:
     """``value`` (a number, or its text as typed) as a severity level in ``bottom..top``:
     an ``int`` when it is a whole number (``2.0`` is level 2), else a ``float``.
 
     The one check of every level anywhere (``corrupt -l``, ``build --levels``, a chain's
     step, the torch transforms): :class:`LevelError` naming ``what``, the value and the
-    range otherwise."""
+    range (of ``owner``, a dataset, when given) otherwise."""
     raw = value
     if isinstance(value, str):
         try:
@@ -60,10 +60,11 @@ def parse_level(value, *, top: int, what: str = "level", bottom: int = 1) -> int
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise LevelError(f"{what}: {raw!r} is not a number; levels are {bottom}..{top} "
                          f"(decimals allowed, e.g. 2.5)")
+    of = f" for {owner}" if owner else ""
     v = float(value)
     if not math.isfinite(v) or not bottom <= v <= top:
         shown = raw.strip() if isinstance(raw, str) else level_text(v) if math.isfinite(v) else raw
-        raise LevelError(f"{what}: level {shown} is out of range {bottom}..{top}")
+        raise LevelError(f"{what}: level {shown} is out of range{of}; valid levels: {bottom}..{top}")
     return int(v) if v == int(v) else v
 
 
@@ -112,3 +113,17 @@ def interpolate(table: Sequence, level, rules: Sequence[str] | None = None):
         return _one(lower, upper, t, rules[0], nearest)
     return tuple(_one(lo, hi, t, rule, near)
                  for lo, hi, rule, near in zip(lower, upper, rules, nearest))
+
+
+def parse_levels(value, *, top: int, what: str = "levels", owner: str = "") -> tuple:
+    """The levels ``value`` selects, sorted without repeats: ``all`` (the integer levels
+    ``1..top``), one level, a list of them, or comma-separated text (``1,2.5,4``), each
+    checked by :func:`parse_level`. :class:`LevelError` naming ``what`` otherwise."""
+    if isinstance(value, str) and value.strip() == "all":
+        return tuple(range(1, top + 1))
+    items = [p.strip() for p in value.split(",")] if isinstance(value, str) else value
+    if not isinstance(items, (list, tuple)):
+        items = [items]
+    if not items or any(isinstance(p, str) and not p for p in items):
+        raise LevelError(f"{what}: expected levels such as 2 or 1,2.5,4 or 'all', got {value!r}")
+    return tuple(sorted({parse_level(p, top=top, what=what, owner=owner) for p in items}))
