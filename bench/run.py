@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = ("corruptions.py", "build.py", "stylize.py", "cluster.py", "gt.py", "evaluate.py",
+SCRIPTS = ("corruptions.py", "png.py", "build.py", "stylize.py", "cluster.py", "gt.py", "evaluate.py",
            "source_hash.py", "large.py")
 
 

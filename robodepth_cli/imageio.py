@@ -128,31 +128,66 @@ def load_clean(path: str | os.PathLike, size_hw: tuple[int, int] | None, *,
     return resize_lanczos(read_rgb(path, orient=orient), size_hw)
 
 
-# How encode_png writes, for the build record: the bytes (not the pixels) depend on it.
-PNG_ENCODER = "opencv-libpng filters=none,sub,up strategy=rle"
+# The two ways a build can write its PNGs (``--png``). Both give exactly the same pixels;
+# only the bytes, and so the manifest's sha256 and the file sizes, differ.
+PNG_METHODS = ("fast", "compact")
+DEFAULT_PNG = "fast"
+# What each writes, for the build record.
+PNG_ENCODERS = {
+    "fast": "fpng (one pass; gray: opencv-libpng filters=none,sub,up strategy=rle level 1)",
+    "compact": "opencv-libpng filters=none,sub,up strategy=rle",
+}
+PNG_ENCODER = PNG_ENCODERS["compact"]  # what every build wrote before --png existed
 
 
-def encode_png(img: np.ndarray, compress_level: int = 1) -> bytes:
+class PngEncoderError(RobodepthError):
+    """The chosen PNG encoder cannot be used here (its package is missing)."""
+
+
+def check_png(method: str) -> None:
+    """Refuse (:class:`PngEncoderError`) before any work if ``method`` cannot run here."""
+    if method == "fast":
+        try:
+            import fpng  # noqa: F401
+        except ImportError as exc:
+            raise PngEncoderError(f"--png fast needs the fpng package ({exc}); install it with "
+                                  f"'pip install fpng', or pass --png compact") from None
+
+
+def encode_png(img: np.ndarray, compress_level: int = 1, *, method: str = "compact") -> bytes:
     """``img`` (uint8 H x W gray, H x W x 3 RGB or H x W x 4 RGBA) as PNG bytes that decode
-    to exactly these pixels, with zlib level ``compress_level`` (0-9).
+    to exactly these pixels; the same pixels always give the same bytes.
 
-    Encoded with OpenCV's libpng writer, zlib's RLE strategy and libpng's fast row filters
-    (None, Sub or Up, chosen per row): on the images a build writes (mostly noise and blur)
-    this costs much less CPU than Pillow, which tries all five filters on every row, for
-    slightly larger files; the SUB filter alone is faster still but makes clearly larger
-    files. bench/build.py measures time and size against Pillow (figures in the README).
-    Pixels never depend on these choices.
+    ``method="compact"``: OpenCV's libpng writer with zlib level ``compress_level`` (0-9),
+    zlib's RLE strategy and libpng's fast row filters (None, Sub or Up, chosen per row): on
+    the images a build writes (mostly noise and blur) this costs much less CPU than Pillow,
+    which tries all five filters on every row, for slightly larger files.
+
+    ``method="fast"``: fpng, a PNG writer made for speed (one pass, a simple LZ matcher): about 8x less CPU than the compact writer on a 192 x 640 build image, for
+    files about 25% larger (bench/png.py measures both). fpng writes 24- and 32-bit images
+    only, so a gray image is written by the compact writer (``compress_level`` is then
+    used; fpng ignores it).
     """
-    import cv2
-
     if img.dtype != np.uint8:
         raise ValueError(f"cannot encode {img.dtype} pixels as PNG (uint8 only)")
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (3, 4)):
+        raise ValueError(f"cannot encode an image of shape {img.shape} as PNG")
+    if method == "fast" and img.ndim == 3:
+        import fpng
+
+        return fpng.fpng_ext.encode_ndarray(np.ascontiguousarray(img))
+    if method not in PNG_METHODS:
+        raise ValueError(f"unknown PNG method {method!r}; valid: {', '.join(PNG_METHODS)}")
+    return _encode_libpng(img, compress_level)
+
+
+def _encode_libpng(img: np.ndarray, compress_level: int) -> bytes:
+    import cv2
+
     if img.ndim == 3 and img.shape[2] == 3:
         img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
     elif img.ndim == 3 and img.shape[2] == 4:
         img = cv2.cvtColor(img, cv2.COLOR_RGBA2BGRA)
-    elif img.ndim != 2:
-        raise ValueError(f"cannot encode an image of shape {img.shape} as PNG")
     ok, buf = cv2.imencode(".png", img, [cv2.IMWRITE_PNG_COMPRESSION, compress_level,
                                          cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE,
                                          cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FAST_FILTERS])
@@ -161,9 +196,11 @@ def encode_png(img: np.ndarray, compress_level: int = 1) -> bytes:
     return buf.tobytes()
 
 
-def write_png(path: str | os.PathLike, img: np.ndarray, compress_level: int = 1) -> bytes:
-    """Encode ``img`` as PNG and write it atomically; return the bytes written."""
-    data = encode_png(img, compress_level)
+def write_png(path: str | os.PathLike, img: np.ndarray, compress_level: int = 1, *,
+              method: str = "compact") -> bytes:
+    """Encode ``img`` as PNG (:func:`encode_png`) and write it atomically; return the bytes
+    written."""
+    data = encode_png(img, compress_level, method=method)
     write_atomic(path, data)
     return data
 

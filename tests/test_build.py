@@ -292,11 +292,11 @@ def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, mo
     flags = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1,2", "--jobs", "1"]
     real, calls = builder.write_png, []
 
-    def disk_fills_up(path, img, level):
+    def disk_fills_up(path, img, level, **kw):
         calls.append(path)
         if len(calls) > 2:
             raise OSError(28, "No space left on device")
-        return real(path, img, level)
+        return real(path, img, level, **kw)
 
     monkeypatch.setattr(builder, "write_png", disk_fills_up)
     res = build_kitti(root, split, out, *flags)

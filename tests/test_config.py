@@ -42,7 +42,7 @@ def test_user_file_over_preset_and_flags_over_file(tmp_path):
 
 
 @pytest.mark.parametrize("text, expected", [
-    ("levles: [1]\n", "unknown key 'levles'; valid keys: dataset, split, size, levels, seed, jobs, limit, corruptions"),
+    ("levles: [1]\n", "unknown key 'levles'; valid keys: dataset, split, size, levels, seed, jobs, limit, png, corruptions"),
     ("seed: abc\n", ": seed: expected an integer >= 0, got 'abc'"),
     ("seed: true\n", ": seed: expected an integer >= 0, got True"),
     ("jobs: 0\n", ": jobs: expected an integer >= 1, got 0"),

@@ -65,6 +65,25 @@ def check_sources_outside(paths: Iterable[str | None], out: Path) -> None:
 
 # --- one build per OUT ---------------------------------------------------------------------
 
+def png_method(out: Path, requested: str | None, previous: dict[str, Any] | None) -> str:
+    """How this build writes its PNGs: ``requested`` (``--png``), else the way the build in
+    ``out`` was written (a build made before ``--png`` existed wrote compact PNGs), else
+    fast. A request for the other way than ``out``'s build is refused: its files would be
+    left as they are (same pixels, so they pass verify) while new ones came out the other
+    way, and the record can name only one."""
+    from ..imageio import DEFAULT_PNG
+
+    if not previous:
+        return requested or DEFAULT_PNG
+    # Records of builds before --png existed name no method: they were written by libpng.
+    own = previous.get("png") or "compact"
+    if requested and requested != own:
+        raise OutputDirError(f"{out}: built with --png {own}; --png {requested} would mix two PNG "
+                             f"encoders in one build (same pixels, other bytes): leave --png out "
+                             f"to go on with {own}, or build into a new --out")
+    return own
+
+
 def _size_text(size) -> str:
     return f"{size[0]}x{size[1]}" if isinstance(size, (list, tuple)) and len(size) == 2 else str(size)
 

@@ -14,7 +14,8 @@ levels), ``seed`` (integer >= 0), ``jobs`` (worker processes, >= 1), ``limit`` (
 source images, or null for all), ``scheduler`` (a Dask scheduler address such as
 ``tcp://head:8786``: run the build on that cluster, ``jobs`` is then unused) or
 ``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
-layer's choice replaces an earlier layer's). A corruption or level the dataset does not
+layer's choice replaces an earlier layer's), ``png`` (``fast`` or ``compact``: how the PNGs
+are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``). A corruption or level the dataset does not
 have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
@@ -56,6 +57,7 @@ class BuildConfig:
     extra: dict[str, Any] = field(default_factory=dict)  # dataset-specific keys (KITTI-S)
     scheduler: str | None = None  # a Dask scheduler's address: build on that cluster
     scheduler_file: str | None = None  # or the scheduler file that holds it
+    png: str | None = None  # "fast" or "compact"; None: the build's own, else fast
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -160,7 +162,7 @@ def choose_levels(loc: str, v, valid: tuple[int, ...] | None, *, owner: str = ""
 class _Resolver:
     """Applies layers of raw values onto the current configuration, checking each one."""
 
-    KEYS = ("dataset", "split", "size", "levels", "seed", "jobs", "limit")
+    KEYS = ("dataset", "split", "size", "levels", "seed", "jobs", "limit", "png")
     ONE_OF = ("scheduler", "scheduler_file")  # where a cluster build runs: one or the other
 
     def __init__(self, preset: str):
@@ -274,6 +276,12 @@ class _Resolver:
                 raise ConfigError(f"{exc} (or 'auto' or -1: one worker per CPU)") from None
         if key == "limit":
             return None if v is None else _int(loc, v, 1)
+        if key == "png":
+            from ..imageio import PNG_METHODS
+
+            if v is not None and v not in PNG_METHODS:
+                raise ConfigError(f"{loc}: expected one of {', '.join(PNG_METHODS)}, got {v!r}")
+            return v
         if key == "scheduler":
             if v is not None and (not isinstance(v, str) or not v.strip()):
                 raise ConfigError(f"{loc}: expected a Dask scheduler address such as "
@@ -303,7 +311,8 @@ class _Resolver:
                            seed=self.values["seed"], jobs=self.values["jobs"],
                            limit=self.values.get("limit"), extra=extra,
                            scheduler=self.values.get("scheduler"),
-                           scheduler_file=self.values.get("scheduler_file"))
+                           scheduler_file=self.values.get("scheduler_file"),
+                           png=self.values.get("png"))
 
 
 def resolve(preset: str, config_file: Path | None = None,

@@ -49,7 +49,7 @@ from ..output import manifest
 from ..sources import splits
 from .config import BuildConfig
 from ..sources.datasets import CLEAN, Dataset, Entry, Job, Renderer, get_dataset, locate, read_split
-from ..imageio import PNG_ENCODER, ImageError, load_clean, resize_lanczos, write_png
+from ..imageio import PNG_ENCODERS, ImageError, check_png, load_clean, resize_lanczos, write_png
 from ..files import sha256_bytes, sha256_file
 from ..output.manifest import Row
 from ..errors import RobodepthError
@@ -122,6 +122,7 @@ class Context:
     seed: int
     renderer: Renderer
     single_thread: bool  # True in pool workers: the pool already uses every core
+    png: str = "fast"  # how the PNGs are written (imageio.PNG_METHODS)
 
 
 @dataclass
@@ -201,6 +202,8 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     buildchecks.check_sources_outside((s.path for s in sources), out)
     previous = manifest.read_record(out) if Path(out).is_dir() else None
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
+    png = buildchecks.png_method(out, cfg.png, previous)
+    check_png(png)
     renderer = make_renderer(ds, cfg)
     out = prepare_out(out)
     with manifest.BuildLock(out):
@@ -221,9 +224,9 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         # look into a finished build must not shrink what evaluation and ground truth see.
         keys = buildchecks.built_keys(plans)
         split = {**split, "images": len(keys), "keys": keys}
-        record = start_record(cfg, ds, root, out, split, executor, command, plans)
+        record = start_record(cfg, ds, root, out, split, executor, command, plans, png)
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
-                      single_thread=executor.workers > 1 and len(tasks) > 1)
+                      single_thread=executor.workers > 1 and len(tasks) > 1, png=png)
         summary = run_tasks(tasks, ctx, executor, out, progress)
         # A custom build has no ground truth to add.
         if gt and not ds.discovers_sources and not (summary.interrupted or summary.fatal):
@@ -411,18 +414,19 @@ def _same_source(row: Row, src: Source) -> bool:
 
 def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: dict,
                  executor: Executor, command: list[str] | None,
-                 plans: list[dict] | None = None) -> dict:
+                 plans: list[dict] | None = None, png: str = "fast") -> dict:
     """Write the build record of a build that starts now (status ``running``) and return it.
     ``split`` is :func:`gather_sources`' account of the sources (``keys``: the entries
     built, in order); ``plans`` every request made
-    into this OUT so far (see :mod:`robodepth_cli.build.checks`), which verify checks."""
+    into this OUT so far (see :mod:`robodepth_cli.build.checks`), which verify checks;
+    ``png`` how the PNGs are written."""
     record = {
         "robodepth": __version__, "command": command or [], "dataset": ds.name,
         "config": cfg.as_dict(), "seed": cfg.seed, "root": str(root), "out": str(out.resolve()),
         "split": split,
         "plans": plans or [buildchecks.plan_entry(cfg.variants, cfg.levels, split["keys"])],
         "versions": library_versions(ds), "png_compress_level": PNG_COMPRESS_LEVEL,
-        "png_encoder": PNG_ENCODER,
+        "png": png, "png_encoder": PNG_ENCODERS[png],
         "executor": executor.describe(),
         "started": _now(), "finished": None, "status": "running",
     }
@@ -589,7 +593,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
             continue
         target = out / job.path(src.key)
         try:
-            data = write_png(target, img, PNG_COMPRESS_LEVEL)
+            data = write_png(target, img, PNG_COMPRESS_LEVEL, method=ctx.png)
         except OSError as exc:
             results.append((JobState.FATAL, row(job, error=_cannot_write(target, exc))))
             return results

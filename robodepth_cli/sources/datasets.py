@@ -253,7 +253,7 @@ class Dataset:
     def libraries(self) -> tuple[str, ...]:
         """Distributions whose versions the build record keeps."""
         return ("numpy", "Pillow", "opencv-python-headless", "scipy", "scikit-image", "numba",
-                "joblib", "tqdm", "PyYAML", "click")
+                "joblib", "tqdm", "PyYAML", "click", "fpng")
 
 
 @dataclass(frozen=True)
