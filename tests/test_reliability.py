@@ -1,6 +1,6 @@
 """Builds facing bad input, hostile files, kills, interrupts, concurrent builds and full disks.
 
-Two kinds of failure (the README's "When a build goes wrong"):
+Two kinds of failure (docs/datasets-and-layout.md, "When a build goes wrong"):
 - whole-build problems are refused before any work: one line ``robodepth: error: <file or
   flag>: <problem>``, exit 2, OUT not created;
 - per-image problems fail that image's outputs only: a row with an error in the manifest, a
