@@ -39,24 +39,30 @@ class DatasetError(RobodepthError):
 
 @dataclass(frozen=True)
 class Variant:
-    """One variant of a built dataset: the clean images, one corruption at one level, or
-    one style (KITTI-S). ``level`` is None for the clean images and for styles."""
+    """One variant of a built dataset: the clean images, one corruption at one level
+    (decimals included), a chain of corruptions (``fog:3+gaussian_noise:2.5``), or one
+    style (KITTI-S). ``level`` is None for the clean images, chains and styles."""
 
     root: Path  # the dataset directory
     name: str
-    level: int | None
+    level: int | float | None
     keys: tuple[str, ...]  # the split's image keys, in split order
 
     @property
     def relpath(self) -> str:
-        """``clean``, ``<corruption>/<level>`` or ``<style>``: the variant's directory in the
-        dataset, and its prediction file's path in PRED without the extension."""
-        return self.name if self.level is None else f"{self.name}/{self.level}"
+        """``clean``, ``<corruption>/<level>``, ``<chain directory name>`` or ``<style>``:
+        the variant's directory in the dataset, and its prediction file's path in PRED
+        without the extension."""
+        from .sources.datasets import variant_dir
+
+        return variant_dir(self.name, self.level)
 
     @property
     def label(self) -> str:
         """``clean``, ``<corruption> <level>`` or ``<style>``, for messages."""
-        return self.name if self.level is None else f"{self.name} {self.level}"
+        from .corruptions.severity import level_text
+
+        return self.name if self.level is None else f"{self.name} {level_text(self.level)}"
 
     def __len__(self) -> int:
         return len(self.keys)
@@ -222,7 +228,10 @@ def open_dataset(path: str | os.PathLike) -> BuiltDataset:
     if not rows:
         raise DatasetError(f"{path}: no {MANIFEST} (or an empty one); was the build run to the end?")
     built = {(r.variant, r.level) for r in rows.values()}
-    order = [CLEAN, *ds.variant_names()]
+    from .corruptions.chains import looks_like_chain
+
+    # benchmark order, levels ascending, then the chains by name
+    order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
     variants = sorted((vl for vl in built if vl[0] in order),
                       key=lambda vl: (order.index(vl[0]), vl[1] or 0))
     return BuiltDataset(path, record, keys, variants)

@@ -33,8 +33,8 @@ def test_kitti_all_means_18_corruptions_and_5_levels():
 
 
 @pytest.mark.parametrize("flags,message", [
-    ({"levels": "5"}, "--levels: level 5 does not exist for nyudepth2-c; valid levels: 1..4"),
-    ({"levels": "2,5"}, "--levels: level 5 does not exist for nyudepth2-c; valid levels: 1..4"),
+    ({"levels": "5"}, "--levels: level 5 is out of range for nyudepth2-c; valid levels: 1..4"),
+    ({"levels": "2,5"}, "--levels: level 5 is out of range for nyudepth2-c; valid levels: 1..4"),
     ({"corruptions": "fog"}, "--corruptions: nyudepth2-c has no corruption 'fog'; valid: "
                              + ", ".join(NYU_15)),
     ({"corruptions": "dark,snow"}, "--corruptions: nyudepth2-c has no corruption 'snow'; valid: "
@@ -65,7 +65,7 @@ def test_nyu_build_with_level_5_is_refused_before_any_work(tmp_path, cli):
     res = cli("build", "nyudepth2-c", "--root", root, "--split", split, "--out", tmp_path / "out5",
               "--levels", "5")
     assert res.exit_code == 2
-    assert res.output.strip() == ("robodepth: error: --levels: level 5 does not exist for nyudepth2-c; "
+    assert res.output.strip() == ("robodepth: error: --levels: level 5 is out of range for nyudepth2-c; "
                                   "valid levels: 1..4")
     assert not (tmp_path / "out5").exists()
 

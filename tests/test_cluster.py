@@ -169,6 +169,20 @@ def test_cluster_build_is_the_local_build(cli, build, cluster, local, tmp_path):
     assert cli("verify", out).exit_code == 0
 
 
+def test_chains_and_decimal_levels_on_the_cluster_are_the_local_build(cli, build, cluster, local, tmp_path):
+    flags = ["--corruptions", "gaussian_noise", "--levels", "2.5", "--size", "48x160",
+             "--compose", "fog:1+gaussian_noise:2.5,contrast:2+pixelate:1.5"]
+    out = tmp_path / "out"
+    res = build(out, *flags, "--scheduler", cluster.address)
+    assert res.exit_code == 0, res.output
+    want = local(flags)
+    assert tree(out) == tree(want)
+    assert rows(out) == rows(want)
+    assert {r["variant"] for r in rows(out)} == {"clean", "gaussian_noise", "fog:1+gaussian_noise:2.5",
+                                                  "contrast:2+pixelate:1.5"}
+    assert cli("verify", out).exit_code == 0
+
+
 def test_scheduler_in_a_config_file(build, cluster, local, tmp_path):
     cfg = tmp_path / "cluster.yaml"
     cfg.write_text(f"scheduler: {cluster.address}\n")

@@ -48,8 +48,8 @@ def test_user_file_over_preset_and_flags_over_file(tmp_path):
     ("jobs: 0\n", ": jobs: expected an integer >= 1, got 0"),
     ("corruptions: [fog, fgo]\n", ": corruptions: unknown corruption 'fgo'; valid: brightness, dark, fog,"),
     ("corruptions: []\n", ": corruptions: expected a non-empty list or 'all', got []"),
-    ("corruptions: brightness\nlevels: [0, 1]\n", ": levels: expected an integer >= 1, got 0"),
-    ("corruptions: brightness\nlevels: [1, 6]\n", ": levels: level 6 does not exist for kitti-c; valid levels: 1..5"),
+    ("corruptions: brightness\nlevels: [0, 1]\n", ": levels: level 0 is out of range for kitti-c; valid levels: 1..5"),
+    ("corruptions: brightness\nlevels: [1, 6]\n", ": levels: level 6 is out of range for kitti-c; valid levels: 1..5"),
     ("size: 192\n", ": size: expected HxW such as 192x640, or [H, W], got 192"),
     ("size: 16x640\n", ": size: size '16x640': both sides must be at least 32"),
     ("split: nyu_test\n", ": split: 'nyu_test' is not a split of kitti-c; valid: eigen_test or a split file"),
@@ -70,7 +70,7 @@ def test_bad_values_name_file_key_and_choices(tmp_path, text, expected):
 
 @pytest.mark.parametrize("flags, expected", [
     ({"corruptions": "brightness,nope"}, "--corruptions: unknown corruption 'nope'; valid: brightness,"),
-    ({"corruptions": "contrast", "levels": "1,x"}, "--levels: expected an integer >= 1, got 'x'"),
+    ({"corruptions": "contrast", "levels": "1,x"}, "--levels: 'x' is not a number; levels are 1..5"),
     ({"jobs": "0"}, "--jobs: expected an integer >= 1, got 0"),
     ({"size": "640"}, "--size: size '640' is not of the form HxW"),
     ({"limit": "0"}, "--limit: expected an integer >= 1, got 0"),

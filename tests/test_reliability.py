@@ -124,8 +124,8 @@ WHOLE_BUILD = {
                                    ": corruptions: unknown corruption 'sleet'; valid: brightness,"),
     "unknown corruption flag": (_flags("--corruptions", "contrast,fogg"),
                                 ": unknown corruption 'fogg'; valid: brightness, dark, fog,"),
-    "level 0": (_flags("--levels", "0"), ": expected an integer >= 1, got 0"),
-    "level 6": (_flags("--levels", "1,6"), ": level 6 does not exist for kitti-c; valid levels: 1..5"),
+    "level 0": (_flags("--levels", "0"), ": level 0 is out of range for kitti-c; valid levels: 1..5"),
+    "level 6": (_flags("--levels", "1,6"), ": level 6 is out of range for kitti-c; valid levels: 1..5"),
     "--jobs 0": (_flags("--jobs", "0"), ": expected an integer >= 1, got 0"),
     "output path is a file": (_out_is_a_file, ": exists and is not a directory"),
 }

@@ -9,8 +9,10 @@ set it, the key, and the valid choices, before any work starts.
 Keys: ``dataset`` (the dataset definition, e.g. ``kitti-c``), ``split`` (a standard split
 name of ``splits/splits.json``, or a split file; relative paths in a YAML file are relative
 to that file), ``size`` (``HxW`` or ``[H, W]``), ``corruptions`` (list of names, or
-``all``: the dataset's own corruptions), ``levels`` (list, or ``all``: the dataset's own
-levels), ``seed`` (integer >= 0), ``jobs`` (worker processes, >= 1), ``limit`` (first N
+``all``: the dataset's own corruptions; ``none``: only chains), ``levels`` (list, or
+``all``: the dataset's own levels; decimals such as 2.5 within the dataset's range),
+``compose`` (chains such as ``fog:3+gaussian_noise:2.5``, a list or comma-separated text;
+each is one more variant, built under its directory name), ``seed`` (integer >= 0), ``jobs`` (worker processes, >= 1), ``limit`` (first N
 source images, or null for all), ``scheduler`` (a Dask scheduler address such as
 ``tcp://head:8786``: run the build on that cluster, ``jobs`` is then unused) or
 ``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
@@ -37,6 +39,7 @@ from ..errors import RobodepthError
 
 CONFIG_DIR = data_dir("configs")
 ALL = "all"
+NONE = "none"  # corruptions: none, e.g. to build only chains
 
 
 class ConfigError(RobodepthError):
@@ -119,7 +122,7 @@ def _names(loc: str, v) -> list:
     """A list from a YAML list, ``all``, or comma-separated text; empty lists refused."""
     if isinstance(v, str):
         v = [s.strip() for s in v.split(",") if s.strip()]
-    elif _is_int(v):
+    elif _is_int(v) or isinstance(v, float):
         v = [v]
     if not isinstance(v, list) or not v:
         raise ConfigError(f"{loc}: expected a non-empty list or {ALL!r}, got {v!r}")
@@ -143,20 +146,74 @@ def choose_names(loc: str, v, valid: tuple[str, ...], noun: str, *, owner: str =
     return tuple(dict.fromkeys(v))
 
 
-def choose_levels(loc: str, v, valid: tuple[int, ...] | None, *, owner: str = "") -> tuple[int, ...]:
-    """The levels ``v`` selects (``all``, an integer, a list, or comma-separated text),
-    sorted without repeats. ``all`` means ``valid``; any other level outside ``valid`` is
-    refused naming ``owner`` (``valid`` None: any level >= 1). :class:`ConfigError` naming
-    ``loc`` otherwise."""
+def choose_levels(loc: str, v, valid: tuple[int, ...] | None, *, owner: str = "") -> tuple:
+    """The levels ``v`` selects (``all``, a number, a list, or comma-separated text),
+    sorted without repeats: integers, or decimals between them (``2.5``). ``all`` means
+    ``valid`` (the integer levels); any other level must lie in ``valid``'s span, else it is
+    refused naming ``owner`` (``valid`` None: 1..5). :class:`ConfigError` naming ``loc``."""
+    from ..benchmarks import N_LEVELS
+    from ..corruptions.severity import LevelError, parse_level
+
     if v == ALL:
         return tuple(valid or ())
-    chosen = tuple(sorted({_int(loc, lv, 1) for lv in _names(loc, v)}))
-    for lv in chosen if valid is not None else ():
-        if lv not in valid:
-            of = f" for {owner}" if owner else ""
-            raise ConfigError(f"{loc}: level {lv} does not exist{of}; valid levels: "
-                              f"{valid[0]}..{valid[-1]}")
-    return chosen
+    top = valid[-1] if valid else N_LEVELS
+    try:
+        return tuple(sorted({parse_level(lv, top=top, what=loc, owner=owner) for lv in _names(loc, v)}))
+    except LevelError as exc:
+        raise ConfigError(str(exc)) from None
+
+
+def choose_chains(loc: str, v, top: int, names: tuple[str, ...], owner: str) -> tuple[str, ...]:
+    """The chains ``v`` lists (a YAML list, or comma-separated text), each checked: steps
+    among ``names`` (``owner``'s corruptions), levels within ``1..top``; as canonical texts
+    in the given order without repeats. ``none`` or an empty list: no chains.
+    :class:`ConfigError` naming ``loc``."""
+    from ..corruptions.chains import parse_chain
+
+    if v is None or v == NONE or v == []:
+        return ()
+    chains = [parse_chain(c, top=top, where=loc) for c in _names(loc, v)]
+    for c in chains:
+        for k, step in enumerate(c.steps, 1):
+            if step.name not in names:
+                raise ConfigError(f"{loc}: chain {c.text!r}: step {k}: {owner} has no corruption "
+                                  f"{step.name!r}; valid: {', '.join(names)}")
+    return tuple(dict.fromkeys(c.text for c in chains))
+
+
+def check_train(loc: str, v, ds) -> dict[str, Any]:
+    """The ``train`` mapping of a held-out protocol, checked: ``corruptions`` (names of
+    ``ds``), ``steps`` (an integer or ``[min, max]`` within 1..8) and ``severity``
+    (``[low, high]`` within the dataset's levels). A build records nothing of it;
+    :meth:`robodepth_cli.torch.RandomChain.from_protocol` draws from it."""
+    from ..corruptions.chains import MAX_STEPS
+    from ..corruptions.severity import LevelError, parse_level
+
+    if not isinstance(v, dict) or not v.get("corruptions"):
+        raise ConfigError(f"{loc}: expected a mapping with corruptions (and optionally steps, severity)")
+    unknown = sorted(set(v) - {"corruptions", "steps", "severity"})
+    if unknown:
+        raise ConfigError(f"{loc}: unknown key {unknown[0]!r}; valid: corruptions, steps, severity")
+    out: dict[str, Any] = {"corruptions": choose_names(f"{loc}: corruptions", v["corruptions"], ds.variant_names(),
+                                                        ds.variant_noun, owner=ds.name,
+                                                        known=ds.known_variant_names())}
+    steps = v.get("steps", [1, 3])
+    steps = [steps, steps] if _is_int(steps) else steps
+    if (not isinstance(steps, list) or len(steps) != 2 or not all(_is_int(s) for s in steps)
+            or not 1 <= steps[0] <= steps[1] <= MAX_STEPS):
+        raise ConfigError(f"{loc}: steps: expected an integer or [min, max] within 1..{MAX_STEPS}, got {steps!r}")
+    out["steps"] = steps
+    sev = v.get("severity", [1, ds.n_levels])
+    try:
+        if not isinstance(sev, list) or len(sev) != 2:
+            raise LevelError(f"expected [low, high], got {sev!r}")
+        sev = [parse_level(s, top=ds.n_levels, what="level", owner=ds.name) for s in sev]
+    except LevelError as exc:
+        raise ConfigError(f"{loc}: severity: {exc}") from None
+    if sev[0] > sev[1]:
+        raise ConfigError(f"{loc}: severity: low {sev[0]} above high {sev[1]}")
+    out["severity"] = sev
+    return out
 
 
 class _Resolver:
@@ -178,7 +235,8 @@ class _Resolver:
     def keys_of(cls, ds) -> tuple[str, ...]:
         """The config keys dataset ``ds`` takes (no ``levels`` for one without levels)."""
         return (tuple(k for k in cls.KEYS if k != "levels" or ds.leveled)
-                + (ds.variant_key,) + tuple(ds.options()) + cls.ONE_OF)
+                + (ds.variant_key,) + (("compose", "train") if ds.leveled else ())
+                + tuple(ds.options()) + cls.ONE_OF)
 
     def valid_keys(self) -> tuple[str, ...]:
         return self.keys_of(self.dataset)  # set by the preset, which is applied first
@@ -254,6 +312,12 @@ class _Resolver:
                 return parse_size(v)
             except ValueError as exc:
                 raise ConfigError(f"{loc}: {exc}") from None
+        if key == ds.variant_key and v == NONE and ds.leveled:
+            return ()  # only chains
+        if key == "compose":
+            return choose_chains(loc, v, ds.n_levels, ds.variant_names(), ds.name)
+        if key == "train":
+            return check_train(loc, v, ds)
         if key == ds.variant_key:
             return choose_names(loc, v, ds.variant_names(), ds.variant_noun, owner=ds.name,
                                 known=ds.known_variant_names())
@@ -303,7 +367,14 @@ class _Resolver:
         if missing:
             raise ConfigError(f"preset {self.preset!r}: missing keys {', '.join(missing)}")
         ds = self.dataset
-        variants = self.values[ds.variant_key]
+        variants = tuple(self.values[ds.variant_key]) + tuple(self.values.get("compose", ()))
+        if not variants:
+            where = self.origin.get("compose") or self.origin[ds.variant_key]
+            raise ConfigError(f"{where}: nothing to build: {ds.variant_key} none and no compose chains")
+        seen = set(self.values.get("train", {}).get("corruptions", ())) & set(self.values[ds.variant_key])
+        if seen:
+            raise ConfigError(f"{self.origin['train']}: train: {', '.join(sorted(seen))} also built for "
+                              f"testing; a held-out protocol trains on other corruptions")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),

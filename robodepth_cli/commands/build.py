@@ -23,8 +23,10 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
               help="Your own YAML config, applied over the DATASET preset.")
 @click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test) or a split file.")
-@click.option("--corruptions", metavar="A,B|all", help="Comma-separated corruption names, or 'all'.")
-@click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3), or 'all'.")
+@click.option("--corruptions", metavar="A,B|all|none", help="Comma-separated corruption names, 'all', or 'none' (only --compose chains).")
+@click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3 or 1,2.5,4: decimals allowed), or 'all'.")
+@click.option("--compose", metavar="CHAIN,CHAIN", help="Also build these chains of corruptions, e.g. "
+              "fog:3+gaussian_noise:2.5 (into OUT/fog-3+gaussian_noise-2.5/); --corruptions none: only them.")
 @click.option("--size", metavar="HxW", help="Output size HxW (e.g. 320x1024); custom: each image's own size unless given.")
 @click.option("--jobs", "-j", metavar="N|auto", help="Worker processes (preset: 2); 'auto' or -1: one per CPU.")
 @click.option("--seed", metavar="S", help="Global seed (preset: 0).")
@@ -53,8 +55,8 @@ _LISTED = 20  # paths shown per kind of problem by verify
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
     """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom) from ROOT into OUT.
 
-    Writes OUT/clean/<image> and OUT/<corruption>/<level>/<image> (kitti-s:
-    OUT/<style>/<image>) as PNG, where <image> is
+    Writes OUT/clean/<image>, OUT/<corruption>/<level>/<image> and (--compose)
+    OUT/<chain>/<image> (kitti-s: OUT/<style>/<image>) as PNG, where <image> is
     the source's path (KITTI: kitti_data/<date>/<drive>/image_02/data/<frame>.png), plus
     OUT/manifest.csv (one row and sha256 per file) and OUT/build.json (config, versions).
     Settings come from configs/DATASET.yaml, then --config FILE, then the flags.
@@ -75,6 +77,8 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
       robodepth build nyudepth2-c --root NYU_TEST --out NYU_C --jobs 2
       robodepth build nyudepth2-c --root nyu_depth_v2_labeled.mat --out NYU_C
       robodepth build kitti-c --root KITTI_RAW --out /tmp/look --limit 2 --levels 3
+      robodepth build kitti-c --root KITTI_RAW --out KITTI_CC --corruptions none \
+          --compose fog:3+gaussian_noise:2.5,dark:2+motion_blur:1.5
       robodepth build kitti-s --root KITTI_RAW --styles STYLES --vgg vgg_normalised.pth \\
           --decoder decoder.pth --out KITTI_S
       robodepth build kitti-c --root /shared/kitti_raw --out /shared/KITTI_C \\

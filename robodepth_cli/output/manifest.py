@@ -45,7 +45,9 @@ class Row:
     output: str  # path relative to OUT, posix
     source: str  # source path relative to the root ("" if it was not found)
     variant: str
-    level: int | None  # None: the clean image or a dataset without levels
+    # None: the clean image, a chain (its levels are in its name) or a dataset without
+    # levels; a decimal level is a float, written in its shortest form ("2.5")
+    level: int | float | None
     seed: int
     height: int
     width: int
@@ -66,7 +68,7 @@ FIELDS = tuple(f.name for f in fields(Row))
 HEADER = ",".join(FIELDS) + "\n"
 _REQUIRED = ("output", "source", "variant", "level", "seed", "height", "width", "sha256", "error")
 _INTS = ("seed", "height", "width")
-_OPTIONAL_INTS = ("level", "source_size", "source_mtime")
+_OPTIONAL_INTS = ("source_size", "source_mtime")
 
 
 def _to_fields(row: Row) -> list[str]:
@@ -84,10 +86,21 @@ def _from_fields(values: list[str], names: tuple[str, ...] = FIELDS) -> Row:
     for k in _OPTIONAL_INTS:
         if k in d:
             d[k] = int(d[k]) if d[k] else None
+    d["level"] = _level(d["level"])
     row = Row(**d)
     if not row.output or bool(row.error) == bool(_SHA.fullmatch(row.sha256)):
         raise ValueError("needs either a sha256 or an error")
     return row
+
+
+def _level(text: str) -> int | float | None:
+    """A level as written: ``3`` an int, ``2.5`` a float, empty None; ``ValueError`` else."""
+    if not text:
+        return None
+    v = float(text)
+    if v != v or v in (float("inf"), float("-inf")):
+        raise ValueError(f"level {text!r}")
+    return int(text) if text.lstrip("-").isdigit() else v
 
 
 def _header(line: str, path: Path) -> tuple[str, ...]:

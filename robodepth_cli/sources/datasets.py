@@ -38,14 +38,26 @@ class Entry:
 class Job:
     """One output file: the source's ``key`` rendered as ``variant`` at ``level``."""
 
-    variant: str
-    level: int | None  # None: the clean image, or a dataset without levels
+    variant: str  # a corruption, a chain's canonical text, a style or ``clean``
+    level: int | float | None  # None: the clean image, a chain, or a dataset without levels
 
     def path(self, key: str) -> str:
-        """The output path relative to OUT."""
-        if self.level is None:
-            return f"{self.variant}/{key}"
-        return f"{self.variant}/{self.level}/{key}"
+        """The output path relative to OUT: ``<variant>/<level>/<key>``, with the level
+        in its shortest form (``fog/2.5/...``); ``<chain directory name>/<key>`` for a
+        chain (``fog-3+gaussian_noise-2.5/...``); ``<variant>/<key>`` otherwise."""
+        return f"{variant_dir(self.variant, self.level)}/{key}"
+
+
+def variant_dir(variant: str, level) -> str:
+    """The directory of ``variant`` at ``level`` relative to OUT (see :meth:`Job.path`)."""
+    from ..corruptions.chains import looks_like_chain, parse_chain
+    from ..corruptions.severity import level_text
+
+    if level is not None:
+        return f"{variant}/{level_text(level)}"
+    if looks_like_chain(variant):
+        return parse_chain(variant).dirname
+    return variant
 
 
 class Renderer(Protocol):
@@ -191,12 +203,11 @@ class CorruptionRenderer:
         self.seed = seed
 
     def render(self, clean, key, jobs):
-        from .. import corruptions, seeding
+        from ..corruptions import render
 
         for job in jobs:
-            rng = seeding.job_rng(self.seed, self.dataset, job.variant, job.level, key)
             try:
-                yield job, corruptions.corrupt(clean, job.variant, job.level, rng)
+                yield job, render(clean, job.variant, job.level, seed=self.seed, dataset=self.dataset, key=key)
             except Exception as exc:  # one broken variant must not sink the other outputs
                 yield job, exc
 
@@ -231,11 +242,15 @@ class Dataset:
         """The levels this dataset has (none for a dataset without levels)."""
         return tuple(range(1, self.n_levels + 1)) if self.leveled else ()
 
-    def jobs(self, variants: Sequence[str], levels: Sequence[int]) -> list[Job]:
-        """Every output of one source: clean first, then variants x levels in the given order."""
+    def jobs(self, variants: Sequence[str], levels: Sequence) -> list[Job]:
+        """Every output of one source: clean first, then variants x levels in the given
+        order; a chain (a variant with ``:`` or ``+``) is one job, its levels in its name."""
+        from ..corruptions.chains import looks_like_chain
+
         out = [Job(CLEAN, None)]
         for v in variants:
-            out += [Job(v, lv) for lv in levels] if self.leveled else [Job(v, None)]
+            chained = looks_like_chain(v)
+            out += [Job(v, lv) for lv in levels] if self.leveled and not chained else [Job(v, None)]
         return out
 
     def options(self) -> tuple[str, ...]:
