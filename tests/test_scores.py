@@ -360,7 +360,7 @@ GOOD = "corruption,level,abs_rel,a1\nclean,0,0.1,0.9\n"
     (GOOD + "foggy,1,0.1,0.9\n", 3, "unknown corruption 'foggy'; valid: clean, brightness"),
     (GOOD + "fog,6,0.1,0.9\n", 3, "level 6 of fog is outside 1..5 for kitti-c"),
     (GOOD + "fog,0,0.1,0.9\n", 3, "level 0 of fog is outside 1..5"),
-    (GOOD + "fog,2.5,0.1,0.9\n", 3, "level '2.5' is not an integer"),
+    (GOOD + "fog,5.5,0.1,0.9\n", 3, "level 5.5 of fog is outside 1..5 for kitti-c"),
     ("corruption,level,abs_rel,a1\nclean,1,0.1,0.9\n", 2, "the clean row must have level 0"),
     (GOOD + "fog,1,0.1,0.9\n\n# note\nfog,1,0.2,0.8\n", 6, "duplicate row for fog level 1 (first on line 3)"),
     (GOOD + "clean,0,0.1,0.9\n", 3, "duplicate row for clean level 0"),

@@ -14,6 +14,13 @@ Results CSV
     skipped. ``a1`` is a fraction in [0, 1]; ``abs_rel`` is finite and >= 0; ``dee`` is in
     [0, 1] (a value above 1 is almost surely the paper's DES1 = abs_rel - a1 + 1, which
     lacks the halving).
+
+    Rows beyond the benchmark are read too, and kept apart: a corruption at a decimal
+    level (``fog,2.5``) and a chain of corruptions (``fog:3+gaussian_noise:2.5``, level 0 or
+    empty), as ``robodepth evaluate`` writes them for such builds. mCE, mRR and mDEE stay
+    defined as the benchmark defines them, on its corruptions at its integer levels; the
+    extra rows are reported as severity curves (DEE against the level, integer and decimal
+    levels together) and chain DEE rows, in a section of their own.
 """
 
 from __future__ import annotations
@@ -75,6 +82,9 @@ class Results:
     # Another benchmark these rows are a complete set of ("" if none): a model scored
     # against the wrong one shows up as missing variants, which would not say why.
     looks_like: str = ""
+    # Beyond the benchmark (never in mCE/mRR): decimal levels, and chains' DEE.
+    decimal: dict[str, dict[float, float]] = field(default_factory=dict)  # name -> level -> DEE
+    chains: dict[str, float] = field(default_factory=dict)  # canonical chain text -> DEE
 
     def missing(self, benchmark: Benchmark) -> list[tuple[str, int]]:
         """The (corruption, level) variants of ``benchmark`` with no row, in benchmark order."""
@@ -99,12 +109,10 @@ def _number(text: str, column: str, where: str) -> float:
     return value
 
 
-def _level(text: str, where: str) -> int:
+def _level(text: str, where: str) -> int | float:
     value = _number(text, "level", where)
-    # Spreadsheets and pandas often write integers as 3.0; accept those, nothing fractional.
-    if not value.is_integer():
-        raise ScoreError(f"{where}: level {text.strip()!r} is not an integer")
-    return int(value)
+    # Spreadsheets and pandas often write integers as 3.0: those are the integer levels.
+    return int(value) if value.is_integer() else value
 
 
 def _row_dee(cells: Mapping[str, str], use_dee: bool, where: str) -> float:
@@ -163,6 +171,9 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
     seen: dict[tuple[str, int], int] = {}
     clean: float | None = None
     table: dict[str, dict[int, float]] = {}
+    decimal: dict[str, dict[float, float]] = {}
+    chains: dict[str, float] = {}
+    chain_lines: dict[str, int] = {}
     try:
         for row in reader:
             line = reader.line_num
@@ -175,6 +186,14 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
             if any(i >= len(row) for i in columns.values()):
                 raise ScoreError(f"{where}: only {len(row)} cells; the header names more columns")
             cells = {c: row[i] for c, i in columns.items()}
+            if ":" in cells["corruption"] or "+" in cells["corruption"]:  # a chain
+                text = _chain(cells, benchmark, where)
+                if text in chains:
+                    raise ScoreError(f"{where}: duplicate row for chain {text} "
+                                     f"(first on line {chain_lines[text]})")
+                chain_lines[text] = line
+                chains[text] = _row_dee(cells, use_dee, where)
+                continue
             name = _normalise_name(cells["corruption"])
             if not name:
                 raise ScoreError(f"{where}: empty corruption")
@@ -190,6 +209,13 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
             elif not 1 <= level <= benchmark.n_levels:
                 raise ScoreError(f"{where}: level {level} of {name} is outside "
                                  f"1..{benchmark.n_levels} for {benchmark.name}")
+            if isinstance(level, float):
+                if (name, level) in seen:
+                    raise ScoreError(f"{where}: duplicate row for {name} level {level} "
+                                     f"(first on line {seen[name, level]})")
+                seen[name, level] = line
+                decimal.setdefault(name, {})[level] = _row_dee(cells, use_dee, where)
+                continue
             if (name, level) in seen:
                 raise ScoreError(f"{where}: duplicate row for {name} level {level} "
                                  f"(first on line {seen[name, level]})")
@@ -210,9 +236,32 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
         raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); "
                          "RR needs the clean DEE")
     if not table:
+        if decimal or chains:
+            raise ScoreError(f"{source}: no corruption rows at the benchmark's integer levels, only the "
+                             f"clean one and rows beyond the benchmark; mCE and mRR need them")
         raise ScoreError(f"{source}: no corruption rows, only the clean one")
     return Results(source, clean, {n: dict(sorted(table[n].items()))
-                                   for n in benchmark.corruptions if n in table})
+                                   for n in benchmark.corruptions if n in table},
+                   decimal={n: dict(sorted(decimal[n].items())) for n in benchmark.corruptions if n in decimal},
+                   chains=dict(sorted(chains.items())))
+
+
+def _chain(cells: Mapping[str, str], benchmark: Benchmark, where: str) -> str:
+    """The canonical text of a chain row's corruption cell, its steps checked against
+    ``benchmark``; its level must be 0 or empty (a chain's levels are in its name)."""
+    from ..corruptions.chains import ChainError, parse_chain  # only for such rows: light anyway
+
+    try:
+        chain = parse_chain(cells["corruption"], top=benchmark.n_levels)
+    except ChainError as exc:
+        raise ScoreError(f"{where}: {exc}") from None
+    for step in chain.steps:
+        if step.name not in benchmark.corruptions:
+            raise ScoreError(f"{where}: chain {chain.text}: {step.name} is not a corruption of {benchmark.name}")
+    if cells["level"].strip() not in ("", "0", "0.0"):
+        raise ScoreError(f"{where}: a chain's row has level 0 (its levels are in its name), "
+                         f"not {cells['level'].strip()!r}")
+    return chain.text
 
 
 def other_benchmark(text: str, source: str, benchmark: Benchmark) -> str:
@@ -329,10 +378,15 @@ class Scores:
     categories: tuple[GroupScore, ...]
     overall: GroupScore
     missing: tuple[tuple[str, int], ...]
+    # Beyond the benchmark, not in mCE/mRR/mDEE: per corruption with decimal-level rows, its
+    # DEE at every level present (integer and decimal, ascending); chains' DEE.
+    curves: dict[str, dict[float, float]] = field(default_factory=dict)
+    chains: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        """The JSON form; keys are documented in the README and stay stable."""
-        return {
+        """The JSON form; keys are documented in the README and stay stable. A results file
+        with rows beyond the benchmark adds ``beyond_benchmark``."""
+        doc = {
             "benchmark": self.benchmark,
             "results": self.source,
             "baseline": {"name": self.baseline.name, "clean_dee": self.baseline.clean,
@@ -350,6 +404,14 @@ class Scores:
             "partial": bool(self.missing),
             "missing": [{"corruption": n, "level": lv} for n, lv in self.missing],
         }
+        if self.curves or self.chains:
+            from ..corruptions.severity import level_text
+
+            doc["beyond_benchmark"] = {
+                "severity_curves": {n: {level_text(lv): d for lv, d in curve.items()}
+                                    for n, curve in self.curves.items()},
+                "chains": dict(self.chains)}
+        return doc
 
 
 def _group(name: str, members: list[CorruptionScore]) -> GroupScore:
@@ -389,8 +451,9 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
         else:
             rows.append(CorruptionScore(name, CATEGORY[name], {}, None, None, None))
     categories = tuple(_group(cat, [r for r in rows if r.category == cat]) for cat in CATEGORIES)
+    curves = {n: dict(sorted({**results.dee.get(n, {}), **d}.items())) for n, d in results.decimal.items()}
     return Scores(benchmark.name, benchmark.n_levels, results.source, baseline, results.clean, tuple(rows),
-                  categories, _group("overall", rows), tuple(missing))
+                  categories, _group("overall", rows), tuple(missing), curves, dict(results.chains))
 
 
 # --------------------------------------------------------------------------- table
@@ -428,4 +491,24 @@ def format_table(s: Scores) -> str:
     if s.missing:
         lines.append(f"partial: {len(s.missing)} variants missing, scores average the "
                      f"{o.n} corruptions present")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _beyond(s)) + "\n"
+
+
+def _beyond(s: Scores) -> list[str]:
+    """The section of rows beyond the benchmark: severity curves and chains."""
+    if not s.curves and not s.chains:
+        return []
+    from ..corruptions.severity import level_text
+
+    lines = ["", "Beyond the benchmark (not in mCE, mRR or mDEE)"]
+    if s.curves:
+        lines.append("severity curves, DEE by level:")
+        w = max(map(len, s.curves)) + 2
+        for name, curve in s.curves.items():
+            points = "  ".join(f"{level_text(lv)}: {d:.3f}" for lv, d in curve.items())
+            lines.append(f"  {name:<{w}}{points}")
+    if s.chains:
+        lines.append("chains, DEE:")
+        w = max(map(len, s.chains)) + 2
+        lines += [f"  {text:<{w}}{d:.3f}" for text, d in s.chains.items()]
+    return lines
