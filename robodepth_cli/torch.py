@@ -291,6 +291,22 @@ class RandomChain:
             raise TorchAPIError(f"severity of {name}: low {lo} above high {hi}")
         return float(lo), float(hi)
 
+    @classmethod
+    def from_protocol(cls, path, seed: int = 0, p: float = 1.0, distinct: bool = True) -> "RandomChain":
+        """The training side of a held-out protocol file (``configs/protocols/``): its
+        ``train`` mapping's corruptions, steps and severity range (as a build checks them),
+        so training never draws the corruptions the file builds for testing."""
+        from .build.config import ConfigError, check_train, load_yaml
+        from .sources.datasets import get_dataset
+
+        data = load_yaml(Path(path))
+        try:
+            train = check_train(f"{path}: train", data.get("train"), get_dataset(data.get("dataset", "custom")))
+        except ConfigError as exc:
+            raise TorchAPIError(str(exc)) from None
+        return cls(names=train["corruptions"], steps=tuple(train["steps"]), severity=tuple(train["severity"]),
+                   distinct=distinct, p=p, seed=seed)
+
     def set_epoch(self, epoch: int) -> None:
         self.epoch = int(epoch)
 
