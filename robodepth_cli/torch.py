@@ -207,7 +207,7 @@ class RandomCorrupt:
                 _check(n, lv)
         if not 0.0 <= float(p) <= 1.0:
             raise TorchAPIError(f"p must be in [0, 1], got {p!r}")
-        self.names, self.levels, self.p = names, tuple(int(lv) for lv in levels), float(p)
+        self.names, self.levels, self.p = names, tuple(_check(names[0], lv)[1] for lv in levels), float(p)
         self._gen = _ProcessGenerator(seed)
 
     def __call__(self, img):

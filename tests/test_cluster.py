@@ -148,13 +148,20 @@ def local(build, tmp_path_factory):
     return get
 
 
-def test_cluster_build_is_the_local_build(cli, build, cluster, local, tmp_path):
-    out = tmp_path / "out"
-    res = build(out, *CHEAP, "--scheduler", cluster.address)
+def same_as_local(build, local, flags, out, *how):
+    """Build ``flags`` into ``out`` the way ``how`` says; it must equal the local build.
+    Returns the local build's directory."""
+    res = build(out, *flags, *how)
     assert res.exit_code == 0, res.output
-    want = local(CHEAP)
+    want = local(flags)
     assert tree(out) == tree(want)
     assert rows(out) == rows(want)
+    return want
+
+
+def test_cluster_build_is_the_local_build(cli, build, cluster, local, tmp_path):
+    out = tmp_path / "out"
+    want = same_as_local(build, local, CHEAP, out, "--scheduler", cluster.address)
     record = json.loads((out / "build.json").read_text())
     assert record["status"] == "finished"
     assert record["executor"] == {"backend": "dask", "scheduler": cluster.address, "workers": 2,
@@ -173,11 +180,7 @@ def test_chains_and_decimal_levels_on_the_cluster_are_the_local_build(cli, build
     flags = ["--corruptions", "gaussian_noise", "--levels", "2.5", "--size", "48x160",
              "--compose", "fog:1+gaussian_noise:2.5,contrast:2+pixelate:1.5"]
     out = tmp_path / "out"
-    res = build(out, *flags, "--scheduler", cluster.address)
-    assert res.exit_code == 0, res.output
-    want = local(flags)
-    assert tree(out) == tree(want)
-    assert rows(out) == rows(want)
+    same_as_local(build, local, flags, out, "--scheduler", cluster.address)
     assert {r["variant"] for r in rows(out)} == {"clean", "gaussian_noise", "fog:1+gaussian_noise:2.5",
                                                   "contrast:2+pixelate:1.5"}
     assert cli("verify", out).exit_code == 0

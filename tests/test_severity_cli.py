@@ -181,3 +181,12 @@ def test_corrupt_transform_takes_decimal_levels_and_chains():
     chain = parse_chain("fog:2+gaussian_noise:1.5")
     assert np.array_equal(c(img, key="a/b.png"),
                           corrupt_chain(img, chain, seeding.chain_rngs(4, "custom", chain, "a/b.png")))
+
+
+def test_random_corrupt_keeps_decimal_levels():
+    from robodepth_cli.torch import RandomCorrupt
+
+    img = np.random.default_rng(2).integers(0, 256, (40, 56, 3), dtype=np.uint8)
+    t = RandomCorrupt(names=["contrast"], levels=[2.5], p=1.0, seed=0)
+    assert t.levels == (2.5,)
+    assert np.array_equal(t(img), corrupt(img, "contrast", 2.5, np.random.default_rng(0)))

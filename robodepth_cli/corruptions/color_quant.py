@@ -25,5 +25,7 @@ def color_quant(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarr
     bits = interpolate(LEVELS, level, (BLEND,))
     if not isinstance(bits, Blend):
         return posterize(x, bits)
-    mixed = (1.0 - bits.t) * posterize(x, bits.lower) + bits.t * posterize(x, bits.upper)
-    return truncate_to_uint8(mixed, 1.0)
+    # The output depends on the value alone: blend the 256 values once, then look them up.
+    values = np.arange(256, dtype=np.uint8)
+    mixed = (1.0 - bits.t) * posterize(values, bits.lower) + bits.t * posterize(values, bits.upper)
+    return truncate_to_uint8(mixed, 1.0)[x]
