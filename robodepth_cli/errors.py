@@ -19,3 +19,11 @@ class RobodepthError(ValueError):
 def os_reason(exc: OSError) -> str:
     """The readable part of an ``OSError`` ("No space left on device"), without errno noise."""
     return exc.strerror or str(exc)
+
+
+def cannot_write(path, reason: OSError | str, flag: str | None = None) -> str:
+    """The one message for an output that cannot be written:
+    ``[FLAG ]PATH: cannot write (REASON)``."""
+    if isinstance(reason, OSError):
+        reason = os_reason(reason)
+    return f"{flag + ' ' if flag else ''}{path}: cannot write ({reason})"

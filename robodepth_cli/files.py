@@ -58,6 +58,33 @@ def atomic_output(path: str | os.PathLike) -> Iterator[BinaryIO]:
         raise
 
 
+def check_writable(path: str | os.PathLike, flag: str | None = None) -> None:
+    """Refuse, before any work, an output that could not be created at ``path`` (a file, or
+    a folder written under a temporary name and renamed): :class:`RobodepthError` with
+    :func:`~robodepth_cli.errors.cannot_write`'s message when a parent is not a directory
+    or the nearest existing parent does not let us create an entry. Leaves nothing behind.
+    """
+    from .errors import RobodepthError, cannot_write
+
+    path = Path(path)
+    parent = path.parent
+    existing = parent
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise RobodepthError(cannot_write(path, f"{existing} is not a directory", flag))
+    if existing != parent:  # missing folders are made at the end: can the first be?
+        if not os.access(existing, os.W_OK | os.X_OK):
+            raise RobodepthError(cannot_write(path, f"{existing}: Permission denied", flag))
+        return
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=parent)
+    except OSError as exc:
+        raise RobodepthError(cannot_write(path, exc, flag)) from None
+    os.close(fd)
+    os.unlink(tmp)
+
+
 def is_temporary(name: str) -> bool:
     """Whether the file name ``name`` is one of :func:`write_atomic`'s temporary files."""
     return (name.startswith(_TEMP_PREFIX) and name.endswith(_TEMP_SUFFIX)

@@ -389,7 +389,7 @@ def test_missing_variants_and_allow_partial(kitti_c, kitti_pred, tmp_path, cli):
                                         for v in ("clean", "brightness/1", "contrast/3")})
     res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
     assert res.exit_code == 2
-    assert "no predictions for 2 of 5 variants: brightness/3, contrast/1" in res.stderr
+    assert "no predictions for 2 of 5 variants: brightness 3, contrast 1" in res.stderr
     assert not (tmp_path / "r.csv").exists()
     res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--allow-partial", "--json")
     assert res.exit_code == 0, res.stderr
@@ -427,13 +427,15 @@ def _negative(a):
 
 
 def _png(rel_key, img):
+    """Every variant as PNGs (PNGs beside arrays are refused), contrast/1's first one bad."""
     def change(pred):
-        (pred / "contrast/1.npy").unlink()
-        p = pred / "contrast/1" / rel_key
-        p.parent.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(p), img)
-        other = pred / "contrast/1" / rel_key.replace("0000000069", "0000000054")
-        cv2.imwrite(str(other), np.full((64, 96), 1000, np.uint16))
+        for v in KITTI_VARIANTS:
+            (pred / f"{v}.npy").unlink()
+            for key in (rel_key, rel_key.replace("0000000069", "0000000054")):
+                p = pred / v / key
+                p.parent.mkdir(parents=True, exist_ok=True)
+                cv2.imwrite(str(p), np.full((64, 96), 1000, np.uint16))
+        cv2.imwrite(str(pred / "contrast/1" / rel_key), img)
     return change
 
 

@@ -184,7 +184,7 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
             yield "failed", _row(job, error=str(exc))
             return
     try:
-        sha = gt_kitti.save_object_npz(target, maps)
+        sha = gt_kitti.save_object_npz(target, maps, [f.key for f in job.frames])
     except OSError as exc:
         yield "fatal", _row(job, error=f"{target}: cannot write ({exc.strerror or exc})")
         return

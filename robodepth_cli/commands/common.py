@@ -5,9 +5,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import click
 import numpy as np
 
-from ..errors import RobodepthError, os_reason
+from ..errors import RobodepthError, cannot_write
 
 
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
@@ -106,4 +107,10 @@ def write_png(path: Path, img: np.ndarray) -> None:
     try:
         write(path, img)
     except OSError as exc:
-        raise RobodepthError(f"{path}: cannot write ({os_reason(exc)})") from None
+        raise RobodepthError(cannot_write(path, exc)) from None
+
+
+def wrote(what) -> None:
+    """Say where output went: ``wrote WHAT``, on stderr as every command says it (stdout
+    carries only results: tables, JSON)."""
+    click.echo(f"wrote {what}", err=True)

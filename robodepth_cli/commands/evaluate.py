@@ -9,27 +9,34 @@ from pathlib import Path
 import click
 
 from ..errors import RobodepthError
+from . import common
+
+DEFAULT_OUT = "results.csv"
 
 
 @click.command("evaluate")
 @click.argument("dataset_dir", metavar="DATASET_DIR", type=click.Path(path_type=Path))
 @click.option("--pred", required=True, type=click.Path(path_type=Path),
               help="The model's predictions: PRED/clean.npy, PRED/<corruption>/<level>.npy "
-                   "(N x h x w), or one .npy/.png per image mirroring the dataset tree.")
+                   "(N x h x w; or .npz holding one such array), or one .npy/.png per image "
+                   "mirroring the dataset tree.")
 @click.option("--protocol", type=click.Choice(["kitti", "nyu"]),
               help="kitti (monodepth2) or nyu (BTS/AdaBins); default: the dataset's.")
 @click.option("--stereo", is_flag=True,
               help="kitti: a stereo-trained model: depth x 5.4, no median scaling.")
 @click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
               help="What the arrays hold: disp (scaled disparity, kitti default), sigmoid "
-                   "(raw network output), depth (nyu default).")
+                   "(raw network output, in [0, 1]), depth (nyu default). PNGs are depths.")
 @click.option("--png-scale", type=float, metavar="S",
-              help="16-bit PNG predictions hold depth x S (default 256 kitti, 1000 nyu).")
+              help="16-bit PNG predictions hold depth x S (default 256 kitti, 1000 nyu); they "
+                   "are read as depths (--kind depth).")
 @click.option("--gt", "gt_path", type=click.Path(path_type=Path), metavar="FILE|DIR",
               help="Ground truth instead of the dataset's own (gt_depths.npz, or a directory "
                    "of sync_depth PNGs).")
-@click.option("--out", "-o", "out", default="results.csv", show_default=True,
-              type=click.Path(dir_okay=False, path_type=Path), help="The results CSV to write.")
+@click.option("--out", "-o", "out", type=click.Path(dir_okay=False, path_type=Path),
+              help="The results CSV to write (replaced if it exists). Default: results.csv, "
+                   "which is never replaced without --force.")
+@click.option("--force", is_flag=True, help="Replace an existing default results.csv.")
 @click.option("--score", "with_score", is_flag=True,
               help="Also print the robustness scores (as robodepth score does).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
@@ -37,7 +44,7 @@ from ..errors import RobodepthError
               help="Evaluate the variants that have predictions; the rest are listed as missing.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
-def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_path, out,
+def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_path, out, force,
                      with_score, as_json, allow_partial, progress):
     """Evaluate a model's depth predictions on DATASET_DIR (made by robodepth build).
 
@@ -46,6 +53,11 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
     row per variant: corruption, level, abs_rel, sq_rel, rmse, rmse_log, a1, a2, a3 (nyu
     also log10, silog); the clean row is `clean,0`. That CSV is what `robodepth score`
     reads; --score prints the scores right away.
+
+    0 and inf: a disparity of 0 is infinitely far, a depth of 0 is distance 0; either is
+    clamped to the protocol's depth range (1e-3 to 80 m kitti, 10 m nyu). inf and NaN are
+    refused, and so is a map with no positive value or, under median scaling, one that is 0
+    at half of the valid pixels or more.
 
     \b
     Examples:
@@ -58,10 +70,19 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
     from tqdm import tqdm
 
     from ..evaluation import evaluate as E
-    from ..evaluation.protocols import make_setup
+    from ..evaluation.protocols import STEREO_SCALE, make_setup
     from ..evaluation import scores as S
     from ..api import open_dataset
 
+    from ..files import check_writable
+
+    if out is None:
+        out = Path(DEFAULT_OUT)
+        if out.exists() and not force:
+            raise RobodepthError(f"{out} exists (the default --out); give --out FILE, or --force "
+                                 "to replace it")
+    check_writable(out, "--out")
+    replacing = out.exists()
     dataset = open_dataset(dataset_dir)
     setup = make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
                          kind, stereo, png_scale)
@@ -81,11 +102,16 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
                             require_clean=with_score, progress=bar.update, on_total=set_total)
     text = result.csv_text()
     E.write_results(out, text)
+    if result.setup.stereo and result.setup.kind == "depth":
+        click.echo(f"robodepth: warning: --stereo multiplied every depth by {STEREO_SCALE}: right "
+                   "for a stereo model's depths in monodepth2's units (1 / its disparity), wrong "
+                   f"for depths in metres ({STEREO_SCALE} times too far; drop --stereo)", err=True)
     if result.missing:
         click.echo(f"robodepth: warning: no predictions for {len(result.missing)} variants; "
                    "evaluated the rest", err=True)
+    implausible = _implausible_clean(result) if bench is not None else ""
     scored = None
-    if bench is not None:
+    if bench is not None and not implausible:
         res = S.parse_results(text, str(out), bench)
         missing = S.missing_message(res, bench)
         if missing:
@@ -93,12 +119,31 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
         scored = S.score(res, bench, allow_partial=True)
     if as_json:
         doc = {**result.to_json(), "csv": str(out)}
-        if with_score:
+        if scored is not None:
             doc["scores"] = scored.to_json()
         click.echo(json.dumps(doc, indent=2))
-        return
-    click.echo(result.summary(), nl=False)
-    click.echo(f"wrote {out}", err=True)
-    if scored is not None:
+    else:
+        click.echo(result.summary(), nl=False)
+    common.wrote(f"{out} (replaced)" if replacing else out)
+    if implausible:
+        raise RobodepthError(implausible)
+    if scored is not None and not as_json:
         click.echo()
         click.echo(S.format_table(scored), nl=False)
+
+
+def _implausible_clean(result) -> str:
+    """Why the clean DEE cannot be scored (at least 1: every rate divides by 1 - DEE), as
+    a wrong --kind, --stereo or --png-scale gives it; "" when it is plausible."""
+    from ..benchmarks import CLEAN
+    from ..evaluation.scores import dee
+
+    for r in result.results:
+        if r.variant.name == CLEAN:
+            value = dee(r.metrics["abs_rel"], r.metrics["a1"])
+            if value >= 1:
+                return (f"clean DEE {value:.3f} is implausible (at least 1: the predictions are "
+                        f"read as {result.setup.describe().split('predictions: ')[-1]}, "
+                        f"{'stereo' if result.setup.stereo else 'mono'}); check --kind, --stereo "
+                        "and --png-scale; the metrics above are written, not scored")
+    return ""

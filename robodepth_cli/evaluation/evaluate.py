@@ -7,14 +7,14 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ..api import CLEAN, BuiltDataset, Variant
-from ..errors import os_reason
+from ..errors import cannot_write
 from .groundtruth import GroundTruth, load_ground_truth
 from .predictions import Predictions, check_values, find_predictions
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
@@ -98,9 +98,10 @@ class Evaluation:
 
 
 def _list(variants: Sequence[Variant], most: int = 12) -> str:
-    names = [v.relpath for v in variants]
-    more = f", ... ({len(names) - most} more)" if len(names) > most else ""
-    return ", ".join(names[:most]) + more
+    """``"brightness 3, contrast 1,3"``: the notation of ``robodepth score``'s messages."""
+    from .scores import describe_variants
+
+    return describe_variants(((v.name, v.level) for v in variants), most=most)
 
 
 def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None = None,
@@ -136,6 +137,7 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     if require_clean and variants[0].name == CLEAN and variants[0] in missing:
         raise EvaluationError(f"{pred}: no predictions for the clean images; the scores need "
                               "them (resilience rates divide by the clean DEE)")
+    setup = _kind_read(setup, found)
     gt_path = gt if gt is not None else dataset.ground_truth()
     if gt_path is None:
         raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
@@ -155,6 +157,25 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     return result
 
 
+def _kind_read(setup: Setup, found: Sequence[tuple[Variant, Predictions]]) -> Setup:
+    """The setup with the kind the predictions are actually read as: 16-bit PNGs hold
+    depths, so predictions that are all PNGs are depths (another --kind, or --stereo, is
+    refused), and PNGs beside arrays are refused unless the arrays are depths too."""
+    pngs = [(v, p) for v, p in found if p.is_png]
+    if not pngs:
+        return setup
+    v, p = pngs[0]
+    if len(pngs) < len(found) and setup.kind != "depth":
+        other = next(q for _, q in found if not q.is_png)
+        raise EvaluationError(f"{p.source}: PNG predictions (depth) beside .npy predictions read "
+                              f"as {setup.kind} ({other.source}); give every variant in one "
+                              "form, or --kind depth if the arrays hold depths too")
+    if setup.kind_given and setup.kind != "depth":
+        raise EvaluationError(f"{p.source}: PNG predictions are depths (value / --png-scale), "
+                              f"not --kind {setup.kind}")
+    return replace(setup, kind="depth")
+
+
 def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, setup: Setup,
                       image_size, progress) -> VariantResult:
     errors = []
@@ -163,27 +184,30 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
         m, where, is_png = preds.read(i)
         if m.dtype not in (np.float32, np.float64):
             m = m.astype(np.float32)  # OpenCV and the reference code work in float32
-        check_values(m, where)
+        check_values(m, where, setup.kind)
         shape, index, gt = truth.get(i)
         if is_png and shape != m.shape and tuple(m.shape) != tuple(image_size or ()):
             raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}; a PNG prediction must "
                                   f"have the ground truth's size {shape[0]} x {shape[1]} or the "
                                   "image's")
-        kind = setup.kind
-        if is_png:
-            if setup.kind_given and setup.kind != "depth":
-                raise EvaluationError(f"{where}: a PNG prediction is a depth (value / "
-                                      f"--png-scale), not --kind {setup.kind}")
-            kind = "depth"
-        if setup.protocol == "kitti":
-            errs, ratio = kitti_image(m, kind, setup.stereo, shape, index, gt)
-            if ratio is not None:
-                ratios.append(ratio)
-        else:
-            if m.shape[0] > shape[0] or m.shape[1] > shape[1]:
-                raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}, larger than its "
-                                      f"ground truth ({shape[0]} x {shape[1]})")
-            errs = nyu_image(m, shape, index, gt)
+        # 0 is a valid value (see ZERO_AND_INF); what it leads to is checked below instead.
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            if setup.protocol == "kitti":
+                errs, ratio = kitti_image(m, setup.kind, setup.stereo, shape, index, gt)
+                if ratio is not None:
+                    if not (np.isfinite(ratio) and ratio > 0):
+                        raise EvaluationError(
+                            f"{where}: median scaling needs a positive finite median depth at the "
+                            f"valid pixels, and this map is 0 at half of them or more "
+                            f"({'infinitely far' if setup.kind != 'depth' else 'distance 0'})")
+                    ratios.append(ratio)
+            else:
+                if m.shape[0] > shape[0] or m.shape[1] > shape[1]:
+                    raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}, larger than "
+                                          f"its ground truth ({shape[0]} x {shape[1]})")
+                errs = nyu_image(m, shape, index, gt)
+        if not np.all(np.isfinite(np.asarray(errs, dtype=np.float64))):
+            raise EvaluationError(f"{where}: the metrics of this map are not finite numbers")
         errors.append(errs)
         if progress:
             progress(1)
@@ -199,4 +223,4 @@ def write_results(path: Path, text: str) -> None:
     try:
         write_atomic(path, text.encode("utf-8"))
     except OSError as exc:
-        raise EvaluationError(f"{path}: cannot write ({os_reason(exc)})") from None
+        raise EvaluationError(cannot_write(path, exc)) from None

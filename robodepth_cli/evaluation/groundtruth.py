@@ -22,6 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..sources.kitti_raw import KEYS_MEMBER, frame_key
 from .protocols import VALID, EvaluationError
 
 
@@ -37,6 +38,7 @@ class GroundTruth:
         self._valid = VALID[protocol]
         self._items: list = []
         self.shapes: list[tuple[int, int]] = []
+        self.keys: list[str] | None = None  # the frame of each map, when the file says
 
     def add(self, depth: np.ndarray, raw: np.ndarray | None = None,
             divisor: float | None = None, where: str | None = None) -> None:
@@ -104,7 +106,23 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str) -> Ground
     if count != len(names):
         raise EvaluationError(f"{path}: {count} ground-truth maps, but the dataset's split has "
                               f"{len(names)} images; ground truth and split must match one to one")
+    _check_order(path, gt.keys, names)
     return gt
+
+
+def _check_order(path: Path, keys: Sequence[str] | None, names: Sequence[str]) -> None:
+    """Refuse ground truth whose maps (as its recorded frame keys say) are of other frames
+    than the split's images, in order; a file without keys (monodepth2's) cannot be checked."""
+    if keys is None:
+        return
+    if len(keys) != len(names):
+        raise EvaluationError(f"{path}: {len(keys)} frame keys for its maps; the file is damaged")
+    for i, (have, name) in enumerate(zip(keys, names)):
+        want = frame_key(name)
+        if want is not None and have != want:
+            raise EvaluationError(f"{path}: map {i} is the ground truth of {have}, but image {i} of "
+                                  f"the split is {want} ({name}); ground truth and split must be "
+                                  "in the same order")
 
 
 def read_depth_maps(path: Path) -> list[np.ndarray]:
@@ -156,7 +174,14 @@ def _read_gt_file(path: Path, gt: GroundTruth) -> int:
                         raise EvaluationError(f"{path}: holds {', '.join(names)}; expected 'data' "
                                               "(monodepth2's gt_depths.npz) or a single array")
                     with zf.open(member) as fh:
-                        return _read_gt_stream(fh, path, gt)
+                        count = _read_gt_stream(fh, path, gt)
+                    if member == "data.npy" and KEYS_MEMBER in names:
+                        with zf.open(KEYS_MEMBER) as fh:
+                            keys = np.lib.format.read_array(fh, allow_pickle=False)
+                        if keys.ndim != 1 or keys.dtype.kind != "U":
+                            raise EvaluationError(f"{path}: {KEYS_MEMBER} is not a list of frame keys")
+                        gt.keys = [str(k) for k in keys]
+                    return count
             raw.seek(0)
             return _read_gt_stream(raw, path, gt)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:

@@ -28,6 +28,7 @@ class Predictions:
 
     variant: Variant
     source: Path
+    is_png: bool = False  # 16-bit PNGs: depths, whatever --kind the arrays have
 
     def read(self, i: int) -> tuple[np.ndarray, str, bool]:
         """(map ``i``, where it came from for messages, whether it is a PNG depth)."""
@@ -127,6 +128,14 @@ class FilePredictions(Predictions):
                 raise EvaluationError(f"{stem}.npy: no such file, nor .png (prediction of image {i} "
                                       f"of {variant.label})")
             self.files.append(npy if has_npy else png)
+        pngs = [f for f in self.files if f.suffix == ".png"]
+        if pngs and len(pngs) != len(self.files):
+            npy = next(f for f in self.files if f.suffix == ".npy")
+            png = pngs[0]
+            raise EvaluationError(f"{png}: a PNG prediction (a depth) among .npy predictions (read "
+                                  f"as --kind) in {source}, e.g. {npy.name}; give every image of "
+                                  "a variant in one form")
+        self.is_png = bool(pngs)
 
     def read(self, i):
         file = self.files[i]
@@ -161,9 +170,31 @@ def find_predictions(pred: Path, variant: Variant, png_scale: float) -> Predicti
     return None
 
 
-def check_values(m: np.ndarray, where: str) -> None:
+def check_values(m: np.ndarray, where: str, kind: str = "depth") -> None:
+    """Refuse a map that cannot give finite metrics (the rule is :data:`ZERO_AND_INF`):
+    NaN, inf, negative values, a sigmoid output outside [0, 1], or (disp, depth) no
+    positive value at all, a dead map."""
     low = np.min(m)
     if np.isnan(low):
         raise EvaluationError(f"{where} contains NaN")
     if low < 0:
         raise EvaluationError(f"{where} has negative values (min {float(low):g})")
+    high = np.max(m)
+    if np.isinf(high):
+        raise EvaluationError(f"{where} contains inf ({int(np.isinf(m).sum())} pixels); give "
+                              "finite values (a far pixel as a large depth or a 0 disparity)")
+    if kind == "sigmoid":
+        if high > 1:
+            raise EvaluationError(f"{where}: values up to {float(high):g}; --kind sigmoid is a "
+                                  "network's sigmoid output, in [0, 1] (a disparity or a depth? "
+                                  "give --kind disp or --kind depth)")
+    elif high == 0:
+        raise EvaluationError(f"{where}: no positive finite value (all 0); a dead map cannot be "
+                              "evaluated")
+
+
+ZERO_AND_INF = ("0 and inf: a disparity (--kind disp) of 0 is infinitely far, a depth of 0 is "
+                "distance 0; either is clamped to the protocol's depth range (1e-3 to 80 m kitti, "
+                "10 m nyu) as the reference evaluators clamp. inf and NaN are refused, as are "
+                "negative values, sigmoid outputs outside [0, 1], a map with no positive value "
+                "and (median scaling) a map that is 0 at half of the valid pixels or more.")

@@ -307,15 +307,27 @@ def read_results(path: str | Path, benchmark: Benchmark) -> Results:
 
 def describe_missing(missing: list[tuple[str, int]], benchmark: Benchmark) -> str:
     """``[("fog", 1), ..., ("fog", 5), ("snow", 3)]`` -> ``"fog (all levels), snow 3"``."""
+    return describe_variants(missing, benchmark.n_levels)
+
+
+def describe_variants(variants: Iterable[tuple[str, int | None]], n_levels: int | None = None,
+                      most: int | None = None) -> str:
+    """Variants as every message writes them: ``"clean, fog 1,2, snow 3"``; a corruption
+    with all ``n_levels`` levels is ``"fog (all levels)"``; beyond ``most`` names,
+    ``", ... (N more)"``."""
     by_name: dict[str, list[int]] = {}
-    for name, level in missing:
-        by_name.setdefault(name, []).append(level)
+    for name, level in variants:
+        by_name.setdefault(name, []).extend([] if level is None else [level])
     parts = []
     for name, levels in by_name.items():
-        if len(levels) == benchmark.n_levels:
+        if not levels:
+            parts.append(name)
+        elif n_levels is not None and len(levels) == n_levels:
             parts.append(f"{name} (all levels)")
         else:
             parts.append(f"{name} {','.join(map(str, levels))}")
+    if most is not None and len(parts) > most:
+        return ", ".join(parts[:most]) + f", ... ({len(parts) - most} more)"
     return ", ".join(parts)
 
 

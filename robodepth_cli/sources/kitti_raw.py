@@ -42,6 +42,9 @@ from ..errors import RobodepthError, os_reason
 CAM_TO_CAM = "calib_cam_to_cam.txt"
 VELO_TO_CAM = "calib_velo_to_cam.txt"
 NPZ_MEMBER = "data.npy"  # np.savez_compressed(out, data=...) names its member this way
+# Beside the maps, the frame of each (KittiFrame.key, split order) as a plain string array:
+# monodepth2's reader takes ["data"] and never sees it; ours checks the order against the split.
+KEYS_MEMBER = "keys.npy"
 
 
 class GroundTruthError(RobodepthError):
@@ -62,6 +65,22 @@ class KittiFrame:
 
     def velodyne(self, root: Path) -> Path:
         return Path(root) / self.folder / "velodyne_points" / "data" / f"{self.frame:010d}.bin"
+
+    @property
+    def key(self) -> str:
+        """``DATE/DRIVE NNNNNNNNNN``: which frame a ground-truth map is of (:data:`KEYS_MEMBER`)."""
+        return f"{self.folder} {self.frame:010d}"
+
+
+def frame_key(image_key: str) -> str | None:
+    """The :attr:`KittiFrame.key` of a KITTI build's image key
+    (``kitti_data/DATE/DRIVE/image_02/data/NNNNNNNNNN.png``), or None for another form."""
+    parts = image_key.split("/")
+    if parts and parts[0] == "kitti_data":
+        parts = parts[1:]
+    if len(parts) < 4 or parts[-2] != "data" or not parts[-1].split(".")[0].isdigit():
+        return None
+    return f"{'/'.join(parts[:-3])} {int(parts[-1].split('.')[0]):010d}"
 
 
 def read_frames(split: Path) -> list[KittiFrame]:
@@ -257,16 +276,17 @@ def export(root: Path, frames: Sequence[KittiFrame], out: Path, split_name: str 
     with threadpool_limits(1, user_api="blas"):
         maps = list(depth_maps(root, frames, split_name, progress))
     try:
-        save_object_npz(out, maps)
+        save_object_npz(out, maps, [f.key for f in frames])
     except OSError as exc:
         raise GroundTruthError(f"{out}: cannot write ({os_reason(exc)})") from None
     return Path(out)
 
 
-def save_object_npz(path: Path, arrays: Sequence[np.ndarray]) -> str:
+def save_object_npz(path: Path, arrays: Sequence[np.ndarray], keys: Sequence[str] | None = None) -> str:
     """Write ``arrays`` as ``np.savez_compressed(path, data=<1-D object array of them>)``
     does (a deflated zip holding ``data.npy``), so ``np.load(path, allow_pickle=True)["data"][i]``
-    is ``arrays[i]``, and return the file's sha256.
+    is ``arrays[i]``, and return the file's sha256. ``keys`` (one per array, e.g.
+    :attr:`KittiFrame.key`) go into a second member, ``keys.npy``, a plain string array.
 
     Unlike ``np.savez_compressed``, which pickles with protocol 4 and so keeps a bytes copy
     of every array alive until the end, the object array is pickled with protocol 5: each
@@ -285,6 +305,11 @@ def save_object_npz(path: Path, arrays: Sequence[np.ndarray]) -> str:
             with zf.open(NPZ_MEMBER, "w", force_zip64=True) as member:
                 np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(obj))
                 pickle.Pickler(member, protocol=5).dump(obj)
+            if keys is not None:
+                if len(keys) != len(arrays):
+                    raise ValueError(f"{len(keys)} keys for {len(arrays)} maps")
+                with zf.open(KEYS_MEMBER, "w") as member:
+                    np.lib.format.write_array(member, np.array(list(keys), dtype=str), allow_pickle=False)
         raw.seek(0)
         digest = hashlib.sha256()
         for chunk in iter(lambda: raw.read(1 << 20), b""):
