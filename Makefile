@@ -1,10 +1,14 @@
 PYTHON ?= python3
 PIP ?= $(PYTHON) -m pip
+# Where torch comes from. Empty: pip's default index, which on Linux x86-64 gives the CUDA
+# build and its nvidia-* wheels. For the CPU-only build, set it to the CPU index URL that
+# PyTorch's "Get started" page gives for pip: make install TORCH_INDEX=<that URL>
+TORCH_INDEX ?=
 
 .PHONY: install test bench demo
 
 install:
-	$(PIP) install torch==2.13.0
+	$(PIP) install $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX) )torch==2.13.0
 	$(PIP) install -e '.[test,dask]'
 	# Frost textures only: the package's own dependencies (opencv-python, ...) are not wanted.
 	$(PIP) install --no-deps imagecorruptions-imaug==1.1.5
