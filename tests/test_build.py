@@ -187,7 +187,10 @@ def test_unreadable_source_fails_alone(kitti, tmp_path, cli, build_kitti):
     res = build_kitti(root, split, out, "--size", "64x96", "--corruptions", "brightness", "--levels", "1,2",
                       "--jobs", "2")
     assert res.exit_code == 1
-    assert "3 written, 0 skipped (already done), 6 failed" in res.output
+    # Six outputs failed, of two source images: each count names its unit.
+    assert ("3 written, 0 skipped (already done), 6 failed (outputs of 2 images) of 9 outputs "
+            "from 3 source images") in res.output
+    assert f"wrote 3 outputs to {out}" in res.output
     assert str(bad) in res.output and "0000000009.png: no such file" in res.output
     assert set(tree(out)) == expected_paths([kitti_key(7, "r")], ["brightness"], [1, 2])
     failed = {r["output"]: r for r in manifest_rows(out) if r["error"]}

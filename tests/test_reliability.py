@@ -229,7 +229,7 @@ def _empty(root, data, tmp_path):
 def _tiny(side):
     def make(root, data, tmp_path):
         save(_frame(data), random_image(side, side, 3))
-        return _frame(data), f"{side} x {side} pixels is too small (at least 32 x 32)"
+        return _frame(data), f"{side}x{side} pixels (HxW) is too small (at least 32x32)"
     return make
 
 
@@ -265,7 +265,10 @@ def test_per_image_problem_fails_that_image_only(case, tmp_path, cli, build_kitt
 
     assert res.exit_code == 1, res.output
     assert "Traceback" not in res.output
-    assert "3 written, 0 skipped (already done), 3 failed of 6 images" in res.output
+    # Outputs and source images are counted apart (3 outputs of 1 image failed).
+    assert ("3 written, 0 skipped (already done), 3 failed (outputs of 1 image) of 6 outputs "
+            "from 2 source images") in res.output
+    assert res.output.rstrip().endswith(f"wrote 3 outputs to {out}"), res.output
     message = f"{bad}: {problem}"
     assert any(line.startswith(f"  {message}") for line in res.output.splitlines()), res.output
     files = tree(out)

@@ -127,10 +127,16 @@ class Context:
 
 @dataclass
 class Summary:
-    total: int
+    """What a build did. Its counts are of outputs (one file each: a clean image, a variant,
+    a ground-truth file), except ``images`` and ``failed_images``: source images."""
+
+    total: int  # outputs asked for
     written: int = 0
     skipped: int = 0
     failed: int = 0
+    images: int = 0  # source images
+    failed_images: int = 0  # source images with at least one failed output
+    out: str = ""  # where the outputs went, as the user named it
     seconds: float = 0.0
     errors: list[str] = field(default_factory=list)  # distinct messages, first ones only
     fatal: str = ""  # the error that stopped the build
@@ -149,6 +155,13 @@ class Summary:
             if state is JobState.FATAL:
                 self.fatal = row.error
 
+    def add_image(self, results: list[tuple[JobState, Row]]) -> None:
+        """Count the outputs of one source image."""
+        for state, row in results:
+            self.add(state, row)
+        if any(state in (JobState.FAILED, JobState.FATAL) for state, _ in results):
+            self.failed_images += 1
+
     @property
     def complete(self) -> bool:
         return not (self.failed or self.fatal or self.interrupted)
@@ -160,23 +173,39 @@ class Summary:
                 else "finished" if self.complete else "finished with failures")
 
     def as_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("total", "written", "skipped", "failed", "seconds",
-                                               "errors", "fatal", "interrupted", "notes")}
+        return {k: getattr(self, k) for k in ("total", "written", "skipped", "failed", "images",
+                                               "failed_images", "seconds", "errors", "fatal",
+                                               "interrupted", "notes")}
+
+    def _failed_text(self) -> str:
+        """``"14 failed (outputs of 2 images)"``: the two counts, each named."""
+        if not self.failed_images:
+            return f"{self.failed} failed"
+        return f"{self.failed} failed (outputs of {_count(self.failed_images, 'image')})"
 
     def text(self) -> str:
         done = self.written + self.skipped + self.failed
         rate = self.written / self.seconds if self.seconds > 0 else 0.0
-        lines = [f"{self.written} written, {self.skipped} skipped (already done), {self.failed} failed"
-                 f" of {self.total} images in {self.seconds:.1f} s ({rate:.1f} written/s)"]
+        lines = [f"{self.written} written, {self.skipped} skipped (already done), "
+                 f"{self._failed_text()} of {self.total} outputs from "
+                 f"{_count(self.images, 'source image')} in {self.seconds:.1f} s "
+                 f"({rate:.1f} written/s)"]
         if self.interrupted or self.fatal:
-            lines.append(f"stopped after {done} of {self.total}; rerun the same command to resume")
+            lines.append(f"stopped after {done} of {self.total} outputs; rerun the same command "
+                         f"to resume")
         if self.errors:
             lines.append("failures (each row with an error in manifest.csv):")
             lines += [f"  {e}" for e in self.errors]
             if self.failed > len(self.errors):
-                lines.append(f"  ... {self.failed} failed images in all")
+                lines.append(f"  ... {self._failed_text()} in all")
         lines += [f"note: {n}" for n in self.notes]
+        if self.out:
+            lines.append(f"wrote {_count(self.written, 'output')} to {self.out}")
         return "\n".join(lines)
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 # --- the build, step by step (main process) ------------------------------------------------
@@ -441,7 +470,7 @@ def run_tasks(tasks: list[Task], ctx: Context, executor: Executor, out: Path,
               progress: bool) -> Summary:
     """Run every task through ``executor``, appending the manifest rows of each as it
     finishes. Stops at the first fatal error; Ctrl-C marks the summary interrupted."""
-    summary = Summary(total=sum(len(t.jobs) for t in tasks))
+    summary = Summary(total=sum(len(t.jobs) for t in tasks), images=len(tasks), out=str(out))
     t0 = time.perf_counter()
     try:
         _run(tasks, ctx, executor, out, summary, progress)
@@ -473,8 +502,7 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
                                if state is not JobState.SKIPPED or r.output in refresh])
             except OSError as exc:  # these images exist but are not recorded: a rerun redoes them
                 summary.fatal = _cannot_write(writer.path, exc)
-            for state, r in results:
-                summary.add(state, r)
+            summary.add_image(results)
             bar.update(len(results))
             if summary.fatal:
                 return
