@@ -46,7 +46,7 @@ def as_rgb(img: np.ndarray, *, what: str = "image") -> np.ndarray:
         raise ValueError(f"{what}: expected H x W, H x W x 3 or H x W x 4 pixels, got shape {img.shape}")
     h, w = img.shape[:2]
     if h < MIN_SIDE or w < MIN_SIDE:
-        raise ValueError(f"{what}: {w} x {h} pixels is too small (at least {MIN_SIDE} x {MIN_SIDE})")
+        raise ValueError(f"{what}: {h}x{w} pixels (HxW) is too small (at least {MIN_SIDE}x{MIN_SIDE})")
     return np.ascontiguousarray(img)
 
 
@@ -107,7 +107,7 @@ def read_rgb(path: str | os.PathLike, *, orient: bool = False) -> Image.Image:
         raise ImageError(f"{path}: unreadable image ({exc})") from None
     w, h = rgb.size
     if h < MIN_SIDE or w < MIN_SIDE:
-        raise ImageError(f"{path}: {w} x {h} pixels is too small (at least {MIN_SIDE} x {MIN_SIDE})")
+        raise ImageError(f"{path}: {h}x{w} pixels (HxW) is too small (at least {MIN_SIDE}x{MIN_SIDE})")
     return rgb
 
 

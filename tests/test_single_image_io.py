@@ -50,7 +50,8 @@ def test_corrupt_one_level_into_a_directory(cli, tmp_path, monkeypatch):
     res = cli("corrupt", src, "-c", "contrast", "-l", "2", "--out", "shots/")
     assert res.exit_code == 0, res.output
     assert files_under(tmp_path / "shots") == ["contrast/2.png"]
-    assert res.output.strip() == "wrote shots/contrast/2.png (64 x 48)"
+    # Height x width, as --size takes it.
+    assert res.output.strip() == "wrote shots/contrast/2.png (48x64, HxW)"
 
 
 def test_preview_into_a_directory(cli, tmp_path, monkeypatch):
@@ -59,7 +60,9 @@ def test_preview_into_a_directory(cli, tmp_path, monkeypatch):
     res = cli("preview", src, "-c", "contrast", "--thumb-width", "32", "--out", "sheets/")
     assert res.exit_code == 0, res.output
     assert files_under(tmp_path / "sheets") == ["frame_preview.png"]
-    assert res.output.startswith("wrote sheets/frame_preview.png (")
+    with Image.open(tmp_path / "sheets/frame_preview.png") as sheet:
+        h, w = sheet.height, sheet.width
+    assert h != w and res.output.strip() == f"wrote sheets/frame_preview.png ({h}x{w}, HxW)"
     # An existing directory without the separator means the same.
     assert cli("preview", src, "-c", "contrast", "--out", "sheets").exit_code == 0
 

@@ -74,6 +74,11 @@ def load_input(image: str, size: str | None) -> np.ndarray:
     return load_clean(image, size_hw, orient=True)
 
 
+def hxw(height: int, width: int) -> str:
+    """``"48x64, HxW"``: a size in the one notation of ``--size``, the manifest and errors."""
+    return f"{height}x{width}, HxW"
+
+
 def seed(value: int, flag: str = "--seed") -> int:
     """``value`` if it is a valid seed (the same rule as a build's ``--seed``)."""
     from ..seeding import check_seed

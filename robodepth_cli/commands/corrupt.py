@@ -78,7 +78,7 @@ def corrupt_command(image, corruption, level, seed, size, out):
         img = render(clean, variant, lv, seed=seed, dataset="image", key=key)
         common.write_png(target if single else directory / name, img)
     if single:
-        click.echo(f"wrote {target} ({img.shape[1]} x {img.shape[0]})")
+        click.echo(f"wrote {target} ({common.hxw(*img.shape[:2])})")
     else:
         click.echo(f"wrote {len(jobs)} images under {out}")
 
@@ -129,4 +129,4 @@ def preview_command(image, out, corruption, level, size, seed, thumb_width):
     sheet = contact_sheet(clean, rows, level_list, seed=seed, key=Path(image).name,
                           thumb_width=thumb_width)
     common.write_png(target, np.asarray(sheet))
-    click.echo(f"wrote {target} ({sheet.width} x {sheet.height})")
+    click.echo(f"wrote {target} ({common.hxw(sheet.height, sheet.width)})")
