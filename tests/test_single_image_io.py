@@ -165,7 +165,7 @@ def test_single_corrupt_says_what_it_wrote(cli, tmp_path):
     out = tmp_path / "z.png"
     res = cli("corrupt", image(tmp_path), "-c", "contrast", "-l", "3", "--out", out)
     assert res.exit_code == 0
-    assert res.output.strip() == f"wrote {out} (64 x 48)"
+    assert res.output.strip() == f"wrote {out} (48x64, HxW)"
 
 
 @pytest.mark.parametrize("command", [
