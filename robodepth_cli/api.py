@@ -19,7 +19,6 @@ it says which variants and levels the build has (a subset build has only its own
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -98,40 +97,80 @@ class Variant:
         if n != len(self.keys):
             raise DatasetError(f"{target}: {n} predictions for the {len(self.keys)} images of "
                                f"{self.label}")
-        first = _as_map(predictions[0], target, 0) if n else None
-        shape = first.shape if first is not None else (0, 0)
-        dtype = first.dtype if first is not None and first.dtype.kind == "f" else np.dtype(np.float32)
-        try:
-            target.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
-            os.close(fd)
-        except OSError as exc:
-            raise DatasetError(f"{target}: cannot write ({os_reason(exc)})") from None
-        try:
-            out = np.lib.format.open_memmap(tmp, mode="w+", dtype=dtype, shape=(n, *shape))
+        with PredictionWriter(target, n) as out:
             for i in range(n):
-                m = first if i == 0 else _as_map(predictions[i], target, i)
-                if m.shape != shape:
-                    raise DatasetError(f"{target}: prediction {i} is {m.shape[0]} x {m.shape[1]}, "
-                                       f"prediction 0 is {shape[0]} x {shape[1]}; all must "
-                                       "have one size")
-                out[i] = m
-            out.flush()
-            del out
-            os.chmod(tmp, 0o666 & ~_umask())
-            os.replace(tmp, target)
-        except OSError as exc:
-            raise DatasetError(f"{target}: cannot write ({os_reason(exc)})") from None
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+                out.write(predictions[i])
         return target
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+class PredictionWriter:
+    """Streams ``n`` maps into one ``N x h x w`` ``.npy`` file (form 1 of ``robodepth
+    evaluate``) through a temporary file and a rename: a reader sees the whole file or
+    none, and a failure (or fewer than ``n`` maps) leaves nothing behind.
+
+    The first map fixes the size and the dtype (a floating dtype is kept, others become
+    float32); each later map must have that size and is converted to that dtype.
+
+    >>> with PredictionWriter(Path("PRED/clean.npy"), 2) as out:    # doctest: +SKIP
+    ...     out.write(map0); out.write(map1)
+    """
+
+    def __init__(self, target: Path, n: int):
+        self.target = Path(target)
+        self.n = n
+        self.count = 0
+        self._shape = None
+        self._dtype = None
+        self._cm = None
+        self._fh = None
+
+    def __enter__(self) -> "PredictionWriter":
+        from .files import atomic_output
+
+        self._cm = atomic_output(self.target)
+        try:
+            self._fh = self._cm.__enter__()
+        except OSError as exc:
+            raise DatasetError(f"{self.target}: cannot write ({os_reason(exc)})") from None
+        if self.n == 0:
+            self._header((0, 0), np.dtype(np.float32))
+        return self
+
+    def _header(self, shape, dtype) -> None:
+        self._shape, self._dtype = shape, dtype
+        np.lib.format.write_array_header_1_0(self._fh, {
+            "descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False,
+            "shape": (self.n, *shape)})
+
+    def write(self, value) -> None:
+        """Append the next map (anything :func:`numpy.asarray` takes, CPU tensors too; a
+        leading axis of length 1 is dropped)."""
+        i = self.count
+        if i >= self.n:
+            raise DatasetError(f"{self.target}: more than the {self.n} predictions expected")
+        m = _as_map(value, self.target, i)
+        if self._shape is None:
+            self._header(m.shape, m.dtype if m.dtype.kind == "f" else np.dtype(np.float32))
+        elif m.shape != self._shape:
+            raise DatasetError(f"{self.target}: prediction {i} is {m.shape[0]} x {m.shape[1]}, "
+                               f"prediction 0 is {self._shape[0]} x {self._shape[1]}; all must "
+                               "have one size")
+        try:
+            self._fh.write(np.ascontiguousarray(m, dtype=self._dtype).data)
+        except OSError as exc:
+            raise DatasetError(f"{self.target}: cannot write ({os_reason(exc)})") from None
+        self.count += 1
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None and self.count != self.n:
+            exc = DatasetError(f"{self.target}: {self.count} predictions written of the "
+                               f"{self.n} expected")
+            self._cm.__exit__(type(exc), exc, None)
+            raise exc
+        try:
+            return self._cm.__exit__(exc_type, exc, tb)
+        except OSError as err:
+            raise DatasetError(f"{self.target}: cannot write ({os_reason(err)})") from None
 
 
 def _as_map(value, target: Path, i: int) -> np.ndarray:

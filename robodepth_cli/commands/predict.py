@@ -1,0 +1,76 @@
+"""``robodepth predict``: a depth model over a built dataset -> PRED, as evaluate reads it."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+
+@click.command("predict")
+@click.argument("dataset_dir", metavar="DATASET_DIR", type=click.Path(path_type=Path))
+@click.option("--model", "-m", "spec", required=True, metavar="SPEC",
+              help="monodepth2:DIR (encoder.pth + depth.pth), hf:PATH_OR_NAME (a transformers "
+                   "depth model, local folder or local cache) or python:MODULE:CALLABLE.")
+@click.option("--out", "-o", "pred", required=True, type=click.Path(path_type=Path),
+              metavar="PRED", help="Where the predictions go (PRED/clean.npy, "
+              "PRED/<corruption>/<level>.npy, PRED/predictions.json).")
+@click.option("--variants", metavar="LIST",
+              help="Only these variants: comma-separated clean, <corruption> (all its levels), "
+                   "<corruption>/<level>, <style>. Default: every variant of the build.")
+@click.option("--batch-size", "-b", default=8, show_default=True, type=int,
+              help="Images per forward pass.")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
+              show_default=True, help="Where monodepth2 and hf models run (auto: cuda if "
+              "torch sees a GPU).")
+@click.option("--post-process", is_flag=True,
+              help="monodepth2: average with the mirror image's prediction, as its "
+                   "evaluate_depth.py --post_process does (twice the work).")
+@click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
+              help="What the maps hold: required for python:, overrides an hf model's own.")
+@click.option("--metric/--relative", default=None,
+              help="The maps are in metres (evaluated with no alignment) or relative (evaluated "
+                   "after a least-squares scale and shift of the disparity). python: default "
+                   "relative; hf: the model's own.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_process, kind,
+                    metric, progress):
+    """Run a depth model over DATASET_DIR (made by robodepth build) and write its predictions
+    to PRED in the layout robodepth evaluate reads.
+
+    Every variant (or those of --variants) is run in split order; each variant's file is
+    written whole or not at all, and a run started again skips the finished variants.
+    PRED/predictions.json records the model and what its maps hold; robodepth evaluate takes
+    its defaults (--kind, --align, --align-space) from it.
+
+    \b
+    Examples:
+      robodepth predict KITTI_C --model monodepth2:models/mono_640x192 --out PRED
+      robodepth predict KITTI_C -m hf:depth-anything/Depth-Anything-V2-Small-hf -o DA
+      robodepth predict NYU_C -m python:mymodel.py:predict --kind depth --metric -o P
+    """
+    from tqdm import tqdm
+
+    from ..api import open_dataset
+    from ..models import load_model
+    from ..models import predict as P
+
+    dataset = open_dataset(dataset_dir)
+    chosen = P.select_variants(dataset, variants)
+    if batch_size < 1:
+        raise click.BadParameter("must be at least 1", param_hint="--batch-size")
+    model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
+    with tqdm(unit="img", disable=None if progress else True, file=sys.stderr,
+              dynamic_ncols=True) as bar:
+        def set_total(n):
+            bar.total = n
+            bar.refresh()
+
+        run = P.predict(dataset, model, pred, chosen, batch_size=batch_size,
+                        progress=bar.update, on_total=set_total)
+    done = f"{len(run.written)} variants x {len(dataset.keys)} images"
+    skipped = f" ({len(run.skipped)} already done, skipped)" if run.skipped else ""
+    click.echo(f"{model.spec} on {model.device}: {done}{skipped} -> {pred}", err=True)
+    click.echo(f"next: robodepth evaluate {dataset_dir} --pred {pred}", err=True)

@@ -1,0 +1,163 @@
+"""Hugging Face ``transformers`` depth-estimation models (Depth Anything, DPT, ZoeDepth,
+Depth Pro, GLPN, ...): ``AutoModelForDepthEstimation`` with its own image processor.
+
+The model is read from a local folder (``save_pretrained``'s layout) or, by name, from the
+local Hugging Face cache only (``local_files_only``): nothing is downloaded. Each batch goes
+through the processor (its resize and normalisation), the model, and the processor's own
+``post_process_depth_estimation`` with every image's size as the target size (DPT and
+Depth Anything: bicubic ``interpolate`` of ``predicted_depth``; ZoeDepth also removes its
+padding; Depth Pro converts to depth in metres), so each map has its image's size. A
+processor without that method gets DPT's rule: bicubic, ``align_corners=False``.
+
+What the maps hold: a model whose config says ``depth_estimation_type`` (Depth Anything)
+is relative or metric as it says; otherwise DPT models are relative, ZoeDepth, Depth Pro
+and GLPN metric. Relative models predict an inverse depth up to an unknown scale and shift
+(recorded as ``kind disp``, evaluated after a least-squares scale and shift of the
+disparity); metric ones predict depth in metres (``kind depth``, no alignment). ``--kind``
+and ``--metric/--relative`` override this, and are needed for model types not listed here.
+"""
+
+from __future__ import annotations
+
+import inspect
+from pathlib import Path
+
+import numpy as np
+
+from . import ModelError
+from .base import KINDS, Model, default_alignment, torch_device
+
+RELATIVE_TYPES = ("dpt",)
+METRIC_TYPES = ("zoedepth", "depth_pro", "glpn")
+
+
+def load(arg: str, spec: str, *, device: str = "auto", kind: str | None = None,
+         metric: bool | None = None) -> Model:
+    """The transformers model ``arg`` (a folder, or a name in the local cache)."""
+    import torch
+    import transformers
+    from transformers import AutoConfig, AutoImageProcessor, AutoModelForDepthEstimation
+
+    transformers.utils.logging.set_verbosity_error()
+    transformers.utils.logging.disable_progress_bar()
+    source, where = _source(arg, spec)
+    try:
+        config = AutoConfig.from_pretrained(source, local_files_only=True)
+    except OSError:
+        if where == "cache":
+            from huggingface_hub import constants
+
+            raise ModelError(f"{spec}: {arg} is not in the local Hugging Face cache "
+                             f"({constants.HF_HUB_CACHE}); download it first with "
+                             f"'hf download {arg}' (needs internet), or give a local folder "
+                             "(hf:PATH)") from None
+        raise ModelError(f"{spec}: {source} holds no transformers model (no readable "
+                         "config.json)") from None
+    except ValueError as exc:
+        raise ModelError(f"{spec}: {source}: unusable config ({_first_line(exc)})") from None
+    model_type = getattr(config, "model_type", "?")
+    try:
+        model = AutoModelForDepthEstimation.from_pretrained(source, local_files_only=True)
+    except ValueError as exc:
+        if "Unrecognized configuration class" in str(exc):
+            raise ModelError(f"{spec}: a {model_type} model, not a depth-estimation model "
+                             "(transformers' AutoModelForDepthEstimation does not know it)") from None
+        raise ModelError(f"{spec}: cannot load the model ({_first_line(exc)})") from None
+    except (OSError, RuntimeError) as exc:
+        raise ModelError(f"{spec}: cannot load the model ({_first_line(exc)})") from None
+    try:
+        processor = AutoImageProcessor.from_pretrained(source, local_files_only=True)
+    except (OSError, ValueError) as exc:
+        raise ModelError(f"{spec}: no usable image processor beside the model "
+                         f"(preprocessor_config.json; {_first_line(exc)})") from None
+    kind, metric = _output(config, model_type, kind, metric, spec)
+    dev = torch_device(device)
+    model = model.to(dev).eval()
+    post = getattr(processor, "post_process_depth_estimation", None)
+    post_args = set(inspect.signature(post).parameters) if post is not None else set()
+
+    def run(images: np.ndarray):
+        sizes = [tuple(img.shape[:2]) for img in images]
+        inputs = processor(images=list(images), return_tensors="pt")
+        inputs = {k: v.to(dev) if hasattr(v, "to") else v for k, v in inputs.items()}
+        with torch.no_grad():
+            outputs = model(**inputs)
+        if post is None:
+            return _resize_bicubic(outputs.predicted_depth, sizes)
+        kwargs = {"target_sizes": sizes}
+        if "source_sizes" in post_args:
+            kwargs["source_sizes"] = sizes
+        maps = [r["predicted_depth"] for r in post(outputs, **kwargs)]
+        return [m.reshape(size) for m, size in zip(maps, sizes)]
+
+    align, space = default_alignment(metric)
+    identity = {"source": str(source), "model_type": model_type,
+                "commit": getattr(config, "_commit_hash", None)}
+    if where == "folder":
+        identity["files"] = _files(Path(source))
+    return Model(spec=spec, adapter="hf", kind=kind, metric=metric, align=align,
+                 align_space=space, input_size=_input_size(processor), identity=identity,
+                 run=run, device=dev, options={"model_type": model_type})
+
+
+def _source(arg: str, spec: str) -> tuple[str, str]:
+    """(what to pass to from_pretrained, "folder" or "cache")."""
+    path = Path(arg).expanduser()
+    if path.is_dir():
+        return str(path.resolve()), "folder"
+    looks_like_path = arg.startswith((".", "/", "~")) or arg.count("/") > 1 or path.exists()
+    if looks_like_path:
+        raise ModelError(f"{spec}: {arg} is not a folder (give a folder written by "
+                         "save_pretrained, or a model name such as org/name)")
+    return arg, "cache"
+
+
+def _output(config, model_type: str, kind: str | None, metric: bool | None,
+            spec: str) -> tuple[str, bool]:
+    declared = getattr(config, "depth_estimation_type", None)
+    if metric is None:
+        if declared in ("relative", "metric"):
+            metric = declared == "metric"
+        elif model_type in RELATIVE_TYPES or model_type in METRIC_TYPES:
+            metric = model_type in METRIC_TYPES
+        elif kind is None:
+            raise ModelError(f"{spec}: cannot tell whether this {model_type} model predicts "
+                             "relative inverse depth or metric depth; say --kind disp "
+                             "--relative, or --kind depth --metric")
+        else:
+            metric = False
+    if kind is None:
+        kind = "depth" if metric else "disp"
+    if kind not in KINDS:
+        raise ModelError(f"--kind {kind!r}: valid: {', '.join(KINDS)}")
+    return kind, metric
+
+
+def _input_size(processor):
+    size = getattr(processor, "size", None)
+    if size is None:
+        return None
+    try:
+        return dict(size)
+    except (TypeError, ValueError):
+        return size if isinstance(size, (int, list)) else str(size)
+
+
+def _files(folder: Path) -> dict:
+    """Name -> sha256 of the folder's files, to notice a model saved anew over it."""
+    from ..files import sha256_file
+
+    return {p.name: sha256_file(p) for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def _resize_bicubic(depth, sizes):
+    import torch
+
+    return [torch.nn.functional.interpolate(d[None, None], size=s, mode="bicubic",
+                                            align_corners=False)[0, 0]
+            for d, s in zip(depth, sizes)]
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__

@@ -1,0 +1,234 @@
+"""``robodepth predict``: run a model over the variants of a built dataset and write its
+predictions where ``robodepth evaluate`` reads them.
+
+Per variant, one ``N x h x w`` array in split order, ``PRED/clean.npy``,
+``PRED/<corruption>/<level>.npy`` or ``PRED/<style>.npy`` (the form
+:meth:`robodepth_cli.api.Variant.save_predictions` writes), streamed batch by batch into
+a temporary file that is renamed into place when the variant is complete. So a finished
+variant's file is whole, a killed run loses at most the variant in flight, and a run
+started again skips the variants whose files are there (resume).
+
+``PRED/predictions.json`` records the model (spec, adapter, what tells its weights apart),
+what its maps hold (``output`` disparity or depth, ``scale`` relative or metric, and the
+``evaluate`` defaults ``kind``, ``align``, ``align_space``), the input size, the dataset,
+and the robodepth version. It is written once the model has produced its first valid
+batch, before any prediction file; a later run into the same PRED must be of the same
+model on the same dataset's split, or it is refused (the files would mix two models).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .. import __version__
+from ..api import BuiltDataset, PredictionWriter, Variant
+from ..errors import os_reason
+from . import ModelError
+
+RECORD = "predictions.json"
+# What must agree for a run to add to an earlier one's predictions.
+_SAME = ("adapter", "identity", "options", "evaluate")
+
+
+@dataclass
+class PredictRun:
+    written: list[Variant] = field(default_factory=list)
+    skipped: list[Variant] = field(default_factory=list)  # finished by an earlier run
+
+
+def select_variants(dataset: BuiltDataset, value: str | None) -> list[Variant]:
+    """The variants ``value`` names (comma-separated ``clean``, ``<corruption>`` for all its
+    built levels, ``<corruption>/<level>``, ``<style>``), in the build's order; all of them
+    when ``value`` is None or ``all``."""
+    variants = dataset.variants()
+    if value is None or value.strip() == "all":
+        return variants
+    chosen = set()
+    for item in (s.strip() for s in value.split(",")):
+        if not item:
+            continue
+        hits = [v for v in variants if item in (v.relpath, v.name)]
+        if not hits:
+            names = sorted({v.name for v in variants}, key=[v.name for v in variants].index)
+            raise ModelError(f"--variants {item!r}: not a variant of {dataset.path} (it has: "
+                             f"{', '.join(names)}; a corruption's level as NAME/LEVEL)")
+        chosen.update(hits)
+    if not chosen:
+        raise ModelError(f"--variants {value!r}: names no variant")
+    return [v for v in variants if v in chosen]
+
+
+def read_record(pred: Path) -> dict | None:
+    """``PRED/predictions.json``, or None when there is none; :class:`ModelError` naming
+    the file when it is unreadable or not a robodepth predictions record."""
+    path = Path(pred) / RECORD
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read ({os_reason(exc)})") from None
+    try:
+        record = json.loads(text)
+    except ValueError as exc:
+        raise ModelError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(record, dict) or not isinstance(record.get("evaluate"), dict):
+        raise ModelError(f"{path}: not a robodepth predictions record (no 'evaluate' entry)")
+    return record
+
+
+def split_digest(keys: Sequence[str]) -> str:
+    import hashlib
+
+    return hashlib.sha256("\n".join(keys).encode("utf-8")).hexdigest()
+
+
+def make_record(dataset: BuiltDataset, model) -> dict:
+    return {"robodepth_version": __version__, "dataset": dataset.name,
+            "dataset_path": str(dataset.path), "split_sha256": split_digest(dataset.keys),
+            "images": len(dataset.keys), **model.record()}
+
+
+def prepare_output(pred: Path, record: dict) -> bool:
+    """Check that PRED can hold these predictions before any work: it is writable, and it
+    is new, empty, or an earlier run's of the same model on the same split. Returns
+    whether PRED was created here (so that a run failing before its first file removes it)."""
+    pred = Path(pred)
+    if pred.exists() and not pred.is_dir():
+        raise ModelError(f"--out {pred}: exists and is not a folder")
+    earlier = read_record(pred) if pred.is_dir() else None
+    if earlier is not None:
+        if earlier.get("split_sha256") != record["split_sha256"]:
+            raise ModelError(f"--out {pred}: holds predictions for another dataset or split "
+                             f"({earlier.get('dataset_path')}); use another --out")
+        for key in _SAME:
+            if earlier.get(key) != record.get(key):
+                raise ModelError(f"--out {pred}: holds predictions of another model or setting "
+                                 f"({earlier.get('model')}, {key} differs); use another --out "
+                                 "or delete it")
+    elif pred.is_dir() and any(pred.iterdir()):
+        raise ModelError(f"--out {pred}: not empty and holds no {RECORD} (not written by "
+                         "robodepth predict); use a new or empty folder")
+    created = not pred.exists()
+    try:
+        pred.mkdir(parents=True, exist_ok=True)
+        probe = pred / f".{RECORD}.probe"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise ModelError(f"--out {pred}: cannot write ({os_reason(exc)})") from None
+    return created
+
+
+def finished(pred: Path, variant: Variant) -> bool:
+    """Whether ``variant``'s prediction file is there whole (one map per image)."""
+    path = variant.prediction_file(pred)
+    if not path.is_file():
+        return False
+    try:
+        shape = np.load(path, mmap_mode="r", allow_pickle=False).shape
+    except (OSError, ValueError, EOFError):
+        return False
+    return len(shape) == 3 and shape[0] == len(variant)
+
+
+def _remove_leftovers(pred: Path, variants: Sequence[Variant]) -> None:
+    """Delete the temporary files a killed run left beside the variants' files."""
+    from ..files import is_temporary
+
+    for folder in {v.prediction_file(pred).parent for v in variants}:
+        if folder.is_dir():
+            for p in folder.iterdir():
+                if p.is_file() and is_temporary(p.name):
+                    p.unlink()
+
+
+def _read_images(paths: Sequence[Path]) -> list[np.ndarray]:
+    from ..imageio import read_rgb
+
+    return [np.asarray(read_rgb(p)) for p in paths]
+
+
+def _same_size_runs(images: list[np.ndarray]):
+    """Consecutive images of one size, as ``N x H x W x 3`` batches."""
+    start = 0
+    for i in range(1, len(images) + 1):
+        if i == len(images) or images[i].shape != images[start].shape:
+            yield np.stack(images[start:i])
+            start = i
+
+
+def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant], *,
+            batch_size: int = 8, progress: Callable[[int], None] | None = None,
+            on_total: Callable[[int], None] | None = None) -> PredictRun:
+    """Write ``model``'s predictions for ``variants`` of ``dataset`` under ``pred``.
+
+    Variants whose files an earlier run finished are skipped. Raises
+    :class:`~robodepth_cli.models.ModelError` (or another ``RobodepthError``) for bad
+    input or output; the variant in flight is then not written.
+    """
+    if batch_size < 1:
+        raise ModelError(f"--batch-size {batch_size}: must be at least 1")
+    pred = Path(pred)
+    record = make_record(dataset, model)
+    created = prepare_output(pred, record)
+    recorded = read_record(pred) is not None
+    run = PredictRun()
+    todo = []
+    for v in variants:
+        (run.skipped if finished(pred, v) else todo).append(v)
+    _remove_leftovers(pred, todo)
+    if on_total:
+        on_total(sum(len(v) for v in todo))
+    try:
+        with ThreadPoolExecutor(1) as reader:
+            for v in todo:
+                paths = v.images()
+                chunks = [paths[i:i + batch_size] for i in range(0, len(paths), batch_size)]
+                with PredictionWriter(v.prediction_file(pred), len(paths)) as out:
+                    pending = reader.submit(_read_images, chunks[0]) if chunks else None
+                    for k in range(len(chunks)):
+                        images = pending.result()
+                        pending = (reader.submit(_read_images, chunks[k + 1])
+                                   if k + 1 < len(chunks) else None)
+                        for batch in _same_size_runs(images):
+                            maps = model.predict(batch)
+                            if not recorded:
+                                _write_record(pred, record)
+                                recorded = True
+                            for m in maps:
+                                out.write(m)
+                            if progress:
+                                progress(len(batch))
+                run.written.append(v)
+    except BaseException:
+        if created and recorded is False:
+            _remove_empty(pred)
+        raise
+    return run
+
+
+def _write_record(pred: Path, record: dict) -> None:
+    from ..files import write_atomic
+
+    try:
+        write_atomic(pred / RECORD, (json.dumps(record, indent=2) + "\n").encode("utf-8"))
+    except OSError as exc:
+        raise ModelError(f"{pred / RECORD}: cannot write ({os_reason(exc)})") from None
+
+
+def _remove_empty(pred: Path) -> None:
+    for root, dirs, files in os.walk(pred, topdown=False):
+        if files:
+            return
+        try:
+            os.rmdir(root)
+        except OSError:
+            return

@@ -1,0 +1,80 @@
+"""A user's own model as a Python function: ``python:MODULE:CALLABLE``.
+
+``MODULE`` is an importable module name (the current directory is searched first, as
+``python -m`` does) or a path to a ``.py`` file; ``CALLABLE`` a name in it (dots reach
+into objects: ``net.predict``). It is called with a batch of images, an ``N x H x W x 3``
+uint8 RGB numpy array (one size per batch), and returns ``N`` maps: an ``N x h x w`` (or
+``N x 1 x h x w``) floating-point numpy array or torch tensor, or a list of ``N`` maps of
+one size. What the maps hold is the user's to say: ``--kind disp|sigmoid|depth`` and
+``--metric`` (metres) or ``--relative`` (the default: right up to a scale and shift).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from . import ModelError
+from .base import KINDS, Model, default_alignment
+
+
+def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = None) -> Model:
+    module_name, sep, attr = arg.rpartition(":")
+    if not sep or not module_name or not attr:
+        raise ModelError(f"--model {spec!r}: expected python:MODULE:CALLABLE")
+    if kind is None:
+        raise ModelError(f"{spec}: say what the function returns with --kind "
+                         f"({', '.join(KINDS)}), and --metric if it is in metres")
+    if kind not in KINDS:
+        raise ModelError(f"--kind {kind!r}: valid: {', '.join(KINDS)}")
+    module = _import(module_name, spec)
+    fn = module
+    for part in attr.split("."):
+        try:
+            fn = getattr(fn, part)
+        except AttributeError:
+            raise ModelError(f"{spec}: {module_name} has no {attr}") from None
+    if not callable(fn):
+        raise ModelError(f"{spec}: {attr} is a {type(fn).__name__}, not a function")
+
+    def run(images: np.ndarray):
+        try:
+            return fn(images)
+        except Exception as exc:  # the user's code: its failure is reported, not a crash of ours
+            raise ModelError(f"{spec}: raised {type(exc).__name__}: "
+                             f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''}") from None
+
+    metric = bool(metric)
+    align, space = default_alignment(metric)
+    path = getattr(module, "__file__", None)
+    identity = {"module": module_name, "callable": attr, "file": path}
+    return Model(spec=spec, adapter="python", kind=kind, metric=metric, align=align,
+                 align_space=space, input_size=None, identity=identity, run=run)
+
+
+def _import(name: str, spec: str):
+    if name.endswith(".py"):
+        path = Path(name).expanduser()
+        if not path.is_file():
+            raise ModelError(f"{spec}: {path}: no such file")
+        mod_spec = importlib.util.spec_from_file_location(path.stem, path)
+        module = importlib.util.module_from_spec(mod_spec)
+        loader = mod_spec.loader.exec_module
+    else:
+        module, loader = None, None
+    try:
+        if loader is not None:
+            loader(module)
+            return module
+        if "" not in sys.path and str(Path.cwd()) not in sys.path:
+            sys.path.insert(0, str(Path.cwd()))
+        return importlib.import_module(name)
+    except ModelError:
+        raise
+    except Exception as exc:  # ImportError, or whatever the user's module raises on import
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise ModelError(f"{spec}: cannot import {name} ({type(exc).__name__}: {text})") from None
