@@ -533,19 +533,42 @@ def test_save_predictions_writes_form_1(kitti_c, tmp_path):
     assert np.load(path)[1, 0, 0] == 2  # the earlier file is intact
 
 
-def _readme_blocks():
-    text = (REPO / "README.md").read_text()
-    section = text[text.index("## The loop: build, predict, evaluate, score"):]
-    section = section[:section.index("\n## ", 3)]
+def _blocks(path, heading):
+    text = path.read_text()
+    section = text[text.index(heading):]
+    section = section[:section.index("\n#", 3)] if "\n#" in section[3:] else section
     return (re.findall(r"```python\n(.*?)```", section, re.S),
             re.findall(r"```sh\n(.*?)```", section, re.S))
 
 
-def test_readme_example_runs(kitti_c, tmp_path, monkeypatch, cli):
-    """The README's loop (its Python prediction step and evaluate command), exactly as printed,
-    with a stand-in model."""
+def test_readme_loop_runs(kitti_c, tmp_path, monkeypatch, cli):
+    """The README's loop, its predict and evaluate commands exactly as printed, with a
+    random-weight monodepth2 checkpoint where the README's model folder is."""
+    from test_predict import random_monodepth2
+
     out, _ = kitti_c
-    python, shell = _readme_blocks()
+    _, shell = _blocks(REPO / "README.md", "## The loop: build, predict, evaluate, score")
+    lines = [ln.split("#")[0].split() for block in shell for ln in block.splitlines()]
+    predict = [ln for ln in lines if ln[:2] == ["robodepth", "predict"]]
+    evaluate = [ln for ln in lines if ln[:2] == ["robodepth", "evaluate"]]
+    assert len(predict) == 1 and len(evaluate) == 1
+    (tmp_path / "KITTI_C").symlink_to(out)
+    monkeypatch.chdir(tmp_path)
+    model = predict[0][predict[0].index("--model") + 1]
+    random_monodepth2(tmp_path / model.partition(":")[2], 18)
+    res = cli(*predict[0][1:])
+    assert res.exit_code == 0, res.output
+    res = cli(*evaluate[0][1:])
+    assert res.exit_code == 0, res.stderr
+    assert "mCE" in res.stdout
+    assert [r["corruption"] for r in read_csv(tmp_path / "results.csv")] == \
+        ["clean", "brightness", "brightness", "contrast", "contrast"]
+
+
+def test_python_loop_in_the_docs_runs(kitti_c, tmp_path, monkeypatch, cli):
+    """docs/predict.md's hand-written loop, exactly as printed, with a stand-in model."""
+    out, _ = kitti_c
+    python, _ = _blocks(REPO / "docs" / "predict.md", "### In Python")
     assert len(python) == 1 and 5 <= len(python[0].strip().splitlines()) <= 14
     (tmp_path / "KITTI_C").symlink_to(out)
     monkeypatch.chdir(tmp_path)
@@ -554,10 +577,8 @@ def test_readme_example_runs(kitti_c, tmp_path, monkeypatch, cli):
         assert image.dtype == np.uint8 and image.shape == (64, 96, 3)
         return (0.02 + image.mean(axis=2) / 2550).astype(np.float32)
 
-    exec(compile(python[0], "README.md", "exec"), {"model": model})
-    evaluate = [ln for block in shell for ln in block.splitlines() if ln.startswith("robodepth evaluate")]
-    assert evaluate
-    res = cli(*evaluate[0].split()[1:])
+    exec(compile(python[0], "predict.md", "exec"), {"model": model})
+    res = cli("evaluate", "KITTI_C", "--pred", "PRED", "--score")
     assert res.exit_code == 0, res.stderr
     assert "mCE" in res.stdout
     assert [r["corruption"] for r in read_csv(tmp_path / "results.csv")] == \

@@ -33,6 +33,14 @@ def dataset(fixtures_dir, tmp_path_factory, cli):
               fixtures_dir / "kitti_split.txt", "--out", out, "--size", "64x96", "--corruptions",
               "brightness,contrast", "--levels", "1,3", "--jobs", "1")
     assert res.exit_code == 0, res.output
+    # KITTI-like ground truth (monodepth2's gt_depths.npz): sparse, 2..70 m, at 375 x 1242
+    rng = np.random.default_rng(5)
+    gts = np.empty(2, object)
+    for i in range(2):
+        g = np.linspace(70, 2, 375, dtype=np.float32)[:, None] * rng.uniform(0.9, 1.1, (375, 1242))
+        g[rng.random(g.shape) > 0.1] = 0
+        gts[i] = g.astype(np.float32)
+    np.savez_compressed(out / "gt_depths.npz", data=gts)
     return out
 
 
@@ -488,3 +496,33 @@ def test_predict_modules_import_no_heavy_library():
                          env={**os.environ, "PYTHONPATH": str(REPO)})
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "[]"
+
+
+# --------------------------------------------------------------------------- the loop
+
+def test_build_predict_evaluate_score(dataset, tmp_path, cli, user_module):
+    """evaluate takes its defaults from PRED/predictions.json: the same numbers as with the
+    flags given by hand; then score reads the CSV."""
+    random_monodepth2(tmp_path / "m", 18)
+    res = cli("predict", dataset, "-m", f"monodepth2:{tmp_path / 'm'}", "-o", tmp_path / "P")
+    assert res.exit_code == 0, res.output
+    assert f"next: robodepth evaluate {dataset} --pred {tmp_path / 'P'}" in res.output
+    res = cli("evaluate", dataset, "--pred", tmp_path / "P", "-o", tmp_path / "r.csv", "--score")
+    assert res.exit_code == 0, res.output
+    assert "mCE" in res.stdout
+    score = cli("score", tmp_path / "r.csv", "--benchmark", "kitti-c", "--allow-partial")
+    assert score.exit_code == 0 and res.stdout.endswith(score.stdout)
+
+    # a metric depth from a python function: evaluate reads --kind depth from the record
+    res = cli("predict", dataset, "-m", f"python:{user_module}:as_tensor", "--kind", "depth",
+              "--metric", "-o", tmp_path / "D")
+    assert res.exit_code == 0, res.output
+    recorded = cli("evaluate", dataset, "--pred", tmp_path / "D", "-o", tmp_path / "a.csv", "--json")
+    given = cli("evaluate", dataset, "--pred", tmp_path / "D", "-o", tmp_path / "b.csv",
+                "--kind", "depth", "--json")
+    disp = cli("evaluate", dataset, "--pred", tmp_path / "D", "-o", tmp_path / "c.csv",
+               "--kind", "disp", "--json")
+    assert recorded.exit_code == given.exit_code == disp.exit_code == 0
+    assert json.loads(recorded.stdout)["kind"] == "depth"
+    assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
+    assert (tmp_path / "a.csv").read_text() != (tmp_path / "c.csv").read_text()

@@ -26,7 +26,8 @@ DEFAULT_OUT = "results.csv"
               help="kitti: a stereo-trained model: depth x 5.4, no median scaling.")
 @click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
               help="What the arrays hold: disp (scaled disparity, kitti default), sigmoid "
-                   "(raw network output, in [0, 1]), depth (nyu default). PNGs are depths.")
+                   "(raw network output, in [0, 1]), depth (nyu default). PNGs are depths. "
+                   "Default: what PRED/predictions.json records, if robodepth predict wrote PRED.")
 @click.option("--png-scale", type=float, metavar="S",
               help="16-bit PNG predictions hold depth x S (default 256 kitti, 1000 nyu); they "
                    "are read as depths (--kind depth).")
@@ -84,6 +85,8 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
     check_writable(out, "--out")
     replacing = out.exists()
     dataset = open_dataset(dataset_dir)
+    if kind is None:
+        kind = _recorded_kind(pred)
     setup = make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
                          kind, stereo, png_scale)
     bench = None
@@ -147,3 +150,11 @@ def _implausible_clean(result) -> str:
                         f"{'stereo' if result.setup.stereo else 'mono'}); check --kind, --stereo "
                         "and --png-scale; the metrics above are written, not scored")
     return ""
+
+
+def _recorded_kind(pred: Path) -> str | None:
+    """The ``kind`` that ``PRED/predictions.json`` (written by robodepth predict) records."""
+    from ..models.predict import read_record
+
+    record = read_record(pred) if pred.is_dir() else None
+    return record["evaluate"].get("kind") if record else None

@@ -53,7 +53,8 @@ def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = 
     path = getattr(module, "__file__", None)
     identity = {"module": module_name, "callable": attr, "file": path}
     return Model(spec=spec, adapter="python", kind=kind, metric=metric, align=align,
-                 align_space=space, input_size=None, identity=identity, run=run)
+                 align_space=space, input_size=None, identity=identity, run=run,
+                 device="the function's own device")
 
 
 def _import(name: str, spec: str):
