@@ -88,7 +88,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
     if kind is None:
         kind = _recorded_kind(pred)
     setup = make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
-                         kind, stereo, png_scale)
+                       kind, stereo, png_scale)
     bench = None
     if with_score:
         if dataset.name not in S.BENCHMARKS:
