@@ -497,6 +497,159 @@ def test_flag_combinations_refused(kitti_c, kitti_pred, tmp_path, cli):
     assert not (tmp_path / "r.csv").exists()
 
 
+# --------------------------------------------------------------------------- alignment
+
+def ref_align(p, g, align):
+    """The alignments from their definitions, by generic least squares (numpy's lstsq and
+    polyfit), not the package's closed forms: returns the aligned values."""
+    if align == "median":  # in the inputs' dtype, as monodepth2's median scaling
+        return p * (np.median(g) / np.median(p))
+    p, g = p.astype(np.float64), g.astype(np.float64)
+    if align == "scale":
+        s = np.linalg.lstsq(p[:, None], g, rcond=None)[0][0]
+        return s * p
+    s, t = np.polyfit(p, g, 1)
+    return s * p + t
+
+
+def ref_kitti_aligned(gts, preds, align, space, kind="disp", crop="garg", lo=1e-3, hi=80.0):
+    """monodepth2's loop with the alignment in place of median scaling: resize, the crop
+    and lo < gt < hi, align p (a depth or a disparity) to g (gt or 1/gt), back to a depth
+    (a disparity <= 0: hi), clamp to [lo, hi]."""
+    errors = []
+    for gt, pred in zip(gts, preds):
+        h, w = gt.shape
+        pred = cv2.resize(pred, (w, h))
+        disp = pred if kind == "disp" else 1 / pred
+        box = {"garg": (0.40810811, 0.99189189, 0.03594771, 0.96405229),
+               "eigen": (0.3324324, 0.91351351, 0.0359477, 0.96405229),
+               "none": (0, 1, 0, 1)}[crop]
+        inside = np.zeros(gt.shape, bool)
+        inside[int(box[0] * h):int(box[1] * h), int(box[2] * w):int(box[3] * w)] = True
+        mask = (gt > lo) & (gt < hi) & inside
+        g = gt[mask]
+        if space == "depth":
+            d = ref_align(1 / disp[mask], g, align)
+        else:
+            a = ref_align(disp[mask], 1 / g, align)
+            d = np.where(a > 0, 1 / np.where(a > 0, a, 1), hi)
+        d = np.clip(d, lo, hi)
+        errors.append(ref_errors(g, d))
+    return np.array(errors, np.float64).mean(0)
+
+
+def _form2(out, pred, maps_by_variant):
+    keys = json.loads((out / "build.json").read_text())["split"]["keys"]
+    for v, maps in maps_by_variant.items():
+        for key, m in zip(keys, maps):
+            p = pred / v / key.replace(".png", ".npy")
+            p.parent.mkdir(parents=True, exist_ok=True)
+            np.save(p, m)
+    return pred
+
+
+@pytest.mark.parametrize("align,space", [("median", "disparity"), ("scale", "depth"),
+                                         ("scale", "disparity"), ("scale-shift", "depth"),
+                                         ("scale-shift", "disparity")])
+def test_alignments_match_their_definitions(kitti_c, kitti_pred, tmp_path, cli, align, space):
+    out, gts = kitti_c
+    res = cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", "--align", align,
+              "--align-space", space, "--json")
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert (doc["align"], doc["align_space"], doc["median_scaling"]) == (align, space, align == "median")
+    expected = {v: ref_kitti_aligned(gts, list(np.load(kitti_pred / f"{v}.npy")), align, space)
+                for v in KITTI_VARIANTS}
+    check_rows(read_csv(tmp_path / "r.csv"), expected, KITTI_COLS)
+
+
+def test_crop_and_depth_range(kitti_c, kitti_pred, tmp_path, cli):
+    out, gts = kitti_c
+    for crop in ("eigen", "none"):
+        res = cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", "--crop", crop,
+                  "--min-depth", "5", "--max-depth", "50", "--align", "scale-shift",
+                  "--align-space", "disparity")
+        assert res.exit_code == 0, res.stderr
+        expected = {v: ref_kitti_aligned(gts, list(np.load(kitti_pred / f"{v}.npy")), "scale-shift",
+                                         "disparity", crop=crop, lo=5.0, hi=50.0)
+                    for v in KITTI_VARIANTS}
+        check_rows(read_csv(tmp_path / "r.csv"), expected, KITTI_COLS)
+
+
+def test_median_default_unchanged(kitti_c, kitti_pred, tmp_path, cli):
+    """Spelling out today's kitti default (median, depth, garg, 1e-3..80) changes no byte."""
+    out, _ = kitti_c
+    assert cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "a.csv").exit_code == 0
+    res = cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "b.csv", "--align", "median",
+              "--align-space", "depth", "--crop", "garg", "--min-depth", "0.001", "--max-depth", "80")
+    assert res.exit_code == 0, res.stderr
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+
+
+def test_affine_distorted_predictions_are_perfect_after_scale_shift(kitti_c, tmp_path, cli):
+    """A disparity s/gt + t (a relative model's ambiguity) and a depth s*gt + t give abs_rel 0
+    and a1 1 after scale-shift in their own space; median scaling cannot undo the shift."""
+    out, gts = kitti_c
+    filled = [np.where(g > 0, g, 1.0).astype(np.float64) for g in gts]
+    disp = {v: [(0.37 / f + 0.021 * (1 + k)).astype(np.float32) for f in filled]
+            for k, v in enumerate(KITTI_VARIANTS)}
+    depth = {v: [(2.5 * f - 1.5).astype(np.float32) for f in filled] for v in KITTI_VARIANTS}
+    for maps, kind, space in ((disp, "disp", "disparity"), (depth, "depth", "depth")):
+        pred = _form2(out, tmp_path / kind, maps)
+        res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--kind", kind,
+                  "--align", "scale-shift", "--align-space", space)
+        assert res.exit_code == 0, res.stderr
+        for r in read_csv(tmp_path / "r.csv"):
+            assert float(r["abs_rel"]) < 1e-5 and float(r["a1"]) == 1.0, r
+        res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "m.csv", "--kind", kind)
+        assert res.exit_code == 0, res.stderr
+        assert all(float(r["abs_rel"]) > 1e-3 for r in read_csv(tmp_path / "m.csv"))
+
+
+def test_relative_depth_on_nyu(nyu_c, tmp_path, cli):
+    """A relative disparity on NYU: scale-shift in disparity space recovers it exactly;
+    without --align it is refused (nyu evaluates metric depths)."""
+    out, gts = nyu_c
+    maps = {v: [(3.0 / np.where(g > 0, g / 1000, 1.0) + 0.2).astype(np.float32) for g in gts]
+            for v in ("clean", "brightness/1")}
+    pred = write_form1(tmp_path / "P", {v: np.stack(m) for v, m in maps.items()})
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--kind", "disp",
+              "--align", "scale-shift", "--align-space", "disparity")
+    assert res.exit_code == 0, res.stderr
+    for r in read_csv(tmp_path / "r.csv"):
+        assert float(r["abs_rel"]) < 1e-5 and float(r["a1"]) == 1.0
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--kind", "disp")
+    assert res.exit_code == 2 and "--protocol nyu evaluates depths in metres" in res.stderr
+
+
+def test_alignment_refusals(kitti_c, kitti_pred, tmp_path, cli):
+    out, gts = kitti_c
+    for flags, message in (
+            (("--stereo", "--align", "scale"), "--stereo scales by 5.4 and aligns nothing"),
+            (("--min-depth", "10", "--max-depth", "5"), "need 0 < min-depth < max-depth"),
+            (("--align", "fit"), "Invalid value for '--align'")):
+        res = cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", *flags)
+        assert res.exit_code == 2 and message in res.stderr, res.stderr
+    # a zero disparity has no depth: least squares in depth space has no number to give
+    zero = {v: np.load(kitti_pred / f"{v}.npy") for v in KITTI_VARIANTS}
+    zero["clean"] = zero["clean"].copy()
+    zero["clean"][1] = 0
+    pred = write_form1(tmp_path / "zero", zero)
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", "--align", "scale")
+    assert res.exit_code == 2
+    assert f"{pred / 'clean.npy'}: prediction 1: not a number after --align scale in depth space" \
+        in res.stderr
+    # negative values: refused, except under scale-shift where an affine output may have them
+    neg = write_form1(tmp_path / "neg", {v: np.load(kitti_pred / f"{v}.npy") - 0.005
+                                         for v in KITTI_VARIANTS})
+    res = cli("evaluate", out, "--pred", neg, "--out", tmp_path / "r.csv")
+    assert res.exit_code == 2 and "has negative values" in res.stderr
+    res = cli("evaluate", out, "--pred", neg, "--out", tmp_path / "r.csv", "--align", "scale-shift",
+              "--align-space", "disparity")
+    assert res.exit_code == 0, res.stderr
+    assert len(read_csv(tmp_path / "r.csv")) == len(KITTI_VARIANTS)
+
+
 # --------------------------------------------------------------------------- Python API
 
 def test_open_dataset_variants_and_images(kitti_c):

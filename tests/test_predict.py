@@ -526,3 +526,25 @@ def test_build_predict_evaluate_score(dataset, tmp_path, cli, user_module):
     assert json.loads(recorded.stdout)["kind"] == "depth"
     assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
     assert (tmp_path / "a.csv").read_text() != (tmp_path / "c.csv").read_text()
+
+
+def test_relative_model_evaluated_after_scale_shift_in_disparity(dataset, tmp_path, cli):
+    """A relative hf model's record makes scale-shift in disparity space evaluate's default."""
+    tiny_dpt(tmp_path / "dpt")
+    res = cli("predict", dataset, "-m", f"hf:{tmp_path / 'dpt'}", "-o", tmp_path / "P")
+    assert res.exit_code == 0, res.output
+    default = cli("evaluate", dataset, "--pred", tmp_path / "P", "-o", tmp_path / "a.csv", "--json")
+    given = cli("evaluate", dataset, "--pred", tmp_path / "P", "-o", tmp_path / "b.csv", "--kind",
+                "disp", "--align", "scale-shift", "--align-space", "disparity")
+    median = cli("evaluate", dataset, "--pred", tmp_path / "P", "-o", tmp_path / "c.csv", "--align",
+                 "median", "--align-space", "depth")
+    assert default.exit_code == given.exit_code == median.exit_code == 0, default.output
+    doc = json.loads(default.stdout)
+    assert (doc["kind"], doc["align"], doc["align_space"]) == ("disp", "scale-shift", "disparity")
+    assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
+    assert (tmp_path / "a.csv").read_text() != (tmp_path / "c.csv").read_text()
+    # --stereo's fixed factor replaces the recorded alignment
+    stereo = cli("evaluate", dataset, "--pred", tmp_path / "P", "-o", tmp_path / "s.csv", "--stereo",
+                 "--json")
+    assert stereo.exit_code == 0, stereo.output
+    assert json.loads(stereo.stdout)["align"] == "none"

@@ -28,6 +28,20 @@ DEFAULT_OUT = "results.csv"
               help="What the arrays hold: disp (scaled disparity, kitti default), sigmoid "
                    "(raw network output, in [0, 1]), depth (nyu default). PNGs are depths. "
                    "Default: what PRED/predictions.json records, if robodepth predict wrote PRED.")
+@click.option("--align", type=click.Choice(["none", "median", "scale", "scale-shift"]),
+              help="Per image, on the valid pixels: none; median (median(gt) / median(pred), "
+                   "the kitti mono default); scale (least-squares s); scale-shift "
+                   "(least-squares s and t). Default: PRED/predictions.json's, else the "
+                   "protocol's.")
+@click.option("--align-space", type=click.Choice(["depth", "disparity"]),
+              help="Align the depth, or the disparity against 1/gt (relative models' default "
+                   "from predictions.json). Default: depth.")
+@click.option("--crop", type=click.Choice(["garg", "eigen", "none"]),
+              help="The evaluation crop (default: garg for kitti, eigen for nyu).")
+@click.option("--min-depth", type=float, metavar="M",
+              help="Valid ground truth and clamp: above M metres (default 0.001).")
+@click.option("--max-depth", type=float, metavar="M",
+              help="Valid ground truth and clamp: below M metres (default 80 kitti, 10 nyu).")
 @click.option("--png-scale", type=float, metavar="S",
               help="16-bit PNG predictions hold depth x S (default 256 kitti, 1000 nyu); they "
                    "are read as depths (--kind depth).")
@@ -45,8 +59,9 @@ DEFAULT_OUT = "results.csv"
               help="Evaluate the variants that have predictions; the rest are listed as missing.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
-def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_path, out, force,
-                     with_score, as_json, allow_partial, progress):
+def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_space, crop,
+                     min_depth, max_depth, png_scale, gt_path, out, force, with_score, as_json,
+                     allow_partial, progress):
     """Evaluate a model's depth predictions on DATASET_DIR (made by robodepth build).
 
     Compares the predictions of every variant (clean, each corruption and level, or each
@@ -65,6 +80,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
       robodepth evaluate KITTI_C --pred PRED --score
       robodepth evaluate KITTI_C --pred PRED --stereo --out stereo.csv
       robodepth evaluate NYU_C --pred BTS_PNGS --out bts.csv
+      robodepth evaluate KITTI_C --pred DA --align scale-shift --align-space disparity
     """
     import json
 
@@ -85,10 +101,14 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, png_scale, gt_pa
     check_writable(out, "--out")
     replacing = out.exists()
     dataset = open_dataset(dataset_dir)
-    if kind is None:
-        kind = _recorded_kind(pred)
+    recorded = _recorded(pred)
+    kind = kind or recorded.get("kind")
+    if not stereo:  # stereo's fixed 5.4 replaces any recorded alignment
+        align = align or recorded.get("align")
+        align_space = align_space or recorded.get("align_space")
     setup = make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
-                       kind, stereo, png_scale)
+                       kind, stereo, png_scale, align=align, align_space=align_space, crop=crop,
+                       min_depth=min_depth, max_depth=max_depth)
     bench = None
     if with_score:
         if dataset.name not in S.BENCHMARKS:
@@ -152,9 +172,10 @@ def _implausible_clean(result) -> str:
     return ""
 
 
-def _recorded_kind(pred: Path) -> str | None:
-    """The ``kind`` that ``PRED/predictions.json`` (written by robodepth predict) records."""
+def _recorded(pred: Path) -> dict:
+    """The ``evaluate`` defaults (kind, align, align_space) that ``PRED/predictions.json``
+    records when robodepth predict wrote PRED; {} otherwise."""
     from ..models.predict import read_record
 
     record = read_record(pred) if pred.is_dir() else None
-    return record["evaluate"].get("kind") if record else None
+    return record["evaluate"] if record else {}

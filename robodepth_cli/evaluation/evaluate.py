@@ -70,7 +70,10 @@ class Evaluation:
             rows.append(row)
         return {"dataset": self.dataset, "protocol": self.setup.protocol,
                 "kind": self.setup.kind, "stereo": self.setup.stereo,
-                "median_scaling": self.setup.median_scaling, "predictions": self.predictions,
+                "median_scaling": self.setup.median_scaling, "align": self.setup.alignment,
+                "align_space": self.setup.align_space, "crop": self.setup.crop_name,
+                "min_depth": self.setup.min_depth, "max_depth": self.setup.depth_cap,
+                "predictions": self.predictions,
                 "ground_truth": self.ground_truth, "images": self.images, "results": rows,
                 "partial": bool(self.missing),
                 "missing": [{"corruption": v.name, "level": v.level or 0} for v in self.missing]}
@@ -144,7 +147,7 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
                               "NYU); build it with ground truth, run robodepth gt, or pass --gt")
     gt_path = Path(gt_path)
     names = dataset.depth_names() if gt_path.is_dir() else dataset.keys
-    truth = load_ground_truth(gt_path, names, setup.protocol)
+    truth = load_ground_truth(gt_path, names, setup.protocol, setup.valid)
     n = len(dataset.keys)
     if on_total:
         on_total(n * len(found))
@@ -184,28 +187,26 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
         m, where, is_png = preds.read(i)
         if m.dtype not in (np.float32, np.float64):
             m = m.astype(np.float32)  # OpenCV and the reference code work in float32
-        check_values(m, where, setup.kind)
+        check_values(m, where, setup.kind, allow_negative=setup.alignment == "scale-shift")
         shape, index, gt = truth.get(i)
         if is_png and shape != m.shape and tuple(m.shape) != tuple(image_size or ()):
             raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}; a PNG prediction must "
                                   f"have the ground truth's size {shape[0]} x {shape[1]} or the "
                                   "image's")
+        if setup.protocol == "nyu" and (m.shape[0] > shape[0] or m.shape[1] > shape[1]):
+            raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}, larger than its "
+                                  f"ground truth ({shape[0]} x {shape[1]})")
         # 0 is a valid value (see ZERO_AND_INF); what it leads to is checked below instead.
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            if setup.protocol == "kitti":
-                errs, ratio = kitti_image(m, setup.kind, setup.stereo, shape, index, gt)
-                if ratio is not None:
-                    if not (np.isfinite(ratio) and ratio > 0):
-                        raise EvaluationError(
-                            f"{where}: median scaling needs a positive finite median depth at the "
-                            f"valid pixels, and this map is 0 at half of them or more "
-                            f"({'infinitely far' if setup.kind != 'depth' else 'distance 0'})")
-                    ratios.append(ratio)
-            else:
-                if m.shape[0] > shape[0] or m.shape[1] > shape[1]:
-                    raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}, larger than "
-                                          f"its ground truth ({shape[0]} x {shape[1]})")
-                errs = nyu_image(m, shape, index, gt)
+            try:
+                if setup.protocol == "kitti":
+                    errs, ratio = kitti_image(m, setup.kind, setup.stereo, shape, index, gt, setup)
+                else:
+                    errs, ratio = nyu_image(m, shape, index, gt, setup), None
+            except EvaluationError as exc:  # raised by the alignment, which knows no file
+                raise EvaluationError(f"{where}: {exc}") from None
+        if ratio is not None:
+            ratios.append(ratio)
         if not np.all(np.isfinite(np.asarray(errs, dtype=np.float64))):
             raise EvaluationError(f"{where}: the metrics of this map are not finite numbers")
         errors.append(errs)

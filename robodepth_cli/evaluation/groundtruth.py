@@ -33,9 +33,10 @@ class GroundTruth:
     than the map itself, else as read and prepared again on each use.
     """
 
-    def __init__(self, source: str, protocol: str):
+    def __init__(self, source: str, protocol: str, valid=None):
         self.source = source
-        self._valid = VALID[protocol]
+        # valid: a setup's own rule (crop, depth range); by default the protocol's
+        self._valid = valid or VALID[protocol]
         self._items: list = []
         self.shapes: list[tuple[int, int]] = []
         self.keys: list[str] | None = None  # the frame of each map, when the file says
@@ -80,7 +81,8 @@ class GroundTruth:
         return self.shapes[i], index, depth.reshape(-1)[index]
 
 
-def load_ground_truth(path: Path, names: Sequence[str], protocol: str) -> GroundTruth:
+def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
+                      valid=None) -> GroundTruth:
     """Read the ground truth of a split's images from ``path``: a ``.npz``/``.npy`` file of
     depth maps in metres, one per image in split order (monodepth2's ``gt_depths.npz``), or
     a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
@@ -94,7 +96,7 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str) -> Ground
     together (peak ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``).
     """
     path = Path(path)
-    gt = GroundTruth(str(path), protocol)
+    gt = GroundTruth(str(path), protocol, valid)
     if path.is_dir():
         for i, name in enumerate(names):
             file = path / name

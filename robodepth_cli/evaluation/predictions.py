@@ -170,14 +170,16 @@ def find_predictions(pred: Path, variant: Variant, png_scale: float) -> Predicti
     return None
 
 
-def check_values(m: np.ndarray, where: str, kind: str = "depth") -> None:
+def check_values(m: np.ndarray, where: str, kind: str = "depth",
+                 allow_negative: bool = False) -> None:
     """Refuse a map that cannot give finite metrics (the rule is :data:`ZERO_AND_INF`):
-    NaN, inf, negative values, a sigmoid output outside [0, 1], or (disp, depth) no
+    NaN, inf, negative values (unless ``allow_negative``: a prediction aligned by a scale
+    and a shift may have them), a sigmoid output outside [0, 1], or (disp, depth) no
     positive value at all, a dead map."""
     low = np.min(m)
     if np.isnan(low):
         raise EvaluationError(f"{where} contains NaN")
-    if low < 0:
+    if low < 0 and not allow_negative:
         raise EvaluationError(f"{where} has negative values (min {float(low):g})")
     high = np.max(m)
     if np.isinf(high):
