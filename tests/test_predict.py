@@ -548,3 +548,19 @@ def test_relative_model_evaluated_after_scale_shift_in_disparity(dataset, tmp_pa
                  "--json")
     assert stereo.exit_code == 0, stereo.output
     assert json.loads(stereo.stdout)["align"] == "none"
+
+
+def test_unreadable_record_is_a_one_line_error(dataset, tmp_path, cli, user_module):
+    res = cli("predict", dataset, "-m", f"python:{user_module}:brightness", "--kind", "disp",
+              "-o", tmp_path / "P")
+    assert res.exit_code == 0, res.output
+    for content, message in ((b"{not json", "not valid JSON"), (b"\xff\xfe", "not UTF-8 text"),
+                             (b"[]", "not a robodepth predictions record")):
+        (tmp_path / "P" / "predictions.json").write_bytes(content)
+        for args in (("evaluate", dataset, "--pred", tmp_path / "P", "-o", tmp_path / "r.csv"),
+                     ("predict", dataset, "-m", f"python:{user_module}:brightness", "--kind",
+                      "disp", "-o", tmp_path / "P")):
+            res = cli(*args)
+            assert res.exit_code == 2, res.output
+            assert f"{tmp_path / 'P' / 'predictions.json'}: " in res.output and message in res.output
+            assert len(res.output.strip().splitlines()) == 1, res.output

@@ -73,8 +73,9 @@ def read_record(pred: Path) -> dict | None:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         return None
-    except OSError as exc:
-        raise ModelError(f"{path}: cannot read ({os_reason(exc)})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = os_reason(exc) if isinstance(exc, OSError) else "not UTF-8 text"
+        raise ModelError(f"{path}: cannot read ({reason})") from None
     try:
         record = json.loads(text)
     except ValueError as exc:
