@@ -564,3 +564,34 @@ def test_unreadable_record_is_a_one_line_error(dataset, tmp_path, cli, user_modu
             assert res.exit_code == 2, res.output
             assert f"{tmp_path / 'P' / 'predictions.json'}: " in res.output and message in res.output
             assert len(res.output.strip().splitlines()) == 1, res.output
+
+
+def test_custom_build_of_mixed_sizes_gets_one_file_per_image(tmp_path, cli, user_module):
+    """Images that keep their own sizes: one .npy per image (the form evaluate reads), each
+    at its image's size, written whole per variant and resumed like the arrays."""
+    from _trees import random_image, save
+
+    root = tmp_path / "city"
+    sizes = {"a/x.png": (40, 64), "a/y.png": (48, 36), "b/z.png": (33, 90)}
+    for i, (key, (h, w)) in enumerate(sizes.items()):
+        save(root / key, random_image(h, w, seed=i))
+    out = tmp_path / "C"
+    res = cli("build", "custom", "--root", root, "--out", out, "--corruptions", "contrast",
+              "--levels", "2")
+    assert res.exit_code == 0, res.output
+    pred = tmp_path / "P"
+    res = cli("predict", out, "-m", f"python:{user_module}:brightness", "--kind", "disp", "-o", pred,
+              "-b", 2, "--variants", "clean")
+    assert res.exit_code == 0, res.output
+    for key, (h, w) in sizes.items():
+        img = np.asarray(Image.open(out / "clean" / key).convert("RGB"))
+        got = np.load(pred / "clean" / key.replace(".png", ".npy"))
+        np.testing.assert_array_equal(got, (0.02 + img.mean(axis=2) / 2550).astype(np.float32))
+    (pred / "contrast").mkdir()
+    (pred / "contrast" / ".2.abc.part").mkdir()  # a killed run's temporary folder
+    res = cli("predict", out, "-m", f"python:{user_module}:brightness", "--kind", "disp", "-o", pred)
+    assert res.exit_code == 0, res.output
+    assert "(1 already done, skipped)" in res.output
+    assert sorted(p.relative_to(pred).as_posix() for p in pred.rglob("*") if p.is_file()) == \
+        ["clean/a/x.npy", "clean/a/y.npy", "clean/b/z.npy", "contrast/2/a/x.npy",
+         "contrast/2/a/y.npy", "contrast/2/b/z.npy", "predictions.json"]

@@ -8,6 +8,11 @@ a temporary file that is renamed into place when the variant is complete. So a f
 variant's file is whole, a killed run loses at most the variant in flight, and a run
 started again skips the variants whose files are there (resume).
 
+A build without one image size (``build custom`` without ``--size``) gets the other form
+``robodepth evaluate`` reads, one ``.npy`` per image, ``PRED/<variant>/<image path>.npy``,
+since maps that follow the image size cannot share one array: the variant's files are
+written into a temporary folder beside it, renamed into place when complete.
+
 ``PRED/predictions.json`` records the model (spec, adapter, what tells its weights apart),
 what its maps hold (``output`` disparity or depth, ``scale`` relative or metric, and the
 ``evaluate`` defaults ``kind``, ``align``, ``align_space``), the input size, the dataset,
@@ -128,9 +133,20 @@ def prepare_output(pred: Path, record: dict) -> bool:
     return created
 
 
+def _image_files(folder: Path, variant: Variant) -> list[Path]:
+    """Where the per-image form puts each image's map: ``<image path>.npy`` in ``folder``."""
+    from pathlib import PurePosixPath
+
+    return [folder / str(PurePosixPath(k).with_suffix(".npy")) for k in variant.keys]
+
+
 def finished(pred: Path, variant: Variant) -> bool:
-    """Whether ``variant``'s prediction file is there whole (one map per image)."""
+    """Whether ``variant``'s predictions are there whole: its ``.npy`` (one map per image),
+    or its folder of one ``.npy`` per image."""
     path = variant.prediction_file(pred)
+    folder = Path(pred) / variant.relpath
+    if folder.is_dir() and not path.is_file():
+        return all(p.is_file() for p in _image_files(folder, variant))
     if not path.is_file():
         return False
     try:
@@ -144,11 +160,70 @@ def _remove_leftovers(pred: Path, variants: Sequence[Variant]) -> None:
     """Delete the temporary files a killed run left beside the variants' files."""
     from ..files import is_temporary
 
+    import shutil
+
     for folder in {v.prediction_file(pred).parent for v in variants}:
         if folder.is_dir():
             for p in folder.iterdir():
-                if p.is_file() and is_temporary(p.name):
-                    p.unlink()
+                if is_temporary(p.name):
+                    shutil.rmtree(p) if p.is_dir() else p.unlink()
+
+
+class ImageFilesWriter:
+    """The per-image form for one variant: each map as ``<image path>.npy`` in a temporary
+    folder beside ``PRED/<variant>``, renamed to it when all are written (removed on
+    failure), so the folder is whole or absent. Same ``write`` as
+    :class:`~robodepth_cli.api.PredictionWriter`."""
+
+    def __init__(self, pred: Path, variant: Variant):
+        self.target = Path(pred) / variant.relpath
+        self.variant = variant
+        self.count = 0
+        self._tmp = None
+        self._files: list[Path] = []
+
+    def __enter__(self) -> "ImageFilesWriter":
+        import secrets
+
+        if self.target.exists():
+            raise ModelError(f"{self.target}: exists but is not complete predictions of "
+                             f"{self.variant.label}; delete it")
+        try:
+            self.target.parent.mkdir(parents=True, exist_ok=True)
+            # os.mkdir, not mkdtemp: the folder gets the usual 0777 & ~umask once renamed
+            self._tmp = self.target.parent / f".{self.target.name}.{secrets.token_hex(6)}.part"
+            self._tmp.mkdir()
+        except OSError as exc:
+            raise ModelError(f"{self.target}: cannot write ({os_reason(exc)})") from None
+        self._files = _image_files(self._tmp, self.variant)
+        return self
+
+    def write(self, m: np.ndarray) -> None:
+        path = self._files[self.count]
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            np.save(path, m if m.dtype.kind == "f" else m.astype(np.float32))
+        except OSError as exc:
+            raise ModelError(f"{path}: cannot write ({os_reason(exc)})") from None
+        self.count += 1
+
+    def __exit__(self, exc_type, exc, tb):
+        import shutil
+
+        try:
+            if exc_type is None:
+                if self.count != len(self._files):
+                    raise ModelError(f"{self.target}: {self.count} predictions written of the "
+                                     f"{len(self._files)} expected")
+                try:
+                    os.replace(self._tmp, self.target)
+                except OSError as err:
+                    raise ModelError(f"{self.target}: cannot write ({os_reason(err)})") from None
+        finally:
+            if self._tmp is not None and self._tmp.exists():
+                shutil.rmtree(self._tmp)
+        return False
+
 
 
 def _read_images(paths: Sequence[Path]) -> list[np.ndarray]:
@@ -193,7 +268,9 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
             for v in todo:
                 paths = v.images()
                 chunks = [paths[i:i + batch_size] for i in range(0, len(paths), batch_size)]
-                with PredictionWriter(v.prediction_file(pred), len(paths)) as out:
+                out_writer = (ImageFilesWriter(pred, v) if dataset.size is None
+                              else PredictionWriter(v.prediction_file(pred), len(paths)))
+                with out_writer as out:
                     pending = reader.submit(_read_images, chunks[0]) if chunks else None
                     for k in range(len(chunks)):
                         images = pending.result()
