@@ -157,16 +157,20 @@ def finished(pred: Path, variant: Variant) -> bool:
 
 
 def _remove_leftovers(pred: Path, variants: Sequence[Variant]) -> None:
-    """Delete the temporary files a killed run left beside the variants' files."""
-    from ..files import is_temporary
-
+    """Delete the temporary files (and folders) a killed run left beside the variants'."""
     import shutil
+
+    from ..files import is_temporary
 
     for folder in {v.prediction_file(pred).parent for v in variants}:
         if folder.is_dir():
             for p in folder.iterdir():
-                if is_temporary(p.name):
-                    shutil.rmtree(p) if p.is_dir() else p.unlink()
+                if not is_temporary(p.name):
+                    continue
+                if p.is_dir():
+                    shutil.rmtree(p)
+                else:
+                    p.unlink()
 
 
 class ImageFilesWriter:
@@ -223,7 +227,6 @@ class ImageFilesWriter:
             if self._tmp is not None and self._tmp.exists():
                 shutil.rmtree(self._tmp)
         return False
-
 
 
 def _read_images(paths: Sequence[Path]) -> list[np.ndarray]:
