@@ -4,17 +4,27 @@ message.
 Every command lives in :mod:`robodepth_cli.commands`. Anything the user can fix is raised
 there or in the library as a :class:`~robodepth_cli.errors.RobodepthError`; the group
 prints it as ``robodepth: error: <message>`` and exits with status 2, with no traceback.
+
+Interrupts are handled here too, the same way for every command: Ctrl-C (SIGINT) and
+SIGTERM (a batch scheduler's end of time) stop the command with one line,
+``robodepth: interrupted; <what was kept>``, and exit status 130. Outputs are written
+atomically, so nothing is left half-written; a command that keeps finished outputs says so
+(:func:`robodepth_cli.commands.common.on_interrupt`).
 """
 
 from __future__ import annotations
 
+import signal
 import sys
 
 import click
 
 from . import __version__
 from .commands import COMMANDS
+from .commands.common import ARGV, KEPT, NOTHING_KEPT
 from .errors import RobodepthError
+
+INTERRUPTED = 130  # the shell's status for a SIGINT death; used for SIGTERM too
 
 
 class UserError(click.ClickException):
@@ -27,11 +37,35 @@ class UserError(click.ClickException):
 
 
 class _Group(click.Group):
+    def parse_args(self, ctx, args):
+        ctx.meta[ARGV] = list(args)  # the command as typed, for messages that repeat it
+        return super().parse_args(ctx, args)
+
     def invoke(self, ctx):
+        previous = _stop_on_sigterm()
         try:
             return super().invoke(ctx)
         except RobodepthError as exc:
             raise UserError(str(exc)) from None
+        except (KeyboardInterrupt, click.Abort):
+            click.echo(f"robodepth: interrupted; {ctx.meta.get(KEPT, NOTHING_KEPT)}", err=True)
+            raise click.exceptions.Exit(INTERRUPTED) from None
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
+
+
+def _stop_on_sigterm():
+    """Make SIGTERM stop a command as Ctrl-C does (cleanly, through the same handler);
+    the previous handler, or None where none can be set (not the main thread)."""
+    try:
+        return signal.signal(signal.SIGTERM, _interrupt)
+    except ValueError:
+        return None
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})

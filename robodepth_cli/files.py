@@ -18,14 +18,15 @@ _TEMP_PREFIX = "."
 _TEMP_SUFFIX = ".part"
 
 
-def _file_mode() -> int:
-    # mkstemp creates 0600 files; outputs should get the usual 0666 & ~umask.
+def _umask() -> int:
+    # mkstemp/mkdtemp create 0600/0700 entries; outputs should get the usual 0666/0777 & ~umask.
     mask = os.umask(0)
     os.umask(mask)
-    return 0o666 & ~mask
+    return mask
 
 
-_FILE_MODE = _file_mode()
+_UMASK = _umask()
+_FILE_MODE = 0o666 & ~_UMASK
 
 
 def write_atomic(path: str | os.PathLike, data: bytes) -> None:
@@ -55,6 +56,28 @@ def atomic_output(path: str | os.PathLike) -> Iterator[BinaryIO]:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
+        raise
+
+
+@contextmanager
+def atomic_directory(path: str | os.PathLike) -> Iterator[Path]:
+    """A temporary folder beside ``path`` (named as :func:`is_temporary` recognises) to fill
+    with a whole output folder: it becomes ``path`` when the ``with`` block ends without
+    error, and is removed otherwise (Ctrl-C included), so ``path`` is never half-written.
+    ``path`` must not exist, or be an empty folder (replaced)."""
+    import shutil
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=path.parent))
+    try:
+        os.chmod(tmp, 0o777 & ~_UMASK)  # mkdtemp makes it 0700
+        yield tmp
+        if path.is_dir():
+            path.rmdir()  # empty, or this raises: nothing of the user's is lost
+        os.replace(tmp, path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
         raise
 
 

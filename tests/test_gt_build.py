@@ -89,19 +89,33 @@ def test_kitti_build_writes_checks_and_resumes_gt(kitti, tmp_path, cli, build_ki
     assert res.exit_code == 1 and "changed: 1" in res.output and "gt_depths.npz" in res.output
 
 
-def test_kitti_build_without_a_scan_notes_it(kitti, tmp_path, build_kitti):
+def test_kitti_build_without_a_scan_notes_it_and_the_note_works(kitti, tmp_path, cli, build_kitti):
+    """The note names the missing scan and the command that adds the ground truth, with the
+    paths as typed; following it leaves a build that verify passes."""
+    import shlex
+
     root, split, lines = kitti
     folder, frame, _ = lines[2].split()
     scan = root / folder / "velodyne_points" / "data" / f"{frame}.bin"
+    kept = scan.read_bytes()
     scan.unlink()
     out = tmp_path / "out"
     res = build_kitti(root, split, out, *KITTI_FLAGS)
     assert res.exit_code == 0, res.output
     note = [ln for ln in res.output.splitlines() if ln.startswith("note:")]
-    assert len(note) == 1 and str(scan) in note[0] and "robodepth gt kitti" in note[0]
+    assert len(note) == 1 and str(scan) in note[0], res.output
+    assert "KITTI_RAW" not in note[0] and "SPLIT" not in note[0]
     assert not (out / "gt_depths.npz").exists()
     assert not [r for r in rows(out).values() if r["variant"] == "gt"]
     assert len(rows(out)) == 2 * len(lines)  # the images are all there
+
+    command = shlex.split(note[0].rsplit(": ", 1)[1])
+    assert command[:2] == ["robodepth", "build"] and str(root) in command and str(out) in command
+    scan.write_bytes(kept)
+    res = cli(*command[1:])
+    assert res.exit_code == 0, res.output
+    assert "1 written" in res.output and (out / "gt_depths.npz").is_file()
+    assert cli("verify", out).exit_code == 0
 
 
 def test_kitti_build_with_bad_calibration_fails_only_gt(kitti, tmp_path, build_kitti):

@@ -3,7 +3,7 @@
 - KITTI-C, KITTI-C-HR, KITTI-S (Eigen-format splits): ``OUT/gt_depths.npz``, the depth maps
   of the built frames in split order (:mod:`robodepth_cli.sources.kitti_raw`), one manifest row.
   Made only when every frame has its velodyne file; otherwise a note says which is missing
-  and that ``robodepth gt kitti`` can make it later.
+  and that rerunning the same build adds it (a manifest row, so ``verify`` still passes).
 - NYUDepth2-C (NYU-format splits): ``OUT/gt/<depth path of the split line>``, e.g.
   ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.sources.nyu_labeled`), one row each:
   made from the labeled ``.mat`` when that is the root, copied from a BTS test folder
@@ -64,20 +64,26 @@ def _fingerprint(*parts: str) -> str:
     return hashlib.sha256("\n".join((_VERSION,) + parts).encode()).hexdigest()[:16]
 
 
-def plan_gt(split_format: str, root: Path, split_path: Path, limit: int | None) -> GtPlan:
+def plan_gt(split_format: str, root: Path, split_path: Path, limit: int | None,
+            rerun: str | None = None) -> GtPlan:
     """The ground truth of a build of the first ``limit`` lines of ``split_path`` from
-    ``root`` (a split format of ``eigen`` means KITTI, ``nyu`` NYU)."""
+    ``root`` (a split format of ``eigen`` means KITTI, ``nyu`` NYU). ``rerun`` is the
+    build's command as typed, which a note about missing inputs repeats."""
     root = Path(root)
     if split_format == "eigen":
-        return _plan_kitti(root, split_path, limit)
-    return _plan_nyu(root, split_path, limit)
+        return _plan_kitti(root, split_path, limit, rerun)
+    return _plan_nyu(root, split_path, limit, rerun)
 
 
-def _later(command: str) -> str:
-    return f"the images are built; make the ground truth later with: {command}"
+def _later(what: str, rerun: str | None) -> str:
+    # Rerunning the build, not `robodepth gt` into OUT: only the build records the file in
+    # its manifest, so `verify` keeps passing.
+    command = f": {rerun}" if rerun else ""
+    return (f"the images are built; put the {what} in place and rerun the same build, which adds "
+            f"only the ground truth{command}")
 
 
-def _plan_kitti(root: Path, split_path: Path, limit: int | None) -> GtPlan:
+def _plan_kitti(root: Path, split_path: Path, limit: int | None, rerun: str | None) -> GtPlan:
     from ..sources import kitti_raw as gt_kitti
 
     frames = gt_kitti.read_frames(split_path)[:limit]
@@ -87,8 +93,7 @@ def _plan_kitti(root: Path, split_path: Path, limit: int | None) -> GtPlan:
         others = len(missing) - 1
         more = f" and {others} other frame{'s' if others > 1 else ''}" if others else ""
         plan.note = (f"no ground truth: {missing[0].velodyne(root)} (split line {missing[0].line}){more} "
-                     f"missing; " + _later(f"robodepth gt kitti --root KITTI_RAW --split SPLIT "
-                                           f"--out OUT/{KITTI_FILE}"))
+                     f"missing; " + _later("velodyne scans", rerun))
         return plan
     inputs = [f"{f.folder} {f.frame} {_stat(f.velodyne(root))}" for f in frames]
     for date in sorted({f.date for f in frames}):
@@ -98,7 +103,7 @@ def _plan_kitti(root: Path, split_path: Path, limit: int | None) -> GtPlan:
     return plan
 
 
-def _plan_nyu(root: Path, split_path: Path, limit: int | None) -> GtPlan:
+def _plan_nyu(root: Path, split_path: Path, limit: int | None, rerun: str | None) -> GtPlan:
     from ..sources import nyu_labeled as gt_nyu
 
     frames = gt_nyu.read_frames(split_path)[:limit]
@@ -119,7 +124,7 @@ def _plan_nyu(root: Path, split_path: Path, limit: int | None) -> GtPlan:
     if missing:
         more = f" and {len(missing) - 1} other depth files" if len(missing) > 1 else ""
         plan.note = (f"no ground truth: {root / missing[0].depth} (split line {missing[0].line}){more} "
-                     f"missing; " + _later("robodepth gt nyu --root NYU --split SPLIT --out OUT/gt"))
+                     f"missing; " + _later("depth files", rerun))
         return plan
     for f in frames:
         plan.jobs.append(GtJob(f"{NYU_DIR}/{f.depth}", f.depth, _fingerprint(_stat(root / f.depth)), (f,)))

@@ -34,6 +34,7 @@ import functools
 import itertools
 import os
 import platform
+import shlex
 import signal
 import sys
 import tempfile
@@ -259,7 +260,8 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         summary = run_tasks(tasks, ctx, executor, out, progress)
         # A custom build has no ground truth to add.
         if gt and not ds.discovers_sources and not (summary.interrupted or summary.fatal):
-            add_ground_truth(ds, root, Path(split["path"]), len(keys), out, summary, progress)
+            add_ground_truth(ds, root, Path(split["path"]), len(keys), out, summary, progress,
+                             rerun=shlex.join(command) if command else None)
         finish(out, record, summary)
     return summary
 
@@ -509,13 +511,14 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
 
 
 def add_ground_truth(ds: Dataset, root: Path, split_path: Path, frames: int, out: Path,
-                     summary: Summary, progress: bool) -> None:
+                     summary: Summary, progress: bool, rerun: str | None = None) -> None:
     """Write the ground truth of the first ``frames`` split entries, the ones the build in
     ``out`` holds (see :mod:`robodepth_cli.build.groundtruth`), as manifest rows counted in
-    ``summary``; when it cannot be made at all, only a note."""
+    ``summary``; when it cannot be made at all, only a note (naming ``rerun``, the
+    command that adds it once the files are there)."""
     from . import groundtruth as build_gt
 
-    plan = build_gt.plan_gt(ds.split_format, root, split_path, frames)
+    plan = build_gt.plan_gt(ds.split_format, root, split_path, frames, rerun)
     if plan.note:
         summary.notes.append(plan.note)
         return

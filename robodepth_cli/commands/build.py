@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import contextlib
-import signal
 import sys
 from pathlib import Path
 
 import click
 
 from ..errors import RobodepthError
+from . import common
 
 _LISTED = 20  # paths shown per kind of problem by verify
 
@@ -90,20 +90,18 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
     from ..build.config import resolve
 
     interrupted = "robodepth: interrupted; rerun the same command to resume"
-    # A scheduler's SIGTERM (end of a job's time) stops the build as cleanly as Ctrl-C.
-    previous = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    # The group turns a scheduler's SIGTERM (end of a job's time) into KeyboardInterrupt.
+    common.on_interrupt("rerun the same command to resume")
     try:
         if flags["scheduler"] and flags["scheduler_file"]:
             raise RobodepthError("--scheduler and --scheduler-file: give one of them, not both")
         cfg = resolve(dataset, config_file, flags)
         with _executor(cfg) as executor:
-            summary = build(cfg, root, out, progress=progress, command=sys.argv, executor=executor,
-                            gt=gt)
+            summary = build(cfg, root, out, progress=progress, command=common.typed_argv(),
+                            executor=executor, gt=gt)
     except KeyboardInterrupt:  # before or after the images (the build itself handles its own)
         click.echo(interrupted, err=True)
         sys.exit(130)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
     click.echo(f"{cfg.preset}: {summary.text()}", err=True)
     if summary.interrupted:
         click.echo(interrupted, err=True)
@@ -122,10 +120,6 @@ def _executor(cfg):
     from ..build.cluster import DaskExecutor
 
     return DaskExecutor(cfg.scheduler, cfg.scheduler_file)
-
-
-def _raise_keyboard_interrupt(signum, frame):
-    raise KeyboardInterrupt
 
 
 @click.command("verify")

@@ -11,6 +11,24 @@ import numpy as np
 from ..errors import RobodepthError, cannot_write
 
 
+ARGV = "robodepth.argv"  # ctx.meta: the arguments as typed (set by the group)
+KEPT = "robodepth.kept"  # ctx.meta: what an interrupt leaves behind (see on_interrupt)
+NOTHING_KEPT = "nothing was written"
+
+
+def typed_argv() -> list[str]:
+    """The running command as the user typed it: ``["robodepth", "build", ...]``."""
+    import sys
+
+    return ["robodepth", *click.get_current_context().meta.get(ARGV, sys.argv[1:])]
+
+
+def on_interrupt(kept: str) -> None:
+    """What this command keeps if Ctrl-C or SIGTERM stops it now (the group prints
+    ``robodepth: interrupted; <kept>``); by default, nothing was written."""
+    click.get_current_context().meta[KEPT] = kept
+
+
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     """The corruptions ``value`` selects ('all', a name or a comma list), in order."""
     from ..benchmarks import CORRUPTIONS

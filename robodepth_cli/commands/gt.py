@@ -3,12 +3,14 @@ compares predictions with, made from the official downloads."""
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 import click
 
 from ..errors import RobodepthError
+from . import common
 
 
 @click.group("gt")
@@ -37,6 +39,13 @@ def _split(value: str, split_format: str, owner: str) -> Path:
     return path
 
 
+def _stage(bar, text: str) -> None:
+    """Show a step that has no count of its own (the maps are all made; compressing takes
+    a while) in place of the bar's description."""
+    bar.set_description_str(text)
+    bar.refresh()
+
+
 def _bar(total: int, progress: bool):
     from tqdm import tqdm
 
@@ -61,17 +70,23 @@ def gt_kitti_command(root, split, out, progress):
     order; np.load(OUT, allow_pickle=True)["data"] reads it, as monodepth2's and the
     benchmark's evaluation scripts do. The file appears only when every map is made.
     """
+    from ..files import check_writable
     from ..sources import kitti_raw as gt_kitti
 
     if not root.is_dir():
         raise RobodepthError(f"--root {root}: not a directory (the KITTI raw root)")
     if out.is_dir():
         raise RobodepthError(f"--out {out}: is a directory; give a file name such as gt_depths.npz")
+    if out.suffix.lower() != ".npz":
+        raise RobodepthError(f"--out {out}: the ground truth is an .npz file (a numpy zip); "
+                             "end it in .npz, e.g. gt_depths.npz")
+    check_writable(out, "--out")
     split_path = _split(split, "eigen", "KITTI ground truth")
     frames = gt_kitti.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
-        gt_kitti.export(root, frames, out, split_name=str(split_path), progress=bar.update)
-    click.echo(f"{out}: {len(frames)} depth maps", err=True)
+        gt_kitti.export(root, frames, out, split_name=str(split_path), progress=bar.update,
+                        stage=lambda text: _stage(bar, text))
+    common.wrote(f"{out} ({len(frames)} depth maps)")
 
 
 @gt_command.command("nyu")
@@ -92,15 +107,36 @@ def gt_nyu_command(root, split, out, progress):
     truncated). From a BTS folder: its sync_depth files, copied. Every frame is checked
     (index, scene) before anything is written.
     """
+    from ..files import check_writable
     from ..sources import nyu_labeled as gt_nyu
 
     if not root.exists():
         raise RobodepthError(f"--root {root}: no such file or directory")
     if out.exists() and not out.is_dir():
         raise RobodepthError(f"--out {out}: exists and is not a directory")
+    build = _enclosing_build(out)
+    if build is not None:
+        raise RobodepthError(f"--out {out}: inside the build {build}, whose files its manifest "
+                             "lists; a build's own ground truth is its gt/: rerun robodepth build "
+                             "(it adds the ground truth), or give a folder outside the build")
+    if out.is_dir() and any(out.iterdir()):
+        raise RobodepthError(f"--out {out}: exists and is not empty; give a new folder (it is "
+                             "written whole, at the end)")
+    check_writable(out, "--out")
     split_path = _split(split, "nyu", "NYU ground truth")
     frames = gt_nyu.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
         gt_nyu.export(root, frames, out, split_name=str(split_path), progress=bar.update)
     what = "images and depth maps" if gt_nyu.is_labeled_file(root) else "depth maps"
-    click.echo(f"{out}: {len(frames)} {what}", err=True)
+    common.wrote(f"{out} ({len(frames)} {what})")
+
+
+def _enclosing_build(path: Path) -> Path | None:
+    """The built dataset (a folder with build.json) that ``path`` is, or is inside."""
+    from ..output.manifest import RECORD
+
+    here = Path(os.path.abspath(path))
+    for folder in (here, *here.parents):
+        if (folder / RECORD).is_file():
+            return folder if path.is_absolute() else Path(os.path.relpath(folder))
+    return None

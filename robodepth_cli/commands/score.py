@@ -37,8 +37,12 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 
     from ..evaluation import scores as S
 
+    from ..files import check_writable
+
     plot_file = None if plot_path is None else common.png_output(plot_path, f"{results.stem}_ce.png",
                                                                  "--plot")
+    if plot_file is not None:
+        check_writable(plot_file, "--plot")
     bench = S.get_benchmark(benchmark)
     res = S.read_results(results, bench)
     base = None
@@ -54,6 +58,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         from ..evaluation.plot import ce_chart
 
         common.write_png(plot_file, np.asarray(ce_chart(result)))
+        common.wrote(plot_file)
     if as_json:
         click.echo(json.dumps(result.to_json(), indent=2))
     else:

@@ -37,7 +37,7 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
-from ..errors import RobodepthError, os_reason
+from ..errors import RobodepthError, cannot_write, os_reason
 
 CAM_TO_CAM = "calib_cam_to_cam.txt"
 VELO_TO_CAM = "calib_velo_to_cam.txt"
@@ -170,8 +170,8 @@ class Calibration:
 
 def load_velodyne(path: Path) -> np.ndarray:
     """The scan at ``path`` as float32 N x 4 with the fourth column set to 1.
-    :class:`GroundTruthError` for a missing file or one whose size is not a multiple of 16
-    bytes (a truncated download)."""
+    :class:`GroundTruthError` for a missing file, an empty one, or one whose size is not a
+    multiple of 16 bytes (a truncated download)."""
     path = Path(path)
     try:
         size = path.stat().st_size
@@ -179,6 +179,8 @@ def load_velodyne(path: Path) -> np.ndarray:
         raise GroundTruthError(f"{path}: no such velodyne file") from None
     except OSError as exc:
         raise GroundTruthError(f"{path}: cannot read ({os_reason(exc)})") from None
+    if size == 0:
+        raise GroundTruthError(f"{path}: 0 bytes: an empty scan (a failed download?)")
     if size % 16:
         raise GroundTruthError(f"{path}: {size} bytes is not a whole number of points (16 bytes "
                                f"each); truncated?")
@@ -251,18 +253,26 @@ def depth_maps(root: Path, frames: Sequence[KittiFrame], split_name: str = "spli
             if f.date not in calibs:
                 calibs[f.date] = Calibration.load(root / f.date)
             velo = load_velodyne(f.velodyne(root))
+            depth = depth_map(calibs[f.date], velo)
+            if not np.any(depth > 0):
+                # Evaluation would refuse the map much later, without naming the scan.
+                raise GroundTruthError(f"{f.velodyne(root)}: no point falls in camera 2's image in "
+                                       f"front of the car (of {len(velo)} points); a damaged scan?")
         except GroundTruthError as exc:
             raise GroundTruthError(f"{split_name}:{f.line}: {exc}") from None
-        yield depth_map(calibs[f.date], velo)
+        yield depth
         if progress:
             progress(1)
 
 
 def export(root: Path, frames: Sequence[KittiFrame], out: Path, split_name: str = "split",
-           progress: Callable[[int], object] | None = None) -> Path:
+           progress: Callable[[int], object] | None = None,
+           stage: Callable[[str], object] | None = None) -> Path:
     """Write the depth maps of ``frames`` to ``out`` as monodepth2's ``gt_depths.npz``
     (:func:`save_object_npz`). Every velodyne file is checked to exist before any work;
-    ``out`` is written only once every map is made, atomically."""
+    ``out`` is written only once every map is made, atomically. ``progress(1)`` follows
+    each map; ``stage(text)`` announces the last step, compressing and writing (a minute
+    for the 697 Eigen maps)."""
     root = Path(root)
     missing = missing_velodyne(root, frames)
     if missing:
@@ -275,10 +285,12 @@ def export(root: Path, frames: Sequence[KittiFrame], out: Path, split_name: str 
     # the CPU, far more wall time on a busy machine) and do not change its result.
     with threadpool_limits(1, user_api="blas"):
         maps = list(depth_maps(root, frames, split_name, progress))
+    if stage:
+        stage(f"compressing and writing {out}")
     try:
         save_object_npz(out, maps, [f.key for f in frames])
     except OSError as exc:
-        raise GroundTruthError(f"{out}: cannot write ({os_reason(exc)})") from None
+        raise GroundTruthError(cannot_write(out, exc)) from None
     return Path(out)
 
 

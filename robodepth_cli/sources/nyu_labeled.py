@@ -25,7 +25,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..errors import RobodepthError, os_reason
+from ..errors import RobodepthError, cannot_write, os_reason
 from ..files import write_atomic
 
 HEIGHT, WIDTH = 480, 640
@@ -297,13 +297,17 @@ def export(root: Path, frames: Sequence[NyuFrame], out: Path, *, split_name: str
 
     ``root`` is the labeled ``.mat`` file (frames read from it) or a BTS test folder (its
     ``sync_depth`` files are copied after a check). Every frame is checked before the first
-    file is written; each file is written atomically. Returns ``(relative path, sha256)``
+    file is written; the files go into a temporary folder that becomes ``out`` at the end
+    (``out`` must not exist, or be empty), so an interrupted export leaves nothing. Returns ``(relative path, sha256)``
     of every depth file written, in split order.
     """
+    from ..files import atomic_directory
+
     try:
-        return _export(root, frames, Path(out), split_name, rgb, progress)
+        with atomic_directory(out) as tmp:  # OUT appears whole, or not at all
+            return _export(root, frames, tmp, split_name, rgb, progress)
     except OSError as exc:  # reads raise NyuError: this is a write into OUT (a full disk, ...)
-        raise NyuError(f"{out}: cannot write ({os_reason(exc)})") from None
+        raise NyuError(cannot_write(out, exc)) from None
 
 
 def _export(root, frames, out, split_name, rgb, progress):
