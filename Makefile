@@ -19,11 +19,19 @@ test:
 bench:
 	$(PYTHON) bench/run.py
 
+# The whole loop on the fixtures: the KITTI frames get synthetic velodyne scans (copied in
+# from their own tree, so the tests' KITTI fixture stays without ground truth), the build
+# writes gt_depths.npz beside the images, and sample predictions are evaluated and scored.
 demo:
 	@set -e; out=$$(mktemp -d -t robodepth-demo.XXXXXX); \
 	fx=tests/data/fixtures; rd="$(PYTHON) -m robodepth_cli.cli"; \
-	$$rd build kitti-c --root $$fx/kitti_raw --split $$fx/kitti_split.txt --out $$out/kitti-c; \
+	cp -R $$fx/kitti_raw $$out/kitti_raw; cp -R $$fx/kitti_velodyne/. $$out/kitti_raw/; \
+	$$rd build kitti-c --root $$out/kitti_raw --split $$fx/kitti_split.txt --out $$out/kitti-c; \
 	$$rd verify $$out/kitti-c; \
+	$$rd gt kitti --root $$out/kitti_raw --split $$fx/kitti_split.txt --out $$out/gt_depths.npz; \
+	$$rd evaluate $$out/kitti-c --pred tests/data/predictions/kitti-c --allow-partial --out $$out/results.csv; \
+	$$rd score $$out/results.csv --benchmark kitti-c --allow-partial --plot $$out/ce.png; \
 	$$rd build nyudepth2-c --root $$fx/nyu --split $$fx/nyu_split.txt --out $$out/nyudepth2-c; \
 	$$rd verify $$out/nyudepth2-c; \
-	echo "demo output: $$out (e.g. $$out/kitti-c/zoom_blur/3/kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png; delete it when done)"
+	$$rd gt nyu --root $$fx/nyu --split $$fx/nyu_split.txt --out $$out/nyu_test; \
+	echo "demo output: $$out (e.g. $$out/kitti-c/zoom_blur/3/kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png, $$out/results.csv, $$out/ce.png; delete it when done)"

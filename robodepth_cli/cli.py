@@ -83,6 +83,9 @@ def main():
     Evaluate a model on it (predictions from the open_dataset API) and score it:
       robodepth evaluate KITTI_C --pred PRED --score
       robodepth score results.csv --benchmark kitti-c
+
+    Ctrl-C or SIGTERM stops any command with one line saying what was kept (every output
+    file is written whole or not at all), exit status 130.
     """
 
 

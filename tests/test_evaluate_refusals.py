@@ -271,3 +271,35 @@ def test_ground_truth_in_another_order_is_refused(kitti_c, kitti_pred, tmp_path,
     kitti_raw.save_object_npz(tmp_path / "right.npz", gts, keys=keys[::-1])
     res = evaluate(cli, out, kitti_pred, tmp_path / "r.csv", "--gt", tmp_path / "right.npz")
     assert res.exit_code == 0, res.output
+
+
+# --------------------------------------------------------------------------- damaged files (item 18)
+
+def test_a_truncated_png_is_one_line_and_libpng_stays_quiet(kitti_c, tmp_path, capfd, cli):
+    out, _ = kitti_c
+    pred = png_pred(tmp_path / "p", lambda v, i: np.random.default_rng(i).integers(500, 9000, (64, 96), np.uint16))
+    bad = pred / "brightness/1" / KEY54
+    data = bad.read_bytes()
+    bad.write_bytes(data[:len(data) - 20])
+    res = evaluate(cli, out, pred, tmp_path / "r.csv")
+    one_line_error(res, r"0000000054\.png: not a readable PNG, truncated or damaged \(prediction of image 1\)")
+    assert "libpng" not in capfd.readouterr().err
+
+
+def test_npz_errors_name_the_file_once(kitti_c, kitti_pred, tmp_path, cli):
+    out, _ = kitti_c
+    pred = copy_pred(kitti_pred, tmp_path / "p")
+    (pred / "clean.npy").unlink()
+    np.savez(pred / "clean.npz", np.zeros((2, 4, 4)), np.zeros(3))
+    res = evaluate(cli, out, pred, tmp_path / "r.csv")
+    one_line_error(res, r"clean\.npz: holds 2 arrays; expected exactly one")
+    assert res.stderr.count("clean.npz") == 1, res.stderr
+
+    # A damaged member (CRC error) is one line too, not a traceback.
+    np.savez_compressed(pred / "clean.npz", np.random.default_rng(0).random((2, 64, 96)).astype(np.float32))
+    data = bytearray((pred / "clean.npz").read_bytes())
+    data[len(data) // 2:len(data) // 2 + 64] = bytes(64)
+    (pred / "clean.npz").write_bytes(bytes(data))
+    res = evaluate(cli, out, pred, tmp_path / "r.csv")
+    one_line_error(res, r"clean\.npz: cannot read its array, damaged\?")
+    assert res.stderr.count("clean.npz") == 1, res.stderr

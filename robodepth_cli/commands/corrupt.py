@@ -74,13 +74,15 @@ def corrupt_command(image, corruption, level, seed, size, out):
                 f"to make it a directory")
     clean = common.load_input(image, size)
     key = Path(image).name
+    if not single:
+        common.on_interrupt(f"the images written so far are kept under {out}, each complete")
     for name, variant, lv in jobs:
         img = render(clean, variant, lv, seed=seed, dataset="image", key=key)
         common.write_png(target if single else directory / name, img)
     if single:
-        click.echo(f"wrote {target} ({common.hxw(*img.shape[:2])})")
+        common.wrote(f"{target} ({common.hxw(*img.shape[:2])})")
     else:
-        click.echo(f"wrote {len(jobs)} images under {out}")
+        common.wrote(f"{len(jobs)} images under {out}")
 
 
 def _describe(jobs: list, level_list: list) -> str:
@@ -129,4 +131,4 @@ def preview_command(image, out, corruption, level, size, seed, thumb_width):
     sheet = contact_sheet(clean, rows, level_list, seed=seed, key=Path(image).name,
                           thumb_width=thumb_width)
     common.write_png(target, np.asarray(sheet))
-    click.echo(f"wrote {target} ({common.hxw(sheet.height, sheet.width)})")
+    common.wrote(f"{target} ({common.hxw(sheet.height, sheet.width)})")

@@ -118,8 +118,9 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     with tqdm(unit="img", disable=None if progress else True, file=sys.stderr,
               dynamic_ncols=True) as bar:
         def set_total(n):
-            bar.total = n
-            bar.refresh()
+            # Restarts the clock too: the ground truth was read meanwhile, and counting that
+            # time against the first image made the first estimate hours long.
+            bar.reset(total=n)
 
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total)

@@ -48,4 +48,4 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
     stylizer = Stylizer.from_files(opts["vgg"], opts["decoder"])
     result = stylizer.stylize(content, [stylizer.style_features(style_img)], opts["alpha"])[0]
     common.write_png(out, result)
-    click.echo(f"wrote {out} ({common.hxw(*result.shape[:2])})")
+    common.wrote(f"{out} ({common.hxw(*result.shape[:2])})")

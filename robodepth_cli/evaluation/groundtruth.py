@@ -16,12 +16,17 @@ ground truth with ``allow_pickle=True``.
 
 from __future__ import annotations
 
+import os
+import sys
 import zipfile
+import zlib
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
+from ..errors import os_reason
 from ..sources.kitti_raw import KEYS_MEMBER, frame_key
 from .protocols import VALID, EvaluationError
 
@@ -186,10 +191,11 @@ def _read_gt_file(path: Path, gt: GroundTruth) -> int:
                     return count
             raw.seek(0)
             return _read_gt_stream(raw, path, gt)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         if isinstance(exc, EvaluationError):
             raise
-        raise EvaluationError(f"{path}: not a numpy .npz/.npy ground-truth file ({exc})") from None
+        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+        raise EvaluationError(f"{path}: not a numpy .npz/.npy ground-truth file ({reason})") from None
 
 
 def _read_gt_stream(fh, path: Path, gt: GroundTruth) -> int:
@@ -327,6 +333,22 @@ def read_npy_header(fh) -> tuple[tuple[int, ...], bool, np.dtype]:
     return tuple(shape), fortran, dtype
 
 
+@contextmanager
+def _native_stderr_silenced():
+    """File descriptor 2 sent to /dev/null: libpng prints ``libpng error: Read Error`` there
+    for a truncated file before OpenCV returns None; the one-line error says it instead."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
 def read_png16(file: Path, what: str) -> np.ndarray:
     """A 16-bit single-channel PNG (depth maps of BTS's test set and of PNG predictions);
     ``what`` says in messages whose file it is."""
@@ -334,9 +356,10 @@ def read_png16(file: Path, what: str) -> np.ndarray:
 
     if not file.is_file():
         raise EvaluationError(f"{file}: no such file ({what})")
-    raw = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
+    with _native_stderr_silenced():
+        raw = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
     if raw is None:
-        raise EvaluationError(f"{file}: not a readable PNG ({what})")
+        raise EvaluationError(f"{file}: not a readable PNG, truncated or damaged ({what})")
     if raw.ndim != 2 or raw.dtype != np.uint16:
         got = f"{raw.dtype.itemsize * 8}-bit" + (f", {raw.shape[2]} channels" if raw.ndim == 3 else "")
         raise EvaluationError(f"{file}: {got}; expected a 16-bit single-channel PNG ({what})")

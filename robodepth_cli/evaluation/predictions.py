@@ -14,6 +14,7 @@ Predictions (``PRED``) come in either of two forms, per variant:
 from __future__ import annotations
 
 import zipfile
+import zlib
 from pathlib import Path, PurePosixPath
 
 import numpy as np
@@ -75,11 +76,16 @@ class ArrayPredictions(Predictions):
                 raise EvaluationError(f"{where}: the file ends early (truncated?)")
             return m.reshape(self._shape[1:]), where, False
         if self._array is None:
-            if self.source.suffix == ".npz":
-                with np.load(self.source, allow_pickle=False) as z:
-                    self._array = z[z.files[0]]
-            else:
-                self._array = np.load(self.source, mmap_mode="r", allow_pickle=False)
+            try:
+                if self.source.suffix == ".npz":
+                    with np.load(self.source, allow_pickle=False) as z:
+                        self._array = z[z.files[0]]
+                else:
+                    self._array = np.load(self.source, mmap_mode="r", allow_pickle=False)
+            except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
+                reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+                raise EvaluationError(f"{self.source}: cannot read its array, damaged? "
+                                      f"({reason})") from None
         return np.array(self._array[i]), where, False
 
     def close(self):
@@ -103,6 +109,8 @@ def _array_header(path: Path) -> tuple[tuple[int, ...], bool, np.dtype, int]:
                     return (*read_npy_header(fh), fh.tell())
         with open(path, "rb") as fh:
             return (*read_npy_header(fh), fh.tell())
+    except EvaluationError:
+        raise  # already names the file
     except (ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise EvaluationError(f"{path}: not a numpy {path.suffix} file ({exc})") from None
     except OSError as exc:
@@ -146,7 +154,8 @@ class FilePredictions(Predictions):
         try:
             m = np.load(file, allow_pickle=False)
         except (OSError, ValueError, EOFError) as exc:
-            raise EvaluationError(f"{file}: not a readable .npy file ({exc}) (image {i})") from None
+            reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+            raise EvaluationError(f"{file}: not a readable .npy file ({reason}) (image {i})") from None
         if m.ndim != 2:
             raise EvaluationError(f"{file}: shape {m.shape}; expected one 2-D map (h x w) "
                                   f"(image {i})")
