@@ -80,7 +80,8 @@ def main():
     Build a dataset:
       robodepth build kitti-c --root KITTI_RAW --out KITTI_C
       robodepth verify KITTI_C
-    Evaluate a model on it (predictions from the open_dataset API) and score it:
+    Run a model on every variant, evaluate it and score it:
+      robodepth predict KITTI_C --model monodepth2:MODEL_DIR --out PRED
       robodepth evaluate KITTI_C --pred PRED --score
       robodepth score results.csv --benchmark kitti-c
 

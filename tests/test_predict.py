@@ -541,6 +541,9 @@ def test_relative_model_evaluated_after_scale_shift_in_disparity(dataset, tmp_pa
     assert default.exit_code == given.exit_code == median.exit_code == 0, default.output
     doc = json.loads(default.stdout)
     assert (doc["kind"], doc["align"], doc["align_space"]) == ("disp", "scale-shift", "disparity")
+    assert (f"from {tmp_path / 'P' / 'predictions.json'}: kind disp, align scale-shift, "
+            "align_space disparity") in default.stderr
+    assert "predictions.json" not in given.stderr
     assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
     assert (tmp_path / "a.csv").read_text() != (tmp_path / "c.csv").read_text()
     # --stereo's fixed factor replaces the recorded alignment

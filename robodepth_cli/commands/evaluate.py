@@ -102,10 +102,15 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     replacing = out.exists()
     dataset = open_dataset(dataset_dir)
     recorded = _recorded(pred)
+    given = {"kind": kind, "align": align, "align_space": align_space}
     kind = kind or recorded.get("kind")
     if not stereo:  # stereo's fixed 5.4 replaces any recorded alignment
         align = align or recorded.get("align")
         align_space = align_space or recorded.get("align_space")
+    taken = [f"{k} {v}" for k, v in (("kind", kind), ("align", align), ("align_space", align_space))
+             if given[k] is None and v is not None and v == recorded.get(k)]
+    if taken:
+        click.echo(f"robodepth: from {pred / 'predictions.json'}: {', '.join(taken)}", err=True)
     setup = make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
                        kind, stereo, png_scale, align=align, align_space=align_space, crop=crop,
                        min_depth=min_depth, max_depth=max_depth)
