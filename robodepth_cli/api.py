@@ -25,11 +25,10 @@ from typing import Sequence
 
 import numpy as np
 
-from .benchmarks import CLEAN
 from .errors import RobodepthError, os_reason
+from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, variant_dir
+from .output.record import BuildRecord
 
-GT_FILE = "gt_depths.npz"  # KITTI ground truth inside a build (monodepth2's format)
-GT_DIR = "gt"  # NYU ground truth inside a build (BTS's layout)
 
 
 class DatasetError(RobodepthError):
@@ -52,8 +51,6 @@ class Variant:
         """``clean``, ``<corruption>/<level>``, ``<chain directory name>`` or ``<style>``:
         the variant's directory in the dataset, and its prediction file's path in PRED
         without the extension."""
-        from .sources.datasets import variant_dir
-
         return variant_dir(self.name, self.level)
 
     @property
@@ -190,11 +187,11 @@ def _as_map(value, target: Path, i: int) -> np.ndarray:
 class BuiltDataset:
     """A dataset directory written by ``robodepth build`` (use :func:`open_dataset`)."""
 
-    def __init__(self, path: Path, record: dict, keys: tuple[str, ...],
+    def __init__(self, path: Path, record: BuildRecord, keys: tuple[str, ...],
                  variants: Sequence[tuple[str, int | None]]):
         self.path = path
         self.record = record
-        self.name: str = record["dataset"]
+        self.name: str = record.dataset
         self.keys = keys
         self._variants = tuple(Variant(path, v, lv, keys) for v, lv in variants)
 
@@ -205,7 +202,7 @@ class BuiltDataset:
     @property
     def size(self) -> tuple[int, int] | None:
         """(H, W) of the built images, as the build record states it."""
-        size = self.record.get("config", {}).get("size")
+        size = self.record.size
         return (int(size[0]), int(size[1])) if size else None
 
     def variants(self) -> list[Variant]:
@@ -244,7 +241,8 @@ def open_dataset(path: str | os.PathLike) -> BuiltDataset:
     naming the file when the directory is not a build or its record is unusable.
     """
     from .sources.datasets import get_dataset
-    from .output.manifest import MANIFEST, RECORD, ManifestError, read_manifest, read_record
+    from .output.manifest import ManifestError, read_manifest
+    from .output.record import read_record
 
     path = Path(path)
     if not path.is_dir():
@@ -253,10 +251,10 @@ def open_dataset(path: str | os.PathLike) -> BuiltDataset:
     record = read_record(path)
     if record is None:
         raise DatasetError(f"{path}: no {RECORD}; not a dataset made by robodepth build")
-    if not isinstance(record.get("dataset"), str):
+    if not isinstance(record.dataset, str):
         raise DatasetError(f"{record_path}: not a robodepth build record (no dataset)")
     try:
-        ds = get_dataset(record["dataset"])
+        ds = get_dataset(record.dataset)
     except ValueError as exc:
         raise DatasetError(f"{record_path}: {exc}") from None
     keys = _split_keys(record, record_path, ds)
@@ -276,13 +274,12 @@ def open_dataset(path: str | os.PathLike) -> BuiltDataset:
     return BuiltDataset(path, record, keys, variants)
 
 
-def _split_keys(record: dict, record_path: Path, ds) -> tuple[str, ...]:
+def _split_keys(record: BuildRecord, record_path: Path, ds) -> tuple[str, ...]:
     """The split's image keys in order: from the record, or (a build made before records
     listed them) re-read from the recorded split file if it is unchanged."""
-    split = record.get("split") or {}
-    keys = split.get("keys")
-    if isinstance(keys, list) and all(isinstance(k, str) for k in keys) and keys:
-        return tuple(keys)
+    if record.keys:
+        return tuple(record.keys)
+    split = record.split
     from .sources.datasets import read_split
     from .files import sha256_bytes
 
@@ -295,8 +292,7 @@ def _split_keys(record: dict, record_path: Path, ds) -> tuple[str, ...]:
     if sha256_bytes(data) != split.get("sha256"):
         raise DatasetError(f"{record_path}: lists no split keys and its split file {file} has "
                            "changed since the build; rebuild with this version to record them")
-    limit = (record.get("config") or {}).get("limit")
-    return tuple(e.key for e in read_split(Path(file), ds.split_format)[:limit])
+    return tuple(e.key for e in read_split(Path(file), ds.split_format)[:record.limit])
 
 
 def bts_depth_name(key: str) -> str:
@@ -310,13 +306,13 @@ def bts_depth_name(key: str) -> str:
     return str(p.with_name(name + ".png"))
 
 
-def _split_depths(record: dict) -> dict[str, str]:
+def _split_depths(record: BuildRecord) -> dict[str, str]:
     """{image key: DEPTH field} from the build's NYU-format split file, if it is still
     there and unchanged; {} otherwise (or for other formats)."""
     from .sources.datasets import parse_nyu
     from .files import sha256_bytes
 
-    split = record.get("split") or {}
+    split = record.split
     try:
         data = Path(split["path"]).read_bytes()
     except (KeyError, TypeError, OSError):

@@ -33,6 +33,7 @@ from . import corruptions, seeding
 from .api import open_dataset
 from .errors import RobodepthError
 from .keys import seed_key
+from .output.layout import CLEAN, GT_FILE, output_path
 
 __all__ = ["Corrupt", "RandomCorrupt", "RandomChain", "KittiC"]
 
@@ -370,12 +371,12 @@ class KittiC(torch.utils.data.Dataset):
         built = open_dataset(self.root)  # the build record and the split order, checked
         self.keys = list(built.keys)
         self.dataset = built.name
-        self.seed = int(built.record.get("seed", 0))
+        self.seed = int(built.record.seed or 0)
         self.corruption = Corrupt(corruption, level, seed=self.seed, dataset=self.dataset)
         self.level = self.corruption.level
         self.on_the_fly = bool(on_the_fly)
         self.transform = transform
-        self._gt_path = self.root / "gt_depths.npz"
+        self._gt_path = self.root / GT_FILE
         self._gt = None
         first = self._path(0) if self.keys else None
         if first is not None and not first.is_file():
@@ -386,10 +387,10 @@ class KittiC(torch.utils.data.Dataset):
 
     def _path(self, i: int) -> Path:
         if self.on_the_fly:
-            return self.root / "clean" / self.keys[i]
+            return self.root / output_path(CLEAN, None, self.keys[i])
         if self.corruption.chain is not None:
-            return self.root / self.corruption.chain.dirname / self.keys[i]
-        return self.root / self.corruption.name / corruptions.level_text(self.level) / self.keys[i]
+            return self.root / output_path(self.corruption.chain.dirname, None, self.keys[i])
+        return self.root / output_path(self.corruption.name, self.level, self.keys[i])
 
     def __len__(self) -> int:
         return len(self.keys)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from robodepth_cli.output.manifest import BOOKKEEPING
+from robodepth_cli.output.layout import BOOKKEEPING
 
 KITTI_DRIVE = "2011_09_26/2011_09_26_drive_0001_sync"
 

@@ -13,7 +13,7 @@ from PIL import Image
 
 from robodepth_cli import corruptions, seeding
 
-from robodepth_cli.build import pipeline as builder
+from robodepth_cli.build import pipeline as builder, tasks
 
 from robodepth_cli.sources import datasets
 from robodepth_cli.corruptions import NAMES
@@ -293,7 +293,7 @@ def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, mo
     root, split = kitti
     out = tmp_path / "out"
     flags = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1,2", "--jobs", "1"]
-    real, calls = builder.write_png, []
+    real, calls = tasks.write_png, []
 
     def disk_fills_up(path, img, level, **kw):
         calls.append(path)
@@ -301,14 +301,14 @@ def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, mo
             raise OSError(28, "No space left on device")
         return real(path, img, level, **kw)
 
-    monkeypatch.setattr(builder, "write_png", disk_fills_up)
+    monkeypatch.setattr(tasks, "write_png", disk_fills_up)
     res = build_kitti(root, split, out, *flags)
     assert res.exit_code == 2
     assert f"{calls[2]}: cannot write (No space left on device); finished images are kept" in res.output
     assert len(calls) == 3  # nothing attempted after the failure
     assert set(tree(out)) == {f"clean/{kitti_key(5)}", f"contrast/1/{kitti_key(5)}"}
 
-    monkeypatch.setattr(builder, "write_png", real)
+    monkeypatch.setattr(tasks, "write_png", real)
     res = build_kitti(root, split, out, *flags)
     assert res.exit_code == 0 and "4 written, 2 skipped" in res.output
     assert cli("verify", out).exit_code == 0

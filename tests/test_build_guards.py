@@ -15,7 +15,8 @@ from _trees import KITTI_DRIVE, kitti_key, kitti_tree, nyu_tree, random_image, s
 from robodepth_cli.build import pipeline as builder
 from robodepth_cli.output import manifest
 from robodepth_cli.build.config import ConfigError, resolve
-from robodepth_cli.output.manifest import LOCK, BuildLock
+from robodepth_cli.output.layout import LOCK
+from robodepth_cli.output.manifest import BuildLock
 
 SMALL = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1,2", "--jobs", "1"]
 FRAMES = [(1, "l", ".png"), (2, "r", ".png")]

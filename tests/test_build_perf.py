@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pickle
 
-from robodepth_cli.build import pipeline as builder
+from robodepth_cli.build import gather, pipeline as builder, tasks
 
 from robodepth_cli.build import config
 from robodepth_cli.sources.datasets import get_dataset
@@ -18,13 +18,13 @@ FRAMES = [(5, "l", ".png"), (7, "r", ".jpg")]
 def test_each_source_is_decoded_and_resized_once(tmp_path, monkeypatch, cli):
     split = kitti_tree(tmp_path / "kitti_raw", FRAMES)
     calls = []
-    real = builder.load_clean
+    real = tasks.load_clean
 
     def counting(path, size):
         calls.append((str(path), size))
         return real(path, size)
 
-    monkeypatch.setattr(builder, "load_clean", counting)
+    monkeypatch.setattr(tasks, "load_clean", counting)
     res = cli("build", "kitti-c", "--root", tmp_path / "kitti_raw", "--split", split,
               "--out", tmp_path / "out", "--size", "48x96", "--corruptions", "contrast,color_quant",
               "--levels", "1,2", "--jobs", "1")
@@ -39,11 +39,11 @@ def test_what_a_worker_receives_per_source_is_small(tmp_path):
     split = kitti_tree(tmp_path / "kitti_raw", FRAMES)
     cfg = config.resolve("kitti-c", flags={"split": str(split)})
     ds = get_dataset(cfg.dataset)
-    sources = builder.find_sources((tmp_path / "kitti_raw").resolve(), split, ds)
+    sources = gather.find_sources((tmp_path / "kitti_raw").resolve(), split, ds)
     renderer = ds.renderer(cfg)
-    tasks = builder.plan(ds, cfg, sources, {}, renderer)
-    assert len(tasks[0].jobs) == 18 * 5 + 1
+    planned = builder.plan(ds, cfg, sources, {}, renderer)
+    assert len(planned[0].jobs) == 18 * 5 + 1
     assert len(pickle.dumps(renderer)) < 1024
-    for task in tasks:
+    for task in planned:
         # An image of even 48 x 96 would take 13.8 kB; 91 job descriptions take far less.
         assert len(pickle.dumps(task)) < 8 * 1024

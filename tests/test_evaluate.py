@@ -659,7 +659,7 @@ def test_open_dataset_variants_and_images(kitti_c):
     ds = open_dataset(out)
     assert ds.name == "kitti-c" and ds.size == (64, 96)
     assert [v.relpath for v in ds.variants()] == KITTI_VARIANTS
-    split = [ln.split() for ln in Path(ds.record["split"]["path"]).read_text().splitlines() if ln.strip()]
+    split = [ln.split() for ln in Path(ds.record.split["path"]).read_text().splitlines() if ln.strip()]
     for v in ds.variants():
         images = v.images()
         assert [p.relative_to(out / v.relpath).as_posix() for p in images] == \

@@ -29,9 +29,9 @@ from PIL import Image
 
 from robodepth_cli import imageio
 
-from robodepth_cli.build import pipeline as builder
+from robodepth_cli.build import gather, pipeline as builder
 
-from robodepth_cli.output import manifest
+from robodepth_cli.output import manifest, record as build_record
 
 from _trees import KITTI_DRIVE, kitti_key, kitti_tree, random_image, save, tree
 
@@ -508,13 +508,13 @@ def test_bookkeeping_write_failure_is_a_clear_stop(stage, kitti, tmp_path, monke
         monkeypatch.setattr(manifest, "compact_manifest", full)
         named = out / "manifest.csv"
     else:  # the build record, when the build starts or when it ends
-        real, calls = manifest.write_record, []
+        real, calls = build_record.write_record, []
 
         def fails(o, record):
             calls.append(record)
             return full() if len(calls) == (1 if stage == "start" else 2) else real(o, record)
 
-        monkeypatch.setattr(manifest, "write_record", fails)
+        monkeypatch.setattr(build_record, "write_record", fails)
         named = out / "build.json"
     res = build_kitti(root, split, out, *SMALL)
     assert res.exit_code == 2, res.output
@@ -679,7 +679,7 @@ def test_interrupt_before_the_build_starts_is_clean(kitti, tmp_path, monkeypatch
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(builder, "read_split", interrupted)
+    monkeypatch.setattr(gather, "read_split", interrupted)
     res = build_kitti(root, split, tmp_path / "out", *SMALL)
     assert res.exit_code == 130
     assert res.output.strip() == "robodepth: interrupted; rerun the same command to resume"

@@ -4,7 +4,7 @@
 - :func:`check_sources_outside`: no source may resolve into OUT through a symlink;
 - :func:`check_same_build`: a build into an OUT made by another dataset, size or seed is
   refused; ``--limit`` and subsets of the same build extend it;
-- :func:`plans` / :func:`planned_outputs`: the record of what was asked for, which
+- :func:`merge_plans` / :func:`planned_outputs`: the record of what was asked for, which
   ``robodepth verify`` compares the tree against (an interrupted build is incomplete, not
   fine).
 
@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Iterable
 
 from ..errors import RobodepthError
+from ..output.record import BuildRecord
 
 
 class OutputDirError(RobodepthError):
@@ -65,7 +66,7 @@ def check_sources_outside(paths: Iterable[str | None], out: Path) -> None:
 
 # --- one build per OUT ---------------------------------------------------------------------
 
-def png_method(out: Path, requested: str | None, previous: dict[str, Any] | None) -> str:
+def png_method(out: Path, requested: str | None, previous: BuildRecord | None) -> str:
     """How this build writes its PNGs: ``requested`` (``--png``), else the way the build in
     ``out`` was written (a build made before ``--png`` existed wrote compact PNGs), else
     fast. A request for the other way than ``out``'s build is refused: its files would be
@@ -76,7 +77,7 @@ def png_method(out: Path, requested: str | None, previous: dict[str, Any] | None
     if not previous:
         return requested or DEFAULT_PNG
     # Records of builds before --png existed name no method: they were written by libpng.
-    own = previous.get("png") or "compact"
+    own = previous.png or "compact"
     if requested and requested != own:
         raise OutputDirError(f"{out}: built with --png {own}; --png {requested} would mix two PNG "
                              f"encoders in one build (same pixels, other bytes): leave --png out "
@@ -89,14 +90,12 @@ def _size_text(size) -> str:
 
 
 def check_same_build(out: Path, dataset: str, size: tuple[int, int] | None, seed: int,
-                     previous: dict[str, Any] | None) -> None:
+                     previous: BuildRecord | None) -> None:
     """Refuse to build ``dataset`` at ``size`` with ``seed`` into ``out`` when its record
     ``previous`` says it holds another dataset, size or seed (naming the difference)."""
     if not previous:
         return
-    config = previous.get("config") or {}
-    old = {"dataset": previous.get("dataset", config.get("dataset")),
-           "size": tuple(config.get("size") or ()), "seed": previous.get("seed", config.get("seed"))}
+    old = {"dataset": previous.dataset, "size": tuple(previous.size or ()), "seed": previous.seed}
     new = {"dataset": dataset, "size": tuple(size or ()), "seed": seed}  # None: own sizes (custom)
     shown = {"dataset": lambda v: str(v), "size": _size_text, "seed": lambda v: str(v)}
     flag = {"dataset": "the dataset", "size": "--size", "seed": "--seed"}
@@ -110,26 +109,9 @@ def check_same_build(out: Path, dataset: str, size: tuple[int, int] | None, seed
 
 # --- the plan ------------------------------------------------------------------------------
 
-def plan_entry(variants, levels, keys) -> dict[str, list]:
-    return {"variants": list(variants), "levels": list(levels), "keys": list(keys)}
-
-
-def plans(record: dict[str, Any] | None) -> list[dict[str, list]]:
-    """The requests recorded in ``record``: its ``plans``, or for a record written before
-    they were kept, the one its config and split keys describe ([] if it has neither)."""
-    if not record:
-        return []
-    if isinstance(record.get("plans"), list):
-        return record["plans"]
-    config, split = record.get("config") or {}, record.get("split") or {}
-    if "keys" in split and "variants" in config:
-        return [plan_entry(config["variants"], config.get("levels") or [], split["keys"])]
-    return []
-
-
-def merge_plans(previous: dict[str, Any] | None, current: dict[str, list]) -> list[dict[str, list]]:
-    """The plans of ``previous`` plus ``current`` (once)."""
-    merged = [p for p in plans(previous) if p != current]
+def merge_plans(previous: BuildRecord | None, current: dict[str, list]) -> list[dict[str, list]]:
+    """The requests recorded in ``previous`` plus ``current`` (once)."""
+    merged = [p for p in (previous.requests() if previous else []) if p != current]
     return merged + [current]
 
 
@@ -140,18 +122,23 @@ def built_keys(entries: list[dict[str, list]]) -> list[str]:
     return list(dict.fromkeys(k for p in entries for k in p["keys"]))
 
 
-def planned_outputs(record: dict[str, Any] | None) -> set[str] | None:
+def planned_outputs(record: BuildRecord | None) -> set[str] | None:
     """Every output path the recorded plans ask for, or None when the record keeps no plan
     (a build made before plans were recorded: only the manifest can be checked)."""
-    entries = plans(record)
+    entries = record.requests() if record else []
     if not entries:
         return None
     from ..sources.datasets import get_dataset
 
-    ds = get_dataset(record.get("dataset") or (record.get("config") or {}).get("dataset"))
+    ds = get_dataset(record.dataset)
     paths: set[str] = set()
     for p in entries:
         jobs = ds.jobs(p["variants"], p["levels"])
         for key in p["keys"]:
             paths.update(job.path(key) for job in jobs)
     return paths
+
+
+class BuildError(RobodepthError):
+    """A problem that makes the whole build impossible; nothing was written because of it
+    (or, for a write error mid-build, everything finished so far is kept)."""

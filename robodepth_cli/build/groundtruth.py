@@ -24,11 +24,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import RobodepthError
+from ..output.layout import GT_DIR, GT_FILE
 from ..output.manifest import Row
 
 GT = "gt"  # the variant of ground-truth rows
-KITTI_FILE = "gt_depths.npz"
-NYU_DIR = "gt"
 _VERSION = "1"  # bump when the ground truth of the same inputs changes
 
 
@@ -99,7 +98,7 @@ def _plan_kitti(root: Path, split_path: Path, limit: int | None, rerun: str | No
     for date in sorted({f.date for f in frames}):
         inputs += [f"{date}/{name} {_stat(root / date / name)}" for name in (gt_kitti.CAM_TO_CAM, gt_kitti.VELO_TO_CAM)]
     source = f"{len(frames)} velodyne scans"
-    plan.jobs.append(GtJob(KITTI_FILE, source, _fingerprint(*inputs), tuple(frames)))
+    plan.jobs.append(GtJob(GT_FILE, source, _fingerprint(*inputs), tuple(frames)))
     return plan
 
 
@@ -115,9 +114,9 @@ def _plan_nyu(root: Path, split_path: Path, limit: int | None, rerun: str | None
             try:
                 i = gt_nyu.frame_index(labeled, f.rgb)
             except gt_nyu.NyuError as exc:
-                plan.jobs.append(GtJob(f"{NYU_DIR}/{f.depth}", "", "", (f,), f"{split_path}:{f.line}: {exc}"))
+                plan.jobs.append(GtJob(f"{GT_DIR}/{f.depth}", "", "", (f,), f"{split_path}:{f.line}: {exc}"))
                 continue
-            plan.jobs.append(GtJob(f"{NYU_DIR}/{f.depth}", gt_nyu.source_name(root, i),
+            plan.jobs.append(GtJob(f"{GT_DIR}/{f.depth}", gt_nyu.source_name(root, i),
                                    _fingerprint(stat, str(i)), (f,)))
         return plan
     missing = [f for f in frames if not (root / f.depth).is_file()]
@@ -127,7 +126,7 @@ def _plan_nyu(root: Path, split_path: Path, limit: int | None, rerun: str | None
                      f"missing; " + _later("depth files", rerun))
         return plan
     for f in frames:
-        plan.jobs.append(GtJob(f"{NYU_DIR}/{f.depth}", f.depth, _fingerprint(_stat(root / f.depth)), (f,)))
+        plan.jobs.append(GtJob(f"{GT_DIR}/{f.depth}", f.depth, _fingerprint(_stat(root / f.depth)), (f,)))
     return plan
 
 

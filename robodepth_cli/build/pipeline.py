@@ -3,20 +3,20 @@
 :func:`build` reads as the list of its steps; everything that can make the whole build
 impossible is checked before the first image is touched:
 
-1. :func:`find_sources`: check the root (and that it and OUT do not overlap), read the
-   split (a standard one is downloaded and checked on first use) and find every listed
-   image, one :class:`Source` per entry; abort if none is there, if one resolves into OUT,
-   or if OUT holds a build of another dataset, size or seed (:mod:`.buildchecks`); a custom
-   build finds its images under the root instead (:func:`gather_sources`);
+1. :func:`~.gather.gather_sources`: check the root (and that it and OUT do not overlap),
+   read the split (a standard one is downloaded and checked on first use) and find every
+   listed image, one :class:`~.tasks.Source` per entry; abort if none is there, if one
+   resolves into OUT, or if OUT holds a build of another dataset, size or seed
+   (:mod:`.checks`); a custom build finds its images under the root instead;
 2. ``Dataset.renderer``: the object that turns a clean image into its variants (KITTI-S
    checks its checkpoints and style images here, still before OUT is touched);
 3. :func:`prepare_out` and :func:`claim_out`: create OUT, prove it writable, take its lock,
    refuse symlinks in it that lead outside it, delete temporary files a killed build left;
-4. :func:`plan`: one :class:`Task` per source, holding its jobs (clean + variants x levels)
+4. :func:`plan`: one :class:`~.tasks.Task` per source, holding its jobs (clean + variants x levels)
    and, for each output already in the manifest with the current settings and made from
    the source as it is now (same size; same sha256, which the worker checks), the sha256
    to check it against;
-5. :func:`run_tasks`: the executor runs :func:`run_task` on every task (in-process or in a
+5. :func:`run_tasks`: the executor runs :func:`~.tasks.run_task` on every task (in-process or in a
    pool of workers). A worker hashes the outputs that may be done and, only if something
    is left, decodes and resizes the source once, writes the clean image and renders the
    rest, writing each PNG atomically. It returns one ``(JobState, manifest row)`` per job,
@@ -29,101 +29,32 @@ goes on; a write error (disk full, permissions) stops the build.
 
 from __future__ import annotations
 
-import enum
 import functools
-import itertools
 import os
 import platform
 import shlex
-import signal
 import sys
 import tempfile
-import threading
 import time
-from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .. import __version__
-from . import checks as buildchecks
-from ..output import manifest
-from ..sources import splits
-from .config import BuildConfig
-from ..sources.datasets import CLEAN, Dataset, Entry, Job, Renderer, get_dataset, locate, read_split
-from ..imageio import PNG_ENCODERS, ImageError, check_png, load_clean, resize_lanczos, write_png
-from ..files import sha256_bytes, sha256_file
+from ..imageio import PNG_ENCODERS, check_png
+from ..output import manifest, record as build_record
+from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
-from ..errors import RobodepthError
+from ..output.record import BuildRecord, plan_entry
+from ..sources.datasets import Dataset, Renderer, get_dataset
+from . import checks as buildchecks
+from .checks import BuildError
+from .config import BuildConfig
 from .executors import Executor, ExecutorError, LocalExecutor
+from .gather import check_root, gather_sources
+from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, cannot_write, fingerprint,
+                    run_task)
 
-PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
 MAX_ERRORS_SHOWN = 10
-
-
-class BuildError(RobodepthError):
-    """A problem that makes the whole build impossible; nothing was written because of it
-    (or, for a write error mid-build, everything finished so far is kept)."""
-
-
-class JobState(enum.Enum):
-    """What became of one job (one output file) in this run."""
-
-    SKIPPED = "skipped"  # the file on disk matches its manifest row: nothing to do
-    WRITTEN = "written"
-    FAILED = "failed"  # this job or its source is broken; any stale file at its path is removed
-    FATAL = "fatal"  # the file could not be written (disk full, permissions): the build stops
-
-
-@dataclass(frozen=True)
-class Source:
-    """One entry of the split and where its image was found under the root."""
-
-    key: str  # the entry's dataset-relative key, which names its outputs (see datasets)
-    rel: str  # the image's path relative to the root; "" when it was not found
-    path: str | None  # the image's absolute path; None when it was not found
-    error: str = ""  # why the image cannot be used; "" when it was found
-    frame: int | None = None  # the image's index when ``path`` is NYU's labeled .mat file
-    size: int | None = None  # bytes, when found (a file of its own)
-    mtime: int | None = None  # modification time in ns since the epoch, when found
-
-    @classmethod
-    def find(cls, root: Path, entry: Entry) -> "Source":
-        try:
-            rel, path = locate(root, entry)
-            st = path.stat()
-        except ImageError as exc:
-            return cls(entry.key, "", None, str(exc))
-        except OSError as exc:  # vanished or unreadable between the two calls
-            return cls(entry.key, "", None, f"{root / entry.candidates[0]}: {exc.strerror or exc}")
-        return cls(entry.key, rel, str(path), size=st.st_size, mtime=st.st_mtime_ns)
-
-
-@dataclass(frozen=True)
-class Task:
-    """One source image and all of its outputs. Small: this is what a worker receives."""
-
-    source: Source
-    jobs: tuple[Job, ...]
-    expected: tuple[str | None, ...]  # per job: sha256 of a matching manifest row, else None
-    # sha256 of the source recorded by those rows ("" if none): a source with other bytes
-    # (same size, even the same time) redoes every output.
-    source_sha256: str = ""
-    # Whether some matching row predates the recorded source size/time/hash: its skipped
-    # outputs get their row again, now with them.
-    refresh: bool = False
-    size: tuple[int, int] | None = None  # the outputs' (H, W) when known before decoding
-
-
-@dataclass(frozen=True)
-class Context:
-    """What every task of a build shares."""
-
-    out: str
-    size: tuple[int, int] | None  # None: every image at its own size
-    seed: int
-    renderer: Renderer
-    single_thread: bool  # True in pool workers: the pool already uses every core
-    png: str = "fast"  # how the PNGs are written (imageio.PNG_METHODS)
 
 
 @dataclass
@@ -230,7 +161,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     buildchecks.check_apart(typed_root, out)
     sources, split = gather_sources(ds, cfg, root, Path(out), typed_root)
     buildchecks.check_sources_outside((s.path for s in sources), out)
-    previous = manifest.read_record(out) if Path(out).is_dir() else None
+    previous = build_record.read_record(out) if Path(out).is_dir() else None
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
     png = buildchecks.png_method(out, cfg.png, previous)
     check_png(png)
@@ -248,7 +179,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             # Work to do: let the renderer get ready once here rather than in every worker
             # (KITTI-S computes its style statistics); a rerun with nothing to do skips it.
             getattr(renderer, "warm_up", lambda: None)()
-        plans = buildchecks.merge_plans(previous, buildchecks.plan_entry(
+        plans = buildchecks.merge_plans(previous, plan_entry(
             cfg.variants, cfg.levels, [s.key for s in sources]))
         # The record describes the whole build in OUT, not only this request: a `--limit 2`
         # look into a finished build must not shrink what evaluation and ground truth see.
@@ -273,77 +204,6 @@ def _warn_above_cpus(workers: int, jobs: int) -> None:
         print(f"robodepth: warning: {workers} workers (--jobs {jobs}) on {cpus} CPU"
               f"{'s' if cpus > 1 else ''}: the extra workers only add memory and contention "
               f"(--jobs auto: one per CPU)", file=sys.stderr)
-
-
-def check_root(root: Path, labeled_ok: bool = False) -> Path:
-    """``root`` as an absolute path (symlinks kept, so messages name what the user typed,
-    and workers in other directories can still read it): a directory, or with
-    ``labeled_ok`` also a file (NYU's official labeled .mat); :class:`BuildError` otherwise."""
-    root = Path(root)
-    if not root.exists():
-        raise BuildError(f"{root}: the root directory does not exist")
-    if not root.is_dir() and not (labeled_ok and root.is_file()):
-        raise BuildError(f"{root}: the root is not a directory")
-    return Path(os.path.abspath(root))
-
-
-def find_sources(root: Path, split_path: Path, ds: Dataset, limit: int | None = None, *,
-                 shown_root: Path | None = None) -> list[Source]:
-    """One :class:`Source` per entry of the split (its first ``limit`` entries), in split
-    order, under the absolute directory ``root``. Raises :class:`BuildError` when none of
-    them is there (most likely the wrong root), naming ``shown_root`` (default ``root``)."""
-    entries = read_split(split_path, ds.split_format)[:limit]
-    if root.is_file():
-        sources = labeled_sources(root, split_path, entries)
-    else:
-        sources = [Source.find(root, e) for e in entries]
-    if all(s.error for s in sources):
-        raise BuildError(f"{shown_root or root}: none of the {len(sources)} images of {split_path} "
-                         f"is there; wrong --root? (first: {sources[0].error})")
-    return sources
-
-
-def labeled_sources(path: Path, split_path: Path, entries: list[Entry]) -> list[Source]:
-    """The sources of a NYU split in the official labeled file at ``path``: frame ``N`` of
-    the file for ``SCENE/rgb_N``. A line whose frame is not in the file, or is of another
-    scene, is that image's failure; a file that is not the labeled file is a
-    :class:`BuildError`."""
-    from ..sources import nyu_labeled as gt_nyu
-
-    try:
-        labeled = gt_nyu.opened(path)
-    except gt_nyu.NyuError as exc:
-        raise BuildError(str(exc)) from None
-    sources = []
-    for e in entries:
-        rgb = e.key[: -len(".png")]  # the key is the split's RGB path with the extension .png
-        try:
-            i = gt_nyu.frame_index(labeled, rgb)
-        except gt_nyu.NyuError as exc:
-            sources.append(Source(e.key, "", None, f"{split_path}:{e.line}: {exc}"))
-            continue
-        sources.append(Source(e.key, gt_nyu.source_name(path, i), str(path), frame=i))
-    return sources
-
-
-def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
-                   shown_root: Path | None = None) -> tuple[list[Source], dict]:
-    """The sources of the build and the record's ``split`` entry (how they were chosen;
-    ``keys``: the entries built, in order): a preset's split file, or for a custom build the
-    images found under the root or listed in ``--list`` (:mod:`robodepth_cli.sources.custom`)."""
-    if ds.discovers_sources:
-        from ..sources import custom
-
-        found, split = custom.find_sources(root, cfg, out)
-        sources = [Source.find(root, Entry(n, key, (rel,))) for n, (key, rel) in enumerate(found, 1)]
-        if all(s.error for s in sources):
-            raise BuildError(f"{shown_root or root}: none of the {len(sources)} images of {split['path'] or 'the root'} is usable; "
-                             f"wrong --root? (first: {sources[0].error})")
-        return sources, split
-    split_path = splits.split_path(cfg.split)
-    sources = find_sources(root, split_path, ds, cfg.limit, shown_root=shown_root)
-    return sources, {"path": os.path.abspath(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
-                     "images": len(sources), "keys": [s.key for s in sources]}
 
 
 def make_renderer(ds: Dataset, cfg: BuildConfig) -> Renderer:
@@ -387,7 +247,7 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
     task) when ``done``, the manifest, has a row for it without an error, from the same
     source, seed, size and renderer fingerprint; the worker still checks the file."""
     jobs = tuple(ds.jobs(cfg.variants, cfg.levels))
-    fingerprints = {job.variant: _fingerprint(renderer, job) for job in jobs}
+    fingerprints = {job.variant: fingerprint(renderer, job) for job in jobs}
     tasks = []
     for src in sources:
         size = cfg.size or native_size(src)
@@ -445,26 +305,24 @@ def _same_source(row: Row, src: Source) -> bool:
 
 def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: dict,
                  executor: Executor, command: list[str] | None,
-                 plans: list[dict] | None = None, png: str = "fast") -> dict:
+                 plans: list[dict] | None = None, png: str = "fast") -> BuildRecord:
     """Write the build record of a build that starts now (status ``running``) and return it.
     ``split`` is :func:`gather_sources`' account of the sources (``keys``: the entries
     built, in order); ``plans`` every request made
     into this OUT so far (see :mod:`robodepth_cli.build.checks`), which verify checks;
     ``png`` how the PNGs are written."""
-    record = {
-        "robodepth": __version__, "command": command or [], "dataset": ds.name,
-        "config": cfg.as_dict(), "seed": cfg.seed, "root": str(root), "out": str(out.resolve()),
-        "split": split,
-        "plans": plans or [buildchecks.plan_entry(cfg.variants, cfg.levels, split["keys"])],
-        "versions": library_versions(ds), "png_compress_level": PNG_COMPRESS_LEVEL,
-        "png": png, "png_encoder": PNG_ENCODERS[png],
-        "executor": executor.describe(),
-        "started": _now(), "finished": None, "status": "running",
-    }
+    record = BuildRecord(
+        robodepth=__version__, command=command or [], dataset=ds.name,
+        config=cfg.as_dict(), seed=cfg.seed, root=str(root), out=str(out.resolve()),
+        split=split, plans=plans or [plan_entry(cfg.variants, cfg.levels, split["keys"])],
+        versions=library_versions(ds), png_compress_level=PNG_COMPRESS_LEVEL,
+        png=png, png_encoder=PNG_ENCODERS[png], executor=executor.describe(),
+        started=build_record.now(), finished=None, status="running",
+    )
     try:
-        manifest.write_record(out, record)
+        build_record.write_record(out, record)
     except OSError as exc:
-        raise BuildError(_cannot_write(out / manifest.RECORD, exc)) from None
+        raise BuildError(cannot_write(out / RECORD, exc)) from None
     return record
 
 
@@ -491,7 +349,7 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
     try:
         writer = manifest.ManifestWriter(out)
     except OSError as exc:
-        summary.fatal = _cannot_write(out / manifest.MANIFEST, exc)
+        summary.fatal = cannot_write(out / MANIFEST, exc)
         return
     bar = tqdm(total=summary.total, unit="img", disable=None if progress else True,
                file=sys.stderr, dynamic_ncols=True, smoothing=0.05)
@@ -503,7 +361,7 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
                 writer.append([r for state, r in results
                                if state is not JobState.SKIPPED or r.output in refresh])
             except OSError as exc:  # these images exist but are not recorded: a rerun redoes them
-                summary.fatal = _cannot_write(writer.path, exc)
+                summary.fatal = cannot_write(writer.path, exc)
             summary.add_image(results)
             bar.update(len(results))
             if summary.fatal:
@@ -535,25 +393,25 @@ def add_ground_truth(ds: Dataset, root: Path, split_path: Path, frames: int, out
     except KeyboardInterrupt:
         summary.interrupted = True
     except OSError as exc:
-        summary.fatal = _cannot_write(out / manifest.MANIFEST, exc)
+        summary.fatal = cannot_write(out / MANIFEST, exc)
 
 
-def finish(out: Path, record: dict, summary: Summary) -> None:
+def finish(out: Path, record: BuildRecord, summary: Summary) -> None:
     """Compact the manifest, clear what a stopped pool may have left, write the final
     record. A write error here is kept in ``summary.fatal`` (the outputs themselves are
     fine; a rerun repairs the bookkeeping)."""
     try:
         manifest.compact_manifest(out)
     except OSError as exc:  # the appended manifest stays valid, only unsorted
-        summary.fatal = summary.fatal or _cannot_write(out / manifest.MANIFEST, exc)
+        summary.fatal = summary.fatal or cannot_write(out / MANIFEST, exc)
     if summary.interrupted or summary.fatal:
         # A pool stopped early kills its workers, perhaps in the middle of a write.
         manifest.remove_temporaries(out)
     try:
-        manifest.write_record(out, {**record, "finished": _now(), "status": summary.status,
-                                    "summary": summary.as_dict()})
+        build_record.write_record(out, replace(record, finished=build_record.now(),
+                                               status=summary.status, summary=summary.as_dict()))
     except OSError as exc:
-        summary.fatal = summary.fatal or _cannot_write(out / manifest.RECORD, exc)
+        summary.fatal = summary.fatal or cannot_write(out / RECORD, exc)
 
 
 def library_versions(ds: Dataset) -> dict[str, str]:
@@ -566,133 +424,3 @@ def library_versions(ds: Dataset) -> dict[str, str]:
         except metadata.PackageNotFoundError:
             versions[name] = "not installed"
     return versions
-
-
-def _now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
-
-
-# --- one task (in a worker) ----------------------------------------------------------------
-
-def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
-    """Make the outputs of one source image that are not already done; one
-    ``(JobState, manifest row)`` per job (see :class:`JobState`)."""
-    _configure_worker(ctx.single_thread)
-    out = Path(ctx.out)
-    src = task.source
-    hw = list(task.size or ctx.size or (0, 0))  # the decoded image's own, once decoded
-    # A frame inside a container (NYU's labeled .mat) is not hashed: that would read the
-    # whole multi-GB file for every image.
-    source_sha = (_sha_or_none(Path(src.path)) or "") if src.path and src.frame is None else ""
-    expected = task.expected
-    if task.source_sha256 and source_sha and source_sha != task.source_sha256:
-        expected = (None,) * len(task.jobs)  # the source's bytes changed: redo everything
-
-    def row(job: Job, sha: str = "", error: str = "") -> Row:
-        return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
-                   _fingerprint(ctx.renderer, job), src.size, src.mtime, source_sha)
-
-    results: list[tuple[JobState, Row]] = []
-    todo: list[Job] = []
-    for job, sha in zip(task.jobs, expected):
-        if sha is not None and _sha_or_none(out / job.path(src.key)) == sha:
-            results.append((JobState.SKIPPED, row(job, sha)))
-        else:
-            todo.append(job)
-    if not todo:
-        return results
-
-    def fail(job: Job, message: str) -> None:
-        (out / job.path(src.key)).unlink(missing_ok=True)
-        results.append((JobState.FAILED, row(job, error=message)))
-
-    clean, message = _load(src, ctx.size)
-    if clean is None:
-        for job in todo:
-            fail(job, message)
-        return results
-
-    clean.flags.writeable = False
-    hw[:] = clean.shape[:2]
-    # Lazily, so only one rendered image is alive at a time.
-    rendered = itertools.chain(
-        ((j, clean) for j in todo if j.variant == CLEAN),
-        ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN]))
-    for job, img in rendered:
-        if isinstance(img, BaseException):
-            fail(job, f"{src.path}: {_job_name(job)}: {type(img).__name__}: {img}")
-            continue
-        target = out / job.path(src.key)
-        try:
-            data = write_png(target, img, PNG_COMPRESS_LEVEL, method=ctx.png)
-        except OSError as exc:
-            results.append((JobState.FATAL, row(job, error=_cannot_write(target, exc))))
-            return results
-        results.append((JobState.WRITTEN, row(job, sha256_bytes(data))))
-    return results
-
-
-_configured = False
-
-
-def _configure_worker(single_thread: bool) -> None:
-    global _configured
-    if single_thread and not _configured:
-        import cv2
-
-        cv2.setNumThreads(1)  # two processes on two cores: extra OpenCV threads only contend
-        if threading.current_thread() is threading.main_thread():  # not so in a Dask worker
-            # Ctrl-C reaches the whole process group; the main process stops the pool, and a
-            # worker interrupted on its own would only print a traceback.
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
-        _keep_freed_memory()
-        _configured = True
-
-
-def _keep_freed_memory() -> None:
-    """Let glibc reuse freed blocks for the next image's large temporaries instead of
-    returning them to the system and faulting fresh pages in again for every image. A
-    no-op where there is no glibc."""
-    import ctypes
-
-    try:
-        libc = ctypes.CDLL("libc.so.6")
-        libc.mallopt(-3, 256 << 20)  # M_MMAP_THRESHOLD: arrays up to 256 MB come from the heap
-        libc.mallopt(-1, 1 << 30)  # M_TRIM_THRESHOLD: keep up to 1 GB of freed heap
-    except (OSError, AttributeError):
-        pass
-
-
-def _fingerprint(renderer: Renderer, job: Job) -> str:
-    return "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
-
-
-def _load(src: Source, size: tuple[int, int]):
-    """(clean image, "") or (None, why the source cannot be used)."""
-    if src.error:
-        return None, src.error
-    try:
-        if src.frame is not None:
-            from ..sources.nyu_labeled import source_image
-
-            return resize_lanczos(source_image(src.path, src.frame), size), ""
-        return load_clean(src.path, size), ""
-    except RobodepthError as exc:  # ImageError, or a labeled file's NyuError
-        return None, str(exc)
-    except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
-        return None, f"{src.path}: {type(exc).__name__}: {exc}"
-
-
-def _cannot_write(path, exc: OSError) -> str:
-    return f"{path}: cannot write ({exc.strerror or exc})"
-
-
-def _job_name(job: Job) -> str:
-    return job.variant if job.level is None else f"{job.variant} level {job.level}"
-
-
-def _sha_or_none(path: Path) -> str | None:
-    try:
-        return sha256_file(path)
-    except OSError:
-        return None

@@ -137,7 +137,7 @@ def verify_command(out, progress):
     """
     from tqdm import tqdm
 
-    from ..output.manifest import verify
+    from ..output.verify import verify
 
     with tqdm(unit="file", disable=None if progress else True, file=sys.stderr) as bar:
         report = verify(out, progress=bar.update)

@@ -1,4 +1,4 @@
-"""The bookkeeping files of an output directory and ``robodepth verify``.
+"""The manifest and the lock of an output directory (their names: :mod:`.layout`).
 
 - ``OUT/manifest.csv``: one row per output file (:data:`FIELDS`). Rows are appended and
   flushed as results arrive, so a killed build keeps the record of what it finished; the
@@ -9,8 +9,7 @@
   Columns are read by the header's names: a manifest written before a column existed
   (e.g. without the source's size, time and hash) still reads, the missing values empty,
   and is rewritten with every column before anything is appended to it.
-- ``OUT/build.json``: the build record (resolved config, seed, split, library versions,
-  summary), rewritten at the start and at the end of every build.
+- ``OUT/build.json``: the build record, :mod:`.record`.
 - ``OUT/.robodepth.lock``: held (``flock``) by the running build, and removed by it when
   it ends; if the process dies, the kernel releases the lock and the next build reuses the
   file.
@@ -20,19 +19,15 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import os
 import re
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 
-from ..files import is_temporary, sha256_file, write_atomic
+from ..files import is_temporary, write_atomic
 from ..errors import RobodepthError
+from .layout import LOCK, MANIFEST
 
-MANIFEST = "manifest.csv"
-RECORD = "build.json"
-LOCK = ".robodepth.lock"
-BOOKKEEPING = frozenset({MANIFEST, RECORD, LOCK})
 _SHA = re.compile(r"[0-9a-f]{64}")
 
 
@@ -200,30 +195,6 @@ def compact_manifest(out: Path) -> None:
     write_atomic(Path(out) / MANIFEST, (HEADER + format_rows(rows[k] for k in sorted(rows))).encode("utf-8"))
 
 
-def read_record(out: Path) -> dict | None:
-    """The build record of ``out`` (None when there is none); :class:`ManifestError` naming
-    the file when it cannot be read or is not a record."""
-    path = Path(out) / RECORD
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        return None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ManifestError(f"{path}: cannot read the build record ({exc})") from None
-    try:
-        record = json.loads(text)
-    except ValueError as exc:
-        raise ManifestError(f"{path}: not a build record ({exc}); if this directory is yours to "
-                            f"reuse, delete the file") from None
-    if not isinstance(record, dict):
-        raise ManifestError(f"{path}: not a build record (a JSON {type(record).__name__})")
-    return record
-
-
-def write_record(out: Path, record: dict) -> None:
-    write_atomic(Path(out) / RECORD, (json.dumps(record, indent=2, sort_keys=True) + "\n").encode("utf-8"))
-
-
 class BuildLock:
     """An exclusive lock on ``OUT/.robodepth.lock`` for the duration of a ``with`` block.
     A second build into the same OUT gets :class:`ManifestError` instead of waiting.
@@ -314,91 +285,3 @@ def links_leaving(out: Path) -> list[tuple[str, str]]:
                 elif e.is_dir():
                     stack.append(e.path)
     return sorted(found)
-
-
-@dataclass
-class VerifyReport:
-    checked: int
-    missing: list[str]  # in the manifest, not on disk
-    changed: list[str]  # on disk with other bytes than the manifest says
-    extra: list[str]  # on disk, not in the manifest
-    failed: list[str]  # jobs the build recorded as failed
-    reasons: dict[str, str] = field(default_factory=dict)  # failed output -> its error
-    planned: int | None = None  # outputs the recorded plan asks for (None: no plan recorded)
-    unbuilt: list[str] = field(default_factory=list)  # planned, with no manifest row at all
-    built: int = 0  # planned outputs with a manifest row and no error
-    status: str = ""  # the build record's status
-
-    @property
-    def ok(self) -> bool:
-        return not (self.missing or self.changed or self.extra or self.failed or self.unbuilt)
-
-    def incomplete(self) -> str:
-        """``"incomplete: 728 of 3640 outputs (build interrupted; rerun the build command
-        to finish)"``, or "" when every planned output was built (or failed)."""
-        if not self.unbuilt:
-            return ""
-        why = {"running": "build interrupted", "interrupted": "build interrupted",
-               "stopped": "build stopped by an error"}.get(self.status, "not built yet")
-        return (f"incomplete: {self.built} of {self.planned} outputs ({why}; rerun the build "
-                f"command to finish)")
-
-
-def tree_files(out: Path) -> set[str]:
-    """Every file under ``out`` (relative posix paths) except the bookkeeping files."""
-    found = set()
-    for dirpath, _, files in os.walk(out):
-        rel = os.path.relpath(dirpath, out)
-        for name in files:
-            p = name if rel == "." else f"{rel}/{name}".replace(os.sep, "/")
-            if p not in BOOKKEEPING:
-                found.add(p)
-    return found
-
-
-def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
-    """Re-hash every file of ``out`` against its manifest. ``progress(n)`` is called as
-    files are checked."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from ..build.checks import planned_outputs
-
-    out = Path(out)
-    if not out.exists():
-        raise ManifestError(f"{out}: does not exist")
-    if not out.is_dir():
-        raise ManifestError(f"{out}: not a directory")
-    holder = lock_holder(out)
-    if holder:
-        raise ManifestError(f"{out}: a build (pid {holder}) is writing here right now; verify "
-                            f"when it has finished")
-    if not (out / MANIFEST).is_file():
-        raise ManifestError(f"{out}: no {MANIFEST}; not a robodepth build output")
-    rows = read_manifest(out)
-    record = read_record(out)
-    planned = planned_outputs(record)
-    on_disk = tree_files(out)
-    failed = sorted(p for p, r in rows.items() if r.error)
-    listed = {p: r for p, r in rows.items() if not r.error}
-    missing = sorted(p for p in listed if p not in on_disk)
-    extra = sorted(p for p in on_disk if p not in listed)
-    present = sorted(p for p in listed if p in on_disk)
-
-    def check(p: str) -> bool:
-        return sha256_file(out / p) == listed[p].sha256
-
-    changed = []
-    with ThreadPoolExecutor(threads) as pool:  # hashlib and file reads release the GIL
-        for p, same in zip(present, pool.map(check, present)):
-            if not same:
-                changed.append(p)
-            if progress:
-                progress(1)
-    report = VerifyReport(len(present), missing, changed, extra, failed,
-                          reasons={p: rows[p].error for p in failed},
-                          status=(record or {}).get("status", ""))
-    if planned is not None:
-        report.planned = len(planned)
-        report.unbuilt = sorted(p for p in planned if p not in rows)
-        report.built = sum(1 for p in planned if p in listed)
-    return report

@@ -45,19 +45,9 @@ class Job:
         """The output path relative to OUT: ``<variant>/<level>/<key>``, with the level
         in its shortest form (``fog/2.5/...``); ``<chain directory name>/<key>`` for a
         chain (``fog-3+gaussian_noise-2.5/...``); ``<variant>/<key>`` otherwise."""
-        return f"{variant_dir(self.variant, self.level)}/{key}"
+        from ..output.layout import output_path
 
-
-def variant_dir(variant: str, level) -> str:
-    """The directory of ``variant`` at ``level`` relative to OUT (see :meth:`Job.path`)."""
-    from ..corruptions.chains import looks_like_chain, parse_chain
-    from ..corruptions.severity import level_text
-
-    if level is not None:
-        return f"{variant}/{level_text(level)}"
-    if looks_like_chain(variant):
-        return parse_chain(variant).dirname
-    return variant
+        return output_path(self.variant, self.level, key)
 
 
 class Renderer(Protocol):

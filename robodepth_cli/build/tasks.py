@@ -1,0 +1,207 @@
+"""One task of a build: a source image and all of its outputs, as a worker receives and
+runs it (:func:`run_task`). The main process plans tasks and writes the manifest and record
+(:mod:`.pipeline`); executors (:mod:`.executors`, :mod:`.cluster`) carry tasks to workers
+and their manifest rows back.
+"""
+
+from __future__ import annotations
+
+import enum
+import itertools
+import signal
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import RobodepthError
+from ..files import sha256_bytes, sha256_file
+from ..imageio import ImageError, load_clean, resize_lanczos, write_png
+from ..output.manifest import Row
+from ..sources.datasets import CLEAN, Entry, Job, Renderer, locate
+
+PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
+
+
+class JobState(enum.Enum):
+    """What became of one job (one output file) in this run."""
+
+    SKIPPED = "skipped"  # the file on disk matches its manifest row: nothing to do
+    WRITTEN = "written"
+    FAILED = "failed"  # this job or its source is broken; any stale file at its path is removed
+    FATAL = "fatal"  # the file could not be written (disk full, permissions): the build stops
+
+
+@dataclass(frozen=True)
+class Source:
+    """One entry of the split and where its image was found under the root."""
+
+    key: str  # the entry's dataset-relative key, which names its outputs (see datasets)
+    rel: str  # the image's path relative to the root; "" when it was not found
+    path: str | None  # the image's absolute path; None when it was not found
+    error: str = ""  # why the image cannot be used; "" when it was found
+    frame: int | None = None  # the image's index when ``path`` is NYU's labeled .mat file
+    size: int | None = None  # bytes, when found (a file of its own)
+    mtime: int | None = None  # modification time in ns since the epoch, when found
+
+    @classmethod
+    def find(cls, root: Path, entry: Entry) -> "Source":
+        try:
+            rel, path = locate(root, entry)
+            st = path.stat()
+        except ImageError as exc:
+            return cls(entry.key, "", None, str(exc))
+        except OSError as exc:  # vanished or unreadable between the two calls
+            return cls(entry.key, "", None, f"{root / entry.candidates[0]}: {exc.strerror or exc}")
+        return cls(entry.key, rel, str(path), size=st.st_size, mtime=st.st_mtime_ns)
+
+
+@dataclass(frozen=True)
+class Task:
+    """One source image and all of its outputs. Small: this is what a worker receives."""
+
+    source: Source
+    jobs: tuple[Job, ...]
+    expected: tuple[str | None, ...]  # per job: sha256 of a matching manifest row, else None
+    # sha256 of the source recorded by those rows ("" if none): a source with other bytes
+    # (same size, even the same time) redoes every output.
+    source_sha256: str = ""
+    # Whether some matching row predates the recorded source size/time/hash: its skipped
+    # outputs get their row again, now with them.
+    refresh: bool = False
+    size: tuple[int, int] | None = None  # the outputs' (H, W) when known before decoding
+
+
+@dataclass(frozen=True)
+class Context:
+    """What every task of a build shares."""
+
+    out: str
+    size: tuple[int, int] | None  # None: every image at its own size
+    seed: int
+    renderer: Renderer
+    single_thread: bool  # True in pool workers: the pool already uses every core
+    png: str = "fast"  # how the PNGs are written (imageio.PNG_METHODS)
+
+
+def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
+    """Make the outputs of one source image that are not already done; one
+    ``(JobState, manifest row)`` per job (see :class:`JobState`)."""
+    _configure_worker(ctx.single_thread)
+    out = Path(ctx.out)
+    src = task.source
+    hw = list(task.size or ctx.size or (0, 0))  # the decoded image's own, once decoded
+    # A frame inside a container (NYU's labeled .mat) is not hashed: that would read the
+    # whole multi-GB file for every image.
+    source_sha = (_sha_or_none(Path(src.path)) or "") if src.path and src.frame is None else ""
+    expected = task.expected
+    if task.source_sha256 and source_sha and source_sha != task.source_sha256:
+        expected = (None,) * len(task.jobs)  # the source's bytes changed: redo everything
+
+    def row(job: Job, sha: str = "", error: str = "") -> Row:
+        return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
+                   fingerprint(ctx.renderer, job), src.size, src.mtime, source_sha)
+
+    results: list[tuple[JobState, Row]] = []
+    todo: list[Job] = []
+    for job, sha in zip(task.jobs, expected):
+        if sha is not None and _sha_or_none(out / job.path(src.key)) == sha:
+            results.append((JobState.SKIPPED, row(job, sha)))
+        else:
+            todo.append(job)
+    if not todo:
+        return results
+
+    def fail(job: Job, message: str) -> None:
+        (out / job.path(src.key)).unlink(missing_ok=True)
+        results.append((JobState.FAILED, row(job, error=message)))
+
+    clean, message = _load(src, ctx.size)
+    if clean is None:
+        for job in todo:
+            fail(job, message)
+        return results
+
+    clean.flags.writeable = False
+    hw[:] = clean.shape[:2]
+    # Lazily, so only one rendered image is alive at a time.
+    rendered = itertools.chain(
+        ((j, clean) for j in todo if j.variant == CLEAN),
+        ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN]))
+    for job, img in rendered:
+        if isinstance(img, BaseException):
+            fail(job, f"{src.path}: {_job_name(job)}: {type(img).__name__}: {img}")
+            continue
+        target = out / job.path(src.key)
+        try:
+            data = write_png(target, img, PNG_COMPRESS_LEVEL, method=ctx.png)
+        except OSError as exc:
+            results.append((JobState.FATAL, row(job, error=cannot_write(target, exc))))
+            return results
+        results.append((JobState.WRITTEN, row(job, sha256_bytes(data))))
+    return results
+
+
+_configured = False
+
+
+def _configure_worker(single_thread: bool) -> None:
+    global _configured
+    if single_thread and not _configured:
+        import cv2
+
+        cv2.setNumThreads(1)  # two processes on two cores: extra OpenCV threads only contend
+        if threading.current_thread() is threading.main_thread():  # not so in a Dask worker
+            # Ctrl-C reaches the whole process group; the main process stops the pool, and a
+            # worker interrupted on its own would only print a traceback.
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        _keep_freed_memory()
+        _configured = True
+
+
+def _keep_freed_memory() -> None:
+    """Let glibc reuse freed blocks for the next image's large temporaries instead of
+    returning them to the system and faulting fresh pages in again for every image. A
+    no-op where there is no glibc."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(-3, 256 << 20)  # M_MMAP_THRESHOLD: arrays up to 256 MB come from the heap
+        libc.mallopt(-1, 1 << 30)  # M_TRIM_THRESHOLD: keep up to 1 GB of freed heap
+    except (OSError, AttributeError):
+        pass
+
+
+def fingerprint(renderer: Renderer, job: Job) -> str:
+    return "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
+
+
+def _load(src: Source, size: tuple[int, int]):
+    """(clean image, "") or (None, why the source cannot be used)."""
+    if src.error:
+        return None, src.error
+    try:
+        if src.frame is not None:
+            from ..sources.nyu_labeled import source_image
+
+            return resize_lanczos(source_image(src.path, src.frame), size), ""
+        return load_clean(src.path, size), ""
+    except RobodepthError as exc:  # ImageError, or a labeled file's NyuError
+        return None, str(exc)
+    except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
+        return None, f"{src.path}: {type(exc).__name__}: {exc}"
+
+
+def cannot_write(path, exc: OSError) -> str:
+    return f"{path}: cannot write ({exc.strerror or exc})"
+
+
+def _job_name(job: Job) -> str:
+    return job.variant if job.level is None else f"{job.variant} level {job.level}"
+
+
+def _sha_or_none(path: Path) -> str | None:
+    try:
+        return sha256_file(path)
+    except OSError:
+        return None

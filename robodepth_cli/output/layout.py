@@ -1,0 +1,53 @@
+"""The layout of a build's output directory: every name robodepth writes into OUT, and the
+rule that places each output. Nothing else in the package spells these names.
+
+::
+
+    OUT/manifest.csv             one row per output file (:data:`MANIFEST`)
+    OUT/build.json               the build record (:data:`RECORD`)
+    OUT/.robodepth.lock          held by the build writing here (:data:`LOCK`)
+    OUT/clean/<key>              the resized clean images
+    OUT/<corruption>/<level>/<key>
+    OUT/<style>/<key>            KITTI-S: styles have no level
+    OUT/<chain dir>/<key>        a chain of corruptions, e.g. fog-3+gaussian_noise-2.5/
+    OUT/gt_depths.npz            KITTI ground truth, monodepth2's format (:data:`GT_FILE`)
+    OUT/gt/<depth path>          NYU ground truth, BTS's layout (:data:`GT_DIR`)
+
+``<key>`` is the dataset-relative path of the source image with the extension ``.png``
+(KITTI: ``kitti_data/<date>/<drive>/image_02/data/<frame>.png``), so each variant directory
+mirrors the benchmark's own tree.
+"""
+
+from __future__ import annotations
+
+from ..benchmarks import CLEAN
+from ..corruptions.severity import level_text
+
+MANIFEST = "manifest.csv"
+RECORD = "build.json"
+LOCK = ".robodepth.lock"
+BOOKKEEPING = frozenset({MANIFEST, RECORD, LOCK})
+GT_FILE = "gt_depths.npz"
+GT_DIR = "gt"
+
+__all__ = ["MANIFEST", "RECORD", "LOCK", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
+           "variant_dir", "output_path"]
+
+
+def variant_dir(variant: str, level: float | None) -> str:
+    """``clean``, ``<corruption>/<level>``, ``<style>`` or a chain's directory name: a
+    variant's directory under OUT (and, with ``.npy``, its prediction file under PRED).
+    ``level`` is None for the clean images, styles and chains; an integer level is written
+    ``3``, a decimal one ``2.5``; a chain (its canonical text ``fog:3+gaussian_noise:2.5``
+    or its directory name) by its directory name ``fog-3+gaussian_noise-2.5``."""
+    if level is not None:
+        return f"{variant}/{level_text(level)}"
+    from ..corruptions.chains import looks_like_chain, parse_chain
+
+    return parse_chain(variant).dirname if looks_like_chain(variant) else variant
+
+
+def output_path(variant: str, level: float | None, key: str) -> str:
+    """The path of one output relative to OUT: ``<variant dir>/<key>``."""
+    return f"{variant_dir(variant, level)}/{key}"
+

@@ -1,0 +1,142 @@
+"""The build record, ``OUT/build.json``: what was built, how, and how it ended.
+
+A build writes its record when it starts (status ``running``) and again when it ends
+(``finished``, ``incomplete``, ``interrupted`` or ``stopped``, with the run's summary).
+:class:`BuildRecord` is the one typed form of the file: the builder writes it, ``verify``,
+:func:`robodepth_cli.open_dataset`, the build checks and ``robodepth_cli.torch`` read it.
+Keys a record holds that this version does not know (written by a newer robodepth) are kept
+in ``other`` and written back unchanged.
+
+Records written by older versions still read: one without ``plans`` describes its single
+request through ``config`` and ``split.keys``; one without a top-level ``dataset`` or ``seed``
+has them in ``config``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, fields
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from ..errors import RobodepthError
+from ..files import write_atomic
+from .layout import RECORD
+
+
+class RecordError(RobodepthError):
+    """A ``build.json`` that cannot be read or is not a build record."""
+
+
+def now() -> str:
+    """The record's timestamps: UTC, ISO 8601, to the second."""
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def plan_entry(variants, levels, keys) -> dict[str, list]:
+    """One request made into an OUT: which variants at which levels for which source keys."""
+    return {"variants": list(variants), "levels": list(levels), "keys": list(keys)}
+
+
+@dataclass
+class BuildRecord:
+    dataset: str | None
+    config: dict[str, Any] = field(default_factory=dict)  # the resolved configuration
+    seed: int | None = None
+    # How the sources were chosen; ``keys``: the source keys built, in split order.
+    split: dict[str, Any] = field(default_factory=dict)
+    plans: list[dict[str, list]] | None = None  # every request made into this OUT so far
+    robodepth: str = ""
+    command: list[str] = field(default_factory=list)
+    root: str = ""
+    out: str = ""
+    versions: dict[str, str] = field(default_factory=dict)
+    png_compress_level: int | None = None
+    png: str | None = None  # how the PNGs are written (--png); None: before --png existed
+    png_encoder: str | None = None
+    executor: dict[str, Any] = field(default_factory=dict)
+    started: str | None = None
+    finished: str | None = None
+    status: str = ""
+    summary: dict[str, Any] | None = None  # absent until the build ends
+    other: dict[str, Any] = field(default_factory=dict)  # keys this version does not know
+
+    # ----------------------------------------------------------------------- reading
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "BuildRecord":
+        known = {f.name for f in fields(cls)} - {"other"}
+        values = {k: v for k, v in data.items() if k in known}
+        config = data.get("config") if isinstance(data.get("config"), dict) else {}
+        values["config"] = config
+        values.setdefault("dataset", config.get("dataset"))
+        values.setdefault("seed", config.get("seed"))
+        if not isinstance(values.get("split"), dict):
+            values["split"] = {}
+        if not isinstance(values.get("plans"), list):
+            values["plans"] = None
+        return cls(**values, other={k: v for k, v in data.items() if k not in known})
+
+    @property
+    def keys(self) -> list[str] | None:
+        """The source keys built, in split order, when the record lists them."""
+        keys = self.split.get("keys")
+        if isinstance(keys, list) and keys and all(isinstance(k, str) for k in keys):
+            return keys
+        return None
+
+    @property
+    def size(self) -> tuple[int, int] | None:
+        """The output size (H, W), or None: each image at its own size (custom)."""
+        size = self.config.get("size")
+        return tuple(size) if size else None
+
+    @property
+    def limit(self) -> int | None:
+        return self.config.get("limit")
+
+    def requests(self) -> list[dict[str, list]]:
+        """The requests recorded: ``plans``, or for a record written before they were kept,
+        the one its config and split keys describe ([] if it has neither)."""
+        if self.plans is not None:
+            return self.plans
+        if "keys" in self.split and "variants" in self.config:
+            return [plan_entry(self.config["variants"], self.config.get("levels") or [],
+                               self.split["keys"])]
+        return []
+
+    # ----------------------------------------------------------------------- writing
+
+    def to_dict(self) -> dict[str, Any]:
+        data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "other"}
+        for optional in ("summary", "plans", "png"):  # absent, rather than null, when unset
+            if data[optional] is None:
+                del data[optional]
+        return {**self.other, **data}
+
+
+def read_record(out: Path) -> BuildRecord | None:
+    """The build record of ``out`` (None when there is none); :class:`RecordError` naming
+    the file when it cannot be read or is not a record."""
+    path = Path(out) / RECORD
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RecordError(f"{path}: cannot read the build record ({exc})") from None
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise RecordError(f"{path}: not a build record ({exc}); if this directory is yours to "
+                          f"reuse, delete the file") from None
+    if not isinstance(data, dict):
+        raise RecordError(f"{path}: not a build record (a JSON {type(data).__name__})")
+    return BuildRecord.from_dict(data)
+
+
+def write_record(out: Path, record: BuildRecord) -> None:
+    """Write ``OUT/build.json`` atomically (sorted keys, so equal records are equal bytes)."""
+    text = json.dumps(record.to_dict(), indent=2, sort_keys=True) + "\n"
+    write_atomic(Path(out) / RECORD, text.encode("utf-8"))
