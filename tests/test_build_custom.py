@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 
 import numpy as np
 import pytest
@@ -199,3 +200,16 @@ def test_pattern_semantics():
     assert not rx.fullmatch("val/x/f_12.jpg")
     rx = compile_pattern("[!a]*.png")
     assert rx.fullmatch("b.png") and not rx.fullmatch("a.png") and not rx.fullmatch("d/b.png")
+
+
+def test_pattern_help_and_preset_name_every_default_extension(cli):
+    from robodepth_cli.sources.custom import IMAGE_EXTS
+
+    from _paths import REPO
+
+    help_text = " ".join(cli("build", "--help").output.split())
+    default = help_text[help_text.index("--pattern"):].split("at any depth")[0]
+    preset = (REPO / "configs" / "custom.yaml").read_text().split("\n")[0]
+    for ext in IMAGE_EXTS:
+        assert re.search(rf"\b{ext}\b", default), (ext, default)
+        assert re.search(rf"\b{ext}\b", preset), (ext, preset)

@@ -388,7 +388,11 @@ def test_unreachable_scheduler_and_bad_scheduler_file(build, tmp_path, monkeypat
         port = s.getsockname()[1]
     res = build(tmp_path / "out", *CHEAP, "--scheduler", f"tcp://127.0.0.1:{port}")
     assert res.exit_code == 2
-    assert res.output.startswith(f"robodepth: error: tcp://127.0.0.1:{port}: cannot connect to the Dask scheduler")
+    # Said before the wait, so a slow refusal does not look like a hang.
+    first, error = res.output.splitlines()
+    assert first == (f"robodepth: connecting to the Dask scheduler at tcp://127.0.0.1:{port} "
+                     f"(giving up after 2 s)")
+    assert error.startswith(f"robodepth: error: tcp://127.0.0.1:{port}: cannot connect to the Dask scheduler")
     assert not (tmp_path / "out").exists()
     bad = tmp_path / "s.json"
     bad.write_text("{}")

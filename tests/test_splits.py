@@ -17,6 +17,8 @@ from robodepth_cli.sources.datasets import locate, read_split
 from robodepth_cli.imageio import ImageError
 from robodepth_cli.sources.splits import SplitError
 
+from _paths import SPLITS
+
 
 class _QuietHandler(SimpleHTTPRequestHandler):
     def log_message(self, *args):
@@ -102,6 +104,9 @@ def test_offline_asks_for_a_split_file(cache):
         splits.standard_split("eigen_test", url=url)
     assert f"cannot download the eigen_test split from {url}" in str(err.value)
     assert "offline?" in str(err.value) and "--split FILE" in str(err.value)
+    # The clone's own checked copy is named, so the user need not download anything.
+    copy = SPLITS / "eigen_test_files.txt"
+    assert str(err.value).endswith(f"(this clone holds a checked copy: --split {copy})")
 
 
 def test_missing_file_on_server_is_an_error(serve, cache, tmp_path):

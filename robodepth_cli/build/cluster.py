@@ -39,6 +39,7 @@ import hashlib
 import json
 import os
 import secrets
+import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -252,6 +253,10 @@ def read_scheduler_file(path: str | os.PathLike) -> str:
     return address
 
 
+def _say(message: str) -> None:
+    print(f"robodepth: {message}", file=sys.stderr, flush=True)
+
+
 class DaskExecutor:
     """Runs a build's tasks on the workers of a running Dask scheduler.
 
@@ -282,12 +287,18 @@ class DaskExecutor:
         where = f"{self.address}" + (f" (from {self.scheduler_file})" if self.scheduler_file else "")
         # distributed logs every failed attempt; the one-line refusal below says it all.
         logging.getLogger("distributed").setLevel(logging.ERROR)
+        # Connecting (and waiting for workers) can take long; without a word first it looks hung.
+        _say(f"connecting to the Dask scheduler at {where} (giving up after "
+             f"{self.connect_timeout:g} s)")
         try:
             self.client = Client(self.address, timeout=self.connect_timeout, set_as_default=False)
         except (OSError, TimeoutError) as exc:
             raise ClusterError(f"{where}: cannot connect to the Dask scheduler ({exc})") from None
         except ValueError as exc:  # a malformed address
             raise ClusterError(f"{where}: not a Dask scheduler address ({exc})") from None
+        if not self.client.nthreads():
+            _say(f"connected; waiting for a worker to join (giving up after "
+                 f"{self.workers_timeout:g} s)")
         try:
             self.client.wait_for_workers(1, timeout=self.workers_timeout)
         except TimeoutError:

@@ -129,7 +129,8 @@ def check_option(key: str, value, base: Path):
 def discover(root: Path, patterns, exclude: Path | None = None) -> list[str]:
     """The relative posix paths of the files under the resolved directory ``root`` that
     match ``patterns``, sorted. Directory symlinks are followed (each real directory
-    once); ``exclude`` (the output directory, if it lies under the root) is not entered."""
+    once); ``exclude``, a directory, is not entered (a build refuses an OUT inside the root
+    before looking for sources; this keeps the walk out of it all the same)."""
     regexes = [compile_pattern(p) for p in patterns]
     seen_dirs: set[str] = set()
     skip = os.path.realpath(exclude) if exclude is not None else None

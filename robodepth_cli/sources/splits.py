@@ -121,6 +121,17 @@ def _download(url: str, timeout: float) -> bytes:
     return data
 
 
+def clone_copy(rec: SplitRecord) -> Path | None:
+    """The copy of ``rec``'s file that a clone of robodepth keeps for its tests
+    (``tests/data/splits``), if this package runs from a clone and the copy has the
+    recorded sha256; None otherwise."""
+    path = Path(__file__).resolve().parents[2] / "tests" / "data" / "splits" / rec.file
+    try:
+        return path if sha256_bytes(path.read_bytes()) == rec.sha256 else None
+    except OSError:
+        return None
+
+
 def standard_split(name: str, *, url: str | None = None, cache: Path | None = None,
                    timeout: float = TIMEOUT_S) -> Path:
     """The local path of standard split ``name``, checked against its sha256.
@@ -147,6 +158,9 @@ def standard_split(name: str, *, url: str | None = None, cache: Path | None = No
         stale = f" ({stale}, so it was not used)"
     src = url or url_for(rec)
     hint = "download it yourself and pass it with --split FILE"
+    copy = clone_copy(rec)
+    if copy is not None:
+        hint += f" (this clone holds a checked copy: --split {copy})"
     try:
         data = _download(src, timeout)
     except urllib.error.HTTPError as exc:  # the server answered: not an offline problem
