@@ -19,14 +19,14 @@ it says which variants and levels the build has (a subset build has only its own
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from .errors import RobodepthError, os_reason
-from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, variant_dir
+from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir
 from .output.record import BuildRecord
 
 
@@ -45,6 +45,9 @@ class Variant:
     name: str
     level: int | float | None
     keys: tuple[str, ...]  # the split's image keys, in split order
+    # The keys whose image of this variant the build did not make, each with the reason
+    # (the manifest row's error, or "not built" when the build stopped before it).
+    missing: dict[str, str] = field(default_factory=dict, compare=False)
 
     @property
     def relpath(self) -> str:
@@ -63,10 +66,23 @@ class Variant:
     def __len__(self) -> int:
         return len(self.keys)
 
-    def images(self) -> list[Path]:
-        """The variant's image files, in split order (image ``i`` is prediction ``i``)."""
+    def images(self, missing: str = "raise") -> list[Path]:
+        """The variant's image files, in split order (image ``i`` is prediction ``i``).
+
+        When the build failed to make some of them (see :attr:`missing`), ``missing="raise"``
+        (the default) raises :class:`DatasetError` saying how many and which, before any of
+        them is read; ``missing="skip"`` leaves them out and gives the ones that exist (their
+        predictions then cover only part of the split: :meth:`save_predictions` wants
+        every image). Rerunning the build command makes the missing ones.
+        """
+        if missing not in ("raise", "skip"):
+            raise ValueError(f"missing={missing!r}: expected 'raise' or 'skip'")
         base = self.root / self.relpath
-        return [base / key for key in self.keys]
+        if self.missing and missing == "raise":
+            raise DatasetError(f"{base}: {_failed_text(self.missing, len(self.keys))}; rerun the "
+                               f"build command to make them, or use images(missing='skip') for "
+                               f"the {len(self.keys) - len(self.missing)} that exist")
+        return [base / key for key in self.keys if key not in self.missing]
 
     def prediction_file(self, pred: str | os.PathLike) -> Path:
         """Where :meth:`save_predictions` writes: ``PRED/<relpath>.npy``."""
@@ -188,16 +204,39 @@ class BuiltDataset:
     """A dataset directory written by ``robodepth build`` (use :func:`open_dataset`)."""
 
     def __init__(self, path: Path, record: BuildRecord, keys: tuple[str, ...],
-                 variants: Sequence[tuple[str, int | None]]):
+                 variants: Sequence[tuple[str, int | None]],
+                 missing: dict[tuple, dict[str, str]] | None = None):
         self.path = path
         self.record = record
         self.name: str = record.dataset
         self.keys = keys
-        self._variants = tuple(Variant(path, v, lv, keys) for v, lv in variants)
+        missing = missing or {}
+        self._variants = tuple(Variant(path, v, lv, keys, missing.get((v, lv), {}))
+                               for v, lv in variants)
 
     def __repr__(self) -> str:
+        failed = self.failed
         return (f"<BuiltDataset {self.name} at {self.path}: {len(self._variants)} variants x "
-                f"{len(self.keys)} images>")
+                f"{len(self.keys)} images" + (f", {len(failed)} failed" if failed else "") + ">")
+
+    @property
+    def failed(self) -> dict[str, str]:
+        """The source images (keys, in split order) with at least one output the build did
+        not make, each with the first reason: {} after a build that exited 0."""
+        reasons: dict[str, str] = {}
+        for v in self._variants:
+            for key, why in v.missing.items():
+                reasons.setdefault(key, why)
+        return {k: reasons[k] for k in self.keys if k in reasons}
+
+    def incomplete(self) -> str:
+        """``"OUT: 2 of 697 images failed in the build (key: why; ...); rerunning the build
+        command makes them"``, or "" when every image was made."""
+        failed = self.failed
+        if not failed:
+            return ""
+        return (f"{self.path}: {_failed_text(failed, len(self.keys))}; rerunning the build "
+                f"command makes them")
 
     @property
     def size(self) -> tuple[int, int] | None:
@@ -233,12 +272,16 @@ class BuiltDataset:
         return path if path.exists() else None
 
 
-def open_dataset(path: str | os.PathLike) -> BuiltDataset:
+def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     """Open a dataset directory written by ``robodepth build``.
 
     Reads ``build.json`` (the dataset and the split's image keys in order) and
-    ``manifest.csv`` (which variants and levels were built). Raises :class:`DatasetError`
-    naming the file when the directory is not a build or its record is unusable.
+    ``manifest.csv`` (which variants and levels were built, and which images failed).
+    Raises :class:`DatasetError` naming the file when the directory is not a build or its
+    record is unusable. A build that did not make every image (it exited 1) opens with an
+    :class:`IncompleteBuild` warning (unless ``warn`` is False) saying how many images
+    failed and which; :attr:`BuiltDataset.failed` lists them and
+    ``variant.images(missing="skip")`` iterates the ones that exist.
     """
     from .sources.datasets import get_dataset
     from .output.manifest import ManifestError, read_manifest
@@ -271,7 +314,43 @@ def open_dataset(path: str | os.PathLike) -> BuiltDataset:
     order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
     variants = sorted((vl for vl in built if vl[0] in order),
                       key=lambda vl: (order.index(vl[0]), vl[1] or 0))
-    return BuiltDataset(path, record, keys, variants)
+    dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants))
+    if dataset.failed and warn:
+        import warnings
+
+        warnings.warn(IncompleteBuild(dataset.incomplete() + "; variant.images() raises for a "
+                                      "variant without all of its images, variant.images("
+                                      "missing='skip') gives the ones that exist, dataset.failed "
+                                      "lists them"), stacklevel=2)
+    return dataset
+
+
+class IncompleteBuild(UserWarning):
+    """:func:`open_dataset` of a build that did not make every image (it exited 1, or
+    stopped early)."""
+
+
+def _missing(rows: dict, keys: tuple[str, ...], variants) -> dict[tuple, dict[str, str]]:
+    """Per variant, the keys whose output has no manifest row without an error, each with
+    the reason."""
+    missing = {}
+    for v, lv in variants:
+        gone = {}
+        for key in keys:
+            row = rows.get(output_path(v, lv, key))
+            if row is None or row.error:
+                gone[key] = row.error if row is not None else "not built (the build stopped before it)"
+        if gone:
+            missing[(v, lv)] = gone
+    return missing
+
+
+def _failed_text(failed: dict[str, str], total: int, shown: int = 3) -> str:
+    """``"2 of 697 images failed in the build (a.png: why; b.png: why)"``."""
+    listed = "; ".join(f"{k}: {why}" for k, why in list(failed.items())[:shown])
+    more = f"; and {len(failed) - shown} more" if len(failed) > shown else ""
+    return (f"{len(failed)} of {total} image{'s' if total != 1 else ''} failed in the build "
+            f"({listed}{more})")
 
 
 def _split_keys(record: BuildRecord, record_path: Path, ds) -> tuple[str, ...]:

@@ -30,10 +30,10 @@ import torch
 from PIL import Image
 
 from . import corruptions, seeding
-from .api import open_dataset
+from .api import _failed_text, open_dataset
 from .errors import RobodepthError
 from .keys import seed_key
-from .output.layout import CLEAN, GT_FILE, output_path
+from .output.layout import CLEAN, GT_FILE, variant_dir
 
 __all__ = ["Corrupt", "RandomCorrupt", "RandomChain", "KittiC"]
 
@@ -363,13 +363,23 @@ class KittiC(torch.utils.data.Dataset):
     ``transform`` makes of the H x W x 3 array) and, when ``root/gt_depths.npz`` exists
     (``robodepth gt``; a pickle: open only builds you trust), ``depth`` (the ground-truth
     map of that image, float32 tensor, at the raw frame's size, which varies between KITTI
-    drives: batch with ``batch_size=1`` or a ``collate_fn`` of your own).
+    drives: batch with ``collate_fn=robodepth_cli.torch.collate``).
+
+    After a build that failed some images (it exited 1), ``missing="raise"`` (the default)
+    raises :class:`TorchAPIError` naming them; ``missing="skip"`` serves the ones that exist
+    (``len`` counts those; ``key`` says which each is).
     """
 
-    def __init__(self, root, corruption: str, level=None, on_the_fly: bool = False, transform=None):
+    def __init__(self, root, corruption: str, level=None, on_the_fly: bool = False, transform=None,
+                 missing: str = "raise"):
+        if missing not in ("raise", "skip"):
+            raise TorchAPIError(f"missing={missing!r}: expected 'raise' or 'skip'")
         self.root = Path(root)
         built = open_dataset(self.root)  # the build record and the split order, checked
         self.keys = list(built.keys)
+        # Item i is split image self._index[i]: every one, or (missing="skip") the ones the
+        # build made; the ground truth is indexed by the split.
+        self._index = list(range(len(self.keys)))
         self.dataset = built.name
         self.seed = int(built.record.seed or 0)
         self.corruption = Corrupt(corruption, level, seed=self.seed, dataset=self.dataset)
@@ -378,6 +388,15 @@ class KittiC(torch.utils.data.Dataset):
         self.transform = transform
         self._gt_path = self.root / GT_FILE
         self._gt = None
+        variant = next((v for v in built.variants() if v.relpath == self._relpath()), None)
+        if variant is not None and variant.missing:
+            if missing == "raise":
+                raise TorchAPIError(f"{self.root / variant.relpath}: "
+                                    f"{_failed_text(variant.missing, len(self.keys))}; rerun the "
+                                    f"build command to make them, or KittiC(..., missing='skip') "
+                                    f"for the {len(self.keys) - len(variant.missing)} that exist")
+            self._index = [i for i, k in enumerate(self.keys) if k not in variant.missing]
+            self.keys = [self.keys[i] for i in self._index]
         first = self._path(0) if self.keys else None
         if first is not None and not first.is_file():
             what = ("clean" if self.on_the_fly else self.corruption.name if self.corruption.chain
@@ -385,12 +404,16 @@ class KittiC(torch.utils.data.Dataset):
             raise TorchAPIError(f"{first}: missing; was {what} "
                                 f"built into {self.root}?")
 
-    def _path(self, i: int) -> Path:
+    def _relpath(self) -> str:
+        """The directory of the images read, relative to the build."""
         if self.on_the_fly:
-            return self.root / output_path(CLEAN, None, self.keys[i])
+            return variant_dir(CLEAN, None)
         if self.corruption.chain is not None:
-            return self.root / output_path(self.corruption.chain.dirname, None, self.keys[i])
-        return self.root / output_path(self.corruption.name, self.level, self.keys[i])
+            return variant_dir(self.corruption.chain.dirname, None)
+        return variant_dir(self.corruption.name, self.level)
+
+    def _path(self, i: int) -> Path:
+        return self.root / self._relpath() / self.keys[i]
 
     def __len__(self) -> int:
         return len(self.keys)
@@ -403,7 +426,7 @@ class KittiC(torch.utils.data.Dataset):
 
             # Read lazily in each process (a DataLoader worker reads its own copy).
             self._gt = read_depth_maps(self._gt_path)
-        return torch.from_numpy(np.asarray(self._gt[i], dtype=np.float32))
+        return torch.from_numpy(np.asarray(self._gt[self._index[i]], dtype=np.float32))
 
     def __getitem__(self, i: int) -> dict:
         if not 0 <= i < len(self.keys):

@@ -100,7 +100,9 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
                                  "to replace it")
     check_writable(out, "--out")
     replacing = out.exists()
-    dataset = open_dataset(dataset_dir)
+    dataset = open_dataset(dataset_dir, warn=False)
+    if dataset.failed:
+        click.echo(f"robodepth: warning: {dataset.incomplete()}", err=True)
     recorded = _recorded(pred)
     given = {"kind": kind, "align": align, "align_space": align_space}
     kind = kind or recorded.get("kind")
