@@ -11,6 +11,8 @@ This is the only module of the package that imports torch.
   reproducibly per sample and epoch, and says what it applied. The RoboDepth challenge rules forbid training on the benchmark's
   corruptions for results submitted to it: this is for research on robustness, not for
   leaderboard entries.
+* :func:`collate` batches :class:`KittiC` items whose ground truth (or images) differ in
+  size, zero-padded, with each item's own size.
 * :class:`KittiC` reads one corruption and level of a build (KITTI-C, NYUDepth2-C or a
   custom build) in split order, from disk or computed from the build's clean images.
 
@@ -35,7 +37,7 @@ from .errors import RobodepthError
 from .keys import seed_key
 from .output.layout import CLEAN, GT_FILE, variant_dir
 
-__all__ = ["Corrupt", "RandomCorrupt", "RandomChain", "KittiC"]
+__all__ = ["Corrupt", "RandomCorrupt", "RandomChain", "KittiC", "collate"]
 
 
 class TorchAPIError(RobodepthError):
@@ -447,3 +449,40 @@ class KittiC(torch.utils.data.Dataset):
         state = dict(self.__dict__)
         state["_gt"] = None
         return state
+
+
+# Fields of a KittiC item whose height and width can differ within a batch: KITTI's ground
+# truth is at each drive's raw frame size, and a custom build keeps each image's own size.
+_SIZED = ("image", "depth")
+
+
+def collate(items: list[dict]) -> dict:
+    """A ``collate_fn`` for :class:`KittiC` that batches items whose maps differ in size.
+
+    ``image`` and ``depth`` (when they are tensors) are stacked into one tensor, each padded
+    with zeros at the bottom and right to the largest height and width in the batch (a depth
+    of 0 is the ground truth's own "no measurement", which every protocol ignores), and
+    ``image_size`` / ``depth_size`` (N x 2, int64: HxW) keep each item's own size, so
+    ``batch["depth"][i, :h, :w]`` is item ``i``'s map. ``key`` becomes a list; anything
+    else is batched by torch's default collate.
+    """
+    from torch.utils.data import default_collate
+
+    batch = {}
+    for name in items[0]:
+        values = [item[name] for item in items]
+        if name in _SIZED and all(isinstance(v, torch.Tensor) and v.ndim >= 2 for v in values):
+            sizes = [tuple(v.shape[-2:]) for v in values]
+            lead = {tuple(v.shape[:-2]) for v in values}
+            if len(lead) > 1:
+                raise TorchAPIError(f"collate: {name} has different leading dimensions in one "
+                                    f"batch: {sorted(lead)}")
+            h, w = max(s[0] for s in sizes), max(s[1] for s in sizes)
+            out = values[0].new_zeros((len(values), *values[0].shape[:-2], h, w))
+            for i, v in enumerate(values):
+                out[i, ..., : v.shape[-2], : v.shape[-1]] = v
+            batch[name] = out
+            batch[f"{name}_size"] = torch.tensor(sizes, dtype=torch.int64)
+        else:
+            batch[name] = default_collate(values)
+    return batch

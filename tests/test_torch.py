@@ -192,3 +192,34 @@ def test_key_reproduces_a_custom_build(tmp_path, cli):
         for name in ("fog", "shot_noise"):
             got = Corrupt(name, 3, seed=0)(img, key=rel)
             np.testing.assert_array_equal(np.asarray(got), load(out / name / "3" / key))
+
+
+def test_collate_batches_ground_truth_of_different_sizes(kitti_build, tmp_path):
+    import shutil
+
+    from robodepth_cli.torch import collate
+
+    out, _ = kitti_build
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    # Two drives' frame sizes, as KITTI's ground truth has them (HxW 375x1242 and 370x1224,
+    # scaled down): the default collate cannot stack these.
+    sizes = [(6, 7), (5, 9), (6, 7)]
+    maps = np.empty(len(FRAMES), dtype=object)
+    for i, (h, w) in enumerate(sizes):
+        maps[i] = np.arange(1, h * w + 1, dtype=np.float32).reshape(h, w) + 100 * i
+    np.savez_compressed(copy / "gt_depths.npz", data=maps)
+    ds = KittiC(copy, "fog", 2)
+    with pytest.raises(RuntimeError):
+        next(iter(torch.utils.data.DataLoader(ds, batch_size=3)))
+    (batch,) = list(torch.utils.data.DataLoader(ds, batch_size=3, collate_fn=collate))
+    assert batch["key"] == [ds[i]["key"] for i in range(3)]
+    assert batch["image"].shape == (3, 3, 40, 80) and batch["image"].dtype == torch.uint8
+    for i in range(3):
+        np.testing.assert_array_equal(batch["image"][i].numpy(), ds[i]["image"].numpy())
+    # Padded with zeros (no measurement) to the largest height and width; the sizes kept.
+    assert batch["depth"].shape == (3, 6, 9)
+    assert batch["depth_size"].tolist() == [list(s) for s in sizes]
+    for i, (h, w) in enumerate(sizes):
+        np.testing.assert_array_equal(batch["depth"][i, :h, :w].numpy(), maps[i])
+        assert float(batch["depth"][i].sum()) == float(maps[i].sum())  # the rest is 0
