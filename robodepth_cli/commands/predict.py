@@ -57,7 +57,7 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     from ..models import load_model
     from ..models import predict as P
 
-    dataset = open_dataset(dataset_dir)
+    dataset = open_dataset(dataset_dir, warn=False)  # a failed build: images() says which, one line
     chosen = P.select_variants(dataset, variants)
     if batch_size < 1:
         raise click.BadParameter("must be at least 1", param_hint="--batch-size")
