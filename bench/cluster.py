@@ -8,7 +8,7 @@ plus the clean image (91 PNGs per source) at 192 x 640, alternately:
 - local: ``robodepth build kitti-c ... --jobs 2`` (the joblib pool of 2 processes);
 - cluster: ``robodepth build kitti-c ... --scheduler ADDR`` against a ``dask scheduler``
   and ``dask worker --nworkers 2 --nthreads 1`` started here on 127.0.0.1 (no dashboard),
-  with the quieter diagnostics settings README.md recommends (:data:`QUIET`;
+  with the quieter diagnostics settings docs/cluster.md recommends (:data:`QUIET`;
   ``--dask-defaults``: Dask's own), and stopped at the end. The workers are started once and serve every round, as on a
   real cluster; they are stopped (SIGSTOP) while a local build runs, so their idle
   wake-ups do not slow it down.
@@ -47,7 +47,7 @@ sys.path.insert(0, str(HERE))
 import build as bench  # noqa: E402  (bench/build.py: input trees and measuring)
 
 GOAL_OVERHEAD = 0.10
-# The settings README.md recommends for build workers: Dask's diagnostics (the dashboard's
+# The settings docs/cluster.md recommends for build workers: Dask's diagnostics (the dashboard's
 # statistical profiler sampling every task thread every 10 ms, 20 ms event-loop ticks,
 # 0.1-0.5 s monitors) cost each idle worker and nanny several percent of a core.
 QUIET = {
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", type=Path, help="build under this directory and keep it")
     ap.add_argument("--dask-defaults", action="store_true",
                     help="start the scheduler and workers with Dask's default diagnostics instead of "
-                         "the quieter settings README.md recommends")
+                         "the quieter settings docs/cluster.md recommends")
     args = ap.parse_args(argv)
     if args.sources < 8:
         ap.error("--sources must be at least 8")

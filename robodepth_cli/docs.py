@@ -1,4 +1,4 @@
-"""Text rendered from the registry: the `robodepth list` table and the README's table."""
+"""Text rendered from the registry: the `robodepth list` table and the table of docs/corruptions.md."""
 
 from __future__ import annotations
 

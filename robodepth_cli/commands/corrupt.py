@@ -13,7 +13,7 @@ from . import common
 
 @click.command("list")
 @click.option("--format", "fmt", type=click.Choice(["text", "markdown", "json"]), default="text",
-              show_default=True, help="Plain table, the README's Markdown table, or JSON.")
+              show_default=True, help="Plain table, the Markdown table of docs/corruptions.md, or JSON.")
 def list_command(fmt):
     """List the 18 corruptions with their category and per-level parameters."""
     from ..corruptions import REGISTRY

@@ -396,7 +396,7 @@ class Scores:
     chains: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        """The JSON form; keys are documented in the README and stay stable. A results file
+        """The JSON form; keys are documented in docs/evaluation.md and stay stable. A results file
         with rows beyond the benchmark adds ``beyond_benchmark``."""
         doc = {
             "benchmark": self.benchmark,
