@@ -121,7 +121,7 @@ CASES = [
                 "--decoder", i["decoder"], "--size", "32x96", "--style-size", "32", "--out",
                 "{OUT}/s.png"],
      NOTHING, ["s.png"]),
-    ("verify", "robodepth_cli.output.manifest:verify", 1,
+    ("verify", "robodepth_cli.output.verify:verify", 1,
      lambda i: ["verify", i["dataset"], "--no-progress"], NOTHING, []),
     ("build", "robodepth_cli.build.pipeline:run_tasks", 1,
      lambda i: ["build", "kitti-c", "--root", i["fixtures"] / "kitti_raw", "--split",

@@ -133,7 +133,7 @@ def gt_nyu_command(root, split, out, progress):
 
 def _enclosing_build(path: Path) -> Path | None:
     """The built dataset (a folder with build.json) that ``path`` is, or is inside."""
-    from ..output.manifest import RECORD
+    from ..output.layout import RECORD
 
     here = Path(os.path.abspath(path))
     for folder in (here, *here.parents):
