@@ -62,7 +62,7 @@ def test_corrupt_names_and_chain_templates_into_a_directory(tmp_path, cli):
     (["-c", "fog:5.5+snow:1"], "--corruption: chain 'fog:5.5+snow:1': step 1 (fog): level 5.5 is out of range"),
     (["-c", "+".join(["fog:1"] * 9)], "9 steps; a chain has at most 8"),
     (["-c", "fog", "-l", "1,,2"], "--level: expected levels such as 2 or 1,2.5,4 or 'all'"),
-    (["-c", "fog+snow"], "looks like a file name, but 5 corruptions and chains make 5 images"),
+    (["-c", "fog+snow"], "looks like a file name, but fog+snow at levels 1,2,3,4,5 make 5 images"),
 ])
 def test_bad_levels_and_chains_exit_2_with_one_line(tmp_path, cli, args, message):
     res = cli("corrupt", small_png(tmp_path), *args, "--out", tmp_path / "o.png")

@@ -67,8 +67,9 @@ def corrupt_command(image, corruption, level, seed, size, out):
         if directory.exists():
             raise RobodepthError(f"{out}: is a file; several outputs need a directory")
         if directory.suffix:
+            what = _describe(common.items(corruption, level_list), level_list)
             raise RobodepthError(
-                f"--out {out}: looks like a file name, but {_describe(jobs, level_list)} make "
+                f"--out {out}: looks like a file name, but {what} make "
                 f"{len(jobs)} images, which go into a directory; pick one corruption and one "
                 f"level (-c NAME -l N), or one chain, to write that file, or end the name with / "
                 f"to make it a directory")
@@ -85,15 +86,24 @@ def corrupt_command(image, corruption, level, seed, size, out):
         common.wrote(f"{len(jobs)} images under {out}")
 
 
-def _describe(jobs: list, level_list: list) -> str:
-    """``"fog at levels 1,2,3,4,5"`` or ``"3 corruptions and chains at level 2"``, for messages."""
+def _describe(items: list[str], level_list: list) -> str:
+    """``"fog at levels 1,2,3,4,5"``, ``"fog+snow at levels 1,2"`` or ``"3 corruptions and
+    chains at level 2"``, for messages: what ``-c`` names, and the ``-l`` levels when a
+    corruption or a chain template takes them."""
     from ..corruptions import level_text
+    from ..corruptions.chains import ChainError, looks_like_chain, parse_chain
 
-    names = list(dict.fromkeys(v for _, v, lv in jobs if lv is not None))
-    chains = [v for _, v, lv in jobs if lv is None]
-    what = (names[0] if len(names) == 1 and not chains else chains[0] if len(chains) == 1 and not names
-            else f"{len(names) + len(chains)} corruptions and chains")
-    if not names:
+    def takes_levels(item: str) -> bool:
+        if not looks_like_chain(item):
+            return True
+        try:
+            parse_chain(item)
+        except ChainError:  # a step without a level: a template
+            return True
+        return False
+
+    what = items[0] if len(items) == 1 else f"{len(items)} corruptions and chains"
+    if not any(takes_levels(i) for i in items):
         return what
     levels = ",".join(map(level_text, level_list))
     return f"{what} at level{'s' if len(level_list) > 1 else ''} {levels}"
