@@ -14,7 +14,8 @@ convolution does not depend on its weights).
   against 2 processes x 1 thread (the joblib pool a build would use).
 
 Goal: <= 0.8 s per stylised image on this 2-core machine, >= 4x the
-straightforward way.
+straightforward way. With a CUDA device, ours is also timed there (``--device cuda``: all
+styles of a frame in one batch); without one the GPU line says "not measured".
 
     python bench/stylize.py [--repeats N] [--pairs N] [--contents N] [--chunks 1,2,4]
                             [--style-hw 512x512] [--no-processes]
@@ -83,6 +84,28 @@ def _render_all(renderer: StyleRenderer, content: np.ndarray) -> int:
     return sum(1 for _ in renderer.render(content, "bench", jobs))
 
 
+def gpu_line(enc, dec, contents, feats, cpu_s: float, n_contents: int) -> None:
+    """The same stylisation on the CUDA device, all styles of a frame in one batch, when
+    there is one (after a warm-up that absorbs CUDA start-up); else says it was not
+    measured."""
+    if not torch.cuda.is_available():
+        print("ours on a GPU (--device cuda): not measured (torch finds no CUDA device here)")
+        return
+    dev = adain.choose_device("cuda")
+    st = adain.Stylizer(copy.deepcopy(enc), copy.deepcopy(dec), device=dev)
+    st.stylize(contents[0], feats)
+    torch.cuda.synchronize()
+    best = float("inf")
+    for _ in range(3):
+        t = time.perf_counter()
+        for c in contents[:n_contents]:
+            st.stylize(c, feats)
+        best = min(best, (time.perf_counter() - t) / (n_contents * len(feats)))
+    print(f"ours on {adain.describe_device(dev)}, all {len(feats)} styles in one batch: "
+          f"{best * 1000:.1f} ms/image, {cpu_s / best:.1f}x the CPU; full KITTI-S "
+          f"(8,364 images): {best * 8364:.0f} s of stylising")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--pairs", type=int, default=2, help="straightforward pairs per round (default 2)")
@@ -102,6 +125,8 @@ def main() -> int:
     contents = [smooth_image(rng, 192, 640) for _ in range(max(args.contents, 2))]
     styles = [smooth_image(rng, sh, sw) for _ in STYLES]
     enc, dec = adain.encoder(), adain.decoder()
+    load = os.getloadavg()
+    print(f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
     print(f"torch {torch.__version__}, {cores} cores, torch threads {torch.get_num_threads()}; "
           f"content 192x640, {len(styles)} styles {sh}x{sw}, random weights")
 
@@ -175,6 +200,7 @@ def main() -> int:
     if procs is not None:
         print(f"2 processes x 1 thread: {procs:.3f} s/image, {naive / procs:.1f}x; "
               f"{'processes' if procs < best else 'threads'} faster by {max(best, procs) / min(best, procs):.2f}x")
+    gpu_line(enc, dec, contents, feats, results[(best_cl, best_chunk)], args.contents)
     use = min(CPU_USE)
     print(f"cores used by this process while timed: {use:.2f} to {max(CPU_USE):.2f} of {cores}"
           + (" -- other processes competed for the CPU; numbers are pessimistic" if use < 0.8 * cores else ""))

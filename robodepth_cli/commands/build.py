@@ -39,6 +39,8 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--decoder", metavar="FILE", help="kitti-s: AdaIN decoder checkpoint (decoder.pth).")
 @click.option("--alpha", metavar="A", help="kitti-s: style strength 0..1 (preset: 1).")
 @click.option("--style-size", metavar="N", help="kitti-s: shorter side of the style images (preset: 512).")
+@click.option("--device", metavar="auto|cpu|cuda", help="kitti-s: where AdaIN runs (preset: auto, a CUDA GPU "
+              "when there is one, else the CPU; the build says which).")
 @click.option("--scheduler", metavar="ADDR", help="Run on the Dask cluster of this scheduler (tcp://HOST:8786); "
               "ROOT and OUT must be shared paths every worker sees.")
 @click.option("--scheduler-file", metavar="FILE", help="Like --scheduler, with the address read from the "

@@ -22,9 +22,11 @@ from . import common
               help="Resize the style image so its shorter side is N (bilinear); 0 keeps it.")
 @click.option("--size", metavar="HxW", help="First resize the input (Lanczos) as a build does, "
               "e.g. 192x640; default: keep its size.")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
+              help="Where AdaIN runs: auto is a CUDA GPU when there is one, else the CPU.")
 @click.option("--out", "-o", required=True, type=click.Path(),
               help="Output .png; a directory (or a name ending with /) receives IMAGE_STYLE.png.")
-def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
+def stylize_command(image, style, vgg, decoder, alpha, style_size, size, device, out):
     """Stylise one image with AdaIN, as a KITTI-S build does.
 
     \b
@@ -43,9 +45,10 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, out):
             raise RobodepthError(f"--{key.replace('_', '-')}: {exc}") from None
     content = common.load_input(image, size)
     style_img = load_style(style, opts["style_size"])
-    from ..styles.adain import Stylizer
+    from ..styles.adain import Stylizer, choose_device, describe_device
 
-    stylizer = Stylizer.from_files(opts["vgg"], opts["decoder"])
+    where = choose_device(device)
+    stylizer = Stylizer.from_files(opts["vgg"], opts["decoder"], device=where)
     result = stylizer.stylize(content, [stylizer.style_features(style_img)], opts["alpha"])[0]
     common.write_png(out, result)
-    common.wrote(f"{out} ({common.hxw(*result.shape[:2])})")
+    common.wrote(f"{out} ({common.hxw(*result.shape[:2])}; AdaIN on {describe_device(where)})")

@@ -1,4 +1,4 @@
-"""AdaIN style transfer on the CPU: the torch engine of KITTI-S, self-contained.
+"""AdaIN style transfer on the CPU or a CUDA GPU: the torch engine of KITTI-S, self-contained.
 
 The encoder and decoder are ``nn.Sequential`` models whose module indices are those of the
 public PyTorch AdaIN release, so its checkpoints (``vgg_normalised.pth``, ``decoder.pth``:
@@ -8,7 +8,9 @@ plain state_dicts with keys like ``2.weight``) load unchanged. Checkpoints are r
 :class:`Stylizer` is the fast path used by builds: a style's feature statistics are
 computed once (:meth:`Stylizer.style_features`), a content image is encoded once for all
 of its styles, and decoding is batched over styles. The result equals stylising each
-(content, style) pair on its own up to float rounding.
+(content, style) pair on its own up to float rounding. The same code runs on either
+device (:func:`choose_device`); on a GPU all the styles of an image are decoded in one
+batch, in float32 (TF32 off).
 
 This module imports torch at import time and nothing of the package's KITTI-S inputs
 (:mod:`robodepth_cli.styles.inputs` imports it, never the reverse); import it only when style
@@ -37,7 +39,11 @@ EPS = 1e-5
 
 # Styles decoded per batch. Larger batches do not pay on a CPU: the convolutions already
 # run near its peak and larger activations spill the cache (bench/stylize.py times 1, 2, 4).
+# A GPU is only kept busy by large batches: there every style of an image goes in one.
 DEFAULT_CHUNK = 1
+GPU_CHUNK = 64
+
+DEVICES = ("auto", "cpu", "cuda")
 
 
 # Layouts: one entry per module, in order, so list positions are the published indices.
@@ -67,6 +73,33 @@ ENCODER_LAST = len(ENCODER_LAYOUT) - 1  # 30: deeper layers of vgg_normalised.pt
 
 class CheckpointError(RobodepthError):
     """A checkpoint that cannot be used; the message names the file and the tensor."""
+
+
+class DeviceError(RobodepthError):
+    """The device asked for (``--device``) is not there."""
+
+
+def choose_device(choice: str) -> torch.device:
+    """The device of ``--device`` ``choice``: ``cpu``; ``cuda`` (the current CUDA device,
+    :class:`DeviceError` if there is none); ``auto``: CUDA when there is a device, else
+    the CPU."""
+    if choice not in DEVICES:
+        raise DeviceError(f"--device: expected one of {', '.join(DEVICES)}, got {choice!r}")
+    if choice == "cpu" or (choice == "auto" and not torch.cuda.is_available()):
+        return torch.device("cpu")
+    if not torch.cuda.is_available():
+        why = ("this torch is a CPU-only build" if torch.version.cuda is None
+               else "torch finds no CUDA device")
+        raise DeviceError(f"--device cuda: no CUDA device ({why}, torch {torch.__version__}); "
+                          f"use --device cpu or auto")
+    return torch.device("cuda", torch.cuda.current_device())
+
+
+def describe_device(device: torch.device) -> str:
+    """``device`` for messages: ``the CPU`` or ``cuda:0 (NVIDIA ...)``."""
+    if device.type == "cuda":
+        return f"{device} ({torch.cuda.get_device_name(device)})"
+    return "the CPU"
 
 
 # ---------------------------------------------------------------------------- models
@@ -253,7 +286,7 @@ def round_to_uint8(out: torch.Tensor) -> np.ndarray:
     """N x 3 x H x W in [0, 1] (clamped) -> uint8 N x H x W x 3, rounded:
     ``uint8(v * 255 + 0.5)`` (the corruptions truncate instead, as their benchmark does)."""
     v = out.clamp(0.0, 1.0).mul_(255.0).add_(0.5).to(torch.uint8)
-    return np.ascontiguousarray(v.permute(0, 2, 3, 1).numpy())
+    return np.ascontiguousarray(v.permute(0, 2, 3, 1).cpu().numpy())
 
 
 def mean_std(feat: torch.Tensor, eps: float = EPS) -> tuple[torch.Tensor, torch.Tensor]:
@@ -305,22 +338,34 @@ class Stylizer:
     """Batched AdaIN stylisation with one encoder/decoder pair.
 
     ``threads`` sets torch's intra-op thread count (None leaves it). ``chunk`` is how many
-    styles are decoded in one batch (None: :data:`DEFAULT_CHUNK`); neither changes the
-    bytes of the result. ``channels_last`` runs the convolutions in NHWC, which oneDNN
-    executes faster on CPU than NCHW.
+    styles are decoded in one batch (None: :data:`DEFAULT_CHUNK` on the CPU,
+    :data:`GPU_CHUNK` on a GPU); on the CPU neither changes the bytes of the result.
+    ``channels_last`` runs the convolutions in NHWC, which oneDNN executes faster on CPU
+    than NCHW. ``device``: where the models run (a ``torch.device`` or its name; default
+    the CPU); images come in and go out as numpy arrays either way, and style statistics
+    are kept on the CPU so they can be sent to other processes.
     """
 
     def __init__(self, enc: nn.Sequential, dec: nn.Sequential, *, chunk: int | None = None,
-                 channels_last: bool = True, threads: int | None = None):
+                 channels_last: bool = True, threads: int | None = None,
+                 device: torch.device | str | None = None):
         if threads is not None:
             torch.set_num_threads(int(threads))
+        self.device = torch.device(device or "cpu")
+        if self.device.type == "cuda":
+            # float32 as on the CPU (TF32 would round the convolutions to 10-bit mantissas),
+            # and the same algorithms on every run, so a rebuild gives the same bytes.
+            torch.backends.cudnn.allow_tf32 = False
+            torch.backends.cuda.matmul.allow_tf32 = False
+            torch.backends.cudnn.benchmark = False
+            torch.backends.cudnn.deterministic = True
         if chunk is None:
-            chunk = DEFAULT_CHUNK
+            chunk = GPU_CHUNK if self.device.type == "cuda" else DEFAULT_CHUNK
         if chunk < 1:
             raise ValueError(f"chunk must be >= 1, got {chunk}")
         fmt = torch.channels_last if channels_last else torch.contiguous_format
-        self.enc = enc.eval().to(memory_format=fmt)
-        self.dec = dec.eval().to(memory_format=fmt)
+        self.enc = enc.eval().to(self.device, memory_format=fmt)
+        self.dec = dec.eval().to(self.device, memory_format=fmt)
         self.chunk = int(chunk)
         self.channels_last = channels_last
 
@@ -331,14 +376,14 @@ class Stylizer:
     def encode(self, img: np.ndarray) -> torch.Tensor:
         """``enc(img)``, 1 x 512 x h x w."""
         with torch.inference_mode():
-            x = pixel_affine(self.enc[0], to_tensor(img, channels_last=self.channels_last))
-            return self.enc[1:](x)
+            x = to_tensor(img, channels_last=self.channels_last).to(self.device)
+            return self.enc[1:](pixel_affine(self.enc[0], x))
 
     def style_features(self, style: np.ndarray) -> StyleFeatures:
         """The statistics of a (resized) uint8 style image; compute once per style."""
         with torch.inference_mode():
             m, s = mean_std(self.encode(style))
-        return StyleFeatures(m, s)
+        return StyleFeatures(m.cpu(), s.cpu())
 
     def stylize(self, content: np.ndarray, styles: Sequence[StyleFeatures],
                 alpha: float = 1.0) -> list[np.ndarray]:
@@ -356,8 +401,8 @@ class Stylizer:
             fc = self.encode(content)
             for i in range(0, len(styles), self.chunk):
                 part = styles[i:i + self.chunk]
-                t = adain(fc, torch.cat([s.mean for s in part]), torch.cat([s.std for s in part]),
-                          alpha)
+                t = adain(fc, torch.cat([s.mean for s in part]).to(self.device),
+                          torch.cat([s.std for s in part]).to(self.device), alpha)
                 if self.channels_last:
                     t = t.contiguous(memory_format=torch.channels_last)
                 out = self.dec(t)[:, :, :h, :w]

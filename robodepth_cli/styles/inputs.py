@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -122,7 +123,8 @@ def load_style(path: str | os.PathLike, style_size: int | None = DEFAULT_STYLE_S
 
 
 # KITTI-S build options (config keys; flags --styles, --vgg, --decoder, --alpha, --style-size).
-OPTIONS = ("styles", "vgg", "decoder", "alpha", "style_size")
+OPTIONS = ("styles", "vgg", "decoder", "alpha", "style_size", "device")
+DEVICES = ("auto", "cpu", "cuda")  # as adain.DEVICES, without importing torch
 
 
 def check_option(key: str, value, base: Path):
@@ -142,6 +144,10 @@ def check_option(key: str, value, base: Path):
         elif not path.is_file():
             raise ValueError(f"{path}: {'not a file' if path.exists() else 'no such file'}")
         return str(path)
+    if key == "device":
+        if value not in DEVICES:
+            raise ValueError(f"expected one of {', '.join(DEVICES)}, got {value!r}")
+        return value
     if key == "alpha":
         return check_alpha(value)
     if key == "style_size":
@@ -167,10 +173,26 @@ def make_renderer(config) -> "StyleRenderer":
     # On a cluster each worker thread renders one image at a time on its own core; locally
     # the cores are shared among the pool's processes.
     on_cluster = config.scheduler or config.scheduler_file
+    choice = opts.get("device") or "auto"
+    from . import adain
+
+    device = adain.choose_device(choice)  # --device cuda without one: refused here
+    if on_cluster:
+        # The workers' machines decide what "auto" means there, not this client's.
+        print(f"robodepth: {config.dataset}: AdaIN on each worker's "
+              f"{'GPU if it has one, else its CPU' if choice == 'auto' else choice} "
+              f"(--device {choice})", file=sys.stderr)
+        where = choice
+    else:
+        note = " (no CUDA device)" if choice == "auto" and device.type == "cpu" else ""
+        print(f"robodepth: {config.dataset}: AdaIN on {adain.describe_device(device)}{note} "
+              f"(--device {choice})", file=sys.stderr)
+        where = device.type
     return StyleRenderer.prepare(opts["vgg"], opts["decoder"], images,
                                  alpha=opts.get("alpha", 1.0),
                                  style_size=opts.get("style_size", DEFAULT_STYLE_SIZE),
-                                 threads=1 if on_cluster else max(1, cores // max(1, config.jobs)))
+                                 threads=1 if on_cluster else max(1, cores // max(1, config.jobs)),
+                                 device=where)
 
 
 @dataclass
@@ -193,16 +215,19 @@ class StyleRenderer:
     fingerprints: dict[str, str] = field(default_factory=dict)  # style -> digest of its inputs
     style_images: dict[str, str] = field(default_factory=dict)  # style -> image path
     style_size: int | None = DEFAULT_STYLE_SIZE
+    device: str = "cpu"  # "cpu", "cuda", or on a cluster "auto" (each worker decides)
 
     @classmethod
     def prepare(cls, vgg, decoder, style_images: dict[str, Path], *, alpha: float = 1.0,
-                style_size: int | None = DEFAULT_STYLE_SIZE, threads: int = 0) -> "StyleRenderer":
+                style_size: int | None = DEFAULT_STYLE_SIZE, threads: int = 0,
+                device: str = "cpu") -> "StyleRenderer":
         """Load and check the checkpoints and style images. ``alpha`` and ``style_size`` are
         values :func:`check_option` accepted. ``threads``: torch threads of each rendering
         process (0: every core); :meth:`warm_up` computes the style statistics with every
-        core."""
+        core. ``device``: where the rendering processes run AdaIN (``cpu``, ``cuda``, or
+        ``auto``: each decides)."""
         cores = os.cpu_count() or 1
-        _stylizer(str(vgg), str(decoder), cores)  # loads and checks both checkpoints
+        _stylizer(str(vgg), str(decoder), cores, device)  # loads and checks both checkpoints
         for path in style_images.values():
             load_style(path, style_size)  # an unreadable style image is refused now
         weights = f"{sha256_file(vgg)}:{sha256_file(decoder)}:{alpha!r}:{style_size!r}"
@@ -212,13 +237,13 @@ class StyleRenderer:
         return cls(os.path.abspath(vgg), os.path.abspath(decoder), alpha, threads or cores,
                    fingerprints=fingerprints,
                    style_images={n: os.path.abspath(p) for n, p in style_images.items()},
-                   style_size=style_size)
+                   style_size=style_size, device=device)
 
     def warm_up(self) -> None:
         """Compute the statistics of every style not done yet (with every core)."""
         todo = [n for n in self.style_images if n not in self.features]
         if todo:
-            stylizer = _stylizer(self.vgg, self.decoder, os.cpu_count() or 1)
+            stylizer = _stylizer(self.vgg, self.decoder, os.cpu_count() or 1, self.device)
             for name in todo:
                 self.features[name] = stylizer.style_features(load_style(self.style_images[name],
                                                                          self.style_size))
@@ -230,7 +255,7 @@ class StyleRenderer:
 
     def render(self, clean, key, jobs):
         try:
-            stylizer = _stylizer(self.vgg, self.decoder, self.threads)
+            stylizer = _stylizer(self.vgg, self.decoder, self.threads, self.device)
             if any(j.variant not in self.features for j in jobs):
                 self.warm_up()
             images = stylizer.stylize(clean, [self.features[j.variant] for j in jobs], self.alpha)
@@ -245,13 +270,15 @@ _STYLIZERS: dict[tuple, Any] = {}
 _STYLIZERS_LOCK = threading.Lock()  # a Dask worker runs tasks in several threads
 
 
-def _stylizer(vgg: str, decoder: str, threads: int):
-    """One :class:`adain.Stylizer` per process and checkpoint pair."""
-    k = (os.path.abspath(vgg), os.path.abspath(decoder))  # the same files, typed or absolute
+def _stylizer(vgg: str, decoder: str, threads: int, device: str = "cpu"):
+    """One :class:`adain.Stylizer` per process, checkpoint pair and device."""
+    # the same files, typed or absolute
+    k = (os.path.abspath(vgg), os.path.abspath(decoder), device)
     with _STYLIZERS_LOCK:
         if k not in _STYLIZERS:
             from . import adain
 
             _STYLIZERS.clear()
-            _STYLIZERS[k] = adain.Stylizer.from_files(vgg, decoder, threads=threads)
+            _STYLIZERS[k] = adain.Stylizer.from_files(vgg, decoder, threads=threads,
+                                                      device=adain.choose_device(device))
         return _STYLIZERS[k]
