@@ -4,15 +4,24 @@ Synthetic data of the real sizes: KITTI, 697 ground-truth maps of 375 x 1242 wit
 the pixels set (as lidar leaves them) in a gt_depths.npz, and N x 192 x 640 float32
 disparities per variant; NYU, 654 16-bit 480 x 640 ground-truth PNGs and N x 480 x 640
 depths per variant. The dataset directory is a minimal one (build.json + manifest.csv), so
-no image is built. Peak memory is the evaluating process's peak resident set size.
+no image is built. Each protocol is evaluated with ``--jobs 1`` and then ``--jobs 2`` (the
+previous way and the new one, in the same run; the ratio is printed), each in a fresh
+process. Peak memory: the evaluating process's peak resident set size, the largest of its
+workers', and the peak sums of RSS and PSS over all of them, sampled every 0.2 s (a
+worker's RSS counts the memory-mapped ground truth, whose pages exist once; PSS splits
+them). The full-benchmark estimate is the ground truth's reading time plus the
+time until each worker's first result plus the remaining maps of the benchmark (KITTI-C
+91 x 697, NYUDepth2-C 61 x 654) at the steady rate measured after those first results.
 
-    python bench/evaluate.py [--variants 3] [--images 697] [--protocol kitti|nyu|both]
+    python bench/evaluate.py [--variants 6] [--images 697] [--protocol kitti|nyu|both]
+                             [--jobs 1,2]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import sys
 import tempfile
@@ -21,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]
 
 from robodepth_cli.output import manifest  # noqa: E402
 from robodepth_cli.api import open_dataset  # noqa: E402
@@ -92,23 +101,59 @@ def make_nyu(tmp: Path, n: int, n_variants: int) -> None:
         del arr
 
 
-def measure(tmp: Path, protocol: str) -> None:
-    """Evaluate in a fresh process, so its peak RSS is the evaluation's alone."""
+FULL_MAPS = {"kitti": 91 * 697, "nyu": 61 * 654}
+GOAL_S = {"kitti": 50, "nyu": 90}
+
+
+def measure(tmp: Path, protocol: str, jobs: int) -> None:
+    """Evaluate in a fresh process, so its peak RSS is the evaluation's alone; the last
+    line printed is the full-benchmark estimate in seconds, for the parent."""
     ds_dir, pred = (tmp / "KITTI_C", tmp / "PRED") if protocol == "kitti" else (tmp / "NYU_C", tmp / "PRED_NYU")
+    import robodepth_cli.evaluation.evaluate as E
+
+    E.MAPS_PER_WORKER = 1  # a subset: let every job run, as on the full benchmark
+    from build import TreeSampler  # bench/build.py: sums RSS and PSS over a process tree
+
+    sampler = TreeSampler(os.getpid(), interval=0.2, pss_every=5)
+    sampler.start()
+    marks, done = [], []  # when the ground truth was read; (time, maps) as variants finish
     t0 = time.perf_counter()
-    res = evaluate(open_dataset(ds_dir), pred, make_setup(protocol))
+    res = evaluate(open_dataset(ds_dir), pred, make_setup(protocol), jobs=jobs,
+                   on_total=lambda n: marks.append(time.perf_counter()),
+                   progress=lambda k: done.append((time.perf_counter(), k)))
     dt = time.perf_counter() - t0
+    sampler.stop()
+    t_gt = marks[0] - t0  # reading the ground truth: once, whatever the number of maps
     n, images = res.images, res.images * len(res.results)
-    print(f"{protocol}: {images} images ({len(res.results)} variants x {n}) in {dt:.1f} s: "
-          f"{images / dt:.0f} images/s, {1000 * dt / images:.2f} ms each; "
-          f"peak RSS {rss_mb():.0f} MB", flush=True)
+    # The first results pay for starting (workers' imports, first reads); the steady rate
+    # is that of the maps finished after them. A worker reports whole variants, so "first"
+    # is the first result of each worker.
+    times = [t for t, _ in done]
+    counts = np.cumsum([k for _, k in done])
+    first = min(jobs, len(done) - 1)
+    t_first = times[first - 1] - marks[0]
+    rate = (counts[-1] - counts[first - 1]) / (times[-1] - times[first - 1])
+    full = t_gt + t_first + (FULL_MAPS[protocol] - counts[first - 1]) / rate
+    worker_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    # A worker's RSS counts the ground truth it maps, whose pages exist once (the page
+    # cache); the PSS sum splits them between the processes that map them.
+    workers = (f", largest worker {worker_mb:.0f} MB; all processes: PSS sum "
+               f"{sampler.peak_pss / 2 ** 20:.0f} MB, RSS sum {sampler.peak_rss / 2 ** 20:.0f} MB"
+               if jobs > 1 else "")
+    load = os.getloadavg()
+    print(f"{protocol} --jobs {jobs}: {images} maps ({len(res.results)} variants x {n}) in {dt:.1f} s "
+          f"(ground truth {t_gt:.1f} s, first {counts[first - 1]} maps {t_first:.1f} s, then "
+          f"{rate:.0f} maps/s); peak RSS {rss_mb():.0f} MB{workers}; full benchmark "
+          f"({FULL_MAPS[protocol]:,} maps) ~{full:.0f} s; load {load[0]:.1f}", flush=True)
+    print(f"{full:.3f}")
 
 
 def main() -> int:
     import subprocess
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--variants", type=int, default=3, help="variants per dataset (clean + N-1)")
+    ap.add_argument("--variants", type=int, default=6, help="variants per dataset (clean + N-1)")
+    ap.add_argument("--jobs", default="1,2", help="--jobs values to compare, the first is the baseline")
     ap.add_argument("--images", type=int, default=0, help="images per variant (default: the real split)")
     ap.add_argument("--protocol", choices=["kitti", "nyu", "both"], default="both")
     ap.add_argument("--_make", help=argparse.SUPPRESS)
@@ -119,16 +164,30 @@ def main() -> int:
         (make_kitti if proto == "kitti" else make_nyu)(tmp, args.images or (697 if proto == "kitti" else 654),
                                                          args.variants)
         return 0
+    jobs = [int(j) for j in args.jobs.split(",")]
     if args._measure:
-        measure(Path(args._measure), args.protocol)
+        measure(Path(args._measure), args.protocol, jobs[0])
         return 0
     protocols = ["kitti", "nyu"] if args.protocol == "both" else [args.protocol]
+    load = os.getloadavg()
+    print(f"{os.cpu_count()} CPUs, load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
     with tempfile.TemporaryDirectory(prefix="robodepth-bench-eval-") as tmp:
         for proto in protocols:
             common = [sys.executable, __file__, "--protocol", proto, "--variants", str(args.variants),
                       "--images", str(args.images)]
             subprocess.run(common + ["--_make", tmp], check=True)
-            subprocess.run(common + ["--_measure", tmp], check=True)
+            fulls = []
+            for j in jobs:
+                out = subprocess.run(common + ["--_measure", tmp, "--jobs", str(j)], check=True,
+                                     capture_output=True, text=True).stdout.splitlines()
+                print("\n".join(out[:-1]), flush=True)
+                fulls.append(float(out[-1]))
+            for j, full in zip(jobs[1:], fulls[1:]):
+                print(f"{proto}: --jobs {j} against --jobs {jobs[0]}: {fulls[0] / full:.2f}x on the full "
+                      f"benchmark; goal <= {GOAL_S[proto]} s: {full:.0f} s -> "
+                      f"{'met' if full <= GOAL_S[proto] else 'NOT met'}")
+    load = os.getloadavg()
+    print(f"load average at the end {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
     return 0
 
 

@@ -19,6 +19,8 @@ against the plain formulation (a Python loop over duplicate pixel groups, as the
 script does it) on the first ``--compare`` frames, interleaved, best of 3 rounds; the maps
 are checked equal on the way.
 
+It runs with ``--jobs 1`` and then ``--jobs 2`` (the ratio is printed).
+
     python bench/gt.py [--frames N] [--points N] [--compare N] [--keep DIR]
 """
 
@@ -117,13 +119,13 @@ def plain_depth(calib, velo: np.ndarray) -> np.ndarray:
     return depth.astype(np.float32)
 
 
-def run_cli(root: Path, split: Path, out: Path) -> tuple[float, float, float]:
-    """Wall seconds, CPU seconds (user + system) and peak RSS (MB) of one ``robodepth gt
-    kitti`` process."""
+def run_cli(root: Path, split: Path, out: Path, jobs: int = 1) -> tuple[float, float, float]:
+    """Wall seconds, CPU seconds (user + system, its workers included) and peak RSS (MB:
+    the largest of the process and its workers) of one ``robodepth gt kitti --jobs N``."""
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "robodepth_cli.cli", "gt", "kitti", "--root", str(root),
-                             "--split", str(split), "--out", str(out), "--no-progress"],
+                             "--split", str(split), "--out", str(out), "--no-progress", "--jobs", str(jobs)],
                             env=env, stderr=subprocess.PIPE, text=True)
     err = proc.stderr.read()
     _, status, usage = os.wait4(proc.pid, 0)
@@ -178,11 +180,15 @@ def main() -> int:
         write_tree(root, lines, args.points)
         print(f"tree: {len(lines)} scans of {args.points} points ({args.points * 16 / 1e6:.2f} MB each) "
               f"written in {time.perf_counter() - t0:.1f} s")
-        wall, cpu, rss = run_cli(root, split, out)
         maps_mb = sum(SIZES[ln.split("/")[0]][0] * SIZES[ln.split("/")[0]][1] * 4 for ln in lines) / 2**20
-        print(f"robodepth gt kitti: {len(lines)} frames in {wall:.1f} s ({wall / len(lines) * 1000:.1f} ms/frame, "
-              f"interpreter and imports included), CPU {cpu:.1f} s; peak RSS {rss:.0f} MB "
-              f"(the maps alone: {maps_mb:.0f} MB); npz {out.stat().st_size / 2**20:.1f} MB")
+        walls = {}
+        for jobs in (1, 2):  # the previous way (one process) and workers, in the same run
+            wall, cpu, rss = walls[jobs] = run_cli(root, split, out, jobs)
+            print(f"robodepth gt kitti --jobs {jobs}: {len(lines)} frames in {wall:.1f} s "
+                  f"({wall / len(lines) * 1000:.1f} ms/frame, interpreter and imports included), CPU "
+                  f"{cpu:.1f} s; peak RSS {rss:.0f} MB (the maps alone: {maps_mb:.0f} MB); npz "
+                  f"{out.stat().st_size / 2**20:.1f} MB; load {os.getloadavg()[0]:.1f}", flush=True)
+        print(f"--jobs 2 against --jobs 1: {walls[1][0] / walls[2][0]:.2f}x wall time")
         ours, plain = compare(root, lines, min(args.compare, len(lines)))
         print(f"depth rule per frame (best of 3, {min(args.compare, len(lines))} frames): ours {ours * 1000:.1f} ms, "
               f"plain loop {plain * 1000:.1f} ms: {plain / ours:.1f}x; maps identical")

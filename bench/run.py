@@ -1,12 +1,15 @@
 """`make bench`: run every benchmark script under bench/ that exists, one after another.
 
 Each runs in its own interpreter with its default settings (so each sets its own thread
-limits before importing numpy); run a script directly to pass it options. Exits non-zero
-if any script fails.
+limits before importing numpy); run a script directly to pass it options. Each script
+prints its ratios against the previous way measured in the same run; the machine's load
+average is printed before each, since other processes slow everything down. Exits
+non-zero if any script fails.
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -22,7 +25,9 @@ def main() -> int:
         path = HERE / script
         if not path.is_file():
             continue
-        print(f"=== bench/{script}", flush=True)
+        load = os.getloadavg()
+        print(f"=== bench/{script} (load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on "
+              f"{os.cpu_count()} CPUs)", flush=True)
         if subprocess.run([sys.executable, str(path)]).returncode != 0:
             failed.append(script)
         print(flush=True)

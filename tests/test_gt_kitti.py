@@ -197,3 +197,31 @@ def test_split_with_a_byte_order_mark_gives_the_same_maps(kitti, tmp_path, run):
     plain = np.load(tmp_path / "plain.npz", allow_pickle=True)["data"]
     got = np.load(tmp_path / "marked.npz", allow_pickle=True)["data"]
     assert len(got) == len(lines) and all(np.array_equal(a, b) for a, b in zip(plain, got))
+
+
+def test_jobs_give_the_same_file_and_errors(kitti, tmp_path, run, monkeypatch):
+    from robodepth_cli.sources import kitti_raw
+
+    root, split_file, lines = kitti
+    monkeypatch.setattr(kitti_raw, "FRAMES_PER_TASK", 2)  # several tasks even for a few frames
+    pools, real = [], kitti_raw._depth_maps_in_workers
+    monkeypatch.setattr(kitti_raw, "_depth_maps_in_workers", lambda *a: pools.append(a[-1]) or real(*a))
+    assert run("--root", root, "--split", split_file, "--out", tmp_path / "one.npz", "--jobs", "1").exit_code == 0
+    res = run("--root", root, "--split", split_file, "--out", tmp_path / "two.npz", "--jobs", "2")
+    assert res.exit_code == 0, res.output
+    assert pools == [2] and len(lines) > 2 * kitti_raw.FRAMES_PER_TASK
+    one = np.load(tmp_path / "one.npz", allow_pickle=True)["data"]
+    two = np.load(tmp_path / "two.npz", allow_pickle=True)["data"]
+    assert len(one) == len(two) == len(lines)
+    assert all(np.array_equal(a.view(np.uint32), b.view(np.uint32)) for a, b in zip(one, two))
+    assert (tmp_path / "one.npz").read_bytes() == (tmp_path / "two.npz").read_bytes()
+    # A truncated scan late in the split: the message of one job, no file.
+    folder, frame, _ = lines[-2].split()
+    scan_file = root / folder / "velodyne_points" / "data" / f"{frame}.bin"
+    scan_file.write_bytes(scan_file.read_bytes()[:-3])
+    messages = []
+    for jobs in ("1", "2"):
+        res = run("--root", root, "--split", split_file, "--out", tmp_path / f"bad{jobs}.npz", "--jobs", jobs)
+        assert res.exit_code == 2 and not (tmp_path / f"bad{jobs}.npz").exists()
+        messages.append(res.output)
+    assert messages[0] == messages[1] and f"{split_file}:{len(lines) - 1}:" in messages[0]

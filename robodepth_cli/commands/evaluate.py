@@ -57,11 +57,14 @@ DEFAULT_OUT = "results.csv"
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
 @click.option("--allow-partial", is_flag=True,
               help="Evaluate the variants that have predictions; the rest are listed as missing.")
+@click.option("--jobs", "-j", type=click.IntRange(min=1), metavar="N",
+              help="Worker processes, each evaluating whole variants (default: one per CPU); "
+                   "the numbers are the same for any N.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_space, crop,
                      min_depth, max_depth, png_scale, gt_path, out, force, with_score, as_json,
-                     allow_partial, progress):
+                     allow_partial, jobs, progress):
     """Evaluate a model's depth predictions on DATASET_DIR (made by robodepth build).
 
     Compares the predictions of every variant (clean, each corruption and level, or each
@@ -87,6 +90,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     from tqdm import tqdm
 
     from ..evaluation import evaluate as E
+    from ..workers import default_jobs
     from ..evaluation.protocols import STEREO_SCALE, make_setup
     from ..evaluation import scores as S
     from ..api import open_dataset
@@ -130,7 +134,8 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
             bar.reset(total=n)
 
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
-                            require_clean=with_score, progress=bar.update, on_total=set_total)
+                            require_clean=with_score, progress=bar.update, on_total=set_total,
+                            jobs=jobs or default_jobs())
     text = result.csv_text()
     E.write_results(out, text)
     if result.setup.stereo and result.setup.kind == "depth":

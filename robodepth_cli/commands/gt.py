@@ -60,9 +60,13 @@ def _bar(total: int, progress: bool):
               help="Standard split name or a split file in the Eigen format (DATE/DRIVE FRAME SIDE).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output file, e.g. gt_depths.npz.")
+@click.option("--jobs", "-j", type=click.IntRange(min=1), default=1, show_default=True, metavar="N",
+              help="Worker processes making the maps; the file is the same for any N. Writing "
+                   "the compressed file is serial and the workers' start costs more than they "
+                   "save on 2 cores: worth it only with many cores.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
-def gt_kitti_command(root, split, out, progress):
+def gt_kitti_command(root, split, out, jobs, progress):
     """monodepth2's gt_depths.npz from velodyne scans.
 
     The ground-truth depth of every split frame, exactly as monodepth2's export_gt_depth.py
@@ -85,7 +89,7 @@ def gt_kitti_command(root, split, out, progress):
     frames = gt_kitti.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
         gt_kitti.export(root, frames, out, split_name=str(split_path), progress=bar.update,
-                        stage=lambda text: _stage(bar, text))
+                        stage=lambda text: _stage(bar, text), jobs=jobs)
     common.wrote(f"{out} ({len(frames)} depth maps)")
 
 

@@ -1,6 +1,12 @@
 """``robodepth evaluate``: a model's predictions on a built dataset, scored under the
 protocol of its benchmark (:mod:`.protocols`) against its ground truth (:mod:`.groundtruth`),
 into the results CSV that ``robodepth score`` reads.
+
+With ``jobs`` > 1 the variants are shared out among worker processes, each evaluating whole
+variants with the same code as one job, so the numbers are the same to the last bit. The
+ground truth is read once, by this process, and handed to the workers as one read-only
+mapped file (the page cache holds it once); a worker holds one variant's predictions at a
+time (one map for a ``.npy`` or per-image files, the whole array for a ``.npz``).
 """
 
 from __future__ import annotations
@@ -18,6 +24,10 @@ from ..errors import cannot_write
 from .groundtruth import GroundTruth, load_ground_truth
 from .predictions import Predictions, check_values, find_predictions
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
+
+# A worker takes about a second to start (a fresh interpreter importing numpy and OpenCV),
+# the time of some 500 maps: a smaller evaluation gets fewer workers, down to none.
+MAPS_PER_WORKER = 500
 
 @dataclass
 class VariantResult:
@@ -110,14 +120,17 @@ def _list(variants: Sequence[Variant], most: int = 12) -> str:
 def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None = None,
              allow_partial: bool = False, require_clean: bool = False,
              progress: Callable[[int], None] | None = None,
-             on_total: Callable[[int], None] | None = None) -> Evaluation:
+             on_total: Callable[[int], None] | None = None, jobs: int = 1) -> Evaluation:
     """Evaluate the predictions under ``pred`` for every variant of ``dataset``.
 
     Everything that can be checked without reading the data is checked first: the
     predictions of every variant (presence, count, shape) and the ground truth (present,
     one map per split image). Missing variants are an error unless ``allow_partial``.
     ``progress(n)`` is called as images are done; ``on_total(n)`` once with their number.
-    Raises :class:`EvaluationError` for any bad input; nothing is written here.
+    ``jobs``: worker processes (1: all in this process; see the module docstring), never
+    more than the variants nor one per :data:`MAPS_PER_WORKER` maps.
+    Raises :class:`EvaluationError` for any bad input (with several jobs, the one of the
+    first variant in order that has one, as with one job); nothing is written here.
     """
     pred = Path(pred)
     if not pred.is_dir():
@@ -152,6 +165,10 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     if on_total:
         on_total(n * len(found))
     result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing)
+    jobs = min(jobs, len(found), -(-n * len(found) // MAPS_PER_WORKER))
+    if jobs > 1:
+        result.results = _evaluate_in_workers(found, truth, setup, dataset.size, progress, jobs)
+        return result
     for v, p in found:
         try:
             result.results.append(_evaluate_variant(v, p, truth, setup, dataset.size, progress))
@@ -177,6 +194,43 @@ def _kind_read(setup: Setup, found: Sequence[tuple[Variant, Predictions]]) -> Se
         raise EvaluationError(f"{p.source}: PNG predictions are depths (value / --png-scale), "
                               f"not --kind {setup.kind}")
     return replace(setup, kind="depth")
+
+
+def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], truth: GroundTruth,
+                         setup: Setup, image_size, progress, jobs: int) -> list[VariantResult]:
+    """:func:`_evaluate_variant` of every variant in ``jobs`` worker processes, results in
+    variant order."""
+    import tempfile
+
+    from ..workers import in_order
+
+    results = []
+    with tempfile.TemporaryDirectory(prefix="robodepth-evaluate-") as tmp:
+        shared = truth.share(Path(tmp) / "ground_truth.bin")
+        tasks = [(v, p, setup, image_size) for v, p in found]
+        for (v, _), r in zip(found, in_order(_worker_variant, tasks, jobs, _start_worker, (shared,))):
+            results.append(r)
+            if progress:
+                progress(len(v))
+    return results
+
+
+_WORKER_TRUTH: GroundTruth | None = None
+
+
+def _start_worker(shared) -> None:
+    global _WORKER_TRUTH
+    import cv2
+
+    cv2.setNumThreads(1)  # one process per core already
+    _WORKER_TRUTH = shared.open()
+
+
+def _worker_variant(variant: Variant, preds: Predictions, setup: Setup, image_size) -> VariantResult:
+    try:
+        return _evaluate_variant(variant, preds, _WORKER_TRUTH, setup, image_size, None)
+    finally:
+        preds.close()
 
 
 def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, setup: Setup,

@@ -40,6 +40,7 @@ class GroundTruth:
 
     def __init__(self, source: str, protocol: str, valid=None):
         self.source = source
+        self.protocol = protocol
         # valid: a setup's own rule (crop, depth range); by default the protocol's
         self._valid = valid or VALID[protocol]
         self._items: list = []
@@ -84,6 +85,49 @@ class GroundTruth:
         depth = kept if divisor is None else kept.astype(np.float32) / divisor
         index = self._valid(depth)
         return self.shapes[i], index, depth.reshape(-1)[index]
+
+    def share(self, path: Path) -> "SharedGroundTruth":
+        """Write every kept array into the file ``path`` (each at a 64-byte boundary, as
+        numpy aligns its own) and return what other processes need to map it back:
+        ``evaluate --jobs N`` hands its workers this instead of a copy each, so the page
+        cache holds the maps once however many workers read them."""
+        entries, offset = [], 0
+        with open(path, "wb") as fh:
+            for item in self._items:
+                pixels = isinstance(item[1], np.ndarray)  # (indices, depths), else (map, divisor)
+                arrays = item if pixels else (item[0],)
+                placed = []
+                for a in arrays:
+                    a = np.ascontiguousarray(a)
+                    offset = -(-offset // 64) * 64
+                    fh.seek(offset)
+                    fh.write(a.tobytes())
+                    placed.append((offset, a.dtype.str, a.shape))
+                    offset += a.nbytes
+                entries.append((pixels, placed, None if pixels else item[1]))
+        return SharedGroundTruth(str(path), self.source, self.protocol, list(self.shapes), entries,
+                                 self._valid)
+
+
+class SharedGroundTruth:
+    """A :class:`GroundTruth` in a file (:meth:`GroundTruth.share`): small to pickle;
+    :meth:`open` maps the file read-only and gives back the same arrays."""
+
+    def __init__(self, path: str, source: str, protocol: str, shapes: list, entries: list,
+                 valid=None):
+        self.path, self.source, self.protocol = path, source, protocol
+        self.shapes, self.entries = shapes, entries
+        self.valid = valid  # the rule of valid pixels (picklable: a function or a setup's method)
+
+    def open(self) -> GroundTruth:
+        gt = GroundTruth(self.source, self.protocol, self.valid)
+        size = Path(self.path).stat().st_size
+        buf = np.memmap(self.path, dtype=np.uint8, mode="r") if size else np.zeros(0, np.uint8)
+        for shape, (pixels, placed, divisor) in zip(self.shapes, self.entries):
+            arrays = tuple(buf[off:off + int(np.prod(shp, dtype=np.int64)) * np.dtype(dt).itemsize]
+                           .view(dt).reshape(shp) for off, dt, shp in placed)
+            gt.append((shape, arrays if pixels else (arrays[0], divisor)))
+        return gt
 
 
 def load_ground_truth(path: Path, names: Sequence[str], protocol: str,

@@ -243,36 +243,92 @@ def missing_velodyne(root: Path, frames: Sequence[KittiFrame]) -> list[KittiFram
 
 
 def depth_maps(root: Path, frames: Sequence[KittiFrame], split_name: str = "split",
-               progress: Callable[[int], object] | None = None) -> Iterable[np.ndarray]:
+               progress: Callable[[int], object] | None = None, jobs: int = 1) -> Iterable[np.ndarray]:
     """The depth map of every frame, in split order, one at a time (calibrations are read
-    once per date). A problem raises :class:`GroundTruthError` naming the split line and file."""
+    once per date). A problem raises :class:`GroundTruthError` naming the split line and file.
+    With ``jobs`` > 1, worker processes make the maps (:func:`_depth_maps_in_workers`)."""
+    if jobs > 1 and len(frames) > FRAMES_PER_TASK:
+        yield from _depth_maps_in_workers(root, frames, split_name, progress, jobs)
+        return
     root = Path(root)
     calibs: dict[str, Calibration] = {}
     for f in frames:
-        try:
-            if f.date not in calibs:
-                calibs[f.date] = Calibration.load(root / f.date)
-            velo = load_velodyne(f.velodyne(root))
-            depth = depth_map(calibs[f.date], velo)
-            if not np.any(depth > 0):
-                # Evaluation would refuse the map much later, without naming the scan.
-                raise GroundTruthError(f"{f.velodyne(root)}: no point falls in camera 2's image in "
-                                       f"front of the car (of {len(velo)} points); a damaged scan?")
-        except GroundTruthError as exc:
-            raise GroundTruthError(f"{split_name}:{f.line}: {exc}") from None
-        yield depth
+        yield _frame_depth(root, f, split_name, calibs)
         if progress:
             progress(1)
 
 
+def _frame_depth(root: Path, f: KittiFrame, split_name: str, calibs: dict) -> np.ndarray:
+    try:
+        if f.date not in calibs:
+            calibs[f.date] = Calibration.load(root / f.date)
+        velo = load_velodyne(f.velodyne(root))
+        depth = depth_map(calibs[f.date], velo)
+        if not np.any(depth > 0):
+            # Evaluation would refuse the map much later, without naming the scan.
+            raise GroundTruthError(f"{f.velodyne(root)}: no point falls in camera 2's image in "
+                                   f"front of the car (of {len(velo)} points); a damaged scan?")
+    except GroundTruthError as exc:
+        raise GroundTruthError(f"{split_name}:{f.line}: {exc}") from None
+    return depth
+
+
+# Frames per task of a worker: large enough that sending tasks costs nothing, small enough
+# that the main process (which keeps every map) is never far behind the workers.
+FRAMES_PER_TASK = 16
+
+
+def _depth_maps_in_workers(root: Path, frames: Sequence[KittiFrame], split_name: str,
+                           progress, jobs: int) -> Iterable[np.ndarray]:
+    """:func:`depth_maps` by ``jobs`` fresh processes, each making runs of
+    :data:`FRAMES_PER_TASK` consecutive frames with the same code, so every map is the same
+    to the last bit; yielded in split order (an error: the first in split order)."""
+    from ..workers import in_order
+
+    runs = [list(frames[i:i + FRAMES_PER_TASK]) for i in range(0, len(frames), FRAMES_PER_TASK)]
+    tasks = [(str(root), run, split_name) for run in runs]
+    for run, maps in zip(runs, in_order(_run_maps, tasks, min(jobs, len(runs)), _start_worker)):
+        yield from (_unpack(*m) for m in maps)
+        if progress:
+            progress(len(run))
+
+
+def _pack(depth: np.ndarray) -> tuple:
+    """A map as (shape, flat indices, values) of its pixels whose bits are not all zero:
+    lidar maps are ~95% empty, and sending the whole maps back from the workers cost more
+    than making them. -0.0 (a point at depth -0, kept as the rules keep it) is sent too."""
+    flat = depth.reshape(-1)
+    where = np.flatnonzero(flat.view(np.uint32)).astype(np.int32)
+    return depth.shape, where, flat[where]
+
+
+def _unpack(shape, where, values) -> np.ndarray:
+    depth = np.zeros(shape, dtype=np.float32)  # numpy's own dtype: the npz's bytes stay those of one job
+    depth.reshape(-1)[where] = values
+    return depth
+
+
+_WORKER_CALIBS: dict[str, Calibration] = {}
+
+
+def _start_worker() -> None:
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1, user_api="blas")  # as export: BLAS threads only cost time here
+
+
+def _run_maps(root: str, run: list[KittiFrame], split_name: str) -> list[tuple]:
+    return [_pack(_frame_depth(Path(root), f, split_name, _WORKER_CALIBS)) for f in run]
+
+
 def export(root: Path, frames: Sequence[KittiFrame], out: Path, split_name: str = "split",
            progress: Callable[[int], object] | None = None,
-           stage: Callable[[str], object] | None = None) -> Path:
+           stage: Callable[[str], object] | None = None, jobs: int = 1) -> Path:
     """Write the depth maps of ``frames`` to ``out`` as monodepth2's ``gt_depths.npz``
-    (:func:`save_object_npz`). Every velodyne file is checked to exist before any work;
-    ``out`` is written only once every map is made, atomically. ``progress(1)`` follows
-    each map; ``stage(text)`` announces the last step, compressing and writing (a minute
-    for the 697 Eigen maps)."""
+    (:func:`save_object_npz`), made by ``jobs`` processes (:func:`depth_maps`). Every
+    velodyne file is checked to exist before any work; ``out`` is written only once every
+    map is made, atomically. ``progress(1)`` follows each map; ``stage(text)`` announces
+    the last step, compressing and writing (a minute for the 697 Eigen maps)."""
     root = Path(root)
     missing = missing_velodyne(root, frames)
     if missing:
@@ -284,7 +340,7 @@ def export(root: Path, frames: Sequence[KittiFrame], out: Path, split_name: str 
     # The projection is a 3 x 4 by 4 x N product: BLAS threads only cost time on it (twice
     # the CPU, far more wall time on a busy machine) and do not change its result.
     with threadpool_limits(1, user_api="blas"):
-        maps = list(depth_maps(root, frames, split_name, progress))
+        maps = list(depth_maps(root, frames, split_name, progress, jobs))
     if stage:
         stage(f"compressing and writing {out}")
     try:
