@@ -84,6 +84,10 @@ def test_nyu_and_png_forms_same_bits_with_two_jobs(fixtures_dir, tmp_path, cli):
     one, two = _run(cli, out, pred, tmp_path, 1), _run(cli, out, pred, tmp_path, 2)
     assert one[0] == two[0] and one[1]["results"] == two[1]["results"]
     assert one[1]["protocol"] == "nyu" and len(one[1]["results"]) == 3
+    # Another valid-pixel rule reaches the workers too (NYU maps are kept whole and their
+    # valid pixels found again on each use).
+    one, two = (_run(cli, out, pred, tmp_path, j, "--crop", "none") for j in (1, 2))
+    assert one[0] == two[0] and one[1]["results"] != _run(cli, out, pred, tmp_path, 1)[1]["results"]
 
 
 def test_an_error_is_the_first_one_job_meets(kitti, tmp_path, cli):
