@@ -167,7 +167,13 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing)
     jobs = min(jobs, len(found), -(-n * len(found) // MAPS_PER_WORKER))
     if jobs > 1:
-        result.results = _evaluate_in_workers(found, truth, setup, dataset.size, progress, jobs)
+        import tempfile
+
+        with tempfile.TemporaryDirectory(prefix="robodepth-evaluate-") as tmp:
+            shared = truth.share(Path(tmp) / "ground_truth.bin")
+            # The workers map the file: keeping the maps here too would hold them twice.
+            del truth
+            result.results = _evaluate_in_workers(found, shared, setup, dataset.size, progress, jobs)
         return result
     for v, p in found:
         try:
@@ -196,22 +202,18 @@ def _kind_read(setup: Setup, found: Sequence[tuple[Variant, Predictions]]) -> Se
     return replace(setup, kind="depth")
 
 
-def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], truth: GroundTruth,
-                         setup: Setup, image_size, progress, jobs: int) -> list[VariantResult]:
-    """:func:`_evaluate_variant` of every variant in ``jobs`` worker processes, results in
-    variant order."""
-    import tempfile
-
+def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], shared, setup: Setup,
+                         image_size, progress, jobs: int) -> list[VariantResult]:
+    """:func:`_evaluate_variant` of every variant in ``jobs`` worker processes that map the
+    ground truth ``shared`` (:meth:`GroundTruth.share`); results in variant order."""
     from ..workers import in_order
 
     results = []
-    with tempfile.TemporaryDirectory(prefix="robodepth-evaluate-") as tmp:
-        shared = truth.share(Path(tmp) / "ground_truth.bin")
-        tasks = [(v, p, setup, image_size) for v, p in found]
-        for (v, _), r in zip(found, in_order(_worker_variant, tasks, jobs, _start_worker, (shared,))):
-            results.append(r)
-            if progress:
-                progress(len(v))
+    tasks = [(v, p, setup, image_size) for v, p in found]
+    for (v, _), r in zip(found, in_order(_worker_variant, tasks, jobs, _start_worker, (shared,))):
+        results.append(r)
+        if progress:
+            progress(len(v))
     return results
 
 
