@@ -215,9 +215,10 @@ def test_kitti_s_on_the_cluster_loads_the_checkpoints_once_per_worker(cli, clust
     assert res.exit_code == 0, res.output
     assert tree(tmp_path / "cluster") == tree(tmp_path / "local")
     assert rows(tmp_path / "cluster") == rows(tmp_path / "local")
-    # Each worker process keeps one loaded model for these checkpoints, reused by every task.
+    # Each worker process keeps one loaded model for these checkpoints, reused by every task;
+    # on a cluster each worker decides what --device auto means.
     held = cluster.client.run(lambda: list(__import__("robodepth_cli.styles.inputs").styles.inputs._STYLIZERS))
-    assert any(held.values()) and all(v in ([], [(str(vgg), str(dec))]) for v in held.values()), held
+    assert any(held.values()) and all(v in ([], [(str(vgg), str(dec), "auto")]) for v in held.values()), held
 
 
 def test_a_killed_worker_loses_nothing(cluster, kitti, local, tmp_path):
