@@ -264,7 +264,11 @@ def remove_temporaries(out: Path) -> int:
     for dirpath, _, files in os.walk(out):
         for name in files:
             if is_temporary(name):
-                os.unlink(os.path.join(dirpath, name))
+                try:
+                    os.unlink(os.path.join(dirpath, name))
+                except FileNotFoundError:
+                    # A cluster worker still finishing a cancelled task renamed it meanwhile.
+                    continue
                 n += 1
     return n
 
