@@ -83,7 +83,7 @@ def read_rgb(path: str | os.PathLike, *, orient: bool = False) -> Image.Image:
     keep their top 8 bits; float (mode F) pixels must lie in 0..1 and become
     ``round(v * 255)`` (other ranges are refused). With ``orient``, the EXIF orientation tag
     is applied first, so a phone photo comes out the way viewers show it (used for single
-    images; the benchmark sources carry no such tag and are read as stored).
+    images and custom builds; the benchmark sources carry no such tag and are read as stored).
     """
     path = Path(path)
     try:
@@ -109,6 +109,22 @@ def read_rgb(path: str | os.PathLike, *, orient: bool = False) -> Image.Image:
     if h < MIN_SIDE or w < MIN_SIDE:
         raise ImageError(f"{path}: {h}x{w} pixels (HxW) is too small (at least {MIN_SIDE}x{MIN_SIDE})")
     return rgb
+
+
+EXIF_ORIENTATION = 0x0112  # the EXIF tag: 1 as stored; 2-8 mirrored and/or turned to display
+TRANSPOSED = (5, 6, 7, 8)  # orientations that swap height and width
+
+
+def exif_orientation(path: str | os.PathLike) -> int:
+    """The EXIF orientation of the image at ``path`` from its header (1: display as stored,
+    also when there is no tag, or the file cannot be read: reading it fails later, with the
+    reason)."""
+    try:
+        with Image.open(path) as im:
+            value = im.getexif().get(EXIF_ORIENTATION, 1)
+    except Exception:  # noqa: BLE001 (any unreadable header: the image's own failure, later)
+        return 1
+    return value if isinstance(value, int) and 1 <= value <= 8 else 1
 
 
 def resize_lanczos(im: Image.Image, size_hw: tuple[int, int] | None) -> np.ndarray:

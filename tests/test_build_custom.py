@@ -213,3 +213,146 @@ def test_pattern_help_and_preset_name_every_default_extension(cli):
     for ext in IMAGE_EXTS:
         assert re.search(rf"\b{ext}\b", default), (ext, default)
         assert re.search(rf"\b{ext}\b", preset), (ext, preset)
+
+
+def _tagged_png(path, stored, orientation):
+    exif = Image.Exif()
+    exif[0x0112] = orientation
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(stored).save(path, exif=exif)
+
+
+def test_exif_orientation_is_applied_and_recorded(tmp_path, build, cli):
+    # Stored 64 wide x 48 high. Orientation 6 means "rotate 90 degrees clockwise to
+    # display", 3 "rotate 180", 2 "mirror left-right" (the EXIF standard's table).
+    stored = random_image(48, 64, seed=7)
+    root = tmp_path / "phone"
+    _tagged_png(root / "cw.png", stored, 6)
+    _tagged_png(root / "flip.png", stored, 3)
+    _tagged_png(root / "mirror.png", stored, 2)
+    save(root / "plain.png", stored)
+    out = tmp_path / "out"
+    r = build(root, out)
+    assert r.exit_code == 0, r.output
+    upright = {"cw.png": np.rot90(stored, k=-1), "flip.png": stored[::-1, ::-1],
+               "mirror.png": stored[:, ::-1], "plain.png": stored}
+    m = rows(out)
+    for name, want in upright.items():
+        np.testing.assert_array_equal(load(out / "clean" / name), want)
+        got = load(out / "fog" / "3" / name)
+        assert got.shape == want.shape
+        row = m[f"fog/3/{name}"]
+        assert (int(row["height"]), int(row["width"])) == want.shape[:2]
+    # Said, and recorded: which sources were turned.
+    assert "3 source images turned upright by their EXIF orientation" in r.output
+    record = json.loads((out / "build.json").read_text())
+    assert record["exif_orientation"] == {"applied": True,
+                                          "turned": ["cw.png", "flip.png", "mirror.png"]}
+    # A rerun finds everything done (the turned sizes are the recorded ones).
+    r = build(root, out)
+    assert r.exit_code == 0 and re.search(r"\b0 written", r.output), r.output
+    assert cli("verify", out).exit_code == 0
+
+
+def test_build_made_before_orientation_redoes_only_turned_images(tmp_path, build):
+    stored = random_image(48, 64, seed=8)
+    root = tmp_path / "phone"
+    _tagged_png(root / "mirror.png", stored, 2)  # same size either way
+    save(root / "plain.png", stored)
+    out = tmp_path / "out"
+    assert build(root, out).exit_code == 0
+    # As a build of an older version left it: mirror.png's outputs as stored, no record.
+    record = json.loads((out / "build.json").read_text())
+    del record["exif_orientation"]
+    (out / "build.json").write_text(json.dumps(record))
+    r = build(root, out)
+    assert r.exit_code == 0, r.output
+    per_image = 1 + 3 * 2
+    assert f"{per_image} written, {per_image} skipped" in r.output
+    np.testing.assert_array_equal(load(out / "clean" / "mirror.png"), stored[:, ::-1])
+
+
+def _stop_at_write(monkeypatch, n, exc=KeyboardInterrupt):
+    """Make the build's ``n``-th PNG write raise ``exc`` (the earlier ones are written): a
+    stop in the middle of one source image's outputs."""
+    from robodepth_cli.build import pipeline
+
+    real, calls = pipeline.write_png, []
+
+    def write_png(*args, **kwargs):
+        calls.append(args[0])
+        if len(calls) == n:
+            raise exc
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "write_png", write_png)
+
+
+def test_interrupt_mid_image_keeps_and_records_what_was_written(folder, tmp_path, build, cli,
+                                                                monkeypatch):
+    out = tmp_path / "out"
+    per_image = 1 + 3 * 2
+    _stop_at_write(monkeypatch, 5)  # four outputs of the first image are on disk
+    r = build(folder, out, "--jobs", "1")
+    monkeypatch.undo()
+    assert r.exit_code == 130, r.output
+    assert r.output.startswith("custom: 4 written, 0 skipped"), r.output
+    assert "stopped after 4 of 21 outputs" in r.output
+    m = rows(out)
+    assert set(m) == set(tree(out)) and len(m) == 4
+    v = cli("verify", out)
+    assert "extra" not in v.output and f"incomplete: 4 of {3 * per_image} outputs" in v.output
+    r = build(folder, out, "--jobs", "1")
+    assert r.exit_code == 0 and f"{3 * per_image - 4} written, 4 skipped" in r.output, r.output
+    assert cli("verify", out).exit_code == 0
+
+
+def test_killed_mid_image_the_rerun_reuses_what_was_written(folder, tmp_path, build, cli,
+                                                            monkeypatch):
+    from robodepth_cli.build import pipeline
+
+    out = tmp_path / "out"
+    per_image = 1 + 3 * 2
+
+    class Killed(BaseException):
+        """Stands for SIGKILL: nothing after it runs, not even the build's own clean-up."""
+
+    _stop_at_write(monkeypatch, per_image + 3, Killed)  # one whole image, then two outputs
+    with pytest.raises(Killed):
+        pipeline.build(__import__("robodepth_cli.build.config", fromlist=["resolve"]).resolve(
+            "custom", None, {"corruptions": VARIANTS, "levels": "1,3", "jobs": "1"}), folder, out)
+    monkeypatch.undo()
+    from robodepth_cli.output.manifest import JOURNAL
+
+    assert len(tree(out)) == per_image + 2 and (out / JOURNAL).is_dir()
+    # The record of the two outputs of the image in flight survived the kill: verify counts
+    # them (no "extra"), and the rerun keeps them instead of making them again.
+    v = cli("verify", out)
+    assert "extra" not in v.output and f"incomplete: {per_image + 2} of" in v.output, v.output
+    r = build(folder, out, "--jobs", "1")
+    done = per_image + 2
+    assert r.exit_code == 0 and f"{3 * per_image - done} written, {done} skipped" in r.output, r.output
+    assert cli("verify", out).exit_code == 0 and not (out / JOURNAL).exists()
+
+
+def test_presets_read_their_sources_as_stored(tmp_path, cli):
+    # The benchmarks' own frames carry no orientation tag and are built as stored; a tag in
+    # a preset's source changes nothing (the published datasets were made that way).
+    from _trees import nyu_tree
+
+    root = tmp_path / "nyu"
+    split = nyu_tree(root, ["bedroom/rgb_00001.jpg"])
+    stored = random_image(48, 64, seed=4)
+    path = root / "bedroom" / "rgb_00001.jpg"
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(stored).save(path, exif=exif, quality=95)
+    out = tmp_path / "out"
+    r = cli("build", "nyudepth2-c", "--root", root, "--split", split, "--out", out,
+            "--corruptions", "contrast", "--levels", "1", "--no-gt", "--size", "48x64")
+    assert r.exit_code == 0, r.output
+    with Image.open(path) as im:
+        as_stored = np.asarray(im.convert("RGB"))
+    np.testing.assert_array_equal(load(out / "clean" / "bedroom" / "rgb_00001.png"), as_stored)
+    assert "EXIF" not in r.output
+    assert "exif_orientation" not in json.loads((out / "build.json").read_text())

@@ -7,9 +7,11 @@ image's failure, and only a root where none is usable refuses the build.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 
 from ..files import sha256_bytes
+from ..imageio import exif_orientation
 from ..sources import splits
 from ..sources.datasets import Dataset, Entry, read_split
 from .checks import BuildError
@@ -68,6 +70,21 @@ def labeled_sources(path: Path, split_path: Path, entries: list[Entry]) -> list[
     return sources
 
 
+def _oriented(src: Source) -> Source:
+    """``src`` with its EXIF orientation (a custom build's sources only)."""
+    if src.path is None:
+        return src
+    return replace(src, orientation=exif_orientation(src.path))
+
+
+def orientation_record(ds: Dataset, sources: list[Source]) -> dict | None:
+    """The build record's account of EXIF orientation: a custom build applies it and lists
+    the sources it turned; the benchmarks' sources are read as stored (None)."""
+    if not ds.discovers_sources:
+        return None
+    return {"applied": True, "turned": [s.rel for s in sources if s.orientation != 1]}
+
+
 def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
                    shown_root: Path | None = None) -> tuple[list[Source], dict]:
     """The sources of the build and the record's ``split`` entry (how they were chosen;
@@ -77,7 +94,8 @@ def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
         from ..sources import custom
 
         found, split = custom.find_sources(root, cfg, out)
-        sources = [Source.find(root, Entry(n, key, (rel,))) for n, (key, rel) in enumerate(found, 1)]
+        sources = [_oriented(Source.find(root, Entry(n, key, (rel,))))
+                   for n, (key, rel) in enumerate(found, 1)]
         if all(s.error for s in sources):
             raise BuildError(f"{shown_root or root}: none of the {len(sources)} images of {split['path'] or 'the root'} is usable; "
                              f"wrong --root? (first: {sources[0].error})")

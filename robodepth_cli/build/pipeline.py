@@ -40,7 +40,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .. import __version__
-from ..imageio import PNG_ENCODERS, check_png
+from ..imageio import PNG_ENCODERS, TRANSPOSED, check_png
 from ..output import manifest, record as build_record
 from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
@@ -50,7 +50,7 @@ from . import checks as buildchecks
 from .checks import BuildError
 from .config import BuildConfig
 from .executors import Executor, ExecutorError, LocalExecutor
-from .gather import check_root, gather_sources
+from .gather import check_root, gather_sources, orientation_record
 from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, cannot_write, fingerprint,
                     run_task)
 
@@ -169,7 +169,11 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     out = prepare_out(out)
     with manifest.BuildLock(out):
         claim_out(out)
-        tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer)
+        # Outputs of a custom build made before EXIF orientation was applied show tagged
+        # photos as stored: those are made again, upright.
+        reorient = (ds.discovers_sources and previous is not None
+                    and previous.exif_orientation is None)
+        tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer, reorient=reorient)
         if executor is None:
             executor = LocalExecutor(min(cfg.jobs, len(tasks)))  # never more workers than images
             _warn_above_cpus(executor.workers, cfg.jobs)
@@ -185,10 +189,17 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         # look into a finished build must not shrink what evaluation and ground truth see.
         keys = buildchecks.built_keys(plans)
         split = {**split, "images": len(keys), "keys": keys}
-        record = start_record(cfg, ds, root, out, split, executor, command, plans, png)
+        record = start_record(cfg, ds, root, out, split, executor, command, plans, png,
+                              orientation_record(ds, sources))
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1, png=png)
         summary = run_tasks(tasks, ctx, executor, out, progress)
+        turned = sum(1 for s in sources if s.orientation != 1)
+        if turned:
+            summary.notes.append(f"{turned} source image{'s' if turned > 1 else ''} turned upright "
+                                 f"by {'their' if turned > 1 else 'its'} EXIF orientation, as "
+                                 f"viewers show {'them' if turned > 1 else 'it'} (listed in "
+                                 f"{RECORD}: exif_orientation)")
         # A custom build has no ground truth to add.
         if gt and not ds.discovers_sources and not (summary.interrupted or summary.fatal):
             add_ground_truth(ds, root, Path(split["path"]), len(keys), out, summary, progress,
@@ -242,15 +253,20 @@ def claim_out(out: Path) -> None:
 
 
 def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, Row],
-         renderer: Renderer) -> list[Task]:
+         renderer: Renderer, *, reorient: bool = False) -> list[Task]:
     """One task per source. An output counts as possibly done (its sha256 goes into the
     task) when ``done``, the manifest, has a row for it without an error, from the same
-    source, seed, size and renderer fingerprint; the worker still checks the file."""
+    source, seed, size and renderer fingerprint; the worker still checks the file.
+    ``reorient``: the rows were made without EXIF orientation, so nothing of a source with
+    one counts as done."""
     jobs = tuple(ds.jobs(cfg.variants, cfg.levels))
     fingerprints = {job.variant: fingerprint(renderer, job) for job in jobs}
     tasks = []
     for src in sources:
         size = cfg.size or native_size(src)
+        if reorient and src.orientation != 1:
+            tasks.append(Task(src, jobs, (None,) * len(jobs), "", False, size))
+            continue
         expected, hashes, refresh = [], set(), False
         for job in jobs:
             r = done.get(job.path(src.key))
@@ -286,7 +302,7 @@ def native_size(src: Source) -> tuple[int, int] | None:
 
     try:
         with Image.open(src.path) as im:
-            return im.height, im.width
+            return (im.width, im.height) if src.orientation in TRANSPOSED else (im.height, im.width)
     except Exception:  # anything unreadable fails in its task, with the reason
         return None
 
@@ -305,7 +321,8 @@ def _same_source(row: Row, src: Source) -> bool:
 
 def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: dict,
                  executor: Executor, command: list[str] | None,
-                 plans: list[dict] | None = None, png: str = "fast") -> BuildRecord:
+                 plans: list[dict] | None = None, png: str = "fast",
+                 exif_orientation: dict | None = None) -> BuildRecord:
     """Write the build record of a build that starts now (status ``running``) and return it.
     ``split`` is :func:`gather_sources`' account of the sources (``keys``: the entries
     built, in order); ``plans`` every request made
@@ -318,6 +335,7 @@ def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: di
         versions=library_versions(ds), png_compress_level=PNG_COMPRESS_LEVEL,
         png=png, png_encoder=PNG_ENCODERS[png], executor=executor.describe(),
         started=build_record.now(), finished=None, status="running",
+        exif_orientation=exif_orientation,
     )
     try:
         build_record.write_record(out, record)

@@ -42,6 +42,9 @@ class Source:
     frame: int | None = None  # the image's index when ``path`` is NYU's labeled .mat file
     size: int | None = None  # bytes, when found (a file of its own)
     mtime: int | None = None  # modification time in ns since the epoch, when found
+    # The image's EXIF orientation, applied when it is read (custom builds: photos are built
+    # the way viewers show them); 1 = as stored, always for the benchmarks' own sources.
+    orientation: int = 1
 
     @classmethod
     def find(cls, root: Path, entry: Entry) -> "Source":
@@ -185,7 +188,7 @@ def _load(src: Source, size: tuple[int, int]):
             from ..sources.nyu_labeled import source_image
 
             return resize_lanczos(source_image(src.path, src.frame), size), ""
-        return load_clean(src.path, size), ""
+        return load_clean(src.path, size, orient=src.orientation != 1), ""
     except RobodepthError as exc:  # ImageError, or a labeled file's NyuError
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem

@@ -60,6 +60,9 @@ class BuildRecord:
     finished: str | None = None
     status: str = ""
     summary: dict[str, Any] | None = None  # absent until the build ends
+    # A custom build: {"applied": true, "turned": [the sources turned upright by their EXIF
+    # orientation]}; absent for the presets (read as stored) and before orientation applied.
+    exif_orientation: dict[str, Any] | None = None
     other: dict[str, Any] = field(default_factory=dict)  # keys this version does not know
 
     # ----------------------------------------------------------------------- reading
@@ -110,7 +113,7 @@ class BuildRecord:
 
     def to_dict(self) -> dict[str, Any]:
         data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "other"}
-        for optional in ("summary", "plans", "png"):  # absent, rather than null, when unset
+        for optional in ("summary", "plans", "png", "exif_orientation"):  # absent, not null, when unset
             if data[optional] is None:
                 del data[optional]
         return {**self.other, **data}
