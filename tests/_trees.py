@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from robodepth_cli.output.layout import BOOKKEEPING
+from robodepth_cli.output.layout import BOOKKEEPING, JOURNAL
 
 KITTI_DRIVE = "2011_09_26/2011_09_26_drive_0001_sync"
 
@@ -72,9 +72,11 @@ def nyu_tree(root: Path, names, size=(48, 64), copies_of=()) -> Path:
 
 
 def tree(out: Path) -> dict[str, bytes]:
-    """Every image file under ``out`` with its bytes (bookkeeping files left out)."""
+    """Every image file under ``out`` with its bytes (bookkeeping files left out, and the
+    journal a killed build leaves)."""
     return {p.relative_to(out).as_posix(): p.read_bytes()
-            for p in sorted(out.rglob("*")) if p.is_file() and p.name not in BOOKKEEPING}
+            for p in sorted(out.rglob("*")) if p.is_file() and p.name not in BOOKKEEPING
+            and p.relative_to(out).parts[0] != JOURNAL}
 
 
 def expected_paths(keys, variants, levels) -> set[str]:

@@ -275,9 +275,9 @@ def test_build_made_before_orientation_redoes_only_turned_images(tmp_path, build
 def _stop_at_write(monkeypatch, n, exc=KeyboardInterrupt):
     """Make the build's ``n``-th PNG write raise ``exc`` (the earlier ones are written): a
     stop in the middle of one source image's outputs."""
-    from robodepth_cli.build import pipeline
+    from robodepth_cli.build import tasks
 
-    real, calls = pipeline.write_png, []
+    real, calls = tasks.write_png, []
 
     def write_png(*args, **kwargs):
         calls.append(args[0])
@@ -285,7 +285,7 @@ def _stop_at_write(monkeypatch, n, exc=KeyboardInterrupt):
             raise exc
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(pipeline, "write_png", write_png)
+    monkeypatch.setattr(tasks, "write_png", write_png)
 
 
 def test_interrupt_mid_image_keeps_and_records_what_was_written(folder, tmp_path, build, cli,
@@ -322,7 +322,7 @@ def test_killed_mid_image_the_rerun_reuses_what_was_written(folder, tmp_path, bu
         pipeline.build(__import__("robodepth_cli.build.config", fromlist=["resolve"]).resolve(
             "custom", None, {"corruptions": VARIANTS, "levels": "1,3", "jobs": "1"}), folder, out)
     monkeypatch.undo()
-    from robodepth_cli.output.manifest import JOURNAL
+    from robodepth_cli.output.layout import JOURNAL
 
     assert len(tree(out)) == per_image + 2 and (out / JOURNAL).is_dir()
     # The record of the two outputs of the image in flight survived the kill: verify counts

@@ -250,6 +250,10 @@ def claim_out(out: Path) -> None:
         raise BuildError(f"{out / link}: a symlink to {target}, outside {out}; refused (a build "
                          f"writes only inside its output directory)")
     manifest.remove_temporaries(out)
+    try:
+        manifest.merge_journal(out)  # what a killed build wrote is recorded, so kept
+    except OSError as exc:
+        raise BuildError(cannot_write(out / MANIFEST, exc)) from None
 
 
 def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, Row],
@@ -418,6 +422,12 @@ def finish(out: Path, record: BuildRecord, summary: Summary) -> None:
     """Compact the manifest, clear what a stopped pool may have left, write the final
     record. A write error here is kept in ``summary.fatal`` (the outputs themselves are
     fine; a rerun repairs the bookkeeping)."""
+    try:
+        # Outputs of the images still in flight when the build stopped: written, and now
+        # recorded (none after a build that ran to the end).
+        summary.written += len(manifest.merge_journal(out))
+    except OSError as exc:  # the journal stays for the next build to merge
+        summary.fatal = summary.fatal or cannot_write(out / MANIFEST, exc)
     try:
         manifest.compact_manifest(out)
     except OSError as exc:  # the appended manifest stays valid, only unsorted

@@ -16,7 +16,7 @@ from pathlib import Path
 from ..errors import RobodepthError
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
-from ..output.manifest import Row
+from ..output.manifest import Journal, Row
 from ..sources.datasets import CLEAN, Entry, Job, Renderer, locate
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
@@ -130,17 +130,24 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     rendered = itertools.chain(
         ((j, clean) for j in todo if j.variant == CLEAN),
         ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN]))
-    for job, img in rendered:
-        if isinstance(img, BaseException):
-            fail(job, f"{src.path}: {_job_name(job)}: {type(img).__name__}: {img}")
-            continue
-        target = out / job.path(src.key)
-        try:
-            data = write_png(target, img, PNG_COMPRESS_LEVEL, method=ctx.png)
-        except OSError as exc:
-            results.append((JobState.FATAL, row(job, error=cannot_write(target, exc))))
-            return results
-        results.append((JobState.WRITTEN, row(job, sha256_bytes(data))))
+    with Journal(out) as journal:
+        for job, img in rendered:
+            if isinstance(img, BaseException):
+                fail(job, f"{src.path}: {_job_name(job)}: {type(img).__name__}: {img}")
+                continue
+            target = out / job.path(src.key)
+            try:
+                data = write_png(target, img, PNG_COMPRESS_LEVEL, method=ctx.png)
+            except OSError as exc:
+                results.append((JobState.FATAL, row(job, error=cannot_write(target, exc))))
+                return results
+            results.append((JobState.WRITTEN, row(job, sha256_bytes(data))))
+            try:
+                # Recorded now, not when the whole image is done: a stop loses at most the
+                # outputs being written, not an image's 91.
+                journal.append(results[-1][1])
+            except OSError:
+                pass  # only a safety net: the row still reaches the manifest with the task
     return results
 
 

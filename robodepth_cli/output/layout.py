@@ -6,6 +6,8 @@ rule that places each output. Nothing else in the package spells these names.
     OUT/manifest.csv             one row per output file (:data:`MANIFEST`)
     OUT/build.json               the build record (:data:`RECORD`)
     OUT/.robodepth.lock          held by the build writing here (:data:`LOCK`)
+    OUT/.robodepth.journal/      rows of the outputs written, one file per worker, while a
+                                 build runs (:data:`JOURNAL`; see :class:`.manifest.Journal`)
     OUT/clean/<key>              the resized clean images
     OUT/<corruption>/<level>/<key>
     OUT/<style>/<key>            KITTI-S: styles have no level
@@ -26,11 +28,12 @@ from ..corruptions.severity import level_text
 MANIFEST = "manifest.csv"
 RECORD = "build.json"
 LOCK = ".robodepth.lock"
+JOURNAL = ".robodepth.journal"  # a directory
 BOOKKEEPING = frozenset({MANIFEST, RECORD, LOCK})
 GT_FILE = "gt_depths.npz"
 GT_DIR = "gt"
 
-__all__ = ["MANIFEST", "RECORD", "LOCK", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
+__all__ = ["MANIFEST", "RECORD", "LOCK", "JOURNAL", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
            "variant_dir", "output_path"]
 
 

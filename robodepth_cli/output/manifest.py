@@ -10,6 +10,11 @@
   (e.g. without the source's size, time and hash) still reads, the missing values empty,
   and is rewritten with every column before anything is appended to it.
 - ``OUT/build.json``: the build record, :mod:`.record`.
+- ``OUT/.robodepth.journal/``: while a build runs, each worker appends the row of every
+  output to a file of its own here right after writing the output (:class:`Journal`), so a
+  build stopped in the middle of an image (one image has up to 91 outputs) keeps the record
+  of what it wrote. The builder moves those rows into the manifest (and removes the files)
+  when it ends, even interrupted, and when the next build starts; ``verify`` reads them too.
 - ``OUT/.robodepth.lock``: held (``flock``) by the running build, and removed by it when
   it ends; if the process dies, the kernel releases the lock and the next build reuses the
   file.
@@ -26,7 +31,7 @@ from pathlib import Path
 
 from ..files import is_temporary, write_atomic
 from ..errors import RobodepthError
-from .layout import LOCK, MANIFEST
+from .layout import JOURNAL, LOCK, MANIFEST
 
 _SHA = re.compile(r"[0-9a-f]{64}")
 
@@ -187,6 +192,95 @@ class ManifestWriter:
 
     def __exit__(self, *exc):
         self.close()
+
+
+class Journal:
+    """A worker's record of the outputs it writes, one row appended right after each file is
+    written, in ``OUT/.robodepth.journal/<host>-<pid>-<thread>.csv`` (no file is shared, so no
+    two writers interleave, on any file system). Use as a context manager around one task;
+    the file is created on the first row."""
+
+    def __init__(self, out: Path):
+        import socket
+        import threading
+
+        self.path = (Path(out) / JOURNAL /
+                     f"{socket.gethostname()}-{os.getpid()}-{threading.get_ident()}.csv")
+        self._fd: int | None = None
+
+    def append(self, row: Row) -> None:
+        if self._fd is None:
+            self.path.parent.mkdir(exist_ok=True)
+            self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        os.write(self._fd, format_rows([row]).encode("utf-8"))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def _journal_files(out: Path) -> list[Path]:
+    try:
+        return sorted(p for p in (Path(out) / JOURNAL).iterdir() if p.suffix == ".csv")
+    except (FileNotFoundError, NotADirectoryError):
+        return []
+
+
+def _journal_rows(path: Path) -> list[Row]:
+    """The complete rows of one journal file; a torn last line (a worker killed in the
+    middle of a write) and anything unreadable are left out: their outputs are made again."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return []
+    lines = text.splitlines(keepends=True)
+    if lines and not lines[-1].endswith("\n"):
+        lines.pop()
+    rows = []
+    for values in csv.reader(lines):
+        try:
+            rows.append(_from_fields(values))
+        except (ValueError, TypeError):
+            continue
+    return rows
+
+
+def read_recorded(out: Path) -> dict[str, Row]:
+    """:func:`read_manifest` with the rows of a journal a killed build left laid over them:
+    every output recorded so far, changing nothing."""
+    rows = read_manifest(out)
+    for path in _journal_files(out):
+        for row in _journal_rows(path):
+            rows[row.output] = row
+    return rows
+
+
+def merge_journal(out: Path) -> list[Row]:
+    """Move the journal's rows into the manifest (call with the lock held) and delete the
+    journal; return the rows the manifest did not already hold."""
+    files = _journal_files(out)
+    if not files:
+        return []
+    current = read_manifest(out)
+    new: dict[str, Row] = {}
+    for path in files:
+        for row in _journal_rows(path):
+            if current.get(row.output) != row:
+                new[row.output] = row
+    if new:
+        with ManifestWriter(out) as writer:
+            writer.append(list(new.values()))
+    for path in files:
+        path.unlink(missing_ok=True)
+    try:
+        (Path(out) / JOURNAL).rmdir()
+    except OSError:
+        pass  # a straggling worker wrote again: the next build merges it
+    return list(new.values())
 
 
 def compact_manifest(out: Path) -> None:

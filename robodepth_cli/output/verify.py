@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..files import sha256_file
-from .layout import BOOKKEEPING, MANIFEST
-from .manifest import ManifestError, lock_holder, read_manifest
+from .layout import BOOKKEEPING, JOURNAL, MANIFEST
+from .manifest import ManifestError, lock_holder, read_recorded
 from .record import read_record
 
 
@@ -48,8 +48,10 @@ class VerifyReport:
 def tree_files(out: Path) -> set[str]:
     """Every file under ``out`` (relative posix paths) except the bookkeeping files."""
     found = set()
-    for dirpath, _, files in os.walk(out):
+    for dirpath, dirs, files in os.walk(out):
         rel = os.path.relpath(dirpath, out)
+        if rel == ".":
+            dirs[:] = [d for d in dirs if d != JOURNAL]
         for name in files:
             p = name if rel == "." else f"{rel}/{name}".replace(os.sep, "/")
             if p not in BOOKKEEPING:
@@ -75,7 +77,7 @@ def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
                             f"when it has finished")
     if not (out / MANIFEST).is_file():
         raise ManifestError(f"{out}: no {MANIFEST}; not a robodepth build output")
-    rows = read_manifest(out)
+    rows = read_recorded(out)  # a killed build's journal counts: its files are complete
     record = read_record(out)
     planned = planned_outputs(record)
     on_disk = tree_files(out)
