@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import RobodepthError, os_reason
+from .errors import RobodepthError, cannot_write
 from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir
 from .output.record import BuildRecord
 
@@ -144,7 +144,7 @@ class PredictionWriter:
         try:
             self._fh = self._cm.__enter__()
         except OSError as exc:
-            raise DatasetError(f"{self.target}: cannot write ({os_reason(exc)})") from None
+            raise DatasetError(cannot_write(self.target, exc)) from None
         if self.n == 0:
             self._header((0, 0), np.dtype(np.float32))
         return self
@@ -171,7 +171,7 @@ class PredictionWriter:
         try:
             self._fh.write(np.ascontiguousarray(m, dtype=self._dtype).data)
         except OSError as exc:
-            raise DatasetError(f"{self.target}: cannot write ({os_reason(exc)})") from None
+            raise DatasetError(cannot_write(self.target, exc)) from None
         self.count += 1
 
     def __exit__(self, exc_type, exc, tb):
@@ -183,7 +183,7 @@ class PredictionWriter:
         try:
             return self._cm.__exit__(exc_type, exc, tb)
         except OSError as err:
-            raise DatasetError(f"{self.target}: cannot write ({os_reason(err)})") from None
+            raise DatasetError(cannot_write(self.target, err)) from None
 
 
 def _as_map(value, target: Path, i: int) -> np.ndarray:

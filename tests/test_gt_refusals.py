@@ -11,14 +11,7 @@ import pytest
 
 from _gt_trees import write_labeled, write_split, write_tree
 from _readonly import read_only_dir, read_only_reason  # noqa: F401
-
-
-def one_line_error(res, *needles):
-    assert res.exit_code == 2, res.output
-    lines = res.output.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("robodepth: error: "), res.output
-    for n in needles:
-        assert n in lines[0], lines[0]
+from test_gt_kitti import _fail as one_line_error
 
 
 @pytest.fixture

@@ -23,7 +23,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import RobodepthError
+from ..errors import RobodepthError, cannot_write
 from ..output.layout import GT_DIR, GT_FILE
 from ..output.manifest import Row
 
@@ -187,11 +187,14 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
             target.unlink(missing_ok=True)
             yield "failed", _row(job, error=str(exc))
             return
-    try:
-        sha = gt_kitti.save_object_npz(target, maps, [f.key for f in job.frames])
-    except OSError as exc:
-        yield "fatal", _row(job, error=f"{target}: cannot write ({exc.strerror or exc})")
-        return
+        # The maps are all made; compressing them takes a while with the bar at its end.
+        bar.set_description_str(f"ground truth: compressing and writing {job.output}")
+        bar.refresh()
+        try:
+            sha = gt_kitti.save_object_npz(target, maps, [f.key for f in job.frames])
+        except OSError as exc:
+            yield "fatal", _row(job, error=cannot_write(target, exc))
+            return
     yield "written", _row(job, sha)
 
 
@@ -217,7 +220,7 @@ def _run_nyu(plan: GtPlan, job: GtJob, out: Path):
     try:
         write_atomic(target, data)
     except OSError as exc:
-        return "fatal", _row(job, error=f"{target}: cannot write ({exc.strerror or exc})")
+        return "fatal", _row(job, error=cannot_write(target, exc))
     return "written", _row(job, sha256_bytes(data), size=size)
 
 

@@ -13,7 +13,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import RobodepthError
+from ..errors import RobodepthError, cannot_write
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
 from ..output.manifest import Journal, Row
@@ -200,10 +200,6 @@ def _load(src: Source, size: tuple[int, int]):
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
         return None, f"{src.path}: {type(exc).__name__}: {exc}"
-
-
-def cannot_write(path, exc: OSError) -> str:
-    return f"{path}: cannot write ({exc.strerror or exc})"
 
 
 def _job_name(job: Job) -> str:

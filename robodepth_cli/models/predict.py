@@ -34,7 +34,7 @@ import numpy as np
 
 from .. import __version__
 from ..api import BuiltDataset, PredictionWriter, Variant
-from ..errors import os_reason
+from ..errors import cannot_write, os_reason
 from . import ModelError
 
 RECORD = "predictions.json"
@@ -129,7 +129,7 @@ def prepare_output(pred: Path, record: dict) -> bool:
         probe.write_bytes(b"")
         probe.unlink()
     except OSError as exc:
-        raise ModelError(f"--out {pred}: cannot write ({os_reason(exc)})") from None
+        raise ModelError(cannot_write(pred, exc, "--out")) from None
     return created
 
 
@@ -198,7 +198,7 @@ class ImageFilesWriter:
             self._tmp = self.target.parent / f".{self.target.name}.{secrets.token_hex(6)}.part"
             self._tmp.mkdir()
         except OSError as exc:
-            raise ModelError(f"{self.target}: cannot write ({os_reason(exc)})") from None
+            raise ModelError(cannot_write(self.target, exc)) from None
         self._files = _image_files(self._tmp, self.variant)
         return self
 
@@ -208,7 +208,7 @@ class ImageFilesWriter:
             path.parent.mkdir(parents=True, exist_ok=True)
             np.save(path, m if m.dtype.kind == "f" else m.astype(np.float32))
         except OSError as exc:
-            raise ModelError(f"{path}: cannot write ({os_reason(exc)})") from None
+            raise ModelError(cannot_write(path, exc)) from None
         self.count += 1
 
     def __exit__(self, exc_type, exc, tb):
@@ -222,7 +222,7 @@ class ImageFilesWriter:
                 try:
                     os.replace(self._tmp, self.target)
                 except OSError as err:
-                    raise ModelError(f"{self.target}: cannot write ({os_reason(err)})") from None
+                    raise ModelError(cannot_write(self.target, err)) from None
         finally:
             if self._tmp is not None and self._tmp.exists():
                 shutil.rmtree(self._tmp)
@@ -302,7 +302,7 @@ def _write_record(pred: Path, record: dict) -> None:
     try:
         write_atomic(pred / RECORD, (json.dumps(record, indent=2) + "\n").encode("utf-8"))
     except OSError as exc:
-        raise ModelError(f"{pred / RECORD}: cannot write ({os_reason(exc)})") from None
+        raise ModelError(cannot_write(pred / RECORD, exc)) from None
 
 
 def _remove_empty(pred: Path) -> None:
