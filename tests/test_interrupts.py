@@ -87,9 +87,11 @@ def inputs(kitti_c, kitti_pred, tmp_path_factory, fixtures_dir):  # noqa: F811
 
     vgg, dec, *_ = save_checkpoints(d)
     frame = fixtures_dir / "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
+    model = d / "usermodel.py"
+    model.write_text("def brightness(images):\n    return 0.02 + images.mean(axis=3) / 2550\n")
     return {"dataset": kitti_c[0], "pred": kitti_pred, "kitti_raw": root, "kitti_split": split,
             "mat": mat, "nyu_split": nyu_split, "results": results, "vgg": vgg, "decoder": dec,
-            "frame": frame, "fixtures": fixtures_dir}
+            "frame": frame, "fixtures": fixtures_dir, "model": model}
 
 
 # (name, the function to stop in and at which call, arguments, what is kept, outputs that
@@ -123,6 +125,11 @@ CASES = [
      NOTHING, ["s.png"]),
     ("verify", "robodepth_cli.output.verify:verify", 1,
      lambda i: ["verify", i["dataset"], "--no-progress"], NOTHING, []),
+    ("predict", "robodepth_cli.models.predict:_same_size_runs", 2,
+     lambda i: ["predict", i["dataset"], "-m", f"python:{i['model']}:brightness", "--kind", "disp",
+                "--out", "{OUT}/PRED", "--no-progress"],
+     "the variants finished so far are kept under {OUT}/PRED, each complete; rerun the same "
+     "command to continue", ["PRED/brightness/1.npy"]),
     ("build", "robodepth_cli.build.pipeline:run_tasks", 1,
      lambda i: ["build", "kitti-c", "--root", i["fixtures"] / "kitti_raw", "--split",
                 i["fixtures"] / "kitti_split.txt", "--out", "{OUT}/KITTI_C", "--size", "32x96",
@@ -149,6 +156,8 @@ def test_every_command_stops_cleanly(inputs, tmp_path, sig, name, where, nth, ar
         assert [p.relative_to(out).as_posix() for p in out.rglob("*.png")] == ["shots/brightness/1.png"]
     if name == "gt nyu":
         assert list(out.iterdir()) == []
+    if name == "predict":  # the first variant (clean) was finished before the signal
+        assert (out / "PRED" / "clean.npy").is_file()
 
 
 def test_interrupts_are_documented(cli):

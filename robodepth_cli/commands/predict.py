@@ -7,6 +7,8 @@ from pathlib import Path
 
 import click
 
+from . import common
+
 
 @click.command("predict")
 @click.argument("dataset_dir", metavar="DATASET_DIR", type=click.Path(path_type=Path))
@@ -62,11 +64,12 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     if batch_size < 1:
         raise click.BadParameter("must be at least 1", param_hint="--batch-size")
     model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
+    common.on_interrupt(f"the variants finished so far are kept under {pred}, each complete; "
+                        "rerun the same command to continue")
     with tqdm(unit="img", disable=None if progress else True, file=sys.stderr,
               dynamic_ncols=True) as bar:
         def set_total(n):
-            bar.total = n
-            bar.refresh()
+            bar.reset(total=n)  # the clock too: the time spent before the images is not theirs
 
         run = P.predict(dataset, model, pred, chosen, batch_size=batch_size,
                         progress=bar.update, on_total=set_total)
