@@ -178,10 +178,9 @@ def _implausible_clean(result) -> str:
         if r.variant.name == CLEAN:
             value = dee(r.metrics["abs_rel"], r.metrics["a1"])
             if value >= 1:
-                return (f"clean DEE {value:.3f} is implausible (at least 1: the predictions are "
-                        f"read as {result.setup.describe().split('predictions: ')[-1]}, "
-                        f"{'stereo' if result.setup.stereo else 'mono'}); check --kind, --stereo "
-                        "and --png-scale; the metrics above are written, not scored")
+                return (f"clean DEE {value:.3f} is implausible (at least 1, with "
+                        f"{result.setup.describe()}); check --kind, --stereo and --png-scale; "
+                        "the metrics above are written, not scored")
     return ""
 
 
