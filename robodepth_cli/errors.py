@@ -21,9 +21,10 @@ def os_reason(exc: OSError) -> str:
     return exc.strerror or str(exc)
 
 
-def cannot_write(path, reason: OSError | str, flag: str | None = None) -> str:
+def cannot_write(path, reason: OSError | str, flag: str | None = None, what: str = "") -> str:
     """The one message for an output that cannot be written:
-    ``[FLAG ]PATH: cannot write (REASON)``."""
+    ``[FLAG ]PATH: cannot write[ WHAT] (REASON)``, ``what`` naming the thing when the path
+    alone does not (``"the output directory"``)."""
     if isinstance(reason, OSError):
         reason = os_reason(reason)
-    return f"{flag + ' ' if flag else ''}{path}: cannot write ({reason})"
+    return f"{flag + ' ' if flag else ''}{path}: cannot write{' ' + what if what else ''} ({reason})"

@@ -108,6 +108,15 @@ def check_writable(path: str | os.PathLike, flag: str | None = None) -> None:
     os.unlink(tmp)
 
 
+def probe_writable(directory: str | os.PathLike) -> None:
+    """Create ``directory`` (and its parents) if needed and prove that a file can be made
+    in it, so that a refusal comes before long work rather than after; ``OSError``
+    otherwise (word it with :func:`robodepth_cli.errors.cannot_write`)."""
+    Path(directory).mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryFile(dir=directory):
+        pass
+
+
 def is_temporary(name: str) -> bool:
     """Whether the file name ``name`` is one of :func:`write_atomic`'s temporary files."""
     return (name.startswith(_TEMP_PREFIX) and name.endswith(_TEMP_SUFFIX)

@@ -46,7 +46,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
 
 from .. import __version__
-from ..errors import RobodepthError, os_reason
+from ..errors import cannot_write, os_reason
 from .executors import ExecutorError
 
 CONNECT_TIMEOUT_S = 30  # to reach the scheduler
@@ -184,7 +184,7 @@ def requirements(root: Path, out: Path, files: Sequence[str], libraries: Sequenc
         with open(os.path.join(out, token), "w", encoding="utf-8") as fh:
             fh.write(token)
     except OSError as exc:
-        raise ClusterError(f"{out}: cannot write the output directory ({os_reason(exc)})") from None
+        raise ClusterError(cannot_write(out, exc, what="the output directory")) from None
     return Requirements(root=root, root_listing=listing(root), out=out, token=token,
                         files=tuple((os.path.realpath(f), _sha256(f)) for f in files),
                         versions=pixel_versions(libraries))

@@ -34,12 +34,13 @@ import os
 import platform
 import shlex
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .. import __version__
+from ..errors import cannot_write
+from ..files import probe_writable
 from ..imageio import PNG_ENCODERS, TRANSPOSED, check_png
 from ..output import manifest, record as build_record
 from ..output.layout import MANIFEST, RECORD
@@ -51,8 +52,7 @@ from .checks import BuildError
 from .config import BuildConfig
 from .executors import Executor, ExecutorError, LocalExecutor
 from .gather import check_root, gather_sources, orientation_record
-from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, cannot_write, fingerprint,
-                    run_task)
+from .tasks import PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, run_task
 
 MAX_ERRORS_SHOWN = 10
 
@@ -232,11 +232,9 @@ def prepare_out(out: Path) -> Path:
     if out.exists() and not out.is_dir():
         raise BuildError(f"{out}: exists and is not a directory")
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
+        probe_writable(out)
     except OSError as exc:
-        raise BuildError(f"{out}: cannot write the output directory ({exc.strerror or exc})") from None
+        raise BuildError(cannot_write(out, exc, what="the output directory")) from None
     return out
 
 
