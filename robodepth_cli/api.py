@@ -371,7 +371,7 @@ def _split_keys(record: BuildRecord, record_path: Path, ds) -> tuple[str, ...]:
     if sha256_bytes(data) != split.get("sha256"):
         raise DatasetError(f"{record_path}: lists no split keys and its split file {file} has "
                            "changed since the build; rebuild with this version to record them")
-    return tuple(e.key for e in read_split(Path(file), ds.split_format)[:record.limit])
+    return tuple(e.key for e in read_split(Path(file), ds.split_format, data)[:record.limit])
 
 
 def bts_depth_name(key: str) -> str:
@@ -388,7 +388,8 @@ def bts_depth_name(key: str) -> str:
 def _split_depths(record: BuildRecord) -> dict[str, str]:
     """{image key: DEPTH field} from the build's NYU-format split file, if it is still
     there and unchanged; {} otherwise (or for other formats)."""
-    from .sources.datasets import parse_nyu
+    from .sources.datasets import read_split
+    from .sources.splits import SplitError
     from .files import sha256_bytes
 
     split = record.split
@@ -398,14 +399,8 @@ def _split_depths(record: BuildRecord) -> dict[str, str]:
         return {}
     if sha256_bytes(data) != split.get("sha256"):
         return {}
-    depths = {}
-    for line in data.decode("utf-8", "replace").splitlines():
-        fields = line.split()
-        if not fields or fields[0].startswith("#"):
-            continue
-        try:
-            key, _ = parse_nyu(fields)
-        except ValueError:
-            return {}  # not an NYU-format split
-        depths[key] = fields[1]
-    return depths
+    try:
+        entries = read_split(Path(split["path"]), "nyu", data)
+    except SplitError:
+        return {}  # not an NYU-format split
+    return {e.key: e.fields[1] for e in entries}

@@ -744,15 +744,17 @@ def test_import_stays_light():
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
 
 
-def test_nyu_ground_truth_follows_the_split_depth_paths(nyu_c, tmp_path, cli):
-    """A directory of ground truth is read at each split line's DEPTH path; without the
-    split file, at BTS's names (rgb_NNNNN -> sync_depth_NNNNN)."""
+@pytest.mark.parametrize("bom", [b"", b"\xef\xbb\xbf"], ids=["plain", "byte-order-mark"])
+def test_nyu_ground_truth_follows_the_split_depth_paths(nyu_c, tmp_path, cli, bom):
+    """A directory of ground truth is read at each split line's DEPTH path (a split with a
+    byte-order mark too: the mark is not part of the first image's key); without the split
+    file, at BTS's names (rgb_NNNNN -> sync_depth_NNNNN)."""
     import hashlib
 
     out, gts = nyu_c
     split = tmp_path / "split.txt"
-    split.write_text("bedroom/rgb_00001.jpg depth/first.png 518.8579\n"
-                     "bedroom/rgb_00119.jpg depth/second.png 518.8579\n")
+    split.write_bytes(bom + b"bedroom/rgb_00001.jpg depth/first.png 518.8579\n"
+                            b"bedroom/rgb_00119.jpg depth/second.png 518.8579\n")
     record = json.loads((out / "build.json").read_text())
     record["split"].update(path=str(split), sha256=hashlib.sha256(split.read_bytes()).hexdigest())
     ds = tmp_path / "NYU"

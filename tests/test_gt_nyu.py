@@ -134,3 +134,20 @@ def test_not_hdf5_and_wrong_layout(tmp_path, run):
     _fail(run("gt", "nyu", "--root", mat, "--split", split, "--out", tmp_path / "out"), str(mat), "'images'",
           "1 x 3 x 640 x 480")
     assert not (tmp_path / "out").exists()
+
+
+def test_split_with_a_byte_order_mark_writes_the_same_files(labeled, tmp_path, run):
+    """A split saved with a UTF-8 byte-order mark (as Windows editors do) names the same
+    first frame: the mark is not part of its scene folder."""
+    path, _, _ = labeled
+    split = write_split(tmp_path / "split.txt", [2, 0, 4])
+    marked = tmp_path / "marked.txt"
+    marked.write_bytes(b"\xef\xbb\xbf" + split.read_bytes())
+    for name, s in (("plain", split), ("marked", marked)):
+        res = run("gt", "nyu", "--root", path, "--split", s, "--out", tmp_path / name)
+        assert res.exit_code == 0, res.output
+    files = {name: {p.relative_to(tmp_path / name).as_posix(): p.read_bytes()
+                    for p in (tmp_path / name).rglob("*") if p.is_file()}
+             for name in ("plain", "marked")}
+    assert len(files["plain"]) == 6
+    assert files["marked"] == files["plain"]

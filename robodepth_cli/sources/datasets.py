@@ -32,6 +32,7 @@ class Entry:
     line: int  # 1-based line number in the split file
     key: str  # dataset-relative path, posix, extension .png
     candidates: tuple[str, ...]  # source paths relative to the root, tried in order
+    fields: tuple[str, ...] = ()  # the split line's fields as read (a byte-order mark dropped)
 
 
 @dataclass(frozen=True)
@@ -119,14 +120,14 @@ SPLIT_KINDS = {"eigen": "a KITTI (Eigen) split (lines 'DATE/DRIVE FRAME SIDE')",
                "nyu": "an NYU Depth V2 split (lines 'RGB DEPTH FOCAL')"}
 
 
-def read_split(path: Path, split_format: str) -> list[Entry]:
-    """Parse a split file. Blank lines and lines starting with ``#`` are ignored. Raises
-    :class:`SplitError` naming the file and line for a malformed or duplicate entry, and for
-    a split without entries."""
+def read_split(path: Path, split_format: str, data: bytes | None = None) -> list[Entry]:
+    """Parse a split file (``data``: its bytes, already read). Blank lines and lines starting
+    with ``#`` are ignored. Raises :class:`SplitError` naming the file and line for a
+    malformed or duplicate entry, and for a split without entries."""
     parse = PARSERS[split_format]
     try:
         # utf-8-sig: a byte-order mark (Windows editors write one) is not part of the first path.
-        text = Path(path).read_text(encoding="utf-8-sig")
+        text = (Path(path).read_bytes() if data is None else data).decode("utf-8-sig")
     except UnicodeDecodeError:
         raise SplitError(f"{path}: not a text file") from None
     except OSError as exc:
@@ -136,8 +137,9 @@ def read_split(path: Path, split_format: str) -> list[Entry]:
     for n, line in enumerate(text.splitlines(), 1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
+        fields = tuple(line.split())
         try:
-            key, cands = parse(line.split())
+            key, cands = parse(list(fields))
         except ValueError as exc:
             other = _other_format(line, split_format)
             if other:
@@ -147,7 +149,7 @@ def read_split(path: Path, split_format: str) -> list[Entry]:
         if key in seen:
             raise SplitError(f"{path}:{n}: duplicate of line {seen[key]} ({key})")
         seen[key] = n
-        entries.append(Entry(n, key, cands))
+        entries.append(Entry(n, key, cands, fields))
     if not entries:
         raise SplitError(f"{path}: the split lists no images")
     return entries

@@ -88,13 +88,7 @@ def read_frames(split: Path) -> list[KittiFrame]:
     the checks every split gets (:func:`robodepth_cli.sources.datasets.read_split`)."""
     from .datasets import read_split
 
-    entries = read_split(split, "eigen")
-    lines = Path(split).read_text(encoding="utf-8-sig").splitlines()  # as read_split reads it
-    frames = []
-    for e in entries:
-        folder, frame, _side = lines[e.line - 1].split()
-        frames.append(KittiFrame(e.line, folder, int(frame)))
-    return frames
+    return [KittiFrame(e.line, e.fields[0], int(e.fields[1])) for e in read_split(split, "eigen")]
 
 
 # --- calibration ---------------------------------------------------------------------------

@@ -73,13 +73,7 @@ def read_frames(split: Path) -> list[NyuFrame]:
     (:func:`robodepth_cli.sources.datasets.read_split`)."""
     from .datasets import read_split
 
-    entries = read_split(split, "nyu")
-    lines = Path(split).read_text(encoding="utf-8").splitlines()
-    frames = []
-    for e in entries:
-        rgb, depth, _focal = lines[e.line - 1].split()
-        frames.append(NyuFrame(e.line, rgb, depth))
-    return frames
+    return [NyuFrame(e.line, e.fields[0], e.fields[1]) for e in read_split(split, "nyu")]
 
 
 def is_labeled_file(root: Path) -> bool:
