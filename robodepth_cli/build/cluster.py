@@ -47,6 +47,7 @@ from typing import Any, Callable, Iterator, Sequence
 
 from .. import __version__
 from ..errors import cannot_write, os_reason
+from ..files import sha256_file
 from .executors import ExecutorError
 
 CONNECT_TIMEOUT_S = 30  # to reach the scheduler
@@ -125,14 +126,6 @@ def listing(directory: str) -> tuple[int, str]:
     return len(names), hashlib.sha256("\n".join(names).encode("utf-8", "surrogateescape")).hexdigest()
 
 
-def _sha256(path: str) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def probe(req: Requirements) -> str:
     """Check, in the process that will run tasks, that it sees what the client sees
     (the module docstring lists the checks). Returns "" if it does, else the first
@@ -149,7 +142,7 @@ def probe(req: Requirements) -> str:
                 f"{req.root_listing[0]}): not the same shared directory")
     for path, sha in req.files:
         try:
-            if _sha256(path) != sha:
+            if sha256_file(path) != sha:
                 return f"{path}: differs from the client's copy (sha256)"
         except OSError as exc:
             return f"cannot read {path} ({os_reason(exc)})"
@@ -186,7 +179,7 @@ def requirements(root: Path, out: Path, files: Sequence[str], libraries: Sequenc
     except OSError as exc:
         raise ClusterError(cannot_write(out, exc, what="the output directory")) from None
     return Requirements(root=root, root_listing=listing(root), out=out, token=token,
-                        files=tuple((os.path.realpath(f), _sha256(f)) for f in files),
+                        files=tuple((os.path.realpath(f), sha256_file(f)) for f in files),
                         versions=pixel_versions(libraries))
 
 

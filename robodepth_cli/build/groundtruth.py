@@ -19,7 +19,6 @@ another scene) is a failed row, like a broken image.
 from __future__ import annotations
 
 import hashlib
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -149,7 +148,7 @@ def _is_done(job: GtJob, out: Path, done: dict[str, Row]) -> Row | None:
 def run_gt(plan: GtPlan, out: Path, done: dict[str, Row], progress: bool = False):
     """Make the jobs of ``plan`` that are not done. Yields ``(state, row)`` per job, state
     one of ``"skipped"``, ``"written"``, ``"failed"``, ``"fatal"`` (a write error)."""
-    from tqdm import tqdm
+    from ..progress import bar as progress_bar
 
     out = Path(out)
     todo = []
@@ -164,8 +163,7 @@ def run_gt(plan: GtPlan, out: Path, done: dict[str, Row], progress: bool = False
     if plan.kind == "kitti":
         yield from _run_kitti(plan, todo[0], out, progress)
         return
-    with tqdm(total=len(todo), unit="depth", desc="ground truth", disable=None if progress else True,
-              file=sys.stderr, dynamic_ncols=True) as bar:
+    with progress_bar("depth", len(todo), progress=progress, desc="ground truth") as bar:
         for job in todo:
             yield _run_nyu(plan, job, out)
             bar.update(1)
@@ -173,13 +171,12 @@ def run_gt(plan: GtPlan, out: Path, done: dict[str, Row], progress: bool = False
 
 def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
     from threadpoolctl import threadpool_limits
-    from tqdm import tqdm
+    from ..progress import bar as progress_bar
 
     from ..sources import kitti_raw as gt_kitti
 
     target = out / job.output
-    with tqdm(total=len(job.frames), unit="frame", desc="ground truth", disable=None if progress else True,
-              file=sys.stderr, dynamic_ncols=True) as bar:
+    with progress_bar("frame", len(job.frames), progress=progress, desc="ground truth") as bar:
         try:
             with threadpool_limits(1, user_api="blas"):
                 maps = list(gt_kitti.depth_maps(plan.root, job.frames, plan.split_name, bar.update))

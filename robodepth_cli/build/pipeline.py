@@ -364,15 +364,14 @@ def run_tasks(tasks: list[Task], ctx: Context, executor: Executor, out: Path,
 
 def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary: Summary,
          progress: bool) -> None:
-    from tqdm import tqdm
+    from ..progress import bar as progress_bar
 
     try:
         writer = manifest.ManifestWriter(out)
     except OSError as exc:
         summary.fatal = cannot_write(out / MANIFEST, exc)
         return
-    bar = tqdm(total=summary.total, unit="img", disable=None if progress else True,
-               file=sys.stderr, dynamic_ncols=True, smoothing=0.05)
+    bar = progress_bar("img", summary.total, progress=progress, smoothing=0.05)
     # Outputs whose rows predate the source records: written again even when skipped.
     refresh = {job.path(t.source.key) for t in tasks if t.refresh for job in t.jobs}
     with bar, writer:

@@ -137,11 +137,10 @@ def verify_command(out, progress):
     otherwise; 2 if OUT cannot be verified (no manifest, a damaged one, or a build writing
     there right now).
     """
-    from tqdm import tqdm
-
     from ..output.verify import verify
+    from ..progress import bar as progress_bar
 
-    with tqdm(unit="file", disable=None if progress else True, file=sys.stderr) as bar:
+    with progress_bar("file", progress=progress) as bar:
         report = verify(out, progress=bar.update)
     if report.incomplete():
         click.echo(report.incomplete())

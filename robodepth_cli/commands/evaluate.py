@@ -3,7 +3,6 @@ the scores)."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import click
@@ -87,7 +86,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     """
     import json
 
-    from tqdm import tqdm
+    from ..progress import bar as progress_bar
 
     from ..evaluation import evaluate as E
     from ..workers import default_jobs
@@ -126,8 +125,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
             raise RobodepthError(f"--score: {dataset.name} has no robustness scores (they exist "
                                  f"for {', '.join(S.BENCHMARKS)})")
         bench = S.get_benchmark(dataset.name)
-    with tqdm(unit="img", disable=None if progress else True, file=sys.stderr,
-              dynamic_ncols=True) as bar:
+    with progress_bar("img", progress=progress) as bar:
         def set_total(n):
             # Restarts the clock too: the ground truth was read meanwhile, and counting that
             # time against the first image made the first estimate hours long.

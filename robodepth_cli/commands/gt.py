@@ -4,7 +4,6 @@ compares predictions with, made from the official downloads."""
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import click
@@ -47,10 +46,9 @@ def _stage(bar, text: str) -> None:
 
 
 def _bar(total: int, progress: bool):
-    from tqdm import tqdm
+    from ..progress import bar
 
-    return tqdm(total=total, unit="frame", disable=None if progress else True, file=sys.stderr,
-                dynamic_ncols=True)
+    return bar("frame", total, progress=progress)
 
 
 @gt_command.command("kitti")

@@ -19,9 +19,9 @@ import numpy as np
 
 from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS
 from ..imageio import ImageError
+from ..keys import KITTI_PREFIX, PRESET_EXTS as SOURCE_EXTS  # tried in this order when a split names none
 from .splits import SplitError
-SOURCE_EXTS = (".png", ".jpg", ".jpeg")  # tried in this order when a split names no extension
-KITTI_PREFIX = "kitti_data"
+
 KITTI_SIDES = {"l": "image_02", "r": "image_03"}
 
 

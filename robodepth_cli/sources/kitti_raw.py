@@ -355,9 +355,7 @@ def save_object_npz(path: Path, arrays: Sequence[np.ndarray], keys: Sequence[str
     array's buffer goes straight into the compressor, no copy of the maps is made. The
     file appears atomically (temporary name in the same directory, then rename).
     """
-    import hashlib
-
-    from ..files import atomic_output
+    from ..files import atomic_output, sha256_stream
 
     obj = np.empty(len(arrays), dtype=object)
     for i, a in enumerate(arrays):  # item by item: obj[:] = arrays would try to broadcast
@@ -373,7 +371,4 @@ def save_object_npz(path: Path, arrays: Sequence[np.ndarray], keys: Sequence[str
                 with zf.open(KEYS_MEMBER, "w") as member:
                     np.lib.format.write_array(member, np.array(list(keys), dtype=str), allow_pickle=False)
         raw.seek(0)
-        digest = hashlib.sha256()
-        for chunk in iter(lambda: raw.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
+        return sha256_stream(raw)
