@@ -53,9 +53,9 @@ def check_seed(value, where: str = "--seed") -> int:
     :class:`~robodepth_cli.errors.RobodepthError` naming ``where`` otherwise.
     """
     from .errors import RobodepthError
+    from .values import int_from_text, is_int
 
-    if isinstance(value, str) and value.strip().lstrip("-").isdigit():
-        value = int(value)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+    value = int_from_text(value)
+    if not is_int(value) or value < 0:
         raise RobodepthError(f"{where}: expected an integer >= 0, got {value!r}")
     return value

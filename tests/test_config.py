@@ -74,6 +74,10 @@ def test_bad_values_name_file_key_and_choices(tmp_path, text, expected):
     ({"jobs": "0"}, "--jobs: expected an integer >= 1, got 0"),
     ({"size": "640"}, "--size: size '640' is not of the form HxW"),
     ({"limit": "0"}, "--limit: expected an integer >= 1, got 0"),
+    # Text that only looks like an integer to a digit test (int() refuses it) is refused,
+    # not a traceback.
+    ({"seed": "--5"}, "--seed: expected an integer >= 0, got '--5'"),
+    ({"jobs": "\u00b2"}, "--jobs: expected an integer >= 1, got '\u00b2'"),
 ])
 def test_bad_flags_name_the_flag(flags, expected):
     with pytest.raises(ConfigError) as err:

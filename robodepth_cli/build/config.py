@@ -36,6 +36,7 @@ from ..sources import splits
 from ..sources.datasets import get_dataset
 from ..imageio import parse_size
 from ..errors import RobodepthError
+from ..values import int_from_text, is_int
 
 CONFIG_DIR = data_dir("configs")
 ALL = "all"
@@ -106,14 +107,9 @@ def _loc(where: str, key: str) -> str:
     return where if where.startswith("--") else f"{where}: {key}"
 
 
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
 def _int(loc: str, v, minimum: int) -> int:
-    if isinstance(v, str) and v.strip().lstrip("-").isdigit():
-        v = int(v)  # flags arrive as text
-    if not _is_int(v) or v < minimum:
+    v = int_from_text(v)
+    if not is_int(v) or v < minimum:
         raise ConfigError(f"{loc}: expected an integer >= {minimum}, got {v!r}")
     return v
 
@@ -122,7 +118,7 @@ def _names(loc: str, v) -> list:
     """A list from a YAML list, ``all``, or comma-separated text; empty lists refused."""
     if isinstance(v, str):
         v = [s.strip() for s in v.split(",") if s.strip()]
-    elif _is_int(v) or isinstance(v, float):
+    elif is_int(v) or isinstance(v, float):
         v = [v]
     if not isinstance(v, list) or not v:
         raise ConfigError(f"{loc}: expected a non-empty list or {ALL!r}, got {v!r}")
@@ -198,8 +194,8 @@ def check_train(loc: str, v, ds) -> dict[str, Any]:
                                                         ds.variant_noun, owner=ds.name,
                                                         known=ds.known_variant_names())}
     steps = v.get("steps", [1, 3])
-    steps = [steps, steps] if _is_int(steps) else steps
-    if (not isinstance(steps, list) or len(steps) != 2 or not all(_is_int(s) for s in steps)
+    steps = [steps, steps] if is_int(steps) else steps
+    if (not isinstance(steps, list) or len(steps) != 2 or not all(is_int(s) for s in steps)
             or not 1 <= steps[0] <= steps[1] <= MAX_STEPS):
         raise ConfigError(f"{loc}: steps: expected an integer or [min, max] within 1..{MAX_STEPS}, got {steps!r}")
     out["steps"] = steps
@@ -304,7 +300,7 @@ class _Resolver:
         if key == "size":
             if v is None and ds.discovers_sources:
                 return None  # each image at its own size
-            if isinstance(v, list) and len(v) == 2 and all(_is_int(s) for s in v):
+            if isinstance(v, list) and len(v) == 2 and all(is_int(s) for s in v):
                 v = f"{v[0]}x{v[1]}"
             if not isinstance(v, str):
                 raise ConfigError(f"{loc}: expected HxW such as 192x640, or [H, W], got {v!r}")

@@ -21,6 +21,7 @@ from PIL import Image
 from ..imageio import MIN_SIDE, read_rgb
 from ..files import sha256_file
 from ..errors import RobodepthError
+from ..values import int_from_text
 
 # The 12 KITTI-S styles in the benchmark's order; also the output directory names.
 STYLES: tuple[str, ...] = (
@@ -151,9 +152,7 @@ def check_option(key: str, value, base: Path):
     if key == "alpha":
         return check_alpha(value)
     if key == "style_size":
-        if isinstance(value, str) and value.strip().isdigit():
-            value = int(value)  # flags arrive as text
-        return check_style_size(value) or 0
+        return check_style_size(int_from_text(value, negative=False)) or 0
     raise ValueError(f"unknown option {key!r}")
 
 
