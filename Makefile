@@ -17,7 +17,7 @@ test:
 	$(PYTHON) -m pytest -q
 
 bench:
-	$(PYTHON) bench/run.py
+	$(PYTHON) -m bench.run
 
 # The whole loop on the fixtures: the KITTI frames get synthetic velodyne scans (copied in
 # from their own tree, so the tests' KITTI fixture stays without ground truth), the build

@@ -36,7 +36,7 @@ reaches within about 10%).
 Goals (2-core machine): full KITTI-C at 192 x 640 in <= 100 s and >= 5x the
 alternative; full NYUDepth2-C in <= 150 s; peak memory of a whole build <= 1.5 GB.
 
-    python bench/build.py [--sources N] [--nyu-sources N] [--no-alternative] [--no-compact]
+    python -m bench.build [--sources N] [--nyu-sources N] [--no-alternative] [--no-compact]
                           [--keep DIR]
 """
 
@@ -53,10 +53,9 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "tests")]
 
-import _trees  # noqa: E402  (the test suite's tree builders)
-from _paths import FIXTURES  # noqa: E402  (tests/data/fixtures, inside the repository)
+from tests import _trees  # the test suite's tree builders
+from tests._paths import FIXTURES  # tests/data/fixtures, inside the repository
 
 KITTI_FRAMES = FIXTURES / "kitti_raw" / "2011_09_26" / "2011_09_26_drive_0002_sync" / "image_02" / "data"
 NYU_FRAMES = FIXTURES / "nyu" / "bedroom"
@@ -240,7 +239,7 @@ def measure(cmd: list[str], out: Path, total: int, log: Path) -> dict:
             "cpu_per_png": cpu_per_png, "bytes": sum(f.stat().st_size for f in out.rglob("*.png"))}
 
 
-# --- the straightforward alternative (runs in its own process: python bench/build.py --alternative) ---
+# --- the straightforward alternative (runs in its own process: python -m bench.build --alternative) ---
 
 def _alternative_job(src: str, dst: str, name: str, level: int, size: tuple[int, int]) -> None:
     import zlib
@@ -248,7 +247,7 @@ def _alternative_job(src: str, dst: str, name: str, level: int, size: tuple[int,
     import numpy as np
     from PIL import Image
 
-    from corruptions import oracle  # bench/corruptions.py
+    from bench.corruptions import oracle
 
     im = Image.open(src).convert("RGB")
     h, w = size
@@ -405,7 +404,7 @@ def run(base: Path, args) -> int:
               f"{ours['bytes'] / compact['bytes']:.2f}x the bytes")
 
     if not args.no_alternative:
-        alt = measure([py, __file__, "--alternative", str(root), str(split), str(base / "alt")],
+        alt = measure([py, "-m", "bench.build", "--alternative", str(root), str(split), str(base / "alt")],
                       base / "alt", total, base / "alt.log")
         alt_full = show("alternative (imagecorruptions + SPEC formulas, joblib, Pillow)", alt, n,
                         KITTI_FULL, KITTI_PER_SOURCE)

@@ -25,7 +25,7 @@ disturb both alike.
 
 Goal (issue 15): overhead per image under 10% of a local build's time at 192 x 640.
 
-    python bench/cluster.py [--sources N] [--rounds R] [--dask-defaults] [--keep DIR]
+    python -m bench.cluster [--sources N] [--rounds R] [--dask-defaults] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -41,10 +41,8 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
 
-import build as bench  # noqa: E402  (bench/build.py: input trees and measuring)
+from bench import build as bench  # input trees and measuring
 
 GOAL_OVERHEAD = 0.10
 # The settings docs/cluster.md recommends for build workers: Dask's diagnostics (the dashboard's

@@ -9,7 +9,7 @@ straightforward SPEC formula written inline below.
 Goals: all 90 variants (18 x 5) of one image in <= 0.8 s on one core in total,
 and >= 4x faster than the oracle overall.
 
-    python bench/corruptions.py [--repeats N] [--image PATH] [--only NAME,NAME]
+    python -m bench.corruptions [--repeats N] [--image PATH] [--only NAME,NAME]
 """
 
 from __future__ import annotations
@@ -31,9 +31,8 @@ import numpy as np  # noqa: E402
 from PIL import Image, ImageOps  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "tests")]
 
-from _paths import REFERENCE  # noqa: E402  (tests/data/reference, inside the repository)
+from tests._paths import REFERENCE  # noqa: E402  (tests/data/reference, inside the repository)
 from robodepth_cli.corruptions import REGISTRY, corrupt  # noqa: E402
 
 DEFAULT_IMAGE = REFERENCE / "kitti" / "kitti_like_md2__input.png"

@@ -13,7 +13,7 @@ them). The full-benchmark estimate is the ground truth's reading time plus the
 time until each worker's first result plus the remaining maps of the benchmark (KITTI-C
 91 x 697, NYUDepth2-C 61 x 654) at the steady rate measured after those first results.
 
-    python bench/evaluate.py [--variants 6] [--images 697] [--protocol kitti|nyu|both]
+    python -m bench.evaluate [--variants 6] [--images 697] [--protocol kitti|nyu|both]
                              [--jobs 1,2]
 """
 
@@ -29,8 +29,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]
 
 from robodepth_cli.output import manifest  # noqa: E402
 from robodepth_cli.api import open_dataset  # noqa: E402
@@ -112,7 +110,7 @@ def measure(tmp: Path, protocol: str, jobs: int) -> None:
     import robodepth_cli.evaluation.evaluate as E
 
     E.MAPS_PER_WORKER = 1  # a subset: let every job run, as on the full benchmark
-    from build import TreeSampler  # bench/build.py: sums RSS and PSS over a process tree
+    from bench.build import TreeSampler  # sums RSS and PSS over a process tree
 
     sampler = TreeSampler(os.getpid(), interval=0.2, pss_every=5)
     sampler.start()
@@ -173,7 +171,7 @@ def main() -> int:
     print(f"{os.cpu_count()} CPUs, load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
     with tempfile.TemporaryDirectory(prefix="robodepth-bench-eval-") as tmp:
         for proto in protocols:
-            common = [sys.executable, __file__, "--protocol", proto, "--variants", str(args.variants),
+            common = [sys.executable, "-m", "bench.evaluate", "--protocol", proto, "--variants", str(args.variants),
                       "--images", str(args.images)]
             subprocess.run(common + ["--_make", tmp], check=True)
             fulls = []

@@ -21,7 +21,7 @@ are checked equal on the way.
 
 It runs with ``--jobs 1`` and then ``--jobs 2`` (the ratio is printed).
 
-    python bench/gt.py [--frames N] [--points N] [--compare N] [--keep DIR]
+    python -m bench.gt [--frames N] [--points N] [--compare N] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -39,16 +39,13 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests"))
 
-from _paths import FIXTURES, SPLITS  # noqa: E402  (tests/data, inside the repository)
+from tests._paths import FIXTURES, SPLITS  # tests/data, inside the repository
 
 CALIB = FIXTURES / "kitti_raw" / "2011_09_26"
 EIGEN = SPLITS / "eigen_test_files.txt"
 SIZES = {"2011_09_26": (1242, 375), "2011_09_28": (1224, 370), "2011_09_29": (1238, 374),
          "2011_09_30": (1226, 370), "2011_10_03": (1241, 376)}
-
-sys.path.insert(0, str(REPO))
 
 
 def write_calibration(root: Path) -> None:

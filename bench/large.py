@@ -8,7 +8,7 @@
 
 Goals (issue 14): all 90 variants in < 5 s on one core; peak memory < 1.5 GB.
 
-    python bench/large.py [--rounds N] [--sources N]
+    python -m bench.large [--rounds N] [--sources N]
 """
 
 from __future__ import annotations
@@ -28,10 +28,6 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
-HERE = Path(__file__).resolve().parent
-REPO = HERE.parent
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(HERE))
 
 from robodepth_cli.corruptions import REGISTRY, corrupt  # noqa: E402
 from robodepth_cli.imageio import encode_png, resize_lanczos  # noqa: E402
@@ -79,7 +75,7 @@ def png_time(x: np.ndarray) -> float:
 
 
 def build_memory(n: int, base: Path) -> dict:
-    import build as bench_build  # bench/build.py: the process-tree sampler
+    from bench import build as bench_build  # the process-tree sampler
 
     root = base / "frames"
     for i in range(n):

@@ -9,7 +9,7 @@ against the two older ways measured in this run, and the CPU time for the whole 
 KITTI-C's 63,427 images. Every encoder's output is decoded once and compared with the
 input pixels.
 
-    python bench/png.py [--repeats N]
+    python -m bench.png [--repeats N]
 """
 
 from __future__ import annotations
@@ -24,16 +24,12 @@ import argparse  # noqa: E402
 import io  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "tests")]
-
-from _paths import FIXTURES  # noqa: E402
+from tests._paths import FIXTURES  # noqa: E402
 from robodepth_cli.corruptions import NAMES, corrupt  # noqa: E402
 from robodepth_cli.imageio import encode_png, load_clean  # noqa: E402
 from robodepth_cli.seeding import job_rng  # noqa: E402

@@ -8,7 +8,7 @@ default 8, against the hand-written loop a user would otherwise write (one image
 time: open, forward, and `save_predictions` at the end of the variant). The machine's load
 (os.getloadavg) is printed before and after: on a shared machine the numbers move with it.
 
-    python bench/predict.py [--images 24] [--rounds 2] [--threads N]
+    python -m bench.predict [--images 24] [--rounds 2] [--threads N]
 """
 
 from __future__ import annotations
@@ -23,18 +23,15 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
-sys.path.insert(0, str(HERE))
 
-from evaluate import fake_dataset  # noqa: E402  (bench/evaluate.py)
+from bench.evaluate import fake_dataset
 
 
 def make(tmp: Path, n: int) -> tuple[Path, Path]:
     import torch
     from PIL import Image
 
-    sys.path.insert(0, str(HERE.parent / "tests"))
-    from test_predict import random_monodepth2  # the tests' random checkpoint writer
+    from tests.test_predict import random_monodepth2  # the tests' random checkpoint writer
 
     frames = sorted((HERE.parent / "tests/data/fixtures/kitti_raw").rglob("image_02/data/*.png"))
     keys = [f"kitti_data/d/image_02/data/{i:010d}.png" for i in range(n)]

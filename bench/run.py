@@ -1,4 +1,5 @@
-"""`make bench`: run every benchmark script under bench/ that exists, one after another.
+"""`make bench` (``python -m bench.run``): run every benchmark script under bench/ that
+exists, one after another.
 
 Each runs in its own interpreter with its default settings (so each sets its own thread
 limits before importing numpy); run a script directly to pass it options. Each script
@@ -28,7 +29,8 @@ def main() -> int:
         load = os.getloadavg()
         print(f"=== bench/{script} (load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on "
               f"{os.cpu_count()} CPUs)", flush=True)
-        if subprocess.run([sys.executable, str(path)]).returncode != 0:
+        # As a module from the repository root: see bench/__init__.py.
+        if subprocess.run([sys.executable, "-m", f"bench.{path.stem}"], cwd=HERE.parent).returncode != 0:
             failed.append(script)
         print(flush=True)
     if failed:

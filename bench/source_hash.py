@@ -16,7 +16,7 @@ of the real ones):
 
 A warm-up pass on another image compiles the numba kernels first.
 
-    python bench/source_hash.py
+    python -m bench.source_hash
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
     os.environ.setdefault(_var, "1")
 
 import hashlib  # noqa: E402
-import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -35,7 +34,6 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from robodepth_cli.benchmarks import BENCHMARKS  # noqa: E402
 from robodepth_cli.corruptions import corrupt  # noqa: E402

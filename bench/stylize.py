@@ -17,7 +17,7 @@ Goal: <= 0.8 s per stylised image on this 2-core machine, >= 4x the
 straightforward way. With a CUDA device, ours is also timed there (``--device cuda``: all
 styles of a frame in one batch); without one the GPU line says "not measured".
 
-    python bench/stylize.py [--repeats N] [--pairs N] [--contents N] [--chunks 1,2,4]
+    python -m bench.stylize [--repeats N] [--pairs N] [--contents N] [--chunks 1,2,4]
                             [--style-hw 512x512] [--no-processes]
 """
 
@@ -33,8 +33,6 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
 import torch  # noqa: E402
 from joblib import Parallel, delayed  # noqa: E402

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from robodepth_cli import corruptions, seeding
+from robodepth_cli import corruptions, files, seeding
 
 from robodepth_cli.build import pipeline as builder, tasks
 
@@ -258,7 +258,7 @@ def test_unwritable_out(tmp_path, kitti, monkeypatch, build_kitti):
     def denied(*a, **k):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(builder.tempfile, "TemporaryFile", denied)
+    monkeypatch.setattr(files.tempfile, "TemporaryFile", denied)  # files.probe_writable
     res = build_kitti(root, split, tmp_path / "out", "--corruptions", "contrast")
     assert res.exit_code == 2
     assert "out: cannot write the output directory (Permission denied)" in res.output
