@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import RobodepthError, cannot_write
+from .errors import InvalidValueError, RobodepthError, cannot_write
 from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir
 from .output.record import BuildRecord
 
@@ -298,7 +298,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
         raise DatasetError(f"{record_path}: not a robodepth build record (no dataset)")
     try:
         ds = get_dataset(record.dataset)
-    except ValueError as exc:
+    except InvalidValueError as exc:
         raise DatasetError(f"{record_path}: {exc}") from None
     keys = _split_keys(record, record_path, ds)
     try:

@@ -13,6 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Mapping
 
+from .errors import InvalidValueError
+
 WEATHER = "weather & lighting"
 SENSOR = "sensor & movement"
 DATA = "data & processing"
@@ -82,8 +84,8 @@ BENCHMARKS: dict[str, Benchmark] = {
 
 
 def get_benchmark(name: str) -> Benchmark:
-    """The benchmark called ``name``; ``ValueError`` listing the valid names otherwise."""
+    """The benchmark called ``name``; :class:`InvalidValueError` listing the valid names otherwise."""
     try:
         return BENCHMARKS[name]
     except KeyError:
-        raise ValueError(f"unknown benchmark {name!r}; valid: {', '.join(BENCHMARKS)}") from None
+        raise InvalidValueError(f"unknown benchmark {name!r}; valid: {', '.join(BENCHMARKS)}") from None

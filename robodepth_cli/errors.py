@@ -16,6 +16,14 @@ class RobodepthError(ValueError):
     """A problem with the user's input or environment; the message is one line."""
 
 
+class InvalidValueError(RobodepthError):
+    """A value refused by a check that does not know where the value was given (a flag, a
+    configuration key, a line of a split or list file): the message says what is wrong
+    with the value; a caller that knows the place catches this class and raises its own
+    error naming it (``--split: ...``, ``config.yaml: size: ...``, ``split.txt:3: ...``).
+    Uncaught, it is still a complete refusal."""
+
+
 def os_reason(exc: OSError) -> str:
     """The readable part of an ``OSError`` ("No space left on device"), without errno noise."""
     return exc.strerror or str(exc)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
-from .errors import RobodepthError
+from .errors import InvalidValueError, RobodepthError
 from .files import write_atomic
 
 MIN_SIDE = 32
@@ -26,16 +26,16 @@ def as_rgb(img: np.ndarray, *, what: str = "image") -> np.ndarray:
     """Return ``img`` as a uint8 H x W x 3 RGB array.
 
     Grayscale (H x W or H x W x 1) is repeated over three channels, RGBA drops its alpha,
-    16-bit integers are scaled to 8 bits. Anything else raises ``ValueError``.
+    16-bit integers are scaled to 8 bits. Anything else raises :class:`ImageError`.
     """
     if not isinstance(img, np.ndarray):
-        raise ValueError(f"{what}: expected a numpy array, got {type(img).__name__}")
+        raise ImageError(f"{what}: expected a numpy array, got {type(img).__name__}")
     if img.dtype == np.uint16:
         img = (img >> 8).astype(np.uint8)
     elif img.dtype == np.bool_:
         img = img.astype(np.uint8) * 255
     if img.dtype != np.uint8:
-        raise ValueError(f"{what}: expected uint8 pixels, got {img.dtype}")
+        raise ImageError(f"{what}: expected uint8 pixels, got {img.dtype}")
     if img.ndim == 3 and img.shape[2] == 1:
         img = img[..., 0]
     if img.ndim == 2:
@@ -43,10 +43,10 @@ def as_rgb(img: np.ndarray, *, what: str = "image") -> np.ndarray:
     elif img.ndim == 3 and img.shape[2] == 4:
         img = img[..., :3]
     if img.ndim != 3 or img.shape[2] != 3:
-        raise ValueError(f"{what}: expected H x W, H x W x 3 or H x W x 4 pixels, got shape {img.shape}")
+        raise ImageError(f"{what}: expected H x W, H x W x 3 or H x W x 4 pixels, got shape {img.shape}")
     h, w = img.shape[:2]
     if h < MIN_SIDE or w < MIN_SIDE:
-        raise ValueError(f"{what}: {h}x{w} pixels (HxW) is too small (at least {MIN_SIDE}x{MIN_SIDE})")
+        raise ImageError(f"{what}: {h}x{w} pixels (HxW) is too small (at least {MIN_SIDE}x{MIN_SIDE})")
     return np.ascontiguousarray(img)
 
 
@@ -222,13 +222,13 @@ def write_png(path: str | os.PathLike, img: np.ndarray, compress_level: int = 1,
 
 
 def parse_size(text: str) -> tuple[int, int]:
-    """``"192x640"`` -> ``(192, 640)``; ``ValueError`` with a readable message otherwise."""
+    """``"192x640"`` -> ``(192, 640)``; ``InvalidValueError`` with a readable message otherwise."""
     parts = text.lower().replace(" ", "").split("x")
     if len(parts) != 2 or not all(p.isdigit() for p in parts):
-        raise ValueError(f"size {text!r} is not of the form HxW, e.g. 192x640")
+        raise InvalidValueError(f"size {text!r} is not of the form HxW, e.g. 192x640")
     h, w = int(parts[0]), int(parts[1])
     if h < MIN_SIDE or w < MIN_SIDE:
-        raise ValueError(f"size {text!r}: both sides must be at least {MIN_SIDE}")
+        raise InvalidValueError(f"size {text!r}: both sides must be at least {MIN_SIDE}")
     if h > MAX_SIDE or w > MAX_SIDE:
-        raise ValueError(f"size {text!r}: both sides must be at most {MAX_SIDE}")
+        raise InvalidValueError(f"size {text!r}: both sides must be at most {MAX_SIDE}")
     return h, w

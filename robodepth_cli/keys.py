@@ -16,9 +16,23 @@ from __future__ import annotations
 
 from pathlib import PurePosixPath
 
+from .errors import InvalidValueError
+
 KITTI_PREFIX = "kitti_data"
 # The extensions a preset split's source may have (a custom source's is always replaced).
 PRESET_EXTS = (".png", ".jpg", ".jpeg")
+
+
+def relative_parts(text: str, what: str) -> list[str]:
+    """The components of a relative posix path, refusing anything that could leave the root
+    (absolute paths, ``..``, empty or ``.`` components, backslashes, NUL) with
+    :class:`~robodepth_cli.errors.InvalidValueError` calling it ``what``."""
+    if not text or "\\" in text or "\0" in text or text.startswith("/"):
+        raise InvalidValueError(f"{what} {text!r} is not a relative path")
+    parts = text.split("/")
+    if any(p in ("", ".", "..") for p in parts):
+        raise InvalidValueError(f"{what} {text!r} has an empty, '.' or '..' component")
+    return parts
 
 
 def custom_key(rel: str) -> str:

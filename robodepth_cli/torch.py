@@ -33,7 +33,9 @@ from PIL import Image
 
 from . import corruptions, seeding
 from .api import _failed_text, open_dataset
-from .errors import RobodepthError
+from .corruptions.severity import LevelError
+from .errors import InvalidValueError, RobodepthError
+from .imageio import ImageError
 from .keys import seed_key
 from .output.layout import CLEAN, GT_FILE, variant_dir
 
@@ -110,7 +112,7 @@ def _check(name: str, level) -> tuple[str, int | float]:
     try:
         c = corruptions.get(name)
         return c.name, corruptions.check_level(c, level)
-    except ValueError as exc:
+    except (InvalidValueError, LevelError) as exc:
         raise TorchAPIError(str(exc)) from None
 
 
@@ -179,9 +181,7 @@ class Corrupt:
         arr, back = _to_array(img)
         try:
             out = self._apply(arr, key)
-        except RobodepthError:
-            raise
-        except ValueError as exc:  # e.g. an image below 32 x 32
+        except ImageError as exc:  # e.g. an image below 32 x 32
             raise TorchAPIError(str(exc)) from None
         return back(out)
 

@@ -238,7 +238,7 @@ def read_scheduler_file(path: str | os.PathLike) -> str:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
     except OSError as exc:
         raise ClusterError(f"{path}: cannot read the scheduler file ({os_reason(exc)})") from None
-    except ValueError:
+    except (UnicodeDecodeError, json.JSONDecodeError):
         raise ClusterError(f"{path}: not a scheduler file (not JSON)") from None
     address = data.get("address") if isinstance(data, dict) else None
     if not isinstance(address, str) or not address:

@@ -35,7 +35,7 @@ from .. import data_dir
 from ..sources import splits
 from ..sources.datasets import get_dataset
 from ..imageio import parse_size
-from ..errors import RobodepthError
+from ..errors import InvalidValueError, RobodepthError
 from ..values import int_from_text, is_int
 
 CONFIG_DIR = data_dir("configs")
@@ -279,7 +279,7 @@ class _Resolver:
     def _set_dataset(self, where: str, name) -> None:
         try:
             ds = get_dataset(name)
-        except ValueError as exc:
+        except InvalidValueError as exc:
             raise ConfigError(f"{where}: dataset: {exc}") from None
         if "dataset" in self.values and ds.name != self.values["dataset"]:
             raise ConfigError(f"{where}: dataset: {name!r} does not match {self.values['dataset']!r} "
@@ -295,7 +295,7 @@ class _Resolver:
                                   f"--root (--pattern), or those of --list FILE")
             try:
                 return splits.check_choice(v, ds.split_format, base, owner=ds.name)
-            except ValueError as exc:
+            except (InvalidValueError, splits.SplitError) as exc:  # SplitError: the records file
                 raise ConfigError(f"{loc}: {exc}") from None
         if key == "size":
             if v is None and ds.discovers_sources:
@@ -306,7 +306,7 @@ class _Resolver:
                 raise ConfigError(f"{loc}: expected HxW such as 192x640, or [H, W], got {v!r}")
             try:
                 return parse_size(v)
-            except ValueError as exc:
+            except InvalidValueError as exc:
                 raise ConfigError(f"{loc}: {exc}") from None
         if key == ds.variant_key and v == NONE and ds.leveled:
             return ()  # only chains
@@ -353,7 +353,7 @@ class _Resolver:
             return v and str((base / Path(v).expanduser()).resolve())
         try:
             return ds.check_option(key, v, base)
-        except ValueError as exc:
+        except InvalidValueError as exc:
             raise ConfigError(f"{loc}: {exc}") from None
 
     def result(self) -> BuildConfig:

@@ -219,11 +219,9 @@ def _warn_above_cpus(workers: int, jobs: int) -> None:
 
 def make_renderer(ds: Dataset, cfg: BuildConfig) -> Renderer:
     """The dataset's renderer; it may check the user's files (KITTI-S loads and validates
-    the checkpoints and style images), which is why this runs before OUT is touched."""
-    try:
-        return ds.renderer(cfg)
-    except ValueError as exc:
-        raise BuildError(str(exc)) from None
+    the checkpoints and style images, refusing bad ones with their own errors), which is
+    why this runs before OUT is touched."""
+    return ds.renderer(cfg)
 
 
 def prepare_out(out: Path) -> Path:

@@ -85,11 +85,7 @@ def load_input(image: str, size: str | None) -> np.ndarray:
     Its EXIF orientation is applied first: a photo is corrupted the way viewers show it."""
     from ..imageio import load_clean, parse_size
 
-    try:
-        size_hw = parse_size(size) if size else None
-    except ValueError as exc:
-        raise RobodepthError(str(exc)) from None
-    return load_clean(image, size_hw, orient=True)
+    return load_clean(image, parse_size(size) if size else None, orient=True)
 
 
 def hxw(height: int, width: int) -> str:

@@ -31,7 +31,7 @@ def _split(value: str, split_format: str, owner: str) -> Path:
 
     try:
         path = splits.split_path(splits.check_choice(value, split_format, Path.cwd(), owner))
-    except ValueError as exc:
+    except RobodepthError as exc:  # a bad name, or a standard split that cannot be had
         raise RobodepthError(f"--split: {exc}") from None
     if not path.is_file():
         raise RobodepthError(f"--split: {value}: {'not a file' if path.exists() else 'no such file'}")

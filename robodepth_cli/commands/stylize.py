@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ..errors import RobodepthError
+from ..errors import InvalidValueError, RobodepthError
 from . import common
 
 @click.command("stylize")
@@ -41,7 +41,7 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, device,
     for key, value in (("alpha", alpha), ("style_size", style_size), ("vgg", vgg), ("decoder", decoder)):
         try:
             opts[key] = check_option(key, value, Path())  # paths kept as typed
-        except ValueError as exc:
+        except InvalidValueError as exc:
             raise RobodepthError(f"--{key.replace('_', '-')}: {exc}") from None
     content = common.load_input(image, size)
     style_img = load_style(style, opts["style_size"])

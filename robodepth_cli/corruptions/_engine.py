@@ -8,6 +8,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..errors import InvalidValueError
 from ..imageio import as_rgb
 from .registry import Corruption, registry
 from .chains import Chain, looks_like_chain, parse_chain
@@ -24,11 +25,11 @@ REGISTRY: dict[str, Corruption] = registry()
 NAMES: tuple[str, ...] = tuple(REGISTRY)
 
 def get(name: str) -> Corruption:
-    """The registry record of ``name``; ``ValueError`` listing the valid names otherwise."""
+    """The registry record of ``name``; :class:`InvalidValueError` listing the valid names otherwise."""
     try:
         return REGISTRY[name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown corruption {name!r}; valid: {', '.join(NAMES)}") from None
+        raise InvalidValueError(f"unknown corruption {name!r}; valid: {', '.join(NAMES)}") from None
 
 
 def check_level(corruption: Corruption, level) -> int | float:

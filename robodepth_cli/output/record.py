@@ -131,7 +131,7 @@ def read_record(out: Path) -> BuildRecord | None:
         raise RecordError(f"{path}: cannot read the build record ({exc})") from None
     try:
         data = json.loads(text)
-    except ValueError as exc:
+    except json.JSONDecodeError as exc:
         raise RecordError(f"{path}: not a build record ({exc}); if this directory is yours to "
                           f"reuse, delete the file") from None
     if not isinstance(data, dict):

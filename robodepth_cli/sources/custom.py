@@ -26,8 +26,8 @@ import os
 import re
 from pathlib import Path
 
-from ..errors import RobodepthError
-from ..keys import custom_key
+from ..errors import InvalidValueError, RobodepthError
+from ..keys import custom_key, relative_parts
 
 IMAGE_EXTS = ("png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp")
 DEFAULT_PATTERNS = tuple(f"**/*.{e}" for e in IMAGE_EXTS)
@@ -47,26 +47,26 @@ def _component_regex(comp: str, pattern: str) -> str:
         ch = comp[i]
         if ch == "*":
             if comp.startswith("**", i):
-                raise ValueError(f"pattern {pattern!r}: '**' must be a whole path component (a/**/b)")
+                raise InvalidValueError(f"pattern {pattern!r}: '**' must be a whole path component (a/**/b)")
             out.append("[^/]*")
         elif ch == "?":
             out.append("[^/]")
         elif ch == "[":
             end = comp.find("]", i + 2 if comp.startswith("[!", i) or comp.startswith("[]", i) else i + 1)
             if end < 0:
-                raise ValueError(f"pattern {pattern!r}: unclosed '['")
+                raise InvalidValueError(f"pattern {pattern!r}: unclosed '['")
             body = comp[i + 1:end]
             neg = body.startswith("!")
             body = body[1:] if neg else body
             if not body:
-                raise ValueError(f"pattern {pattern!r}: empty character set")
+                raise InvalidValueError(f"pattern {pattern!r}: empty character set")
             out.append("[" + ("^" if neg else "") + body.replace("\\", "\\\\").replace("^", "\\^") + "]")
             i = end
         elif ch in "{}":
-            raise ValueError(f"pattern {pattern!r}: braces are not supported; give several "
+            raise InvalidValueError(f"pattern {pattern!r}: braces are not supported; give several "
                              f"comma-separated patterns instead")
         elif ch == "]":
-            raise ValueError(f"pattern {pattern!r}: ']' without '['")
+            raise InvalidValueError(f"pattern {pattern!r}: ']' without '['")
         else:
             out.append(re.escape(ch))
         i += 1
@@ -75,17 +75,17 @@ def _component_regex(comp: str, pattern: str) -> str:
 
 def compile_pattern(pattern: str) -> re.Pattern:
     """A regular expression matching the relative posix paths that ``pattern`` selects;
-    ``ValueError`` describing the problem for unsupported syntax."""
+    :class:`InvalidValueError` describing the problem for unsupported syntax."""
     p = pattern.strip()
     if not p:
-        raise ValueError("empty pattern")
+        raise InvalidValueError("empty pattern")
     if p.startswith("/") or "\\" in p or "\0" in p:
-        raise ValueError(f"pattern {pattern!r}: must be a relative path with '/' separators")
+        raise InvalidValueError(f"pattern {pattern!r}: must be a relative path with '/' separators")
     comps = p.split("/")
     if any(c in ("", ".", "..") for c in comps):
-        raise ValueError(f"pattern {pattern!r}: has an empty, '.' or '..' component")
+        raise InvalidValueError(f"pattern {pattern!r}: has an empty, '.' or '..' component")
     if comps[-1] == "**":
-        raise ValueError(f"pattern {pattern!r}: must end with a file name pattern (e.g. **/*.png)")
+        raise InvalidValueError(f"pattern {pattern!r}: must end with a file name pattern (e.g. **/*.png)")
     rx = ""
     for c in comps[:-1]:
         rx += "(?:[^/]+/)*" if c == "**" else _component_regex(c, pattern) + "/"
@@ -96,15 +96,15 @@ def compile_pattern(pattern: str) -> re.Pattern:
 def parse_patterns(text) -> tuple[str, ...]:
     """Comma-separated text or a list -> the patterns, each checked by :func:`compile_pattern`."""
     if isinstance(text, str) and ("{" in text or "}" in text):
-        raise ValueError(f"pattern {text!r}: braces are not supported; give several "
+        raise InvalidValueError(f"pattern {text!r}: braces are not supported; give several "
                          f"comma-separated patterns instead (e.g. '**/*.jpg,**/*.png')")
     items = text.split(",") if isinstance(text, str) else text
     if not isinstance(items, (list, tuple)) or not items:
-        raise ValueError(f"expected comma-separated patterns such as '**/*.jpg,**/*.png', got {text!r}")
+        raise InvalidValueError(f"expected comma-separated patterns such as '**/*.jpg,**/*.png', got {text!r}")
     out = []
     for item in items:
         if not isinstance(item, str):
-            raise ValueError(f"expected a pattern, got {item!r}")
+            raise InvalidValueError(f"expected a pattern, got {item!r}")
         compile_pattern(item)
         out.append(item.strip())
     return tuple(dict.fromkeys(out))
@@ -112,16 +112,16 @@ def parse_patterns(text) -> tuple[str, ...]:
 
 def check_option(key: str, value, base: Path):
     """The checked value of config key ``pattern`` (comma-separated text or a list) or
-    ``list`` (a file, relative to ``base``); ``ValueError`` saying what is wrong."""
+    ``list`` (a file, relative to ``base``); :class:`InvalidValueError` saying what is wrong."""
     if key == "pattern":
         return parse_patterns(value)
     if key == "list":
         if value is None:
             return None
         if not isinstance(value, str) or not value.strip():
-            raise ValueError(f"expected a file listing one relative image path a line, got {value!r}")
+            raise InvalidValueError(f"expected a file listing one relative image path a line, got {value!r}")
         return str((base / Path(value).expanduser()).resolve())
-    raise ValueError(f"custom has no option {key!r}")
+    raise InvalidValueError(f"custom has no option {key!r}")
 
 
 # --- discovery ---------------------------------------------------------------------------
@@ -153,8 +153,6 @@ def discover(root: Path, patterns, exclude: Path | None = None) -> list[str]:
 
 def read_list(path: Path) -> list[tuple[int, str]]:
     """``(line number, relative path)`` of every entry of a ``--list`` file."""
-    from .datasets import _relative_parts
-
     try:
         text = Path(path).read_text(encoding="utf-8-sig")  # a byte-order mark, as in split files
     except UnicodeDecodeError:
@@ -167,8 +165,8 @@ def read_list(path: Path) -> list[tuple[int, str]]:
         if not rel or rel.startswith("#"):
             continue
         try:
-            _relative_parts(rel, "path")
-        except ValueError as exc:
+            relative_parts(rel, "path")
+        except InvalidValueError as exc:
             raise CustomSourceError(f"{path}:{n}: {exc}; list paths relative to --root, "
                                     f"inside it") from None
         if rel in seen:

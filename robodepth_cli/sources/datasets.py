@@ -18,8 +18,10 @@ from typing import Iterator, Protocol, Sequence
 import numpy as np
 
 from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS
+from ..errors import InvalidValueError
 from ..imageio import ImageError
-from ..keys import KITTI_PREFIX, PRESET_EXTS as SOURCE_EXTS  # tried in this order when a split names none
+# SOURCE_EXTS: tried in this order when a split names no extension.
+from ..keys import KITTI_PREFIX, PRESET_EXTS as SOURCE_EXTS, relative_parts
 from .splits import SplitError
 
 KITTI_SIDES = {"l": "image_02", "r": "image_03"}
@@ -65,17 +67,6 @@ class Renderer(Protocol):
         A manifest row made with another fingerprint is redone."""
 
 
-def _relative_parts(text: str, what: str) -> list[str]:
-    """The components of a relative posix path, refusing anything that could leave the root
-    (absolute paths, ``..``, empty or ``.`` components, backslashes, NUL)."""
-    if not text or "\\" in text or "\0" in text or text.startswith("/"):
-        raise ValueError(f"{what} {text!r} is not a relative path")
-    parts = text.split("/")
-    if any(p in ("", ".", "..") for p in parts):
-        raise ValueError(f"{what} {text!r} has an empty, '.' or '..' component")
-    return parts
-
-
 def _with_exts(stem: str, first: str | None = None) -> tuple[str, ...]:
     exts = ((first,) if first else ()) + tuple(e for e in SOURCE_EXTS if e != first)
     return tuple(stem + e for e in exts)
@@ -85,13 +76,13 @@ def parse_eigen(fields: list[str]) -> tuple[str, tuple[str, ...]]:
     """``DATE/DRIVE FRAME SIDE`` -> (key, candidates). The frame number is zero-padded to 10
     digits, as the benchmark's KITTI loader formats it."""
     if len(fields) != 3:
-        raise ValueError(f"expected 3 fields 'DATE/DRIVE FRAME SIDE', got {len(fields)}")
+        raise InvalidValueError(f"expected 3 fields 'DATE/DRIVE FRAME SIDE', got {len(fields)}")
     folder, frame, side = fields
-    parts = _relative_parts(folder, "folder")
+    parts = relative_parts(folder, "folder")
     if not frame.isdigit():
-        raise ValueError(f"frame {frame!r} is not a number")
+        raise InvalidValueError(f"frame {frame!r} is not a number")
     if side not in KITTI_SIDES:
-        raise ValueError(f"side {side!r} is not one of {', '.join(KITTI_SIDES)}")
+        raise InvalidValueError(f"side {side!r} is not one of {', '.join(KITTI_SIDES)}")
     rel = "/".join([*parts, KITTI_SIDES[side], "data", f"{int(frame):010d}"])
     return f"{KITTI_PREFIX}/{rel}.png", _with_exts(rel)
 
@@ -99,14 +90,14 @@ def parse_eigen(fields: list[str]) -> tuple[str, tuple[str, ...]]:
 def parse_nyu(fields: list[str]) -> tuple[str, tuple[str, ...]]:
     """``RGB DEPTH FOCAL`` -> (key, candidates); the RGB path as listed is tried first."""
     if len(fields) != 3:
-        raise ValueError(f"expected 3 fields 'RGB DEPTH FOCAL', got {len(fields)}")
+        raise InvalidValueError(f"expected 3 fields 'RGB DEPTH FOCAL', got {len(fields)}")
     rgb, depth, focal = fields
-    _relative_parts(rgb, "RGB path")
-    _relative_parts(depth, "depth path")
+    relative_parts(rgb, "RGB path")
+    relative_parts(depth, "depth path")
     try:
         float(focal)
     except ValueError:
-        raise ValueError(f"focal length {focal!r} is not a number") from None
+        raise InvalidValueError(f"focal length {focal!r} is not a number") from None
     p = PurePosixPath(rgb)
     if p.suffix.lower() in SOURCE_EXTS:
         stem = str(p.with_suffix(""))
@@ -140,7 +131,7 @@ def read_split(path: Path, split_format: str, data: bytes | None = None) -> list
         fields = tuple(line.split())
         try:
             key, cands = parse(list(fields))
-        except ValueError as exc:
+        except InvalidValueError as exc:
             other = _other_format(line, split_format)
             if other:
                 raise SplitError(f"{path}:{n}: this looks like {SPLIT_KINDS[other]}; this dataset "
@@ -162,7 +153,7 @@ def _other_format(line: str, split_format: str) -> str:
             continue
         try:
             parse(line.split())
-        except ValueError:
+        except InvalidValueError:
             continue
         return fmt
     return ""
@@ -250,9 +241,9 @@ class Dataset:
         return ()
 
     def check_option(self, key: str, value, base: Path):
-        """The checked value of option ``key``; ``ValueError`` saying what is wrong.
+        """The checked value of option ``key``; :class:`InvalidValueError` saying what is wrong.
         ``base`` is the directory relative paths are resolved against."""
-        raise ValueError(f"{self.name} has no option {key!r}")
+        raise InvalidValueError(f"{self.name} has no option {key!r}")
 
     def renderer(self, config) -> Renderer:
         return CorruptionRenderer(self.name, config.seed)
@@ -333,7 +324,8 @@ DATASETS: dict[str, Dataset] = {
 
 
 def get_dataset(name: str) -> Dataset:
+    """The dataset called ``name``; :class:`InvalidValueError` listing the valid names otherwise."""
     try:
         return DATASETS[name]
     except KeyError:
-        raise ValueError(f"unknown dataset {name!r}; valid: {', '.join(DATASETS)}") from None
+        raise InvalidValueError(f"unknown dataset {name!r}; valid: {', '.join(DATASETS)}") from None

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from .. import data_dir
 from ..files import sha256_bytes, write_atomic
-from ..errors import RobodepthError
+from ..errors import InvalidValueError, RobodepthError
 
 RECORDS_FILE = data_dir("splits") / "splits.json"
 TIMEOUT_S = 30.0
@@ -68,23 +68,23 @@ def check_choice(value, split_format: str, base: Path, owner: str = "this datase
     """The split a configuration names: a standard split name whose format is
     ``split_format`` (e.g. "eigen"), kept as the name, or a split file, returned as typed
     (joined to ``base``, e.g. a config file's directory), so messages show what the user
-    wrote. ``ValueError`` for anything else, including a bare word that is neither a
+    wrote. :class:`InvalidValueError` for anything else, including a bare word that is neither a
     standard name nor a file (the message lists the standard names); the file itself is
     read later."""
     if not isinstance(value, str) or not value:
-        raise ValueError(f"expected a standard split name or a file, got {value!r}")
+        raise InvalidValueError(f"expected a standard split name or a file, got {value!r}")
     recs = records()
     if value in recs:
         if recs[value].format != split_format:
             fits = [r.name for r in recs.values() if r.format == split_format]
-            raise ValueError(f"{value!r} is not a split of {owner}; valid: "
+            raise InvalidValueError(f"{value!r} is not a split of {owner}; valid: "
                              f"{', '.join(fits)} or a split file")
         return value
     path = Path(base) / Path(value).expanduser()
     if not path.exists() and "/" not in value and os.sep not in value and not Path(value).suffix:
         # A bare word such as 'eigen' was meant as a standard split name.
         fits = [r.name for r in recs.values() if r.format == split_format]
-        raise ValueError(f"no standard split named {value!r} (and no such file); standard splits "
+        raise InvalidValueError(f"no standard split named {value!r} (and no such file); standard splits "
                          f"of {owner}: {', '.join(fits)}; or give a split file")
     return str(path)
 

@@ -20,7 +20,7 @@ from PIL import Image
 
 from ..imageio import MIN_SIDE, read_rgb
 from ..files import sha256_file
-from ..errors import RobodepthError
+from ..errors import InvalidValueError, RobodepthError
 from ..values import int_from_text
 
 # The 12 KITTI-S styles in the benchmark's order; also the output directory names.
@@ -79,13 +79,13 @@ def find_style_images(directory: str | os.PathLike,
 
 
 def check_alpha(alpha) -> float:
-    """``alpha`` as a float in [0, 1]; ``ValueError`` otherwise."""
+    """``alpha`` as a float in [0, 1]; :class:`InvalidValueError` otherwise."""
     try:
         value = float(alpha)
     except (TypeError, ValueError):
-        raise ValueError(f"alpha must be a number between 0 and 1, got {alpha!r}") from None
+        raise InvalidValueError(f"alpha must be a number between 0 and 1, got {alpha!r}") from None
     if isinstance(alpha, bool) or not 0.0 <= value <= 1.0:
-        raise ValueError(f"alpha must be between 0 and 1, got {alpha!r}")
+        raise InvalidValueError(f"alpha must be between 0 and 1, got {alpha!r}")
     return value
 
 
@@ -95,7 +95,7 @@ def check_style_size(style_size) -> int | None:
         return None
     if isinstance(style_size, bool) or not isinstance(style_size, (int, np.integer)) \
             or style_size < MIN_SIDE:
-        raise ValueError(f"style size must be 0 (keep the image's size) or an integer >= "
+        raise InvalidValueError(f"style size must be 0 (keep the image's size) or an integer >= "
                          f"{MIN_SIDE}, got {style_size!r}")
     return int(style_size)
 
@@ -129,21 +129,21 @@ DEVICES = ("auto", "cpu", "cuda")  # as adain.DEVICES, without importing torch
 
 
 def check_option(key: str, value, base: Path):
-    """The checked value of KITTI-S option ``key``; ``ValueError`` saying what is wrong.
+    """The checked value of KITTI-S option ``key``; :class:`InvalidValueError` saying what is wrong.
     Paths are resolved against ``base``; None (unset) is allowed here, and refused by
     :func:`make_renderer` for the required ones."""
     if key in ("styles", "vgg", "decoder"):
         if value is None:
             return None
         if not isinstance(value, str) or not value:
-            raise ValueError(f"expected a path, got {value!r}")
+            raise InvalidValueError(f"expected a path, got {value!r}")
         path = Path(base) / Path(value).expanduser()  # as typed, for messages
         if key == "styles":
             if not path.is_dir():
-                raise ValueError(f"{path}: the style directory "
+                raise InvalidValueError(f"{path}: the style directory "
                                  f"{'is not a directory' if path.exists() else 'does not exist'}")
         elif not path.is_file():
-            raise ValueError(f"{path}: {'not a file' if path.exists() else 'no such file'}")
+            raise InvalidValueError(f"{path}: {'not a file' if path.exists() else 'no such file'}")
         return str(path)
     if key == "device":
         if value not in DEVICES:
@@ -153,14 +153,16 @@ def check_option(key: str, value, base: Path):
         return check_alpha(value)
     if key == "style_size":
         return check_style_size(int_from_text(value, negative=False)) or 0
-    raise ValueError(f"unknown option {key!r}")
+    raise InvalidValueError(f"unknown option {key!r}")
 
 
 def make_renderer(config) -> "StyleRenderer":
     """The renderer of a resolved KITTI-S build configuration: checks that the style
     directory, the checkpoints and a style image for every selected style are there, loads
-    and validates the checkpoints and the style images. ``ValueError``
-    subclasses (naming the file) for anything missing or unusable."""
+    and validates the checkpoints and the style images. :class:`StyleError`,
+    :class:`~robodepth_cli.styles.adain.CheckpointError` or
+    :class:`~robodepth_cli.imageio.ImageError` (naming the file) for anything missing or
+    unusable."""
     opts = config.extra
     for key, flag, what in (("styles", "--styles", "STYLE_DIR (one image per style)"),
                             ("vgg", "--vgg", "vgg_normalised.pth"),
