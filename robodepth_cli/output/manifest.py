@@ -31,6 +31,7 @@ from pathlib import Path
 
 from ..files import is_temporary, write_atomic
 from ..errors import RobodepthError
+from ..values import int_from_text, is_int
 from .layout import JOURNAL, LOCK, MANIFEST
 
 _SHA = re.compile(r"[0-9a-f]{64}")
@@ -100,7 +101,8 @@ def _level(text: str) -> int | float | None:
     v = float(text)
     if v != v or v in (float("inf"), float("-inf")):
         raise ValueError(f"level {text!r}")
-    return int(text) if text.lstrip("-").isdigit() else v
+    whole = int_from_text(text)
+    return whole if is_int(whole) else v
 
 
 def _header(line: str, path: Path) -> tuple[str, ...]:
