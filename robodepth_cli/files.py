@@ -29,6 +29,14 @@ _UMASK = _umask()
 _FILE_MODE = 0o666 & ~_UMASK
 
 
+def data_dir(name: str) -> Path:
+    """The ``configs`` or ``splits`` directory: inside the package when installed from a
+    wheel, at the top of the repository in a checkout (and an editable install)."""
+    here = Path(__file__).resolve().parent
+    installed = here / name
+    return installed if installed.is_dir() else here.parent / name
+
+
 def write_atomic(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same directory and a
     rename, so a reader never sees a partial file. The temporary file is removed on error;

@@ -31,7 +31,7 @@ from typing import Any
 
 import yaml
 
-from .. import data_dir
+from ..files import data_dir
 from ..sources import splits
 from ..sources.datasets import get_dataset
 from ..imageio import parse_size

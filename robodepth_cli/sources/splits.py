@@ -24,8 +24,7 @@ import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
-from .. import data_dir
-from ..files import sha256_bytes, write_atomic
+from ..files import data_dir, sha256_bytes, write_atomic
 from ..errors import InvalidValueError, RobodepthError
 
 RECORDS_FILE = data_dir("splits") / "splits.json"
