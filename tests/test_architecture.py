@@ -44,7 +44,8 @@ FORBIDDEN = {
     "output": {"build", "commands", "evaluation", "api", "torch", "cli"},
     "evaluation": {"build", "commands", "cli", "torch"},
     "styles": {"build", "commands", "evaluation", "output", "sources", "api", "torch", "cli"},
-    "build": {"commands", "cli", "evaluation", "torch"},
+    "build": {"commands", "cli", "evaluation", "torch", "models"},
+    "models": {"build", "commands", "cli", "evaluation", "torch"},
     "api": {"build", "commands", "cli", "torch"},
     # The transforms may read a held-out protocol file as a build checks it (build/config.py);
     # they never run a build.

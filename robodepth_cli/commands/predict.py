@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import click
@@ -53,11 +52,10 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
       robodepth predict KITTI_C -m hf:depth-anything/Depth-Anything-V2-Small-hf -o DA
       robodepth predict NYU_C -m python:mymodel.py:predict --kind depth --metric -o P
     """
-    from tqdm import tqdm
-
     from ..api import open_dataset
     from ..models import load_model
     from ..models import predict as P
+    from ..progress import bar as progress_bar
 
     dataset = open_dataset(dataset_dir, warn=False)  # a failed build: images() says which, one line
     chosen = P.select_variants(dataset, variants)
@@ -66,8 +64,7 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
     common.on_interrupt(f"the variants finished so far are kept under {pred}, each complete; "
                         "rerun the same command to continue")
-    with tqdm(unit="img", disable=None if progress else True, file=sys.stderr,
-              dynamic_ncols=True) as bar:
+    with progress_bar("img", progress=progress) as bar:
         def set_total(n):
             bar.reset(total=n)  # the clock too: the time spent before the images is not theirs
 

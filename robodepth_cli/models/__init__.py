@@ -19,13 +19,9 @@ imports nothing heavy: torch and transformers are imported only when a model is 
 
 from __future__ import annotations
 
-from ..errors import RobodepthError
+from .errors import ModelError
 
 ADAPTERS = ("monodepth2", "hf", "python")
-
-
-class ModelError(RobodepthError):
-    """A model spec, checkpoint or model output that cannot be used (one line)."""
 
 
 def parse_spec(spec: str) -> tuple[str, str]:

@@ -7,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import ModelError
+from .errors import ModelError
 
 KINDS = ("disp", "sigmoid", "depth")  # what the maps hold, in robodepth evaluate's words
 

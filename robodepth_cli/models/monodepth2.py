@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import sha256_file
-from . import ModelError
+from .errors import ModelError
 from .base import Model, torch_device
 
 MIN_DEPTH, MAX_DEPTH = 0.1, 100.0  # evaluate_depth.py's defaults (--min_depth, --max_depth)

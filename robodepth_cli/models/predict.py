@@ -35,7 +35,7 @@ import numpy as np
 from .. import __version__
 from ..api import BuiltDataset, PredictionWriter, Variant
 from ..errors import cannot_write, os_reason
-from . import ModelError
+from .errors import ModelError
 
 RECORD = "predictions.json"
 # What must agree for a run to add to an earlier one's predictions.

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import ModelError
+from .errors import ModelError
 from .base import KINDS, Model, default_alignment
 
 
