@@ -40,7 +40,9 @@ FORBIDDEN = {
     # The corruptions are the library's core, usable without the rest (torch transforms,
     # corrupt/preview): besides themselves only errors, seeding, benchmarks and imageio
     # (the engine's check of an input image) -- see test_corruptions_stand_alone.
-    "sources": {"build", "evaluation", "commands", "output", "api", "torch", "cli"},
+    # (sources/ may ask output/layout.py for the output-path rule: it owns every output name.)
+    "sources": {"build", "evaluation", "commands", "output.manifest", "output.record",
+                "output.verify", "api", "torch", "cli", "models"},
     "output": {"build", "commands", "evaluation", "api", "torch", "cli"},
     "evaluation": {"build", "commands", "cli", "torch"},
     "styles": {"build", "commands", "evaluation", "output", "sources", "api", "torch", "cli"},
@@ -57,18 +59,16 @@ CORRUPTIONS_MAY_IMPORT = {"corruptions", "errors", "seeding", "benchmarks", "ima
 # Imports that break the rules above today, each with the change that removes it. The list
 # only shrinks: a new violation fails, and so does an entry that no longer happens.
 KNOWN_VIOLATIONS = {
-    # verify() (still in output/manifest.py) asks build/checks.py which outputs the
-    # recorded plans want; moving verify and that rule to output/ (issue 18: output/verify.py
-    # and output/layout.py) removes it.
-    ("output.manifest", "build.checks"),
+    # verify asks build/checks.py which outputs the recorded plans want (planned_outputs);
+    # that rule belongs beside the record it reads (output/record.py or output/layout.py).
+    ("output.verify", "build.checks"),
 }
 
 MAX_LINES = 450
 # Modules over MAX_LINES today, to be split (issue 18); empty this as they are. Nothing new
 # may join it, and a module that shrank below the limit must leave it.
 OVERSIZED = {
-    "build/pipeline.py",  # 659 lines: being split into the pipeline's steps
-    "evaluation/scores.py",  # 526 lines: the CSV reader and the scores' arithmetic, to part
+    "evaluation/scores.py",  # 526 lines: the results-CSV reader and the scores' arithmetic
 }
 
 
