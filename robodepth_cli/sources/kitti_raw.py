@@ -38,6 +38,7 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from ..errors import RobodepthError, cannot_write, os_reason
+from ..keys import KITTI_PREFIX
 
 CAM_TO_CAM = "calib_cam_to_cam.txt"
 VELO_TO_CAM = "calib_velo_to_cam.txt"
@@ -76,7 +77,7 @@ def frame_key(image_key: str) -> str | None:
     """The :attr:`KittiFrame.key` of a KITTI build's image key
     (``kitti_data/DATE/DRIVE/image_02/data/NNNNNNNNNN.png``), or None for another form."""
     parts = image_key.split("/")
-    if parts and parts[0] == "kitti_data":
+    if parts and parts[0] == KITTI_PREFIX:
         parts = parts[1:]
     if len(parts) < 4 or parts[-2] != "data" or not parts[-1].split(".")[0].isdigit():
         return None
