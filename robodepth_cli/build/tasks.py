@@ -13,7 +13,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import RobodepthError, cannot_write
+from ..errors import RobodepthError, cannot_write, os_reason
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
 from ..output.manifest import Journal, Row
@@ -54,7 +54,7 @@ class Source:
         except ImageError as exc:
             return cls(entry.key, "", None, str(exc))
         except OSError as exc:  # vanished or unreadable between the two calls
-            return cls(entry.key, "", None, f"{root / entry.candidates[0]}: {exc.strerror or exc}")
+            return cls(entry.key, "", None, f"{root / entry.candidates[0]}: {os_reason(exc)}")
         return cls(entry.key, rel, str(path), size=st.st_size, mtime=st.st_mtime_ns)
 
 

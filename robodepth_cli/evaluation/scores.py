@@ -34,7 +34,7 @@ from typing import Iterable, Mapping
 
 from ..benchmarks import (BENCHMARKS, CATEGORIES, CATEGORY, CLEAN, CORRUPTIONS, Baseline,  # noqa: F401
                          Benchmark, get_benchmark)
-from ..errors import RobodepthError
+from ..errors import RobodepthError, os_reason
 
 
 class ScoreError(RobodepthError):
@@ -292,7 +292,7 @@ def read_results(path: str | Path, benchmark: Benchmark) -> Results:
     except UnicodeDecodeError:
         raise ScoreError(f"{path}: not a UTF-8 text file") from None
     except OSError as exc:
-        raise ScoreError(f"{path}: cannot read: {exc.strerror or exc}") from None
+        raise ScoreError(f"{path}: cannot read: {os_reason(exc)}") from None
     try:
         results = parse_results(text, str(path), benchmark)
     except ScoreError as exc:

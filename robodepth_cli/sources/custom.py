@@ -26,7 +26,7 @@ import os
 import re
 from pathlib import Path
 
-from ..errors import InvalidValueError, RobodepthError
+from ..errors import InvalidValueError, RobodepthError, os_reason
 from ..keys import custom_key, relative_parts
 
 IMAGE_EXTS = ("png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp")
@@ -158,7 +158,7 @@ def read_list(path: Path) -> list[tuple[int, str]]:
     except UnicodeDecodeError:
         raise CustomSourceError(f"{path}: not a text file") from None
     except OSError as exc:
-        raise CustomSourceError(f"{path}: cannot read the list ({exc.strerror or exc})") from None
+        raise CustomSourceError(f"{path}: cannot read the list ({os_reason(exc)})") from None
     out, seen = [], {}
     for n, line in enumerate(text.splitlines(), 1):
         rel = line.strip()

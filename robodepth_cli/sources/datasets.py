@@ -18,7 +18,7 @@ from typing import Iterator, Protocol, Sequence
 import numpy as np
 
 from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS
-from ..errors import InvalidValueError
+from ..errors import InvalidValueError, os_reason
 from ..imageio import ImageError
 # SOURCE_EXTS: tried in this order when a split names no extension.
 from ..keys import KITTI_PREFIX, PRESET_EXTS as SOURCE_EXTS, relative_parts
@@ -122,7 +122,7 @@ def read_split(path: Path, split_format: str, data: bytes | None = None) -> list
     except UnicodeDecodeError:
         raise SplitError(f"{path}: not a text file") from None
     except OSError as exc:
-        raise SplitError(f"{path}: cannot read the split ({exc.strerror or exc})") from None
+        raise SplitError(f"{path}: cannot read the split ({os_reason(exc)})") from None
     entries: list[Entry] = []
     seen: dict[str, int] = {}
     for n, line in enumerate(text.splitlines(), 1):

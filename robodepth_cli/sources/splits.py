@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..files import data_dir, sha256_bytes, write_atomic
-from ..errors import InvalidValueError, RobodepthError
+from ..errors import InvalidValueError, RobodepthError, os_reason
 
 RECORDS_FILE = data_dir("splits") / "splits.json"
 TIMEOUT_S = 30.0
@@ -179,6 +179,6 @@ def standard_split(name: str, *, url: str | None = None, cache: Path | None = No
     try:
         write_atomic(target, data)
     except OSError as exc:
-        raise SplitError(f"cannot write the split cache {target} ({exc.strerror or exc}); "
+        raise SplitError(f"cannot write the split cache {target} ({os_reason(exc)}); "
                          f"set ROBODEPTH_CACHE_DIR or pass --split FILE") from None
     return target

@@ -33,7 +33,7 @@ import torch
 from torch import nn
 
 from ..imageio import as_rgb
-from ..errors import RobodepthError
+from ..errors import RobodepthError, os_reason
 
 EPS = 1e-5
 
@@ -199,7 +199,7 @@ def _load_problem(path: Path, exc: BaseException) -> str:
     if isinstance(exc, pickle.UnpicklingError):
         return "it holds Python objects besides tensors, which are never loaded"
     if isinstance(exc, OSError):
-        return f"cannot read it: {exc.strerror or exc}"
+        return f"cannot read it: {os_reason(exc)}"
     return "the file is not in PyTorch's format"
 
 
