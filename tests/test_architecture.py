@@ -69,7 +69,6 @@ MAX_LINES = 450
 # may join it, and a module that shrank below the limit must leave it.
 OVERSIZED = {
     "evaluation/scores.py",  # 526 lines: the results-CSV reader and the scores' arithmetic
-    "torch.py",  # 488 lines: the transforms and the KittiC dataset, two modules' worth
 }
 
 
