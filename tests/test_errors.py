@@ -36,13 +36,14 @@ def _checks(tmp_path):
         "alpha": (lambda: check_alpha(1.5), InvalidValueError, "alpha must be between 0 and 1"),
         "style size": (lambda: check_style_size(8), InvalidValueError, "style size must be"),
         "style option": (lambda: style_option("vgg", "none.pth", tmp_path), InvalidValueError, "no such file"),
+        "style device": (lambda: style_option("device", "gpu", tmp_path), InvalidValueError, "got 'gpu'"),
         "image array": (lambda: as_rgb(np.zeros((20, 40, 3), np.uint8)), ImageError, "too small"),
     }
 
 
 @pytest.mark.parametrize("name", ["dataset name", "benchmark name", "corruption name", "size", "path",
                                   "eigen line", "nyu line", "pattern", "custom option", "split choice",
-                                  "alpha", "style size", "style option", "image array"])
+                                  "alpha", "style size", "style option", "style device", "image array"])
 def test_checks_raise_the_package_errors(name, tmp_path):
     call, cls, message = _checks(tmp_path)[name]
     with pytest.raises(cls, match=message) as info:

@@ -147,7 +147,7 @@ def check_option(key: str, value, base: Path):
         return str(path)
     if key == "device":
         if value not in DEVICES:
-            raise ValueError(f"expected one of {', '.join(DEVICES)}, got {value!r}")
+            raise InvalidValueError(f"expected one of {', '.join(DEVICES)}, got {value!r}")
         return value
     if key == "alpha":
         return check_alpha(value)
