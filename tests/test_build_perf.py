@@ -20,9 +20,9 @@ def test_each_source_is_decoded_and_resized_once(tmp_path, monkeypatch, cli):
     calls = []
     real = tasks.load_clean
 
-    def counting(path, size):
+    def counting(path, size, **kw):
         calls.append((str(path), size))
-        return real(path, size)
+        return real(path, size, **kw)
 
     monkeypatch.setattr(tasks, "load_clean", counting)
     res = cli("build", "kitti-c", "--root", tmp_path / "kitti_raw", "--split", split,
