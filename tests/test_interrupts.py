@@ -21,7 +21,11 @@ from _paths import REPO
 from test_evaluate import kitti_c, kitti_pred  # noqa: F401
 
 WAIT_AT = """
-import importlib, sys, time
+import importlib, signal, sys, time
+# A shell that starts the suite in the background (no job control) leaves SIGINT ignored in
+# its children, and Python then installs no KeyboardInterrupt handler: restore it, as a
+# terminal would have it, so the test does not depend on how pytest was started.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 module, name, nth = sys.argv[1], sys.argv[2], int(sys.argv[3])
 target = importlib.import_module(module)
 real = getattr(target, name)
@@ -32,7 +36,7 @@ def waiting(*args, **kwargs):
     if len(calls) == nth:
         sys.stderr.write("READY\\n")
         sys.stderr.flush()
-        time.sleep(600)
+        time.sleep(60)  # a lost signal fails the test in a minute instead of hanging it
     return real(*args, **kwargs)
 
 setattr(target, name, waiting)
