@@ -130,7 +130,10 @@ def test_presets_and_split_records_ship_inside_a_wheel(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     assert {"robodepth_cli/configs/kitti-c.yaml", "robodepth_cli/configs/kitti-c-hr.yaml",
             "robodepth_cli/configs/nyudepth2-c.yaml", "robodepth_cli/configs/kitti-s.yaml",
-            "robodepth_cli/splits/splits.json"} <= names
+            "robodepth_cli/splits/splits.json", "robodepth_cli/report/published/kitti-c.csv",
+            "robodepth_cli/report/published/nyudepth2-c.csv",
+            "robodepth_cli/report/published/kitti-s.csv",
+            "robodepth_cli/report/published/README.md"} <= names
     # Every module of the source tree, subpackages included (the package list is explicit).
     modules = {p.relative_to(REPO).as_posix() for p in (REPO / "robodepth_cli").rglob("*.py")
                if "__pycache__" not in p.parts}

@@ -14,7 +14,7 @@ from PIL import Image
 
 from robodepth_cli.evaluation import scores as S
 from robodepth_cli.corruptions import DATA, NAMES, SENSOR, WEATHER
-from robodepth_cli.evaluation.plot import COLOURS, ce_chart
+from robodepth_cli.evaluation.plot import COLOURS, Model, ce_figure, render
 
 KITTI = S.get_benchmark("kitti-c")
 NYU = S.get_benchmark("nyudepth2-c")
@@ -429,8 +429,9 @@ def test_incomplete_baseline_file_is_an_error(tmp_path, cli):
 
 def _bar_lengths(img: np.ndarray, colour) -> list[int]:
     """Lengths in pixels of the blocks of ``colour``, top to bottom: each block is a run of
-    consecutive rows holding that colour, its length the widest left-to-right extent (the
-    dashed 100% line may hide a pixel or two of a row's end)."""
+    consecutive rows holding that colour (bars are drawn without antialiasing, so a bar is
+    exactly its colour), its length the widest left-to-right extent (the dashed 100% line
+    may hide a pixel or two of a row's end)."""
     mask = np.all(img == np.array(colour, np.uint8), axis=2)
     lengths: list[int] = []
     in_block = False
@@ -446,6 +447,10 @@ def _bar_lengths(img: np.ndarray, colour) -> list[int]:
     return lengths
 
 
+def _png(path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
 def test_plot_bars_are_proportional_to_ce(tmp_path, cli):
     # Brightness at half the baseline's DEE (CE 50), dark at twice (CE 200), every other
     # corruption equal to the baseline (CE 100).
@@ -456,16 +461,31 @@ def test_plot_bars_are_proportional_to_ce(tmp_path, cli):
     png = tmp_path / "out" / "ce.png"
     result = cli("score", path, "-b", "kitti-c", "--plot", png)
     assert result.exit_code == 0, result.output
-    img = np.asarray(Image.open(png).convert("RGB"))
-    weather = _bar_lengths(img, COLOURS[WEATHER])
-    # The category key square (11 px) comes first, then bars for brightness, dark, fog.
-    key, half, double, full = weather[:4]
-    assert key == 11
-    assert abs(half * 2 - full) <= 2 and abs(double - 2 * full) <= 2
+    assert f"wrote {png}" in result.output
+    img = _png(png)
+    half, double, *full = _bar_lengths(img, COLOURS[WEATHER])
+    assert len(full) == 4 and max(full) - min(full) <= 1
+    assert abs(half * 2 - full[0]) <= 2 and abs(double - 2 * full[0]) <= 2
     # Each category shows its six bars (KITTI-C has six per category), all CE 100 but the two.
     for cat in (SENSOR, DATA):
         runs = _bar_lengths(img, COLOURS[cat])
-        assert runs[0] == 11 and set(runs[1:]) == {full}
+        assert len(runs) == 6 and max(runs) - min(runs) <= 1
+        assert abs(runs[0] - full[0]) <= 1
+
+
+def test_plot_into_a_directory_names_the_file(tmp_path, cli):
+    path = write(tmp_path, dee_csv(0.119, dict(KITTI.baseline.dee), 5), "monovit.csv")
+    result = cli("score", path, "--plot", f"{tmp_path / 'plots'}/")
+    assert result.exit_code == 0, result.output
+    png = tmp_path / "plots" / "monovit_ce.png"
+    assert f"wrote {png}" in result.output and png.stat().st_size > 0
+    # SVG and PDF by suffix, for papers.
+    for ext, magic in ((".svg", b"<?xml"), (".pdf", b"%PDF")):
+        out = tmp_path / f"ce{ext}"
+        assert cli("score", path, "--plot", out).exit_code == 0
+        assert out.read_bytes().startswith(magic)
+    bad = cli("score", path, "--plot", tmp_path / "ce.jpg")
+    assert bad.exit_code == 2 and "give a .png, .svg or .pdf file name" in bad.output
 
 
 def test_plot_write_failure_is_a_one_line_error(tmp_path, cli):
@@ -484,7 +504,21 @@ def test_plot_not_written_when_scoring_fails(tmp_path, cli):
 
 def test_plot_of_partial_results_renders(tmp_path):
     s = S.score(S.parse_results(SMALL_CSV, "small.csv", SMALL), SMALL)
-    img = ce_chart(s)
-    assert img.mode == "RGB" and img.width == 960
-    # Data & processing has no corruption in this benchmark: no green bar, only its key.
-    assert _bar_lengths(np.asarray(img), COLOURS[DATA]) == [11]
+    path = tmp_path / "small.png"
+    path.write_bytes(render(ce_figure([Model("small", s)], "small"), "png"))
+    img = _png(path)
+    # Data & processing has no corruption in this benchmark: no bar of its colour.
+    assert _bar_lengths(img, COLOURS[DATA]) == []
+    assert len(_bar_lengths(img, COLOURS[WEATHER])) == 2
+    assert len(_bar_lengths(img, COLOURS[SENSOR])) == 1
+
+
+def test_benchmark_is_inferred_from_the_rows(tmp_path, cli):
+    kitti = write(tmp_path, dee_csv(0.119, dict(KITTI.baseline.dee), 5), "k.csv")
+    nyu = write(tmp_path, dee_csv(0.112, dict(NYU.baseline.dee), 4), "n.csv")
+    assert json.loads(cli("score", kitti, "--json").output)["benchmark"] == "kitti-c"
+    # NYU's rows also fit KITTI-C's corruptions and levels, but are complete only for NYU.
+    assert json.loads(cli("score", nyu, "--json").output)["benchmark"] == "nyudepth2-c"
+    styles = write(tmp_path, "corruption,level,dee\nclean,0,0.1\ncartoon,0,0.3\n", "s.csv")
+    res = cli("score", styles)
+    assert res.exit_code == 2 and "KITTI-S results" in res.output

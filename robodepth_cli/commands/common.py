@@ -133,3 +133,32 @@ def wrote(what) -> None:
     """Say where output went: ``wrote WHAT``, on stderr as every command says it (stdout
     carries only results: tables, JSON)."""
     click.echo(f"wrote {what}", err=True)
+
+
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def figure_output(out: str, default_name: str, flag: str) -> Path:
+    """The figure file that ``out`` (as typed) names: ``out`` itself (.png, .svg or .pdf,
+    the format its suffix says) or ``out/default_name`` when it means a directory; checked
+    writable now, so no work is done for an output that would fail."""
+    from ..files import check_writable
+
+    path = Path(out) / default_name if means_directory(out) else Path(out)
+    if path.suffix.lower() not in FIGURE_SUFFIXES:
+        raise RobodepthError(f"{flag} {out}: give a .png, .svg or .pdf file name, or a "
+                             "directory (end it with /)")
+    if path.is_dir():
+        raise RobodepthError(cannot_write(path, "it is a directory", flag))
+    check_writable(path, flag)
+    return path
+
+
+def write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically; a write error is a refusal."""
+    from ..files import write_atomic
+
+    try:
+        write_atomic(path, data)
+    except OSError as exc:
+        raise RobodepthError(cannot_write(path, exc)) from None

@@ -5,23 +5,24 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-import numpy as np
 
 from ..errors import RobodepthError
 from . import common
 
 @click.command("score")
 @click.argument("results", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--benchmark", "-b", required=True, type=click.Choice(["kitti-c", "nyudepth2-c"]),
-              help="Which benchmark the results are on (sets corruptions, levels, baseline).")
+@click.option("--benchmark", "-b", type=click.Choice(["kitti-c", "nyudepth2-c"]),
+              help="Which benchmark the results are on (sets corruptions, levels, baseline); "
+                   "default: inferred from the rows (the benchmark they are a complete set of).")
 @click.option("--baseline", "baseline_file", type=click.Path(dir_okay=False, path_type=Path),
               help="Baseline results in the same CSV form (complete), instead of the published one.")
 @click.option("--allow-partial", is_flag=True,
               help="Score the variants present; missing ones are a warning, not an error.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
 @click.option("--plot", "plot_path", type=click.Path(),
-              help="Also write a PNG bar chart of CE per corruption (.png; a directory, or a "
-                   "name ending with /, receives RESULTS_ce.png).")
+              help="Also draw CE per corruption (needs matplotlib, the figures extra): a .png, "
+                   ".svg or .pdf file, or a directory (or a name ending with /) that receives "
+                   "RESULTS_ce.png. Prints the path written.")
 def score_command(results, benchmark, baseline_file, allow_partial, as_json, plot_path):
     """Robustness scores of a model from its per-corruption results (DEE, CE and RR as the benchmark defines them).
 
@@ -31,18 +32,26 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 
     \b
     Example:
-      robodepth score monovit.csv --benchmark kitti-c --plot ce.png
+      robodepth score monovit.csv --plot ce.png
+      robodepth score monovit.csv --benchmark kitti-c --json
     """
     import json
 
     from ..evaluation import scores as S
 
-    from ..files import check_writable
+    plot_file = None
+    if plot_path is not None:
+        from ..evaluation.plot import _mpl
 
-    plot_file = None if plot_path is None else common.png_output(plot_path, f"{results.stem}_ce.png",
-                                                                 "--plot")
-    if plot_file is not None:
-        check_writable(plot_file, "--plot")
+        plot_file = common.figure_output(plot_path, f"{results.stem}_ce.png", "--plot")
+        _mpl()  # refuse before scoring when matplotlib is missing
+    if benchmark is None:
+        from ..report.inputs import style_names
+
+        benchmark = S.infer_benchmark(results, style_names())
+        if benchmark not in S.BENCHMARKS:
+            raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
+                                 "robodepth report shows their DEE per style and mDEE")
     bench = S.get_benchmark(benchmark)
     res = S.read_results(results, bench)
     base = None
@@ -55,9 +64,10 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
     result = S.score(res, bench, base, allow_partial=True)
     if plot_file is not None:
-        from ..evaluation.plot import ce_chart
+        from ..evaluation.plot import Model, ce_figure, render
 
-        common.write_png(plot_file, np.asarray(ce_chart(result)))
+        fig = ce_figure([Model(results.stem, result)], bench.name)
+        common.write_bytes(plot_file, render(fig, plot_file.suffix.lower().lstrip(".")))
         common.wrote(plot_file)
     if as_json:
         click.echo(json.dumps(result.to_json(), indent=2))

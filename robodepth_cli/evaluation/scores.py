@@ -283,16 +283,23 @@ def _looks_like(name: str) -> str:
             f"{b.n_levels} levels): use --benchmark {name}")
 
 
+def read_text(path: str | Path) -> str:
+    """A results file's text; I/O and decoding problems become ScoreError."""
+    try:
+        return Path(path).read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ScoreError(f"{path}: not a UTF-8 text file") from None
+    except IsADirectoryError:
+        raise ScoreError(f"{path}: is a directory, not a results CSV") from None
+    except OSError as exc:
+        raise ScoreError(f"{path}: cannot read: {os_reason(exc)}") from None
+
+
 def read_results(path: str | Path, benchmark: Benchmark) -> Results:
     """Read and parse a results CSV file; I/O and decoding problems become ScoreError.
     When the rows do not fit ``benchmark`` but are a complete set of another one, the error
     (or :attr:`Results.looks_like`, for rows that merely leave variants missing) says so."""
-    try:
-        text = Path(path).read_bytes().decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise ScoreError(f"{path}: not a UTF-8 text file") from None
-    except OSError as exc:
-        raise ScoreError(f"{path}: cannot read: {os_reason(exc)}") from None
+    text = read_text(path)
     try:
         results = parse_results(text, str(path), benchmark)
     except ScoreError as exc:
@@ -303,6 +310,108 @@ def read_results(path: str | Path, benchmark: Benchmark) -> Results:
     if results.missing(benchmark):
         results.looks_like = other_benchmark(text, str(path), benchmark)
     return results
+
+
+def _row_names(text: str) -> list[str]:
+    """The normalised corruption cells of a results CSV, header and comments skipped; []
+    when there is no ``corruption`` column to read."""
+    rows = [r for r in csv.reader(io.StringIO(text))
+            if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    if not rows:
+        return []
+    header = [c.strip().lower() for c in rows[0]]
+    if "corruption" not in header:
+        return []
+    i = header.index("corruption")
+    return [_normalise_name(r[i]) for r in rows[1:] if i < len(r)]
+
+
+def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
+    """The benchmark a results file is on, from its rows: ``kitti-s`` when they name
+    ``styles``; else the one benchmark of which they are a complete set, or the only one
+    whose corruptions and levels they fit. ScoreError when the rows fit none or both."""
+    text = read_text(path)
+    names = set(_row_names(text)) - {CLEAN}
+    styles = set(styles)
+    if styles and names and names <= styles:
+        return "kitti-s"
+    if styles and names & styles:
+        raise ScoreError(f"{path}: mixes KITTI-S styles ({', '.join(sorted(names & styles))}) "
+                         f"with corruptions ({', '.join(sorted(names - styles))})")
+    fits, complete, first_error = [], [], None
+    for bench in BENCHMARKS.values():
+        try:
+            results = parse_results(text, str(path), bench)
+        except ScoreError as exc:
+            first_error = first_error or exc
+            continue
+        fits.append(bench.name)
+        if not results.missing(bench):
+            complete.append(bench.name)
+    if len(complete) == 1:
+        return complete[0]
+    if len(fits) == 1:
+        return fits[0]
+    if not fits:
+        raise ScoreError(f"{first_error} (with --benchmark, the error may be clearer)")
+    raise ScoreError(f"{path}: the rows fit {' and '.join(fits)}; say which with --benchmark")
+
+
+@dataclass
+class StyleResults:
+    """Parsed KITTI-S results: the DEE of every style present (and the clean DEE, if any)."""
+
+    source: str
+    clean: float | None
+    dee: dict[str, float]  # style -> DEE, in the order of the styles given to the parser
+
+    @property
+    def mdee(self) -> float:
+        """KITTI-S's one score: the mean DEE over the styles."""
+        return mean(self.dee.values())
+
+
+def parse_style_results(text: str, source: str, styles: tuple[str, ...]) -> StyleResults:
+    """Parse KITTI-S results (rows ``<style>,0`` and optionally ``clean,0``, in the same
+    columns as any results CSV; a style has no levels). Every style of ``styles`` must have
+    a row; anything else is a ScoreError naming the line."""
+    reader = csv.reader(io.StringIO(text))
+    columns: dict[str, int] | None = None
+    use_dee = False
+    seen: dict[str, int] = {}
+    values: dict[str, float] = {}
+    try:
+        for row in reader:
+            line = reader.line_num
+            if not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
+                continue
+            if columns is None:
+                columns, use_dee = _columns(row, source, line)
+                continue
+            where = f"{source}:{line}"
+            if any(i >= len(row) for i in columns.values()):
+                raise ScoreError(f"{where}: only {len(row)} cells; the header names more columns")
+            cells = {c: row[i] for c, i in columns.items()}
+            name = _normalise_name(cells["corruption"])
+            if name != CLEAN and name not in styles:
+                raise ScoreError(f"{where}: unknown style {cells['corruption'].strip()!r}; "
+                                 f"valid: clean, {', '.join(styles)}")
+            level = _level(cells["level"], where)
+            if level != 0:
+                raise ScoreError(f"{where}: {name} has level {level}; KITTI-S rows have level 0")
+            if name in seen:
+                raise ScoreError(f"{where}: duplicate row for {name} (first on line {seen[name]})")
+            seen[name] = line
+            values[name] = _row_dee(cells, use_dee, where)
+    except csv.Error as exc:
+        raise ScoreError(f"{source}:{reader.line_num}: malformed CSV: {exc}") from None
+    if columns is None:
+        raise ScoreError(f"{source}: no header row; the file is empty")
+    missing = [s for s in styles if s not in values]
+    if missing:
+        raise ScoreError(f"{source}: missing {len(missing)} of {len(styles)} KITTI-S styles: "
+                         f"{', '.join(missing)}")
+    return StyleResults(source, values.get(CLEAN), {s: values[s] for s in styles})
 
 
 def describe_missing(missing: list[tuple[str, int]], benchmark: Benchmark) -> str:

@@ -1,0 +1,77 @@
+"""``robodepth report``: the paper's tables and figures for any number of models."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ..errors import RobodepthError
+
+
+@click.command("report")
+@click.argument("results", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", "out", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Directory to write index.html, figures/, table.tex, table.md and scores.json "
+                   "into (created if needed; files of an earlier report there are replaced).")
+@click.option("--name", "names", multiple=True, metavar="NAME",
+              help="Model name of each RESULTS file, in order (once per file); default: the "
+                   "file name without .csv.")
+@click.option("--benchmark", "-b", type=click.Choice(["kitti-c", "nyudepth2-c", "kitti-s"]),
+              help="The benchmark of the results; default: inferred from their rows (as "
+                   "robodepth score infers it).")
+@click.option("--published", "context", type=click.Choice(["all", "baseline", "none"]),
+              default="all", show_default=True,
+              help="Published models as context rows in the tables: all of the paper's, only "
+                   "its baseline, or none (the figures always show them).")
+@click.option("--dataset", "dataset", type=click.Path(file_okay=False, path_type=Path),
+              metavar="DIR", help="The dataset build the results come from: recorded in "
+                                  "scores.json (its fingerprint) and, with --pred, the frame "
+                                  "of the qualitative figure.")
+@click.option("--pred", "preds", multiple=True, type=click.Path(path_type=Path), metavar="PRED",
+              help="Predictions of a model on --dataset (as robodepth evaluate reads them), "
+                   "once per RESULTS file in order (fewer is fine): adds a qualitative figure.")
+@click.option("--frame", default=0, show_default=True, type=click.IntRange(min=0),
+              help="With --pred: which image of the split (0 = first) the qualitative figure shows.")
+@click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
+              help="With --pred: what the predictions hold (as for robodepth evaluate; default "
+                   "disp for KITTI, depth for NYU).")
+def report_command(results, out, names, benchmark, context, dataset, preds, frame, kind):
+    """A report of one or more models: a self-contained HTML page, the figures (SVG, PDF,
+    PNG), LaTeX and Markdown tables and a versioned scores.json.
+
+    RESULTS are results CSVs as robodepth evaluate writes them (or robodepth score reads
+    them), all on the same benchmark, each complete. The page and tables show your models
+    and the RoboDepth paper's published models as context; figures: DEE per corruption
+    (radar), CE per corruption, DEE against level, mCE and mRR against clean DEE (KITTI-S:
+    DEE per style and the mDEE ranking).
+
+    \b
+    Examples:
+      robodepth report monodepth2.csv monovit.csv --out report/
+      robodepth report a.csv b.csv --name "Ours" --name "Ours + aug" --out report/
+      robodepth report ours.csv --dataset KITTI_C --pred PRED --out report/
+    """
+    from ..report import write as W
+
+    if preds and dataset is None:
+        raise RobodepthError("--pred needs --dataset (the build the predictions were made on)")
+    if len(preds) > len(results):
+        raise RobodepthError(f"--pred given {len(preds)} times for {len(results)} results files; "
+                             "give it at most once per file, in the same order")
+    W.check_writable(out)
+    report = W.assemble(list(results), list(names), benchmark, context, dataset)
+    from ..evaluation.plot import _mpl
+
+    _mpl()  # refuse before drawing anything when matplotlib is missing
+    say = (lambda what: click.echo(f"  {what}", err=True)) if sys.stderr.isatty() else (lambda _: None)
+    W.draw(report)
+    if preds:
+        from ..report.qualitative import qualitative
+
+        report.figures.append(qualitative(report, dataset, list(preds), frame, kind))
+    written = W.write(report, out, progress=say)
+    models = ", ".join(m.name for m in report.models)
+    click.echo(f"wrote {out / 'index.html'} ({report.benchmark}: {models}; "
+               f"{len(written)} files under {out})", err=True)

@@ -1,0 +1,182 @@
+"""What a report is made of: the user's results files (scored as ``robodepth score`` scores
+them), the published models as context, and (optionally) the dataset build they came from.
+
+A :class:`Row` is one line of every table: the user's models first, in the order given,
+then the published ones. Nothing here imports matplotlib.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+from ..evaluation import scores as S
+from ..errors import RobodepthError
+from . import published as P
+
+KITTI_S = "kitti-s"
+BENCHMARK_CHOICES = (*S.BENCHMARKS, KITTI_S)
+CONTEXT_CHOICES = ("all", "baseline", "none")
+
+
+class ReportError(RobodepthError):
+    """Inputs a report cannot be made from; the message is one line."""
+
+
+def style_names() -> tuple[str, ...]:
+    """The KITTI-S styles in the benchmark's order (the published table's columns)."""
+    return tuple(P.style_models()[0].dee)
+
+
+@dataclass
+class Row:
+    """One model in the tables: ``kind`` is ``yours``, ``baseline`` or ``published``."""
+
+    name: str
+    kind: str
+    clean: float | None
+    scores: S.Scores | None = None  # KITTI-C / NYUDepth2-C
+    styles: dict[str, float] | None = None  # KITTI-S: DEE per style
+    source: str = ""  # the results file (yours) or the paper
+
+    @property
+    def mine(self) -> bool:
+        return self.kind == "yours"
+
+    @property
+    def mdee(self) -> float:
+        if self.scores is not None:
+            return self.scores.overall.dee
+        return S.mean(self.styles.values())
+
+
+@dataclass
+class Model:
+    """One of the user's results files, read and scored."""
+
+    name: str
+    path: Path
+    row: Row
+    variants: list[dict] = field(default_factory=list)  # the CSV's rows, numbers as floats
+    sha256: str = ""
+
+
+def model_names(paths: Sequence[Path], names: Sequence[str]) -> list[str]:
+    """``--name`` per file (in order) or the file stems; duplicates refused."""
+    if names and len(names) != len(paths):
+        raise ReportError(f"--name given {len(names)} times for {len(paths)} results files; "
+                          "give it once per file, in the same order, or not at all")
+    chosen = list(names) if names else [p.stem for p in paths]
+    for n in chosen:
+        if not n.strip():
+            raise ReportError("--name: a model name cannot be empty")
+    seen: dict[str, Path] = {}
+    for n, p in zip(chosen, paths):
+        if n in seen:
+            hint = "" if names else " (use --name to tell them apart)"
+            raise ReportError(f"{p}: model name {n!r} is also the name of {seen[n]}{hint}")
+        seen[n] = p
+    return chosen
+
+
+def infer(paths: Sequence[Path], benchmark: str | None) -> str:
+    """The benchmark of every file: ``benchmark`` when given, else inferred from the rows
+    (as ``robodepth score`` infers it); files of different benchmarks are refused."""
+    if benchmark:
+        return benchmark
+    found = {p: S.infer_benchmark(p, style_names()) for p in paths}
+    kinds = sorted(set(found.values()))
+    if len(kinds) > 1:
+        first = {k: next(p for p, v in found.items() if v == k) for k in kinds}
+        raise ReportError("the results are on different benchmarks ("
+                          + ", ".join(f"{first[k]} is {k}" for k in kinds)
+                          + "); make one report per benchmark")
+    return kinds[0]
+
+
+def _variant_rows(text: str) -> list[dict]:
+    """The results CSV's rows with every numeric cell as a float (already validated by the
+    score parser, which read the same text)."""
+    out = []
+    for raw in csv.DictReader(line for line in io.StringIO(text)
+                              if line.strip() and not line.lstrip().startswith("#")):
+        row: dict = {}
+        for k, v in raw.items():
+            if k is None:
+                continue
+            key = k.strip().lower()
+            if key == "corruption":
+                row[key] = S._normalise_name(v or "")
+            elif key == "level":
+                row[key] = int(float(v))
+            else:
+                try:
+                    row[key] = float(v)
+                except (TypeError, ValueError):
+                    continue
+        out.append(row)
+    return out
+
+
+def load(paths: Sequence[Path], names: Sequence[str], benchmark: str) -> list[Model]:
+    """Read and score every results file; a file missing variants is refused (a report
+    compares complete results only)."""
+    from ..files import sha256_bytes
+
+    out = []
+    for name, path in zip(model_names(paths, names), paths):
+        text = S.read_text(path)
+        if benchmark == KITTI_S:
+            res = S.parse_style_results(text, str(path), style_names())
+            row = Row(name, "yours", res.clean, styles=res.dee, source=str(path))
+        else:
+            bench = S.get_benchmark(benchmark)
+            res = S.read_results(path, bench)
+            missing = S.missing_message(res, bench)
+            if missing:
+                raise ReportError(missing)
+            row = Row(name, "yours", res.clean, scores=S.score(res, bench), source=str(path))
+        out.append(Model(name, path, row, _variant_rows(text), sha256_bytes(text.encode())))
+    return out
+
+
+def context(benchmark: str, which: str) -> list[Row]:
+    """The published models as rows: ``all`` of them, only the ``baseline`` or ``none``."""
+    if which == "none":
+        return []
+    cite = f"{P.CITATION} ({P.CITATION_URL})"
+    if benchmark == KITTI_S:
+        rows = [Row(m.name, "baseline" if m.block == "baseline" else "published", None,
+                    styles=dict(m.dee), source=cite) for m in P.style_models()]
+    else:
+        bench = S.get_benchmark(benchmark)
+        rows = [Row(m.name, "baseline" if m.block == "baseline" else "published", m.clean_dee,
+                    scores=S.score(m.results(), bench), source=cite) for m in P.models(benchmark)]
+    return [r for r in rows if which == "all" or r.kind == "baseline"]
+
+
+# --------------------------------------------------------------------------- the dataset build
+
+def dataset_info(path: Path, benchmark: str) -> dict:
+    """What identifies a dataset build: its name, seed, robodepth version and a fingerprint
+    (sha256 over the sorted ``output sha256`` pairs of its manifest, so two builds with the
+    same bytes have the same fingerprint whatever their order of work)."""
+    import hashlib
+
+    from ..api import open_dataset
+    from ..output.manifest import read_manifest
+
+    ds = open_dataset(path)
+    if ds.name != benchmark:
+        raise ReportError(f"--dataset {path}: is a {ds.name} build, but the results are {benchmark}")
+    rows = read_manifest(path)
+    digest = hashlib.sha256()
+    for out in sorted(rows):
+        digest.update(f"{out} {rows[out].sha256}\n".encode())
+    record = ds.record
+    return {"name": ds.name, "path": str(path), "fingerprint": digest.hexdigest(),
+            "files": len(rows), "images": len(ds.keys), "seed": record.get("seed"),
+            "robodepth": record.get("robodepth")}
