@@ -439,3 +439,56 @@ def test_radar_ring_values_cross_no_line():
     gap, shown = plot._radial_label_spot(lines, [0.1, 0.2, 0.3, 0.4, 0.5], 0.6)
     # Every gap is crossed at 0.2 by the first line and near 0.4 by the second.
     assert 0.2 not in shown and 0.1 in shown and 0.5 in shown
+
+
+# --------------------------------------------------------------------------- with the dataset build
+
+@pytest.fixture(scope="module")
+def small_build(fixtures_dir, tmp_path_factory):
+    from click.testing import CliRunner
+
+    from robodepth_cli.cli import main
+
+    out = tmp_path_factory.mktemp("build") / "KITTI_C"
+    res = CliRunner().invoke(main, ["build", "kitti-c", "--root", str(fixtures_dir / "kitti_raw"),
+                                    "--split", str(fixtures_dir / "kitti_split.txt"), "--out", str(out),
+                                    "--size", "64x96", "--corruptions", "brightness,contrast",
+                                    "--levels", "3", "--jobs", "1", "--no-progress"],
+                             catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    return out
+
+
+def test_dataset_fingerprint_and_qualitative_figure(small_build, tmp_path, cli):
+    import hashlib
+
+    from robodepth_cli import open_dataset
+
+    ds = open_dataset(small_build)
+    n = len(ds.keys)
+    pred = tmp_path / "PRED"
+    for i, v in enumerate(ds.variants()):
+        # Disparity rising towards the bottom of the image (near), different per variant.
+        ramp = np.linspace(0.01, 0.3, 64, dtype=np.float32)[:, None] * np.ones((1, 96), np.float32)
+        v.save_predictions(pred, [ramp * (1 + 0.1 * i)] * n)
+    k = evaluate_csv(tmp_path / "k.csv", "kitti-c", "MonoViT")
+    out = tmp_path / "out"
+    res = cli("report", k, "--dataset", small_build, "--pred", pred, "--frame", 1, "--out", out)
+    assert res.exit_code == 0, res.output
+    doc = json.loads((out / "scores.json").read_text())
+    # The fingerprint, recomputed here from the manifest's rows (output path and sha256).
+    rows = list(csv.DictReader((small_build / "manifest.csv").open()))
+    digest = hashlib.sha256("".join(f"{r['output']} {r['sha256']}\n"
+                                    for r in sorted(rows, key=lambda r: r["output"])).encode())
+    assert doc["dataset"]["fingerprint"] == digest.hexdigest()
+    assert doc["dataset"]["name"] == "kitti-c" and doc["dataset"]["images"] == n
+    html = (out / "index.html").read_text()
+    assert 'id="fig-qualitative"' in html and doc["dataset"]["fingerprint"][:16] in html
+    png = np.asarray(__import__("PIL.Image", fromlist=["Image"]).open(out / "figures" / "qualitative.png").convert("RGB"))
+    assert png.std() > 20  # images and colour maps, not an empty canvas
+    svg = (out / "figures" / "qualitative.svg").read_text()
+    assert "k" in svg and "brightness 3" in svg and "contrast 3" in svg and ds.keys[1] in svg
+    bad = cli("report", k, "--dataset", small_build, "--pred", pred, "--frame", n, "--out", out)
+    _one_line_error(bad, f"--frame {n}: ")
+    nyu = evaluate_csv(tmp_path / "n.csv", "nyudepth2-c", "BTS R50")
+    _one_line_error(cli("report", nyu, "--dataset", small_build, "--out", out), "is a kitti-c build")

@@ -515,7 +515,7 @@ def summary_figure(models: Sequence[Point], published: Sequence[Point], benchmar
         ax.set_xlabel("clean DEE, lower is better")
         ax.set_ylabel(label)
         # No x value at the left end: it would touch the lowest y value in the corner.
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=7, prune="lower"))
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=7, steps=[1, 2, 2.5, 5, 10], prune="lower"))
         ax.grid(color="#ececec", linewidth=0.7)
         ax.set_axisbelow(True)
         if ref is not None:

@@ -29,6 +29,7 @@ table.scores { border-collapse: collapse; font-size: 12.5px; font-variant-numeri
 table.scores th, table.scores td { padding: 2px 6px; text-align: right; white-space: nowrap; }
 table.scores th.model { text-align: left; }
 table.scores thead th { border-bottom: 1px solid var(--ink); font-weight: 600; }
+table.scores thead th.nogroup { border-bottom: none; }
 table.scores thead th.group { border-bottom: 1px solid var(--rule); text-align: center; }
 table.scores thead tr:first-child th { border-top: 2px solid var(--ink); }
 table.scores tbody:last-of-type tr:last-child > * { border-bottom: 2px solid var(--ink); }

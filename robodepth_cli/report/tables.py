@@ -156,7 +156,7 @@ def to_html(t: Table) -> str:
     if any(g for g, _ in groups):
         out.append('<tr><th rowspan="2" class="model">Model</th>'
                    + "".join(f'<th colspan="{n}" class="group">{e(g)}</th>' if g
-                             else f'<th colspan="{n}"></th>' for g, n in groups) + "</tr>")
+                             else f'<th colspan="{n}" class="nogroup"></th>' for g, n in groups) + "</tr>")
         out.append("<tr>" + "".join(f'<th title="{e(c.key)}">{_arrow_html(c)}</th>'
                                     for c in t.columns) + "</tr>")
     else:
