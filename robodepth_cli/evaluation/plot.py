@@ -300,11 +300,7 @@ def ce_figure(models: Sequence[Model], benchmark: str):
     ax.set_ylim(y - 0.2, -0.8)
     ax.set_xlim(0, xmax * (1.12 if single else 1.0))
     ax.set_xlabel("CE (%), lower is better; the dashed line is the baseline (100%)")
-    ax.grid(axis="x", color="#e4e4e4", linewidth=0.8)
-    ax.set_axisbelow(True)
-    for side in ("top", "right"):
-        ax.spines[side].set_visible(False)
-    ax.tick_params(axis="y", length=0)
+    _bar_axes(ax)
     base = first.baseline.name
     if single:
         o = first.overall
@@ -329,6 +325,17 @@ def ce_figure(models: Sequence[Model], benchmark: str):
     return fig
 
 
+def _bar_axes(ax, grid: bool = True) -> None:
+    """Horizontal bar charts: names without tick marks, no box on the top and right, and
+    (``grid``) faint vertical lines behind the bars."""
+    if grid:
+        ax.grid(axis="x", color="#e4e4e4", linewidth=0.8)
+        ax.set_axisbelow(True)
+    for side in ("top", "right"):
+        ax.spines[side].set_visible(False)
+    ax.tick_params(axis="y", length=0)
+
+
 def _luminance(colour: str) -> float:
     """WCAG relative luminance of ``#rrggbb``."""
     def lin(v):
@@ -340,11 +347,6 @@ def _luminance(colour: str) -> float:
 
 def _rgb(c) -> str:
     return "#%02x%02x%02x" % tuple(c)
-
-
-def ce_chart_png(s: Scores, name: str) -> bytes:
-    """``robodepth score --plot``: the CE chart of one model as PNG bytes."""
-    return render(ce_figure([Model(name, s)], s.benchmark), "png")
 
 
 # --------------------------------------------------------------------------- radar
@@ -556,11 +558,7 @@ def styles_figure(models: Sequence[tuple[str, dict]], benchmark: str = "kitti-s"
     ax.set_yticks(range(len(styles)), [pretty(s) for s in styles])
     ax.set_ylim(len(styles) - 0.5, -0.5)
     ax.set_xlabel("DEE, lower is better")
-    ax.grid(axis="x", color="#e4e4e4", linewidth=0.8)
-    ax.set_axisbelow(True)
-    for side in ("top", "right"):
-        ax.spines[side].set_visible(False)
-    ax.tick_params(axis="y", length=0)
+    _bar_axes(ax)
     _title(fig, f"Depth estimation error per style on {bench_title(benchmark)}")
     _legend(fig)
     return fig
@@ -587,9 +585,7 @@ def ranking_figure(models: Sequence[tuple[str, float]], published: Sequence[tupl
     ax.set_ylim(len(rows) - 0.4, -0.6)
     ax.set_xlim(0, max(v for _, v, _ in rows) * 1.15)
     ax.set_xlabel(f"{metric}, lower is better")
-    for side in ("top", "right"):
-        ax.spines[side].set_visible(False)
-    ax.tick_params(axis="y", length=0)
+    _bar_axes(ax, grid=False)
     _title(fig, f"{metric} on {bench_title(benchmark)}: your models and the paper's",
            "grey: published; coloured and bold: yours")
     return fig
@@ -641,6 +637,6 @@ def close(fig) -> None:
     fig.clear()
 
 
-__all__ = ["COLOURS", "FORMATS", "Model", "OKABE_ITO", "Point", "ce_chart_png",
+__all__ = ["COLOURS", "FORMATS", "Model", "OKABE_ITO", "Point",
            "ce_figure", "levels_figure", "place_labels", "qualitative_figure", "radar_figure",
            "ranking_figure", "render", "save", "styles_figure", "summary_figure"]

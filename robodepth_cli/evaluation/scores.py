@@ -158,22 +158,13 @@ def _columns(header: list[str], source: str, line: int) -> tuple[dict[str, int],
     return {c: index[c] for c in wanted}, use_dee
 
 
-def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
-    """Parse a results CSV (format in the module docstring) for ``benchmark``.
-
-    Every row is checked: known corruption of this benchmark, level in range (0 for clean),
-    numbers finite and in range, no duplicate (corruption, level). Completeness is not
-    checked here: see :meth:`Results.missing`. Raises :class:`ScoreError`.
-    """
+def _data_rows(text: str, source: str):
+    """The data rows of a results CSV as ``(line, "source:line", {column: cell}, use_dee)``:
+    blank and ``#`` lines skipped, the header found and checked (:func:`_columns`), short
+    rows, a malformed file and a file with no header refused (ScoreError)."""
     reader = csv.reader(io.StringIO(text))
     columns: dict[str, int] | None = None
     use_dee = False
-    seen: dict[tuple[str, int], int] = {}
-    clean: float | None = None
-    table: dict[str, dict[int, float]] = {}
-    decimal: dict[str, dict[float, float]] = {}
-    chains: dict[str, float] = {}
-    chain_lines: dict[str, int] = {}
     try:
         for row in reader:
             line = reader.line_num
@@ -185,53 +176,69 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
             where = f"{source}:{line}"
             if any(i >= len(row) for i in columns.values()):
                 raise ScoreError(f"{where}: only {len(row)} cells; the header names more columns")
-            cells = {c: row[i] for c, i in columns.items()}
-            if ":" in cells["corruption"] or "+" in cells["corruption"]:  # a chain
-                text = _chain(cells, benchmark, where)
-                if text in chains:
-                    raise ScoreError(f"{where}: duplicate row for chain {text} "
-                                     f"(first on line {chain_lines[text]})")
-                chain_lines[text] = line
-                chains[text] = _row_dee(cells, use_dee, where)
-                continue
-            name = _normalise_name(cells["corruption"])
-            if not name:
-                raise ScoreError(f"{where}: empty corruption")
-            level = _level(cells["level"], where)
-            if name == CLEAN:
-                if level != 0:
-                    raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
-            elif name not in benchmark.corruptions:
-                if name in CATEGORY:
-                    raise ScoreError(f"{where}: {name} is not a corruption of {benchmark.name}")
-                raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
-                                 f"valid: clean, {', '.join(benchmark.corruptions)}")
-            elif not 1 <= level <= benchmark.n_levels:
-                raise ScoreError(f"{where}: level {level} of {name} is outside "
-                                 f"1..{benchmark.n_levels} for {benchmark.name}")
-            if isinstance(level, float):
-                if (name, level) in seen:
-                    raise ScoreError(f"{where}: duplicate row for {name} level {level} "
-                                     f"(first on line {seen[name, level]})")
-                seen[name, level] = line
-                decimal.setdefault(name, {})[level] = _row_dee(cells, use_dee, where)
-                continue
-            if (name, level) in seen:
-                raise ScoreError(f"{where}: duplicate row for {name} level {level} "
-                                 f"(first on line {seen[name, level]})")
-            seen[name, level] = line
-            value = _row_dee(cells, use_dee, where)
-            if name == CLEAN:
-                if value >= 1.0:
-                    raise ScoreError(f"{where}: clean DEE {value:g} must be below 1 "
-                                     "(RR divides by 1 - clean DEE)")
-                clean = value
-            else:
-                table.setdefault(name, {})[level] = value
+            yield line, where, {c: row[i] for c, i in columns.items()}, use_dee
     except csv.Error as exc:
         raise ScoreError(f"{source}:{reader.line_num}: malformed CSV: {exc}") from None
     if columns is None:
         raise ScoreError(f"{source}: no header row; the file is empty")
+
+
+def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
+    """Parse a results CSV (format in the module docstring) for ``benchmark``.
+
+    Every row is checked: known corruption of this benchmark, level in range (0 for clean),
+    numbers finite and in range, no duplicate (corruption, level). Completeness is not
+    checked here: see :meth:`Results.missing`. Raises :class:`ScoreError`.
+    """
+    seen: dict[tuple[str, int], int] = {}
+    clean: float | None = None
+    table: dict[str, dict[int, float]] = {}
+    decimal: dict[str, dict[float, float]] = {}
+    chains: dict[str, float] = {}
+    chain_lines: dict[str, int] = {}
+    for line, where, cells, use_dee in _data_rows(text, source):
+        if ":" in cells["corruption"] or "+" in cells["corruption"]:  # a chain
+            chain = _chain(cells, benchmark, where)
+            if chain in chains:
+                raise ScoreError(f"{where}: duplicate row for chain {chain} "
+                                 f"(first on line {chain_lines[chain]})")
+            chain_lines[chain] = line
+            chains[chain] = _row_dee(cells, use_dee, where)
+            continue
+        name = _normalise_name(cells["corruption"])
+        if not name:
+            raise ScoreError(f"{where}: empty corruption")
+        level = _level(cells["level"], where)
+        if name == CLEAN:
+            if level != 0:
+                raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
+        elif name not in benchmark.corruptions:
+            if name in CATEGORY:
+                raise ScoreError(f"{where}: {name} is not a corruption of {benchmark.name}")
+            raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
+                             f"valid: clean, {', '.join(benchmark.corruptions)}")
+        elif not 1 <= level <= benchmark.n_levels:
+            raise ScoreError(f"{where}: level {level} of {name} is outside "
+                             f"1..{benchmark.n_levels} for {benchmark.name}")
+        if isinstance(level, float):
+            if (name, level) in seen:
+                raise ScoreError(f"{where}: duplicate row for {name} level {level} "
+                                 f"(first on line {seen[name, level]})")
+            seen[name, level] = line
+            decimal.setdefault(name, {})[level] = _row_dee(cells, use_dee, where)
+            continue
+        if (name, level) in seen:
+            raise ScoreError(f"{where}: duplicate row for {name} level {level} "
+                             f"(first on line {seen[name, level]})")
+        seen[name, level] = line
+        value = _row_dee(cells, use_dee, where)
+        if name == CLEAN:
+            if value >= 1.0:
+                raise ScoreError(f"{where}: clean DEE {value:g} must be below 1 "
+                                 "(RR divides by 1 - clean DEE)")
+            clean = value
+        else:
+            table.setdefault(name, {})[level] = value
     if clean is None:
         raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); "
                          "RR needs the clean DEE")
@@ -375,38 +382,20 @@ def parse_style_results(text: str, source: str, styles: tuple[str, ...]) -> Styl
     """Parse KITTI-S results (rows ``<style>,0`` and optionally ``clean,0``, in the same
     columns as any results CSV; a style has no levels). Every style of ``styles`` must have
     a row; anything else is a ScoreError naming the line."""
-    reader = csv.reader(io.StringIO(text))
-    columns: dict[str, int] | None = None
-    use_dee = False
     seen: dict[str, int] = {}
     values: dict[str, float] = {}
-    try:
-        for row in reader:
-            line = reader.line_num
-            if not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
-                continue
-            if columns is None:
-                columns, use_dee = _columns(row, source, line)
-                continue
-            where = f"{source}:{line}"
-            if any(i >= len(row) for i in columns.values()):
-                raise ScoreError(f"{where}: only {len(row)} cells; the header names more columns")
-            cells = {c: row[i] for c, i in columns.items()}
-            name = _normalise_name(cells["corruption"])
-            if name != CLEAN and name not in styles:
-                raise ScoreError(f"{where}: unknown style {cells['corruption'].strip()!r}; "
-                                 f"valid: clean, {', '.join(styles)}")
-            level = _level(cells["level"], where)
-            if level != 0:
-                raise ScoreError(f"{where}: {name} has level {level}; KITTI-S rows have level 0")
-            if name in seen:
-                raise ScoreError(f"{where}: duplicate row for {name} (first on line {seen[name]})")
-            seen[name] = line
-            values[name] = _row_dee(cells, use_dee, where)
-    except csv.Error as exc:
-        raise ScoreError(f"{source}:{reader.line_num}: malformed CSV: {exc}") from None
-    if columns is None:
-        raise ScoreError(f"{source}: no header row; the file is empty")
+    for line, where, cells, use_dee in _data_rows(text, source):
+        name = _normalise_name(cells["corruption"])
+        if name != CLEAN and name not in styles:
+            raise ScoreError(f"{where}: unknown style {cells['corruption'].strip()!r}; "
+                             f"valid: clean, {', '.join(styles)}")
+        level = _level(cells["level"], where)
+        if level != 0:
+            raise ScoreError(f"{where}: {name} has level {level}; KITTI-S rows have level 0")
+        if name in seen:
+            raise ScoreError(f"{where}: duplicate row for {name} (first on line {seen[name]})")
+        seen[name] = line
+        values[name] = _row_dee(cells, use_dee, where)
     missing = [s for s in styles if s not in values]
     if missing:
         raise ScoreError(f"{source}: missing {len(missing)} of {len(styles)} KITTI-S styles: "
