@@ -240,6 +240,25 @@ def test_latex_numbers_and_marks(kitti_report, cli):
     text = (kitti_report["out"] / "table.tex").read_text()
     assert r"\toprule" in text and r"\cmidrule(lr){3-5}" in text and r"\bottomrule" in text
     assert r"\multicolumn{3}{c}{Weather \& Lighting}" in text
+    # Well-formed: braces balance (escaped ones aside) and never go below zero, environments
+    # nest, every row of a tabular has as many cells as its column spec.
+    depth = 0
+    for ch in re.sub(r"\\[{}]|%[^\n]*", "", text):
+        depth += {"{": 1, "}": -1}.get(ch, 0)
+        assert depth >= 0
+    assert depth == 0
+    stack = []
+    for kind, env in re.findall(r"\\(begin|end)\{(\w+\*?)\}", text):
+        if kind == "begin":
+            stack.append(env)
+        else:
+            assert stack.pop() == env
+    assert stack == []
+    for spec, body in re.findall(r"\\begin\{tabular\}\{(\w+)\}(.*?)\\end\{tabular\}", text, flags=re.S):
+        for line in body.splitlines():
+            if line.endswith(r"\\"):
+                spans = sum(int(k) - 1 for k in re.findall(r"\\multicolumn\{(\d+)\}", line))
+                assert line.count(" & ") + 1 + spans == len(spec), line
     summary, dee = latex_tables(text)
     page = page_tables(kitti_report["out"] / "index.html")
     # Model names escaped for LaTeX; the baseline says so.
@@ -492,3 +511,21 @@ def test_dataset_fingerprint_and_qualitative_figure(small_build, tmp_path, cli):
     _one_line_error(bad, f"--frame {n}: ")
     nyu = evaluate_csv(tmp_path / "n.csv", "nyudepth2-c", "BTS R50")
     _one_line_error(cli("report", nyu, "--dataset", small_build, "--out", out), "is a kitti-c build")
+
+
+def test_without_matplotlib_figures_are_refused_in_one_line(tmp_path):
+    """matplotlib is the figures extra: without it, report and score --plot say how to get
+    it, before writing anything; score without --plot still works."""
+    k = evaluate_csv(tmp_path / "k.csv", "kitti-c", "MonoViT")
+    code = ("import sys; sys.modules['matplotlib'] = None\n"  # import matplotlib now fails
+            "from robodepth_cli.cli import main\n"
+            "main(sys.argv[1:])\n")
+    for args in (["report", str(k), "--out", str(tmp_path / "out")],
+                 ["score", str(k), "--plot", str(tmp_path / "ce.png")]):
+        res = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
+        assert res.returncode == 2, res.stderr
+        assert res.stderr == ("robodepth: error: figures need matplotlib: pip install "
+                              "'robodepth-cli[figures]' (or pip install matplotlib)\n")
+    assert not (tmp_path / "out").exists() and not (tmp_path / "ce.png").exists()
+    res = subprocess.run([sys.executable, "-c", code, "score", str(k)], capture_output=True, text=True)
+    assert res.returncode == 0 and "mCE" in res.stdout

@@ -60,11 +60,11 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     if len(preds) > len(results):
         raise RobodepthError(f"--pred given {len(preds)} times for {len(results)} results files; "
                              "give it at most once per file, in the same order")
-    W.check_writable(out)
-    report = W.assemble(list(results), list(names), benchmark, context, dataset)
     from ..evaluation.plot import _mpl
 
-    _mpl()  # refuse before drawing anything when matplotlib is missing
+    _mpl()  # refuse before anything is created when matplotlib is missing
+    W.check_writable(out)
+    report = W.assemble(list(results), list(names), benchmark, context, dataset)
     say = (lambda what: click.echo(f"  {what}", err=True)) if sys.stderr.isatty() else (lambda _: None)
     W.draw(report)
     if preds:

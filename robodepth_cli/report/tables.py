@@ -233,7 +233,7 @@ def to_latex(t: Table) -> str:
         if section is not None and body != section:
             lines.append(r"\midrule")
             lines.append(f"\\multicolumn{{{n + 1}}}{{l}}{{\\textit{{Published (RoboDepth, "
-                         r"Kong et al., NeurIPS 2023)}}} \\")
+                         f"Kong et al., NeurIPS 2023)}}}} \\\\")
         section = body
         name = tex_escape(r.name) + (r" (baseline)" if r.kind == "baseline" else "")
         cells = []
