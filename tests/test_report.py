@@ -381,7 +381,7 @@ def test_unwritable_out_is_refused_before_any_work(tmp_path, cli):
     k = evaluate_csv(tmp_path / "k.csv", "kitti-c", "MonoViT")
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    _one_line_error(cli("report", k, "--out", blocker / "out"), "cannot write there")
+    _one_line_error(cli("report", k, "--out", blocker / "out"), "cannot write (")
 
 
 def test_plain_commands_do_not_import_matplotlib(tmp_path):
@@ -529,3 +529,15 @@ def test_without_matplotlib_figures_are_refused_in_one_line(tmp_path):
     assert not (tmp_path / "out").exists() and not (tmp_path / "ce.png").exists()
     res = subprocess.run([sys.executable, "-c", code, "score", str(k)], capture_output=True, text=True)
     assert res.returncode == 0 and "mCE" in res.stdout
+
+
+def test_two_rows_mark_only_the_best(tmp_path, cli):
+    a = evaluate_csv(tmp_path / "a.csv", "nyudepth2-c", "DPT ViT-B")
+    b = evaluate_csv(tmp_path / "b.csv", "nyudepth2-c", "BTS R50")
+    out = tmp_path / "out"
+    assert cli("report", a, b, "--out", out, "--published", "none").exit_code == 0
+    t = page_tables(out / "index.html")
+    marks = {m for (table, _, _), m in t.marks.items() if table == "summary"}
+    assert marks == {"best"}
+    # DPT is the more robust: every mCE/mRR/mDEE best is its (BTS has the better clean DEE).
+    assert {model for (table, model, col), m in t.marks.items() if table == "summary" and col != "clean"} == {"a"}

@@ -3,7 +3,8 @@
 Every number is formatted by :func:`fmt` (DEE three decimals, CE/RR and their means two),
 the precision the paper prints. In each column the best value is bold and the second
 underlined (Markdown: italic, it has no underline), ranked among every row of the table
-by the value as printed, so ties in print share their mark.
+by the value as printed, so ties in print share their mark; a table of two rows marks only
+the best (its "second" would be every other cell).
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ class Table:
                 r = round(v[col.key], col.decimals)
                 if printed and r == printed[0]:
                     self.marks[i, col.key] = "best"
-                elif len(printed) > 1 and r == printed[1]:
+                elif len(printed) > 1 and len(self.values) > 2 and r == printed[1]:
                     self.marks[i, col.key] = "second"
 
     def cell(self, i: int, col: Column) -> str:

@@ -12,14 +12,11 @@ Output layout under OUT (every file written atomically; an existing OUT is updat
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
 from .. import __version__
-from ..errors import os_reason
 from . import inputs as I
 from . import published as P
 from . import tables as T
@@ -41,14 +38,12 @@ class Report:
 
 
 def check_writable(out: Path) -> None:
-    """Create OUT (and OUT/figures) and prove a file can be written there, before any work."""
-    try:
-        (out / "figures").mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(prefix=".robodepth-probe-", dir=out / "figures")
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise I.ReportError(f"--out {out}: cannot write there ({os_reason(exc)})") from None
+    """Refuse, before any work, an OUT in which the report's files could not be created."""
+    from ..files import check_writable as check
+
+    if out.exists() and not out.is_dir():
+        raise I.ReportError(f"--out {out}: exists and is not a directory")
+    check(out / "figures" / "radar.svg", "--out")
 
 
 def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None, context: str,
