@@ -178,5 +178,5 @@ def dataset_info(path: Path, benchmark: str) -> dict:
         digest.update(f"{out} {rows[out].sha256}\n".encode())
     record = ds.record
     return {"name": ds.name, "path": str(path), "fingerprint": digest.hexdigest(),
-            "files": len(rows), "images": len(ds.keys), "seed": record.get("seed"),
-            "robodepth": record.get("robodepth")}
+            "files": len(rows), "images": len(ds.keys), "seed": record.seed,
+            "robodepth": record.robodepth or None}
