@@ -452,10 +452,10 @@ def test_no_text_overlaps_in_any_figure(tmp_path, cli):
 
 def test_radar_ring_values_cross_no_line():
     """The ring values of the radar sit where no model's line passes."""
-    from robodepth_cli.evaluation import plot
+    from robodepth_cli.report import figures
 
     lines = [[0.2] * 18, [0.3, 0.5] * 9]
-    gap, shown = plot._radial_label_spot(lines, [0.1, 0.2, 0.3, 0.4, 0.5], 0.6)
+    gap, shown = figures._radial_label_spot(lines, [0.1, 0.2, 0.3, 0.4, 0.5], 0.6)
     # Every gap is crossed at 0.2 by the first line and near 0.4 by the second.
     assert 0.2 not in shown and 0.1 in shown and 0.5 in shown
 

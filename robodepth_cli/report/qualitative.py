@@ -50,7 +50,7 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
     """The figure entry (stem, title, caption, Figure) for ``report``'s page."""
     from ..evaluation.predictions import find_predictions
     from ..imageio import read_rgb
-    from ..evaluation.plot import qualitative_figure
+    from .figures import qualitative_figure
 
     dataset = open_dataset(dataset_dir)
     if frame >= len(dataset.keys):

@@ -66,6 +66,7 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
 def draw(report: Report) -> None:
     """Add the figures (matplotlib is imported here, not before)."""
     from ..evaluation import plot
+    from . import figures as F
 
     bench, models = report.benchmark, report.models
     base = P.baseline(bench)
@@ -74,32 +75,32 @@ def draw(report: Report) -> None:
     if bench == I.KITTI_S:
         figs.append(("radar", "DEE per style", "Each model's DEE for each KITTI-S style; the "
                      "grey dashed line is the paper's baseline.",
-                     plot.radar_figure([(r.name, r.styles) for r in mine], bench,
+                     F.radar_figure([(r.name, r.styles) for r in mine], bench,
                                        (base.name, base.dee), what="style")))
         figs.append(("styles", "DEE per style, as bars", "Each style's DEE per model, with the "
                      "published baseline for reference.",
-                     plot.styles_figure([(r.name, r.styles) for r in mine], bench,
+                     F.styles_figure([(r.name, r.styles) for r in mine], bench,
                                         (base.name, base.dee))))
         figs.append(("ranking", "mDEE ranking", "Your models among the paper's KITTI-S models, "
                      "ranked by mDEE.",
-                     plot.ranking_figure([(r.name, r.mdee) for r in mine],
+                     F.ranking_figure([(r.name, r.mdee) for r in mine],
                                          [(m.name, S_mean(m.dee)) for m in P.style_models()], bench)))
         return
     series = [(r.name, {c.name: c.dee for c in r.scores.corruptions}) for r in mine]
     figs.append(("radar", "DEE per corruption", "Each model's DEE per corruption (mean over the "
                  "levels), the paper's Fig. 1 form; the grey dashed line is the baseline.",
-                 plot.radar_figure(series, bench, (base.name, base.dee))))
+                 F.radar_figure(series, bench, (base.name, base.dee))))
     pm = [plot.Model(r.name, r.scores) for r in mine]
     figs.append(("ce", "CE per corruption", "Corruption error per corruption against the "
                  "baseline's 100% (dashed).", plot.ce_figure(pm, bench)))
     figs.append(("levels", "DEE against level", "DEE at each level, one panel per corruption; "
                  "the grey dashed line is the baseline's published mean over the levels.",
-                 plot.levels_figure(pm, bench, (base.name, base.dee))))
-    points = [plot.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr) for r in mine]
-    context = [plot.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr)
+                 F.levels_figure(pm, bench, (base.name, base.dee))))
+    points = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr) for r in mine]
+    context = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr)
                for r in I.context(bench, "all")]
     figs.append(("summary", "mCE and mRR against clean DEE", "Your models (coloured) among "
-                 "the paper's (grey).", plot.summary_figure(points, context, bench)))
+                 "the paper's (grey).", F.summary_figure(points, context, bench)))
 
 
 def S_mean(values: dict) -> float:
