@@ -100,10 +100,10 @@ def test_output_that_is_not_png_is_refused(cli, tmp_path, monkeypatch, command, 
     assert not (tmp_path / name).exists()
 
 
-def test_plot_that_is_not_png_is_refused(cli, tmp_path, monkeypatch):
+def test_plot_that_is_not_png_svg_or_pdf_is_refused(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     res = cli("score", results_csv(tmp_path), "-b", "kitti-c", "--plot", "ce.jpg")
-    one_line_error(res, "--plot ce.jpg: the output is written as PNG")
+    one_line_error(res, "--plot ce.jpg: give a .png, .svg or .pdf file name")
     assert not (tmp_path / "ce.jpg").exists()
 
 
