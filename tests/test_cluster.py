@@ -228,7 +228,9 @@ def test_a_killed_worker_loses_nothing(cluster, kitti, local, tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "robodepth_cli.cli", "build", "kitti-c", "--root", str(root), "--split",
          str(split), "--out", str(out), *SLOWER, "--scheduler", cluster.address, "--no-progress"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        # SIGINT as a terminal has it, also when the suite runs from a background shell.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 120
         while not cluster.client.processing().get(address):  # the victim holds build tasks

@@ -562,8 +562,11 @@ def processes():
     started: list[subprocess.Popen] = []
 
     def start(*args):
+        # SIGINT as a terminal has it, even when the suite runs from a background shell
+        # (which leaves it ignored in children, and the Ctrl-C would then be lost).
         p = subprocess.Popen([*CLI, *map(str, args)], start_new_session=True, text=True,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         started.append(p)
         return p
 
