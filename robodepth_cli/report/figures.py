@@ -145,6 +145,42 @@ def levels_figure(models: Sequence[Model], benchmark: str, baseline: tuple[str, 
 
 # --------------------------------------------------------------------------- scores vs clean error
 
+def severity_figure(models: Sequence[Model], benchmark: str):
+    """Severity curves: DEE against the level ``s`` (integer and decimal levels together),
+    one panel per corruption that has decimal-level rows, one line per model. Rows beyond
+    the benchmark: they are in no mCE or mRR."""
+    names = list(dict.fromkeys(n for m in models for n in m.scores.curves))
+    ncols = min(len(names), 4)
+    nrows = math.ceil(len(names) / ncols)
+    fig = _figure(2.3 * ncols + 0.6, 1.9 * nrows + 1.4)
+    axes = fig.subplots(nrows, ncols, sharey=True, squeeze=False)
+    top = models[0].scores.n_levels
+    for k, name in enumerate(names):
+        ax = axes[k // ncols][k % ncols]
+        for i, m in enumerate(models):
+            curve = m.scores.curves.get(name)
+            if not curve:
+                continue
+            st = style(i)
+            ax.plot(list(curve), list(curve.values()), color=st["color"], linestyle=st["linestyle"],
+                    marker=st["marker"], markersize=3.5, linewidth=1.4, label=m.name)
+        ax.set_title(pretty(name), fontsize=9, pad=3)
+        ax.set_xlim(0.8, top + 0.2)
+        ax.set_xticks(range(1, top + 1))
+        ax.set_xlabel("level s")
+        ax.grid(color="#ececec", linewidth=0.7)
+        ax.set_axisbelow(True)
+        ax.tick_params(labelsize=8)
+    for k in range(len(names), nrows * ncols):
+        axes[k // ncols][k % ncols].set_visible(False)
+    for row in axes:
+        row[0].set_ylabel("DEE")
+    _title(fig, f"DEE against continuous severity on {bench_title(benchmark)}",
+           "beyond the benchmark: not in mCE or mRR; lower is better")
+    _legend(fig)
+    return fig
+
+
 @dataclass(frozen=True)
 class Point:
     """A model in the summary scatter: clean DEE and its overall mCE and mRR."""

@@ -109,9 +109,11 @@ def _variant_rows(text: str) -> list[dict]:
                 continue
             key = k.strip().lower()
             if key == "corruption":
-                row[key] = S._normalise_name(v or "")
+                chained = ":" in (v or "") or "+" in (v or "")  # a chain keeps its canonical text
+                row[key] = "".join((v or "").split()) if chained else S._normalise_name(v or "")
             elif key == "level":
-                row[key] = int(float(v))
+                level = float(v) if (v or "").strip() else 0.0  # a chain's row may leave it empty
+                row[key] = int(level) if level.is_integer() else level
             else:
                 try:
                     row[key] = float(v)

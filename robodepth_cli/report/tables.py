@@ -123,6 +123,31 @@ def levels_table(rows: Sequence[Row], benchmark: str) -> Table:
                  cols, list(rows), values)
 
 
+def beyond_table(rows: Sequence[Row], benchmark: str) -> Table | None:
+    """Rows beyond the benchmark (decimal levels, chains) of the user's models: DEE at every
+    level of each severity curve, then each chain's DEE. None when there are none."""
+    from ..corruptions.severity import level_text
+
+    curves: dict[str, set] = {}
+    chains: dict[str, None] = {}
+    for r in rows:
+        for name, curve in r.scores.curves.items():
+            curves.setdefault(name, set()).update(curve)
+        chains.update(dict.fromkeys(r.scores.chains))
+    if not curves and not chains:
+        return None
+    cols = [Column(f"{n} {level_text(lv)}", level_text(lv), n.replace("_", " "), LOW, 3)
+            for n, levels in curves.items() for lv in sorted(levels)]
+    cols += [Column(c, c.replace("_", " ").replace("+", " + "), "Chains", LOW, 3) for c in chains]
+    values = [{**{f"{n} {level_text(lv)}": d for n, curve in r.scores.curves.items() for lv, d in curve.items()},
+               **r.scores.chains} for r in rows]
+    return Table("Beyond the benchmark", "beyond",
+                 f"DEE of the variants beyond {bench_name(benchmark)} (your models): severity curves "
+                 "(each corruption with decimal-level rows, at every level present) and chains of "
+                 "corruptions. They are in no mCE, mRR or mDEE. Lower is better.",
+                 cols, list(rows), values)
+
+
 def bench_name(benchmark: str) -> str:
     return {"kitti-c": "KITTI-C", "nyudepth2-c": "NYUDepth2-C", "kitti-s": "KITTI-S"}.get(benchmark, benchmark)
 

@@ -60,6 +60,9 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
         tables = [T.summary_table(rows, bench), T.corruption_table(rows, bench, "dee"),
                   T.corruption_table(rows, bench, "ce"), T.corruption_table(rows, bench, "rr"),
                   T.levels_table([m.row for m in models], bench)]
+        beyond = T.beyond_table([m.row for m in models], bench)
+        if beyond is not None:
+            tables.append(beyond)
     return Report(bench, models, rows, tables, dataset=info)
 
 
@@ -96,6 +99,11 @@ def draw(report: Report) -> None:
     figs.append(("levels", "DEE against level", "DEE at each level, one panel per corruption; "
                  "the grey dashed line is the baseline's published mean over the levels.",
                  F.levels_figure(pm, bench, (base.name, base.dee))))
+    if any(r.scores.curves for r in mine):
+        figs.append(("severity", "DEE against continuous severity", "Beyond the benchmark: DEE at "
+                     "every level present, integer and decimal, for each corruption with decimal-level "
+                     "rows; in no mCE or mRR.",
+                     F.severity_figure([m for m in pm if m.scores.curves], bench)))
     points = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr) for r in mine]
     context = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr)
                for r in I.context(bench, "all")]
@@ -130,6 +138,9 @@ def to_json(report: Report) -> dict:
                                              "rr": c.rr,
                                              "levels": {str(lv): d for lv, d in c.level_dee.items()}}
                                     for c in s.corruptions}
+            beyond = s.to_json().get("beyond_benchmark")
+            if beyond:
+                entry["beyond_benchmark"] = beyond
         else:
             entry["scores"] = {"mdee": r.mdee}
             entry["styles"] = {k: {"dee": v} for k, v in r.styles.items()}
