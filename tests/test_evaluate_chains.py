@@ -10,7 +10,8 @@ import pytest
 
 from robodepth_cli.api import open_dataset
 from robodepth_cli.benchmarks import BENCHMARKS
-from robodepth_cli.evaluation.scores import ScoreError, parse_results, score
+from robodepth_cli.evaluation.results import ScoreError, parse_results
+from robodepth_cli.evaluation.scores import score
 
 from test_evaluate import GT_SHAPES, fake_disp, lidar_gt
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from robodepth_cli.evaluation import scores as S
+from robodepth_cli.evaluation import results as R, scores as S
 from robodepth_cli.corruptions import DATA, NAMES, SENSOR, WEATHER
 from robodepth_cli.evaluation.plot import COLOURS, Model, ce_figure, render
 
@@ -118,16 +118,16 @@ def write(tmp_path, text, name="results.csv"):
 
 def test_dee_formula_by_hand():
     # (0.1 - 0.9 + 1) / 2 = 0.1 ; (0.3 - 0.5 + 1) / 2 = 0.4 ; a perfect model has DEE 0.
-    assert S.dee(0.1, 0.9) == pytest.approx(0.1)
-    assert S.dee(0.3, 0.5) == pytest.approx(0.4)
-    assert S.dee(0.0, 1.0) == 0.0
+    assert R.dee(0.1, 0.9) == pytest.approx(0.1)
+    assert R.dee(0.3, 0.5) == pytest.approx(0.4)
+    assert R.dee(0.0, 1.0) == 0.0
 
 
 def test_ce_and_rr_by_hand():
     # Levels DEE 0.2 and 0.4, baseline 0.25: CE = 0.3 / 0.25 = 120 %.
-    assert S.corruption_error([0.2, 0.4], 0.25) == pytest.approx(120.0)
+    assert R.corruption_error([0.2, 0.4], 0.25) == pytest.approx(120.0)
     # Clean DEE 0.1: RR = (0.8 + 0.6) / (2 * 0.9) = 1.4 / 1.8 = 77.78 %.
-    assert S.resilience_rate([0.2, 0.4], 0.1) == pytest.approx(100 * 1.4 / 1.8)
+    assert R.resilience_rate([0.2, 0.4], 0.1) == pytest.approx(100 * 1.4 / 1.8)
 
 
 def test_builtin_baselines_are_the_spec_tables():
@@ -162,7 +162,7 @@ SMALL_CSV = """a1, Level ,corruption,rmse,abs_rel
 
 
 def test_small_case_by_hand():
-    s = S.score(S.parse_results(SMALL_CSV, "small.csv", SMALL), SMALL)
+    s = S.score(R.parse_results(SMALL_CSV, "small.csv", SMALL), SMALL)
     got = {c.name: (c.dee, c.ce, c.rr) for c in s.corruptions}
     assert got["brightness"] == pytest.approx((0.2, 100.0, 100 * 16 / 18))
     assert got["dark"] == pytest.approx((0.3, 75.0, 100 * 14 / 18))
@@ -184,9 +184,9 @@ def test_partial_scores_average_what_is_present():
     # Drop dark level 2 and all of defocus_blur. dark: DEE .2 -> CE .2/.4 = 50, RR .8/.9.
     text = "\n".join(l for l in SMALL_CSV.splitlines()
                      if not (",2,dark" in l or "defocus" in l)) + "\n"
-    res = S.parse_results(text, "p.csv", SMALL)
+    res = R.parse_results(text, "p.csv", SMALL)
     assert res.missing(SMALL) == [("dark", 2), ("defocus_blur", 1), ("defocus_blur", 2)]
-    with pytest.raises(S.ScoreError, match=r"p.csv: missing 3 of 6 variants: dark 2, defocus_blur \(all levels\)"):
+    with pytest.raises(R.ScoreError, match=r"p.csv: missing 3 of 6 variants: dark 2, defocus_blur \(all levels\)"):
         S.score(res, SMALL)
     s = S.score(res, SMALL, allow_partial=True)
     dark = s.corruptions[1]
@@ -503,7 +503,7 @@ def test_plot_not_written_when_scoring_fails(tmp_path, cli):
 
 
 def test_plot_of_partial_results_renders(tmp_path):
-    s = S.score(S.parse_results(SMALL_CSV, "small.csv", SMALL), SMALL)
+    s = S.score(R.parse_results(SMALL_CSV, "small.csv", SMALL), SMALL)
     path = tmp_path / "small.png"
     path.write_bytes(render(ce_figure([Model("small", s)], "small"), "png"))
     img = _png(path)

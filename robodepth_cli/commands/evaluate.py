@@ -91,7 +91,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     from ..evaluation import evaluate as E
     from ..workers import default_jobs
     from ..evaluation.protocols import STEREO_SCALE, make_setup
-    from ..evaluation import scores as S
+    from ..evaluation import results as R, scores as S
     from ..api import open_dataset
 
     from ..files import check_writable
@@ -146,8 +146,8 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     implausible = _implausible_clean(result) if bench is not None else ""
     scored = None
     if bench is not None and not implausible:
-        res = S.parse_results(text, str(out), bench)
-        missing = S.missing_message(res, bench)
+        res = R.parse_results(text, str(out), bench)
+        missing = R.missing_message(res, bench)
         if missing:
             click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
         scored = S.score(res, bench, allow_partial=True)
@@ -170,7 +170,7 @@ def _implausible_clean(result) -> str:
     """Why the clean DEE cannot be scored (at least 1: every rate divides by 1 - DEE), as
     a wrong --kind, --stereo or --png-scale gives it; "" when it is plausible."""
     from ..benchmarks import CLEAN
-    from ..evaluation.scores import dee
+    from ..evaluation.results import dee
 
     for r in result.results:
         if r.variant.name == CLEAN:

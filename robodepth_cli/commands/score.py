@@ -37,7 +37,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     """
     import json
 
-    from ..evaluation import scores as S
+    from ..evaluation import results as R, scores as S
 
     plot_file = None
     if plot_path is not None:
@@ -48,16 +48,16 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     if benchmark is None:
         from ..report.inputs import style_names
 
-        benchmark = S.infer_benchmark(results, style_names())
+        benchmark = R.infer_benchmark(results, style_names())
         if benchmark not in S.BENCHMARKS:
             raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
                                  "robodepth report shows their DEE per style and mDEE")
     bench = S.get_benchmark(benchmark)
-    res = S.read_results(results, bench)
+    res = R.read_results(results, bench)
     base = None
     if baseline_file is not None:
-        base = S.baseline_from_results(S.read_results(baseline_file, bench), bench)
-    missing = S.missing_message(res, bench)
+        base = R.baseline_from_results(R.read_results(baseline_file, bench), bench)
+    missing = R.missing_message(res, bench)
     if missing and not allow_partial:
         raise RobodepthError(missing if res.looks_like else f"{missing} (--allow-partial scores what is there)")
     if missing:

@@ -112,7 +112,7 @@ class Evaluation:
 
 def _list(variants: Sequence[Variant], most: int = 12) -> str:
     """``"brightness 3, contrast 1,3"``: the notation of ``robodepth score``'s messages."""
-    from .scores import describe_variants
+    from .results import describe_variants
 
     return describe_variants(((v.name, v.level) for v in variants), most=most)
 

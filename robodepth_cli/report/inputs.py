@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
-from ..evaluation import scores as S
+from ..evaluation import results as R, scores as S
 from ..errors import RobodepthError
 from . import published as P
 
@@ -50,7 +50,7 @@ class Row:
     def mdee(self) -> float:
         if self.scores is not None:
             return self.scores.overall.dee
-        return S.mean(self.styles.values())
+        return R.mean(self.styles.values())
 
 
 @dataclass
@@ -87,7 +87,7 @@ def infer(paths: Sequence[Path], benchmark: str | None) -> str:
     (as ``robodepth score`` infers it); files of different benchmarks are refused."""
     if benchmark:
         return benchmark
-    found = {p: S.infer_benchmark(p, style_names()) for p in paths}
+    found = {p: R.infer_benchmark(p, style_names()) for p in paths}
     kinds = sorted(set(found.values()))
     if len(kinds) > 1:
         first = {k: next(p for p, v in found.items() if v == k) for k in kinds}
@@ -110,7 +110,7 @@ def _variant_rows(text: str) -> list[dict]:
             key = k.strip().lower()
             if key == "corruption":
                 chained = ":" in (v or "") or "+" in (v or "")  # a chain keeps its canonical text
-                row[key] = "".join((v or "").split()) if chained else S._normalise_name(v or "")
+                row[key] = "".join((v or "").split()) if chained else R._normalise_name(v or "")
             elif key == "level":
                 level = float(v) if (v or "").strip() else 0.0  # a chain's row may leave it empty
                 row[key] = int(level) if level.is_integer() else level
@@ -130,14 +130,14 @@ def load(paths: Sequence[Path], names: Sequence[str], benchmark: str) -> list[Mo
 
     out = []
     for name, path in zip(model_names(paths, names), paths):
-        text = S.read_text(path)
+        text = R.read_text(path)
         if benchmark == KITTI_S:
-            res = S.parse_style_results(text, str(path), style_names())
+            res = R.parse_style_results(text, str(path), style_names())
             row = Row(name, "yours", res.clean, styles=res.dee, source=str(path))
         else:
             bench = S.get_benchmark(benchmark)
-            res = S.read_results(path, bench)
-            missing = S.missing_message(res, bench)
+            res = R.read_results(path, bench)
+            missing = R.missing_message(res, bench)
             if missing:
                 raise ReportError(missing)
             row = Row(name, "yours", res.clean, scores=S.score(res, bench), source=str(path))

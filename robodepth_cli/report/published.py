@@ -11,7 +11,7 @@ The one value that differs from the printed tables is the AdaBins EB5 row of NYU
 per-corruption DEE table, which the paper printed as a copy of BTS R50's row (the README
 gives the correct row and its sources).
 
-KITTI-C and NYUDepth2-C models become :class:`~robodepth_cli.evaluation.scores.Results` (each level
+KITTI-C and NYUDepth2-C models become :class:`~robodepth_cli.evaluation.results.Results` (each level
 holding the published level mean, so a level mean is that value) and are scored by the same
 code as ``robodepth score``.
 """
@@ -24,7 +24,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from ..benchmarks import Benchmark, get_benchmark
-from ..evaluation.scores import Results
+from ..evaluation.results import Results
 
 CITATION = ("Kong, Xie, Hu, Ng, Cottereau, Ooi. RoboDepth: Robust Out-of-Distribution Depth "
             "Estimation under Corruptions. NeurIPS 2023 (Datasets and Benchmarks)")

@@ -112,7 +112,7 @@ def draw(report: Report) -> None:
 
 
 def S_mean(values: dict) -> float:
-    from ..evaluation.scores import mean
+    from ..evaluation.results import mean
 
     return mean(values.values())
 

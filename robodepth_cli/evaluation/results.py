@@ -1,0 +1,449 @@
+"""A results CSV (what ``robodepth evaluate`` writes and ``robodepth score`` reads), read
+into :class:`Results`, and the per-variant formulas (DEE, CE, RR) its rows need.
+
+Results CSV
+    A header row is required; columns are found by name (case-insensitive, surrounding
+    spaces ignored, in any order; other columns such as ``sq_rel`` or ``rmse`` are ignored).
+    Required: ``corruption``, ``level`` and either both ``abs_rel`` and ``a1`` or ``dee``
+    (not both, which would be ambiguous). One row per (corruption, level); the clean row has
+    corruption ``clean`` and level ``0``. Blank lines and lines starting with ``#`` are
+    skipped. ``a1`` is a fraction in [0, 1]; ``abs_rel`` is finite and >= 0; ``dee`` is in
+    [0, 1] (a value above 1 is almost surely the paper's DES1 = abs_rel - a1 + 1, which
+    lacks the halving).
+
+    Rows beyond the benchmark are read too, and kept apart: a corruption at a decimal
+    level (``fog,2.5``) and a chain of corruptions (``fog:3+gaussian_noise:2.5``, level 0 or
+    empty), as ``robodepth evaluate`` writes them for such builds. mCE, mRR and mDEE stay
+    defined as the benchmark defines them, on its corruptions at its integer levels; the
+    extra rows are reported as severity curves (DEE against the level, integer and decimal
+    levels together) and chain DEE rows, in a section of their own.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Mapping
+
+from ..benchmarks import BENCHMARKS, CATEGORY, CLEAN, Baseline, Benchmark
+from ..errors import RobodepthError, os_reason
+
+
+class ScoreError(RobodepthError):
+    """A results or baseline file that cannot be scored; the message is one line."""
+
+
+def dee(abs_rel: float, a1: float) -> float:
+    """Depth estimation error ``(abs_rel - a1 + 1) / 2``."""
+    return (abs_rel - a1 + 1.0) / 2.0
+
+
+def mean(values: Iterable[float]) -> float:
+    """Arithmetic mean; ``ValueError`` on no values (a silent 0 or nan would hide a bug)."""
+    values = list(values)
+    if not values:
+        raise ValueError("mean of no values")
+    return math.fsum(values) / len(values)
+
+
+def corruption_error(level_dees: Iterable[float], baseline_dee: float) -> float:
+    """CE in percent: ``100 * mean_l DEE_l / baseline_dee``.
+
+    ``baseline_dee`` is the baseline's level-averaged DEE for the same corruption; with all
+    levels present this equals the benchmark's ``sum_l DEE_l / sum_l DEE^base_l``.
+    """
+    return 100.0 * mean(level_dees) / baseline_dee
+
+
+def resilience_rate(level_dees: Iterable[float], clean_dee: float) -> float:
+    """RR in percent: ``100 * sum_l (1 - DEE_l) / (L * (1 - clean_dee))``, L = number of levels."""
+    return 100.0 * mean(1.0 - d for d in level_dees) / (1.0 - clean_dee)
+
+
+# --------------------------------------------------------------------------- parsing
+
+@dataclass
+class Results:
+    """Parsed results: the clean DEE and the DEE of every (corruption, level) present."""
+
+    source: str
+    clean: float
+    dee: dict[str, dict[int, float]] = field(default_factory=dict)  # name -> level -> DEE
+    # Another benchmark these rows are a complete set of ("" if none): a model scored
+    # against the wrong one shows up as missing variants, which would not say why.
+    looks_like: str = ""
+    # Beyond the benchmark (never in mCE/mRR): decimal levels, and chains' DEE.
+    decimal: dict[str, dict[float, float]] = field(default_factory=dict)  # name -> level -> DEE
+    chains: dict[str, float] = field(default_factory=dict)  # canonical chain text -> DEE
+
+    def missing(self, benchmark: Benchmark) -> list[tuple[str, int]]:
+        """The (corruption, level) variants of ``benchmark`` with no row, in benchmark order."""
+        return [(n, lv) for n in benchmark.corruptions for lv in benchmark.levels
+                if lv not in self.dee.get(n, {})]
+
+
+def _normalise_name(text: str) -> str:
+    return text.strip().lower().replace("-", "_").replace(" ", "_")
+
+
+def _number(text: str, column: str, where: str) -> float:
+    text = text.strip()
+    if not text:
+        raise ScoreError(f"{where}: empty {column}")
+    try:
+        value = float(text)
+    except ValueError:
+        raise ScoreError(f"{where}: {column} {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise ScoreError(f"{where}: {column} {text!r} is not a finite number")
+    return value
+
+
+def _level(text: str, where: str) -> int | float:
+    value = _number(text, "level", where)
+    # Spreadsheets and pandas often write integers as 3.0: those are the integer levels.
+    return int(value) if value.is_integer() else value
+
+
+def _row_dee(cells: Mapping[str, str], use_dee: bool, where: str) -> float:
+    if use_dee:
+        d = _number(cells["dee"], "dee", where)
+        if not 0.0 <= d <= 1.0:
+            hint = " (DES1 = abs_rel - a1 + 1? DEE is half of it)" if d > 1.0 else ""
+            raise ScoreError(f"{where}: dee {d:g} is outside [0, 1]{hint}")
+        return d
+    abs_rel = _number(cells["abs_rel"], "abs_rel", where)
+    a1 = _number(cells["a1"], "a1", where)
+    if abs_rel < 0.0:
+        raise ScoreError(f"{where}: abs_rel {abs_rel:g} is negative")
+    if not 0.0 <= a1 <= 1.0:
+        hint = " (a percentage? give a1 as a fraction)" if 1.0 < a1 <= 100.0 else ""
+        raise ScoreError(f"{where}: a1 {a1:g} is outside [0, 1]{hint}")
+    return dee(abs_rel, a1)
+
+
+def _columns(header: list[str], source: str, line: int) -> tuple[dict[str, int], bool]:
+    """Map the needed column names to their indices; return it and whether ``dee`` is used."""
+    index: dict[str, int] = {}
+    for i, name in enumerate(header):
+        key = name.strip().lower()
+        if key in index:
+            raise ScoreError(f"{source}:{line}: column {key!r} appears twice in the header")
+        index[key] = i
+    missing = [c for c in ("corruption", "level") if c not in index]
+    has_metrics = "abs_rel" in index or "a1" in index
+    if "dee" in index and has_metrics:
+        raise ScoreError(f"{source}:{line}: header has both dee and abs_rel/a1; keep one")
+    use_dee = "dee" in index
+    if not use_dee:
+        missing += [c for c in ("abs_rel", "a1") if c not in index]
+    if missing:
+        need = "corruption, level, abs_rel, a1 (or dee instead of abs_rel, a1)"
+        if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
+            raise ScoreError(f"{source}:{line}: columns must be separated by commas, "
+                             f"not semicolons or tabs; need {need}")
+        raise ScoreError(f"{source}:{line}: header lacks {', '.join(missing)}; "
+                         f"the first row must name the columns: {need}")
+    wanted = ("corruption", "level") + (("dee",) if use_dee else ("abs_rel", "a1"))
+    return {c: index[c] for c in wanted}, use_dee
+
+
+def _data_rows(text: str, source: str):
+    """The data rows of a results CSV as ``(line, "source:line", {column: cell}, use_dee)``:
+    blank and ``#`` lines skipped, the header found and checked (:func:`_columns`), short
+    rows, a malformed file and a file with no header refused (ScoreError)."""
+    reader = csv.reader(io.StringIO(text))
+    columns: dict[str, int] | None = None
+    use_dee = False
+    try:
+        for row in reader:
+            line = reader.line_num
+            if not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
+                continue
+            if columns is None:
+                columns, use_dee = _columns(row, source, line)
+                continue
+            where = f"{source}:{line}"
+            if any(i >= len(row) for i in columns.values()):
+                raise ScoreError(f"{where}: only {len(row)} cells; the header names more columns")
+            yield line, where, {c: row[i] for c, i in columns.items()}, use_dee
+    except csv.Error as exc:
+        raise ScoreError(f"{source}:{reader.line_num}: malformed CSV: {exc}") from None
+    if columns is None:
+        raise ScoreError(f"{source}: no header row; the file is empty")
+
+
+def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
+    """Parse a results CSV (format in the module docstring) for ``benchmark``.
+
+    Every row is checked: known corruption of this benchmark, level in range (0 for clean),
+    numbers finite and in range, no duplicate (corruption, level). Completeness is not
+    checked here: see :meth:`Results.missing`. Raises :class:`ScoreError`.
+    """
+    seen: dict[tuple[str, int], int] = {}
+    clean: float | None = None
+    table: dict[str, dict[int, float]] = {}
+    decimal: dict[str, dict[float, float]] = {}
+    chains: dict[str, float] = {}
+    chain_lines: dict[str, int] = {}
+    for line, where, cells, use_dee in _data_rows(text, source):
+        if ":" in cells["corruption"] or "+" in cells["corruption"]:  # a chain
+            chain = _chain(cells, benchmark, where)
+            if chain in chains:
+                raise ScoreError(f"{where}: duplicate row for chain {chain} "
+                                 f"(first on line {chain_lines[chain]})")
+            chain_lines[chain] = line
+            chains[chain] = _row_dee(cells, use_dee, where)
+            continue
+        name = _normalise_name(cells["corruption"])
+        if not name:
+            raise ScoreError(f"{where}: empty corruption")
+        level = _level(cells["level"], where)
+        if name == CLEAN:
+            if level != 0:
+                raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
+        elif name not in benchmark.corruptions:
+            if name in CATEGORY:
+                raise ScoreError(f"{where}: {name} is not a corruption of {benchmark.name}")
+            raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
+                             f"valid: clean, {', '.join(benchmark.corruptions)}")
+        elif not 1 <= level <= benchmark.n_levels:
+            raise ScoreError(f"{where}: level {level} of {name} is outside "
+                             f"1..{benchmark.n_levels} for {benchmark.name}")
+        if isinstance(level, float):
+            if (name, level) in seen:
+                raise ScoreError(f"{where}: duplicate row for {name} level {level} "
+                                 f"(first on line {seen[name, level]})")
+            seen[name, level] = line
+            decimal.setdefault(name, {})[level] = _row_dee(cells, use_dee, where)
+            continue
+        if (name, level) in seen:
+            raise ScoreError(f"{where}: duplicate row for {name} level {level} "
+                             f"(first on line {seen[name, level]})")
+        seen[name, level] = line
+        value = _row_dee(cells, use_dee, where)
+        if name == CLEAN:
+            if value >= 1.0:
+                raise ScoreError(f"{where}: clean DEE {value:g} must be below 1 "
+                                 "(RR divides by 1 - clean DEE)")
+            clean = value
+        else:
+            table.setdefault(name, {})[level] = value
+    if clean is None:
+        raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); "
+                         "RR needs the clean DEE")
+    if not table:
+        if decimal or chains:
+            raise ScoreError(f"{source}: no corruption rows at the benchmark's integer levels, only the "
+                             f"clean one and rows beyond the benchmark; mCE and mRR need them")
+        raise ScoreError(f"{source}: no corruption rows, only the clean one")
+    return Results(source, clean, {n: dict(sorted(table[n].items()))
+                                   for n in benchmark.corruptions if n in table},
+                   decimal={n: dict(sorted(decimal[n].items())) for n in benchmark.corruptions if n in decimal},
+                   chains=dict(sorted(chains.items())))
+
+
+def _chain(cells: Mapping[str, str], benchmark: Benchmark, where: str) -> str:
+    """The canonical text of a chain row's corruption cell, its steps checked against
+    ``benchmark``; its level must be 0 or empty (a chain's levels are in its name)."""
+    from ..corruptions.chains import ChainError, parse_chain  # only for such rows: light anyway
+
+    try:
+        chain = parse_chain(cells["corruption"], top=benchmark.n_levels)
+    except ChainError as exc:
+        raise ScoreError(f"{where}: {exc}") from None
+    for step in chain.steps:
+        if step.name not in benchmark.corruptions:
+            raise ScoreError(f"{where}: chain {chain.text}: {step.name} is not a corruption of {benchmark.name}")
+    if cells["level"].strip() not in ("", "0", "0.0"):
+        raise ScoreError(f"{where}: a chain's row has level 0 (its levels are in its name), "
+                         f"not {cells['level'].strip()!r}")
+    return chain.text
+
+
+def other_benchmark(text: str, source: str, benchmark: Benchmark) -> str:
+    """The name of another benchmark of which ``text`` holds every variant, or ""."""
+    for other in BENCHMARKS.values():
+        if other.name == benchmark.name:
+            continue
+        try:
+            if not parse_results(text, source, other).missing(other):
+                return other.name
+        except ScoreError:
+            pass
+    return ""
+
+
+def _looks_like(name: str) -> str:
+    b = BENCHMARKS[name]
+    return (f"the rows look like {name} results ({len(b.corruptions)} corruptions x "
+            f"{b.n_levels} levels): use --benchmark {name}")
+
+
+def read_text(path: str | Path) -> str:
+    """A results file's text; I/O and decoding problems become ScoreError."""
+    try:
+        return Path(path).read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ScoreError(f"{path}: not a UTF-8 text file") from None
+    except IsADirectoryError:
+        raise ScoreError(f"{path}: is a directory, not a results CSV") from None
+    except OSError as exc:
+        raise ScoreError(f"{path}: cannot read: {os_reason(exc)}") from None
+
+
+def read_results(path: str | Path, benchmark: Benchmark) -> Results:
+    """Read and parse a results CSV file; I/O and decoding problems become ScoreError.
+    When the rows do not fit ``benchmark`` but are a complete set of another one, the error
+    (or :attr:`Results.looks_like`, for rows that merely leave variants missing) says so."""
+    text = read_text(path)
+    try:
+        results = parse_results(text, str(path), benchmark)
+    except ScoreError as exc:
+        other = other_benchmark(text, str(path), benchmark)
+        if other:
+            raise ScoreError(f"{exc}; {_looks_like(other)}") from None
+        raise
+    if results.missing(benchmark):
+        results.looks_like = other_benchmark(text, str(path), benchmark)
+    return results
+
+
+def _row_names(text: str) -> list[str]:
+    """The normalised corruption cells of a results CSV, header and comments skipped; []
+    when there is no ``corruption`` column to read."""
+    rows = [r for r in csv.reader(io.StringIO(text))
+            if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    if not rows:
+        return []
+    header = [c.strip().lower() for c in rows[0]]
+    if "corruption" not in header:
+        return []
+    i = header.index("corruption")
+    return [_normalise_name(r[i]) for r in rows[1:] if i < len(r)]
+
+
+def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
+    """The benchmark a results file is on, from its rows: ``kitti-s`` when they name
+    ``styles``; else the one benchmark of which they are a complete set, or the only one
+    whose corruptions and levels they fit. ScoreError when the rows fit none or both."""
+    text = read_text(path)
+    names = set(_row_names(text)) - {CLEAN}
+    styles = set(styles)
+    if styles and names and names <= styles:
+        return "kitti-s"
+    if styles and names & styles:
+        raise ScoreError(f"{path}: mixes KITTI-S styles ({', '.join(sorted(names & styles))}) "
+                         f"with corruptions ({', '.join(sorted(names - styles))})")
+    fits, complete, first_error = [], [], None
+    for bench in BENCHMARKS.values():
+        try:
+            results = parse_results(text, str(path), bench)
+        except ScoreError as exc:
+            first_error = first_error or exc
+            continue
+        fits.append(bench.name)
+        if not results.missing(bench):
+            complete.append(bench.name)
+    if len(complete) == 1:
+        return complete[0]
+    if len(fits) == 1:
+        return fits[0]
+    if not fits:
+        raise ScoreError(f"{first_error} (with --benchmark, the error may be clearer)")
+    raise ScoreError(f"{path}: the rows fit {' and '.join(fits)}; say which with --benchmark")
+
+
+@dataclass
+class StyleResults:
+    """Parsed KITTI-S results: the DEE of every style present (and the clean DEE, if any)."""
+
+    source: str
+    clean: float | None
+    dee: dict[str, float]  # style -> DEE, in the order of the styles given to the parser
+
+    @property
+    def mdee(self) -> float:
+        """KITTI-S's one score: the mean DEE over the styles."""
+        return mean(self.dee.values())
+
+
+def parse_style_results(text: str, source: str, styles: tuple[str, ...]) -> StyleResults:
+    """Parse KITTI-S results (rows ``<style>,0`` and optionally ``clean,0``, in the same
+    columns as any results CSV; a style has no levels). Every style of ``styles`` must have
+    a row; anything else is a ScoreError naming the line."""
+    seen: dict[str, int] = {}
+    values: dict[str, float] = {}
+    for line, where, cells, use_dee in _data_rows(text, source):
+        name = _normalise_name(cells["corruption"])
+        if name != CLEAN and name not in styles:
+            raise ScoreError(f"{where}: unknown style {cells['corruption'].strip()!r}; "
+                             f"valid: clean, {', '.join(styles)}")
+        level = _level(cells["level"], where)
+        if level != 0:
+            raise ScoreError(f"{where}: {name} has level {level}; KITTI-S rows have level 0")
+        if name in seen:
+            raise ScoreError(f"{where}: duplicate row for {name} (first on line {seen[name]})")
+        seen[name] = line
+        values[name] = _row_dee(cells, use_dee, where)
+    missing = [s for s in styles if s not in values]
+    if missing:
+        raise ScoreError(f"{source}: missing {len(missing)} of {len(styles)} KITTI-S styles: "
+                         f"{', '.join(missing)}")
+    return StyleResults(source, values.get(CLEAN), {s: values[s] for s in styles})
+
+
+def describe_missing(missing: list[tuple[str, int]], benchmark: Benchmark) -> str:
+    """``[("fog", 1), ..., ("fog", 5), ("snow", 3)]`` -> ``"fog (all levels), snow 3"``."""
+    return describe_variants(missing, benchmark.n_levels)
+
+
+def describe_variants(variants: Iterable[tuple[str, int | None]], n_levels: int | None = None,
+                      most: int | None = None) -> str:
+    """Variants as every message writes them: ``"clean, fog 1,2, snow 3"``; a corruption
+    with all ``n_levels`` levels is ``"fog (all levels)"``; beyond ``most`` names,
+    ``", ... (N more)"``."""
+    by_name: dict[str, list[int]] = {}
+    for name, level in variants:
+        by_name.setdefault(name, []).extend([] if level is None else [level])
+    parts = []
+    for name, levels in by_name.items():
+        if not levels:
+            parts.append(name)
+        elif n_levels is not None and len(levels) == n_levels:
+            parts.append(f"{name} (all levels)")
+        else:
+            parts.append(f"{name} {','.join(map(str, levels))}")
+    if most is not None and len(parts) > most:
+        return ", ".join(parts[:most]) + f", ... ({len(parts) - most} more)"
+    return ", ".join(parts)
+
+
+def missing_message(results: Results, benchmark: Benchmark) -> str | None:
+    """``"FILE: missing N of M variants: ..."``, or None when every variant has a row."""
+    missing = results.missing(benchmark)
+    if not missing:
+        return None
+    total = len(benchmark.corruptions) * benchmark.n_levels
+    if results.looks_like:  # the list of missing variants would only bury this
+        return (f"{results.source}: {_looks_like(results.looks_like)} (as {benchmark.name} "
+                f"results, {len(missing)} of {total} variants are missing)")
+    return (f"{results.source}: missing {len(missing)} of {total} variants: "
+            f"{describe_missing(missing, benchmark)}")
+
+
+def check_complete(results: Results, benchmark: Benchmark) -> None:
+    """Raise ScoreError naming the missing variants, if any."""
+    message = missing_message(results, benchmark)
+    if message:
+        raise ScoreError(message)
+
+
+def baseline_from_results(results: Results, benchmark: Benchmark) -> Baseline:
+    """A complete results file as a baseline (level-averaged, like the published ones)."""
+    check_complete(results, benchmark)
+    return Baseline(results.source, results.clean,
+                    {n: mean(results.dee[n].values()) for n in benchmark.corruptions})
