@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from robodepth_cli import benchmarks as B
 from robodepth_cli.evaluation import results as R, scores as S
 from robodepth_cli.corruptions import DATA, NAMES, SENSOR, WEATHER
 from robodepth_cli.evaluation.plot import COLOURS, Model, ce_figure, render
 
-KITTI = S.get_benchmark("kitti-c")
-NYU = S.get_benchmark("nyudepth2-c")
+KITTI = B.get_benchmark("kitti-c")
+NYU = B.get_benchmark("nyudepth2-c")
 
 # The published baselines, retyped here so that a typo in the package's copy shows up.
 KITTI_BASE = ".130 .280 .155 .277 .511 .187 .244 .242 .216 .201 .129 .193 .384 .389 .340 .388 .145 .196"
@@ -147,8 +148,8 @@ def test_builtin_baselines_are_the_spec_tables():
 #   defocus_blur .5/.5 -> .5 ; .6/.2 -> .7 ; mean .6 -> CE  .6/.5 = 120 ; RR (.5+.3)/1.8 =  8/18
 # weather: DEE .25, CE 87.5, RR 15/18 ; sensor: DEE .6, CE 120, RR 8/18 ; data: nothing.
 # overall: mDEE 1.1/3, mCE 295/3 = 98.33, mRR 38/54 = 70.37.
-SMALL = S.Benchmark("small", ("brightness", "dark", "defocus_blur"), 2,
-                    S.Baseline("hand", 0.1, {"brightness": 0.2, "dark": 0.4, "defocus_blur": 0.5}))
+SMALL = B.Benchmark("small", ("brightness", "dark", "defocus_blur"), 2,
+                    B.Baseline("hand", 0.1, {"brightness": 0.2, "dark": 0.4, "defocus_blur": 0.5}))
 # Columns in a different order, with an extra column that is ignored.
 SMALL_CSV = """a1, Level ,corruption,rmse,abs_rel
 0.9,0,clean,4.1,0.1

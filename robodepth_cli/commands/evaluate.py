@@ -91,6 +91,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     from ..evaluation import evaluate as E
     from ..workers import default_jobs
     from ..evaluation.protocols import STEREO_SCALE, make_setup
+    from .. import benchmarks as B
     from ..evaluation import results as R, scores as S
     from ..api import open_dataset
 
@@ -121,10 +122,10 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
                        min_depth=min_depth, max_depth=max_depth)
     bench = None
     if with_score:
-        if dataset.name not in S.BENCHMARKS:
+        if dataset.name not in B.BENCHMARKS:
             raise RobodepthError(f"--score: {dataset.name} has no robustness scores (they exist "
-                                 f"for {', '.join(S.BENCHMARKS)})")
-        bench = S.get_benchmark(dataset.name)
+                                 f"for {', '.join(B.BENCHMARKS)})")
+        bench = B.get_benchmark(dataset.name)
     with progress_bar("img", progress=progress) as bar:
         def set_total(n):
             # Restarts the clock too: the ground truth was read meanwhile, and counting that

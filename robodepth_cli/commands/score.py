@@ -37,6 +37,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     """
     import json
 
+    from .. import benchmarks as B
     from ..evaluation import results as R, scores as S
 
     plot_file = None
@@ -49,10 +50,10 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         from ..report.inputs import style_names
 
         benchmark = R.infer_benchmark(results, style_names())
-        if benchmark not in S.BENCHMARKS:
+        if benchmark not in B.BENCHMARKS:
             raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
                                  "robodepth report shows their DEE per style and mDEE")
-    bench = S.get_benchmark(benchmark)
+    bench = B.get_benchmark(benchmark)
     res = R.read_results(results, bench)
     base = None
     if baseline_file is not None:

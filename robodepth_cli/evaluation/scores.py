@@ -12,8 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..benchmarks import (BENCHMARKS, CATEGORIES, CATEGORY, CORRUPTIONS, Baseline,  # noqa: F401
-                          Benchmark, get_benchmark)
+from ..benchmarks import CATEGORIES, CATEGORY, CORRUPTIONS, Baseline, Benchmark
 from .results import Results, ScoreError, check_complete, corruption_error, mean, resilience_rate
 
 

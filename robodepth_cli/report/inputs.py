@@ -13,12 +13,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
+from .. import benchmarks as B
 from ..evaluation import results as R, scores as S
 from ..errors import RobodepthError
 from . import published as P
 
 KITTI_S = "kitti-s"
-BENCHMARK_CHOICES = (*S.BENCHMARKS, KITTI_S)
+BENCHMARK_CHOICES = (*B.BENCHMARKS, KITTI_S)
 CONTEXT_CHOICES = ("all", "baseline", "none")
 
 
@@ -135,7 +136,7 @@ def load(paths: Sequence[Path], names: Sequence[str], benchmark: str) -> list[Mo
             res = R.parse_style_results(text, str(path), style_names())
             row = Row(name, "yours", res.clean, styles=res.dee, source=str(path))
         else:
-            bench = S.get_benchmark(benchmark)
+            bench = B.get_benchmark(benchmark)
             res = R.read_results(path, bench)
             missing = R.missing_message(res, bench)
             if missing:
@@ -154,7 +155,7 @@ def context(benchmark: str, which: str) -> list[Row]:
         rows = [Row(m.name, "baseline" if m.block == "baseline" else "published", None,
                     styles=dict(m.dee), source=cite) for m in P.style_models()]
     else:
-        bench = S.get_benchmark(benchmark)
+        bench = B.get_benchmark(benchmark)
         rows = [Row(m.name, "baseline" if m.block == "baseline" else "published", m.clean_dee,
                     scores=S.score(m.results(), bench), source=cite) for m in P.models(benchmark)]
     return [r for r in rows if which == "all" or r.kind == "baseline"]
