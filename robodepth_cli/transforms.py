@@ -276,7 +276,7 @@ class RandomChain:
         """The training side of a held-out protocol file (``configs/protocols/``): its
         ``train`` mapping's corruptions, steps and severity range (as a build checks them),
         so training never draws the corruptions the file builds for testing."""
-        from .build.config import ConfigError, check_train, load_yaml
+        from .building.config import ConfigError, check_train, load_yaml
         from .sources.datasets import get_dataset
 
         data = load_yaml(Path(path))

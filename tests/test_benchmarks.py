@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from robodepth_cli.build.config import ConfigError, resolve
+from robodepth_cli.building.config import ConfigError, resolve
 
 from _trees import nyu_tree, tree
 

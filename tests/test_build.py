@@ -13,7 +13,7 @@ from PIL import Image
 
 from robodepth_cli import corruptions, files, seeding
 
-from robodepth_cli.build import pipeline as builder, tasks
+from robodepth_cli.building import pipeline as builder, tasks
 
 from robodepth_cli.sources import datasets
 from robodepth_cli.corruptions import NAMES
@@ -103,7 +103,7 @@ def test_all_18_corruptions_5_levels_on_one_image(fixtures_dir, tmp_path, cli):
 
 def test_full_dataset_job_counts(splits_dir):
     """The presets and the real splits give the published image counts."""
-    from robodepth_cli.build.config import resolve
+    from robodepth_cli.building.config import resolve
     from robodepth_cli.sources.datasets import get_dataset, read_split
 
     for preset, split, n_images, n_corrupted in [("kitti-c", "eigen_test_files.txt", 697, 62730),

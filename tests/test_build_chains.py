@@ -151,7 +151,7 @@ def test_kitti_s_takes_no_chains(tmp_path, cli):
 def test_heldout_protocol_builds_the_test_side_and_trains_on_the_rest():
     from _paths import REPO
     from robodepth_cli.benchmarks import CATEGORY, WEATHER
-    from robodepth_cli.build.config import resolve
+    from robodepth_cli.building.config import resolve
 
     path = REPO / "configs" / "protocols" / "heldout-weather.yaml"
     cfg = resolve("kitti-c", path)
@@ -169,7 +169,7 @@ def test_heldout_protocol_builds_the_test_side_and_trains_on_the_rest():
 
 def test_chain_set_preset_builds_only_its_chains():
     from _paths import REPO
-    from robodepth_cli.build.config import ConfigError, resolve
+    from robodepth_cli.building.config import ConfigError, resolve
 
     path = REPO / "configs" / "protocols" / "chains.yaml"
     cfg = resolve("kitti-c", path)
@@ -190,7 +190,7 @@ def test_chain_set_preset_builds_only_its_chains():
      "train: snow also built for testing; a held-out protocol trains on other corruptions"),
 ])
 def test_bad_train_sections(tmp_path, text, message):
-    from robodepth_cli.build.config import ConfigError, resolve
+    from robodepth_cli.building.config import ConfigError, resolve
 
     path = tmp_path / "p.yaml"
     path.write_text(text)

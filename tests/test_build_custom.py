@@ -275,7 +275,7 @@ def test_build_made_before_orientation_redoes_only_turned_images(tmp_path, build
 def _stop_at_write(monkeypatch, n, exc=KeyboardInterrupt):
     """Make the build's ``n``-th PNG write raise ``exc`` (the earlier ones are written): a
     stop in the middle of one source image's outputs."""
-    from robodepth_cli.build import tasks
+    from robodepth_cli.building import tasks
 
     real, calls = tasks.write_png, []
 
@@ -309,7 +309,7 @@ def test_interrupt_mid_image_keeps_and_records_what_was_written(folder, tmp_path
 
 def test_killed_mid_image_the_rerun_reuses_what_was_written(folder, tmp_path, build, cli,
                                                             monkeypatch):
-    from robodepth_cli.build import pipeline
+    from robodepth_cli.building import pipeline
 
     out = tmp_path / "out"
     per_image = 1 + 3 * 2
@@ -319,7 +319,7 @@ def test_killed_mid_image_the_rerun_reuses_what_was_written(folder, tmp_path, bu
 
     _stop_at_write(monkeypatch, per_image + 3, Killed)  # one whole image, then two outputs
     with pytest.raises(Killed):
-        pipeline.build(__import__("robodepth_cli.build.config", fromlist=["resolve"]).resolve(
+        pipeline.build(__import__("robodepth_cli.building.config", fromlist=["resolve"]).resolve(
             "custom", None, {"corruptions": VARIANTS, "levels": "1,3", "jobs": "1"}), folder, out)
     monkeypatch.undo()
     from robodepth_cli.output.layout import JOURNAL

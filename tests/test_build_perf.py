@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pickle
 
-from robodepth_cli.build import gather, pipeline as builder, tasks
+from robodepth_cli.building import gather, pipeline as builder, tasks
 
-from robodepth_cli.build import config
+from robodepth_cli.building import config
 from robodepth_cli.sources.datasets import get_dataset
 
 from _trees import kitti_tree

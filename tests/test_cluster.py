@@ -326,7 +326,7 @@ def test_worker_that_cannot_see_the_root_is_refused_before_any_work(build, clust
 def test_probe_names_each_problem(tmp_path):
     """The probe itself, in this process: what a worker on a host without the shared
     paths, or with other files or versions, reports."""
-    from robodepth_cli.build import cluster
+    from robodepth_cli.building import cluster
 
     root, out = tmp_path / "root", tmp_path / "out"
     (root / "2011_09_26").mkdir(parents=True)
@@ -363,7 +363,7 @@ def test_probe_names_each_problem(tmp_path):
 
 
 def test_scheduler_config_keys(tmp_path):
-    from robodepth_cli.build.config import ConfigError, resolve
+    from robodepth_cli.building.config import ConfigError, resolve
 
     f = tmp_path / "c.yaml"
     f.write_text("scheduler_file: run/scheduler.json\n")
@@ -384,7 +384,7 @@ def test_scheduler_config_keys(tmp_path):
 def test_unreachable_scheduler_and_bad_scheduler_file(build, tmp_path, monkeypatch):
     import socket
 
-    from robodepth_cli.build import cluster
+    from robodepth_cli.building import cluster
 
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 2)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from robodepth_cli.build.config import CONFIG_DIR, ConfigError, presets, resolve
+from robodepth_cli.building.config import CONFIG_DIR, ConfigError, presets, resolve
 from robodepth_cli.corruptions import NAMES
 
 

@@ -134,7 +134,7 @@ CASES = [
                 "--out", "{OUT}/PRED", "--no-progress"],
      "the variants finished so far are kept under {OUT}/PRED, each complete; rerun the same "
      "command to continue", ["PRED/brightness/1.npy"]),
-    ("build", "robodepth_cli.build.pipeline:run_tasks", 1,
+    ("build", "robodepth_cli.building.pipeline:run_tasks", 1,
      lambda i: ["build", "kitti-c", "--root", i["fixtures"] / "kitti_raw", "--split",
                 i["fixtures"] / "kitti_split.txt", "--out", "{OUT}/KITTI_C", "--size", "32x96",
                 "--corruptions", "brightness", "--levels", "1", "--jobs", "1", "--no-progress"],

@@ -111,7 +111,7 @@ def test_help_and_kitti_c_build_do_not_import_torch(tmp_path, fixtures_dir):
         from robodepth_cli.cli import main
         r = CliRunner().invoke(main, ["--help"])
         assert r.exit_code == 0, r.output
-        from robodepth_cli.build import pipeline, config  # noqa: F401
+        from robodepth_cli.building import pipeline, config  # noqa: F401
         from robodepth_cli.sources import datasets  # noqa: F401
         from robodepth_cli.styles import inputs  # noqa: F401
         r = CliRunner().invoke(main, ["build", "kitti-c", "--root", {str(fixtures_dir / 'kitti_raw')!r},

@@ -11,7 +11,7 @@ import torch
 
 from _trees import KITTI_DRIVE, kitti_key, kitti_tree, nyu_tree
 from robodepth_cli.sources import splits
-from robodepth_cli.build.config import ConfigError, resolve
+from robodepth_cli.building.config import ConfigError, resolve
 from robodepth_cli.corruptions import NAMES
 from robodepth_cli.sources.datasets import read_split
 from robodepth_cli.sources.splits import SplitError

@@ -88,8 +88,8 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
       robodepth build custom --root cityscapes/leftImg8bit/val --out CITYSCAPES_C \\
           --pattern '**/*_leftImg8bit.png' --levels 3
     """
-    from ..build.pipeline import build
-    from ..build.config import resolve
+    from ..building.pipeline import build
+    from ..building.config import resolve
 
     interrupted = "robodepth: interrupted; rerun the same command to resume"
     # The group turns a scheduler's SIGTERM (end of a job's time) into KeyboardInterrupt.
@@ -119,7 +119,7 @@ def _executor(cfg):
     nothing (the builder's local pool), and dask is never imported."""
     if not (cfg.scheduler or cfg.scheduler_file):
         return contextlib.nullcontext()
-    from ..build.cluster import DaskExecutor
+    from ..building.cluster import DaskExecutor
 
     return DaskExecutor(cfg.scheduler, cfg.scheduler_file)
 

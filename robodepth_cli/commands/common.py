@@ -32,7 +32,7 @@ def on_interrupt(kept: str) -> None:
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     """The corruptions ``value`` selects ('all', a name or a comma list), in order."""
     from ..benchmarks import CORRUPTIONS
-    from ..build.config import choose_names
+    from ..building.config import choose_names
 
     return list(choose_names(flag, value, CORRUPTIONS, "corruption"))
 

@@ -64,7 +64,7 @@ def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
     files are checked."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from ..build.checks import planned_outputs
+    from ..building.checks import planned_outputs
 
     out = Path(out)
     if not out.exists():

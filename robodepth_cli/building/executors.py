@@ -7,7 +7,7 @@ bookkeeping files; it only has to run ``fn(task)`` somewhere that sees the same 
 output directory.
 
 :class:`LocalExecutor` is the default: in-process for one worker, else a joblib (loky)
-process pool. :class:`robodepth_cli.build.cluster.DaskExecutor` runs the tasks on a Dask cluster;
+process pool. :class:`robodepth_cli.building.cluster.DaskExecutor` runs the tasks on a Dask cluster;
 it is imported (with dask) only when a build asks for a scheduler.
 """
 

@@ -326,7 +326,7 @@ def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: di
     """Write the build record of a build that starts now (status ``running``) and return it.
     ``split`` is :func:`gather_sources`' account of the sources (``keys``: the entries
     built, in order); ``plans`` every request made
-    into this OUT so far (see :mod:`robodepth_cli.build.checks`), which verify checks;
+    into this OUT so far (see :mod:`robodepth_cli.building.checks`), which verify checks;
     ``png`` how the PNGs are written."""
     record = BuildRecord(
         robodepth=__version__, command=command or [], dataset=ds.name,
@@ -388,7 +388,7 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
 def add_ground_truth(ds: Dataset, root: Path, split_path: Path, frames: int, out: Path,
                      summary: Summary, progress: bool, rerun: str | None = None) -> None:
     """Write the ground truth of the first ``frames`` split entries, the ones the build in
-    ``out`` holds (see :mod:`robodepth_cli.build.groundtruth`), as manifest rows counted in
+    ``out`` holds (see :mod:`robodepth_cli.building.groundtruth`), as manifest rows counted in
     ``summary``; when it cannot be made at all, only a note (naming ``rerun``, the
     command that adds it once the files are there)."""
     from . import groundtruth as build_gt
