@@ -87,14 +87,14 @@ def test_out_inside_the_dataset_is_refused(dataset, tmp_path, cli, module):
 def test_batch_limit_by_pixels():
     from robodepth_cli.models import predict as P
 
-    assert P.BATCH_PIXELS == 2 ** 23
-    assert P.batch_limit(100000, (192, 640)) == 2 ** 23 // (192 * 640) == 68
-    assert P.batch_limit(100000, (375, 1242)) == 18
-    assert P.batch_limit(8, (375, 1242)) == 8
+    assert P.BATCH_PIXELS == 2 ** 22
+    assert P.batch_limit(100000, (192, 640)) == 2 ** 22 // (192 * 640) == 34
+    assert P.batch_limit(100000, (375, 1242)) == 9
+    assert P.batch_limit(8, (375, 1242)) == P.batch_limit(8, (480, 640)) == 8  # the default stays
     # counted at the network's input when that is larger (monodepth2's [h, w], a processor's dict)
-    assert P.batch_limit(100000, (48, 64), [192, 640]) == 68
-    assert P.batch_limit(100000, (48, 64), {"height": 518, "width": 518}) == 2 ** 23 // 518 ** 2
-    assert P.batch_limit(100000, (48, 64), {"shortest_edge": 384}) == 2 ** 23 // (48 * 64)
+    assert P.batch_limit(100000, (48, 64), [192, 640]) == 34
+    assert P.batch_limit(100000, (48, 64), {"height": 518, "width": 518}) == 2 ** 22 // 518 ** 2
+    assert P.batch_limit(100000, (48, 64), {"shortest_edge": 384}) == 2 ** 22 // (48 * 64)
     assert P.batch_limit(5, (10000, 10000)) == 1  # one image always goes
 
 

@@ -21,7 +21,7 @@ from . import common
               help="Only these variants: comma-separated clean, <corruption> (all its levels), "
                    "<corruption>/<level>, <style>. Default: every variant of the build.")
 @click.option("--batch-size", "-b", default=8, show_default=True, type=int,
-              help="Images per forward pass, at most what 8.4 million pixels hold (68 "
+              help="Images per forward pass, at most what 4.2 million pixels hold (34 "
                    "images of 192x640; a larger value is lowered to that).")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
               show_default=True, help="Where monodepth2 and hf models run (auto: cuda if "

@@ -46,9 +46,11 @@ from .errors import ModelError
 
 RECORD = "predictions.json"
 # The most pixels one forward pass holds: the memory of a batch (its images, the model's
-# float copies and activations) grows with its pixels, and beyond a few million pixels a
-# larger batch is no faster. 2**23: 68 images of 192 x 640, 18 of 375 x 1242.
-BATCH_PIXELS = 1 << 23
+# float copies and activations) grows with its pixels. 2**22: 34 images of 192 x 640, 9 of
+# 375 x 1242, 13 of 480 x 640, so the default 8 is never lowered on the benchmarks; a
+# ResNet-18 monodepth2 on the CPU peaks at about 1.75 GB there (0.7 GB at 8 images, 3.1 GB
+# at 68: about 41 MB per 192 x 640 image).
+BATCH_PIXELS = 1 << 22
 # What must agree for a run to add to an earlier one's predictions.
 _SAME = ("adapter", "identity", "options", "evaluate")
 
