@@ -4,6 +4,8 @@ PIP ?= $(PYTHON) -m pip
 # build and its nvidia-* wheels. For the CPU-only build, set it to the CPU index URL that
 # PyTorch's "Get started" page gives for pip: make install TORCH_INDEX=<that URL>
 TORCH_INDEX ?=
+# The browser the report's browser test drives (tests/test_report_browser.py).
+CHROMIUM ?= chromium
 
 .PHONY: install test bench demo
 
@@ -12,6 +14,14 @@ install:
 	$(PIP) install -e '.[test,dask,models,figures]'
 	# Frost textures only: the package's own dependencies (opencv-python, ...) are not wanted.
 	$(PIP) install --no-deps imagecorruptions-imaug==1.1.5
+	# Headless Chromium for the browser test, where this system lets us install it (Debian
+	# or Ubuntu, as root); anywhere else, say how: only that one test needs it.
+	@if command -v $(CHROMIUM) >/dev/null 2>&1; then :; \
+	elif command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	  apt-get update && apt-get install -y chromium || echo "make install: apt-get could not install chromium; the browser test will fail until it is installed" >&2; \
+	else \
+	  echo "make install: the browser test needs Chromium (not found): install your system's chromium package (Debian/Ubuntu: sudo apt-get install -y chromium)" >&2; \
+	fi
 
 test:
 	$(PYTHON) -m pytest -q

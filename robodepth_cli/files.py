@@ -95,7 +95,7 @@ def check_writable(path: str | os.PathLike, flag: str | None = None) -> None:
     :func:`~robodepth_cli.errors.cannot_write`'s message when a parent is not a directory
     or the nearest existing parent does not let us create an entry. Leaves nothing behind.
     """
-    from .errors import RobodepthError, cannot_write
+    from .errors import RobodepthError, cannot_write, os_reason
 
     path = Path(path)
     parent = path.parent
@@ -105,8 +105,13 @@ def check_writable(path: str | os.PathLike, flag: str | None = None) -> None:
     if not existing.is_dir():
         raise RobodepthError(cannot_write(path, f"{existing} is not a directory", flag))
     if existing != parent:  # missing folders are made at the end: can the first be?
-        if not os.access(existing, os.W_OK | os.X_OK):
-            raise RobodepthError(cannot_write(path, f"{existing}: Permission denied", flag))
+        # Tried, not os.access: that says nothing of a read-only file system's reason
+        # (EROFS) and, for root, passes where the mkdir later fails.
+        try:
+            made = tempfile.mkdtemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=existing)
+        except OSError as exc:
+            raise RobodepthError(cannot_write(path, f"{existing}: {os_reason(exc)}", flag)) from None
+        os.rmdir(made)
         return
     try:
         fd, tmp = tempfile.mkstemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=parent)

@@ -8,7 +8,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from .corruptions import REGISTRY, level_text, render
-from .corruptions.chains import expand_chain, looks_like_chain
+from .corruptions.chains import ChainError, expand_chain, looks_like_chain, parse_chain
 
 _BG = (255, 255, 255)
 _FG = (20, 20, 20)
@@ -20,7 +20,9 @@ def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
     """One row per corruption or chain (label, then one cell per level) under a first row
     holding the clean image. Cells are the corrupted images scaled to ``thumb_width`` pixels
     wide. A chain's steps written without a level take the column's level
-    (``fog+gaussian_noise``); the others keep theirs."""
+    (``fog+gaussian_noise``); the others keep theirs. A chain whose steps all have their
+    level (``fog:3+gaussian_noise:2.5``) is the same image in every column, so it is drawn
+    once, in the first column, labelled "fixed levels"."""
     names, levels = list(names), list(levels)
     h, w = clean.shape[:2]
     tw = min(thumb_width, w)
@@ -45,10 +47,13 @@ def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
     for name in names:
         y += th + _PAD
         chained = looks_like_chain(name)
+        fixed = chained and _fixed(name)
         draw.text((_PAD, y + th // 2 - 12), name, fill=_FG, font=font)
-        draw.text((_PAD, y + th // 2 + 2), "chain" if chained else REGISTRY[name].category,
-                  fill=(110, 110, 110), font=font)
+        kind = ("chain, fixed levels" if fixed else "chain") if chained else REGISTRY[name].category
+        draw.text((_PAD, y + th // 2 + 2), kind, fill=(110, 110, 110), font=font)
         for j, level in enumerate(levels):
+            if fixed and j > 0:
+                break
             if chained:
                 out = render(clean, expand_chain(name, [level])[0].text, None,
                              seed=seed, dataset="preview", key=key)
@@ -58,3 +63,12 @@ def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
                 continue
             sheet.paste(thumb(out), (label_w + j * (tw + _PAD) + _PAD, y))
     return sheet
+
+
+def _fixed(chain: str) -> bool:
+    """Whether every step of ``chain`` has its own level (no column's level to take)."""
+    try:
+        parse_chain(chain)
+    except ChainError:
+        return False
+    return True

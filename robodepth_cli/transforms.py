@@ -228,8 +228,11 @@ class RandomChain:
     (the sample's index or path) and the epoch, never on the process: a DataLoader worker,
     a rerun or another machine draws the same. ``epoch`` defaults to the one set with
     :meth:`set_epoch` (0 at first); set it in the main process before each epoch's
-    iterator is created, as with ``DistributedSampler``. :meth:`draw` gives the chain
-    without applying it.
+    iterator is created, as with ``DistributedSampler``. The epoch lives in shared memory
+    (a one-element torch tensor), so DataLoader workers see it even when they outlive the
+    epoch (``persistent_workers=True``): a copy of the transform made by pickling outside
+    torch's multiprocessing (a plain ``pickle.dumps``) no longer follows the original's
+    :meth:`set_epoch`. :meth:`draw` gives the chain without applying it.
     """
 
     def __init__(self, names: Sequence[str] | None = None, steps=(1, 3), severity=(1.0, 5.0),
@@ -259,7 +262,17 @@ class RandomChain:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise TorchAPIError(f"seed must be an integer >= 0, got {seed!r}")
         self.seed = int(seed)
-        self.epoch = 0
+        # Shared memory, not an int: persistent DataLoader workers keep the copy they got
+        # when they started, and an int there would stay at that epoch for ever.
+        self._shared_epoch = torch.zeros((), dtype=torch.int64).share_memory_()
+
+    @property
+    def epoch(self) -> int:
+        return int(self._shared_epoch.item())
+
+    @epoch.setter
+    def epoch(self, value: int) -> None:
+        self._shared_epoch.fill_(int(value))
 
     @staticmethod
     def _range(name: str, r) -> tuple[float, float]:

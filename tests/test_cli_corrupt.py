@@ -146,6 +146,35 @@ def test_preview_sheet_has_a_row_per_corruption(tmp_path, cli):
     assert arr.std() > 10  # images were pasted, not a blank canvas
 
 
+def test_preview_draws_a_fixed_chain_once(tmp_path, cli):
+    from robodepth_cli.corruptions import render
+    from robodepth_cli.imageio import load_clean
+    from robodepth_cli.preview import _PAD, contact_sheet
+
+    src = small_png(tmp_path)
+    clean = load_clean(src, None)
+    levels = [1, 1.5, 2, 5]
+    sheet = np.asarray(contact_sheet(clean, ["fog:3+gaussian_noise:2.5", "fog+contrast:2"],
+                                     levels, thumb_width=64, key="img.png"))
+    label_w, head_h, th, tw = 8 + 6 * len("fog:3+gaussian_noise:2.5"), 18, 48, 64  # the sheet's layout
+
+    def cell(row, col):  # row 0 is the clean image
+        y, x = head_h + row * (th + _PAD), label_w + col * (tw + _PAD) + _PAD
+        return sheet[y:y + th, x:x + tw]
+
+    fixed = render(clean, "fog:3+gaussian_noise:2.5", None, seed=0, dataset="preview", key="img.png")
+    assert np.array_equal(cell(1, 0), fixed)  # drawn once, in the first column
+    for col in range(1, len(levels)):
+        assert (cell(1, col) == 255).all()  # and nowhere else: the same image nine times says nothing
+        # the template takes each column's level
+        want = render(clean, f"fog:{levels[col]}+contrast:2", None, seed=0, dataset="preview",
+                      key="img.png")
+        assert np.array_equal(cell(2, col), want)
+    res = cli("preview", src, "-c", "fog:3+gaussian_noise:2.5", "-l", "1,1.5,2,2.5,3,3.5,4,4.5,5",
+              "--thumb-width", "64", "--out", tmp_path / "sheet.png")
+    assert res.exit_code == 0, res.output
+
+
 def test_same_bytes_in_another_process(tmp_path):
     """Same image, name, level and seed give identical bytes in any process and order."""
     src = small_png(tmp_path, size=(64, 80))

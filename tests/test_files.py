@@ -7,7 +7,9 @@ import os
 
 import pytest
 
+from _readonly import read_only_dir, read_only_reason  # noqa: F401
 from robodepth_cli import files
+from robodepth_cli.errors import RobodepthError
 
 
 def test_a_killed_writes_leftover_is_recognised_and_nothing_else(tmp_path, monkeypatch):
@@ -34,3 +36,17 @@ def test_write_atomic_and_hashes(tmp_path):
     assert os.listdir(target.parent) == ["b.bin"]
     want = hashlib.sha256(b"x" * 3_000_000).hexdigest()
     assert files.sha256_file(target) == files.sha256_bytes(target.read_bytes()) == want
+
+
+def test_a_read_only_file_system_is_named_as_such(read_only_dir, fixtures_dir, cli):
+    reason = read_only_reason(read_only_dir)  # "Read-only file system" where the mount works
+    for target, ending in ((read_only_dir / "out.png", f"cannot write ({reason})"),
+                           (read_only_dir / "new" / "deeper" / "out.png",
+                            f"cannot write ({read_only_dir}: {reason})")):
+        with pytest.raises(RobodepthError) as info:
+            files.check_writable(target, "--out")
+        assert str(info.value) == f"--out {target}: {ending}"
+    frame = next((fixtures_dir / "kitti_raw").rglob("*.png"))
+    res = cli("corrupt", frame, "-c", "fog", "-l", "1", "--out", read_only_dir / "sub" / "fog.png")
+    assert res.exit_code == 2
+    assert res.output.strip().endswith(f"({reason})"), res.output

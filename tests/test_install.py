@@ -48,3 +48,59 @@ def test_no_package_index_address_in_the_repository():
         assert "download.pytorch.org" not in text and "/whl/" not in text, name
     assert "TORCH_INDEX" in (REPO / "README.md").read_text()
     assert "TORCH_INDEX" in (REPO / "docs/development.md").read_text()
+
+
+def browser_step(tmp_path, *, have_browser: bool, apt_get: bool, uid: int, apt_fails=False):
+    """Run the browser step of ``make -n install`` in a shell whose PATH holds only stand-ins
+    (a browser, apt-get, id) that log their calls: ``(stderr, calls)``."""
+    lines = make_n("CHROMIUM=robodepth-test-browser")
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("if command -v robodepth-test-browser"))
+    end = next(i for i in range(start, len(lines)) if lines[i].strip() == "fi")
+    script = "\n".join(lines[start:end + 1])
+    fake = tmp_path / f"bin-{have_browser}-{apt_get}-{uid}-{apt_fails}"
+    fake.mkdir()
+    log = fake / "calls.log"
+
+    def tool(name, body):
+        (fake / name).write_text(f"#!/bin/sh\n{body}\n")
+        (fake / name).chmod(0o755)
+
+    tool("id", f'echo {uid}')
+    if have_browser:
+        tool("robodepth-test-browser", "exit 0")
+    if apt_get:
+        tool("apt-get", f'echo "apt-get $*" >> {log}\nexit {1 if apt_fails else 0}')
+    res = subprocess.run(["/bin/sh", "-c", script], capture_output=True, text=True,
+                         env={"PATH": str(fake)})
+    assert res.returncode == 0, res.stderr
+    calls = log.read_text().splitlines() if log.exists() else []
+    return res.stderr, calls
+
+
+def test_install_gets_the_browser_where_the_system_allows(tmp_path):
+    # already there: nothing done, nothing said
+    assert browser_step(tmp_path, have_browser=True, apt_get=True, uid=0) == ("", [])
+    # missing, apt-get, root: installed
+    err, calls = browser_step(tmp_path, have_browser=False, apt_get=True, uid=0)
+    assert calls == ["apt-get update", "apt-get install -y chromium"] and err == ""
+    # apt-get fails (no network): one line saying so, and the rest of make install goes on
+    err, calls = browser_step(tmp_path, have_browser=False, apt_get=True, uid=0, apt_fails=True)
+    assert calls == ["apt-get update"]
+    assert err.strip() == ("make install: apt-get could not install chromium; the browser test "
+                           "will fail until it is installed")
+    # not root, or no apt-get: how to get it, and nothing attempted
+    for apt_get, uid in ((True, 1000), (False, 0)):
+        err, calls = browser_step(tmp_path, have_browser=False, apt_get=apt_get, uid=uid)
+        assert calls == []
+        assert len(err.strip().splitlines()) == 1
+        assert "the browser test needs Chromium" in err and "apt-get install -y chromium" in err
+
+
+def test_ci_runs_exactly_the_readme_set_up():
+    ci = [ln.strip() for ln in (REPO / ".ci" / "run").read_text().splitlines()
+          if ln.strip() and not ln.startswith("#")]
+    assert [ln for ln in ci if ln.startswith("make")] == ["make install", "make test"]
+    assert not [ln for ln in ci if "apt-get" in ln or "chromium" in ln]
+    readme = (REPO / "README.md").read_text()
+    block = readme[readme.index("## Set-up"):].split("```sh\n")[1].split("```")[0]
+    assert [ln.split("#")[0].strip() for ln in block.splitlines()] == ["make install", "make test"]

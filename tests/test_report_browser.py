@@ -45,9 +45,6 @@ class DevTools:
     """A Chromium process and its DevTools pipe."""
 
     def __init__(self, profile: Path):
-        if not os.access(CHROMIUM, os.X_OK):
-            raise RuntimeError(f"{CHROMIUM} not found: the browser test needs the Debian package "
-                               "chromium (apt-get install -y chromium), see docs/development.md")
         to_browser_r, self._w = os.pipe()
         self._r, from_browser_w = os.pipe()
         # Moved above 9 first: a pipe end that is itself fd 3 or 4 would be overwritten by
@@ -133,7 +130,26 @@ FIGURES_JS = """JSON.stringify(Array.from(document.querySelectorAll('figure.figu
 }))"""
 
 
+def require_browser(path: str) -> None:
+    """A missing browser fails the test in one line saying how to get it (pytest prints
+    no traceback for it): the suite's set-up, `make install`, installs it where it can."""
+    if not os.access(path, os.X_OK):
+        pytest.fail(f"{path} not found: the browser test needs Chromium, which `make install` "
+                    "installs as root on Debian/Ubuntu (else: apt-get install -y chromium, or "
+                    "your system's chromium package); see docs/development.md", pytrace=False)
+
+
+def test_a_missing_browser_is_one_clear_failure(tmp_path):
+    with pytest.raises(pytest.fail.Exception) as info:
+        require_browser(str(tmp_path / "chromium"))
+    assert info.value.pytrace is False  # reported as its message alone
+    message = str(info.value)
+    assert "\n" not in message
+    assert message.startswith(f"{tmp_path / 'chromium'} not found: the browser test needs Chromium")
+
+
 def test_page_in_headless_chromium(tmp_path, cli):
+    require_browser(CHROMIUM)
     a = evaluate_csv(tmp_path / "a.csv", "kitti-c", "MonoViT")
     b = evaluate_csv(tmp_path / "b.csv", "kitti-c", "HR-Depth", tilt=0.1)
     out = tmp_path / "report"

@@ -150,6 +150,36 @@ def test_random_chain_in_dataloader_workers_matches_the_main_process():
         assert torch.equal(x, y)
 
 
+class _Drawn(torch.utils.data.Dataset):
+    """What the transform draws for each index (no image work: the epoch is what matters)."""
+
+    def __init__(self, transform):
+        self.t = transform
+
+    def __len__(self):
+        return 6
+
+    def __getitem__(self, i):
+        return self.t.draw(i).text
+
+
+@pytest.mark.parametrize("context,workers", [("fork", 2), ("spawn", 1)])
+def test_random_chain_set_epoch_reaches_persistent_workers(context, workers):
+    from robodepth_cli.torch import RandomChain
+
+    t = RandomChain(names=["gaussian_noise", "contrast", "impulse_noise", "fog"], steps=(1, 3), seed=3)
+    # fork: the workers inherit the transform; spawn: torch pickles it to them
+    loader = torch.utils.data.DataLoader(_Drawn(t), batch_size=None, num_workers=workers,
+                                         persistent_workers=True, multiprocessing_context=context)
+    seen = []
+    for epoch in range(3):
+        t.set_epoch(epoch)  # in the main process, before the epoch's iterator
+        seen.append(list(loader))
+    want = [[t.draw(i, epoch).text for i in range(6)] for epoch in range(3)]
+    assert seen == want
+    assert want[0] != want[1] != want[2]
+
+
 @pytest.mark.parametrize("kwargs,message", [
     ({"names": []}, "names must not be empty"),
     ({"names": ["fogg"]}, "unknown corruption 'fogg'"),

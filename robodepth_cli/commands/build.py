@@ -79,7 +79,7 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
       robodepth build nyudepth2-c --root NYU_TEST --out NYU_C --jobs 2
       robodepth build nyudepth2-c --root nyu_depth_v2_labeled.mat --out NYU_C
       robodepth build kitti-c --root KITTI_RAW --out /tmp/look --limit 2 --levels 3
-      robodepth build kitti-c --root KITTI_RAW --out KITTI_CC --corruptions none \
+      robodepth build kitti-c --root KITTI_RAW --out KITTI_CC --corruptions none \\
           --compose fog:3+gaussian_noise:2.5,dark:2+motion_blur:1.5
       robodepth build kitti-s --root KITTI_RAW --styles STYLES --vgg vgg_normalised.pth \\
           --decoder decoder.pth --out KITTI_S

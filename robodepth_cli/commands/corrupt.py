@@ -50,7 +50,7 @@ def corrupt_command(image, corruption, level, seed, size, out):
 
     \b
     robodepth corrupt frame.png -c zoom_blur -l 3 --out zoom3.png
-    robodepth corrupt frame.png -c fog -l 1,1.5,2 --out fog/
+    robodepth corrupt frame.png -c fog -l 1,1.5,2 --out out/      # out/fog/1.png ...
     robodepth corrupt frame.png -c fog:3+gaussian_noise:2.5 --out fog_noise.png
     robodepth corrupt frame.png -c all -l all --size 192x640 --out corrupted/
     """
@@ -116,7 +116,8 @@ def _describe(items: list[str], level_list: list) -> str:
                    "IMAGE_preview.png.")
 @click.option("--corruption", "-c", "corruption", default="all", show_default=True, metavar="NAME|CHAIN|all",
               help="Rows: 'all' or a comma list of corruptions and chains (a chain step without "
-                   ":LEVEL takes each column's level, e.g. fog+gaussian_noise).")
+                   ":LEVEL takes each column's level, e.g. fog+gaussian_noise; a chain whose "
+                   "steps all have a level is drawn once, in the first column).")
 @click.option("--levels", "-l", "level", default="all", show_default=True, metavar="S|all",
               help="Columns: levels 1..5, decimals allowed, as a comma list (1,1.5,2), or 'all' (1..5).")
 @click.option("--size", metavar="HxW", help="First resize the input (Lanczos), e.g. 192x640.")

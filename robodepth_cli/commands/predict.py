@@ -21,7 +21,8 @@ from . import common
               help="Only these variants: comma-separated clean, <corruption> (all its levels), "
                    "<corruption>/<level>, <style>. Default: every variant of the build.")
 @click.option("--batch-size", "-b", default=8, show_default=True, type=int,
-              help="Images per forward pass.")
+              help="Images per forward pass, at most what 4.2 million pixels hold (34 "
+                   "images of 192x640; a larger value is lowered to that).")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
               show_default=True, help="Where monodepth2 and hf models run (auto: cuda if "
               "torch sees a GPU).")
@@ -62,6 +63,10 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     if batch_size < 1:
         raise click.BadParameter("must be at least 1", param_hint="--batch-size")
     model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
+    fits = P.batch_limit(batch_size, dataset.size, model.input_size)
+    if fits < batch_size:
+        click.echo(f"robodepth: --batch-size {batch_size}: {fits} images per batch (a batch "
+                   f"holds at most {P.BATCH_PIXELS:,} pixels)", err=True)
     common.on_interrupt(f"the variants finished so far are kept under {pred}, each complete; "
                         "rerun the same command to continue")
     with progress_bar("img", progress=progress) as bar:
@@ -73,4 +78,7 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     done = f"{len(run.written)} variants x {len(dataset.keys)} images"
     skipped = f" ({len(run.skipped)} already done, skipped)" if run.skipped else ""
     click.echo(f"{model.spec} on {model.device}: {done}{skipped} -> {pred}", err=True)
-    click.echo(f"next: robodepth evaluate {dataset_dir} --pred {pred}", err=True)
+    import shlex
+
+    click.echo(f"next: robodepth evaluate {shlex.quote(str(dataset_dir))} --pred "
+               f"{shlex.quote(str(pred))}", err=True)

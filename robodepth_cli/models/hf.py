@@ -105,11 +105,26 @@ def _source(arg: str, spec: str) -> tuple[str, str]:
     path = Path(arg).expanduser()
     if path.is_dir():
         return str(path.resolve()), "folder"
-    looks_like_path = arg.startswith((".", "/", "~")) or arg.count("/") > 1 or path.exists()
-    if looks_like_path:
+    if path.exists():
         raise ModelError(f"{spec}: {arg} is not a folder (give a folder written by "
                          "save_pretrained, or a model name such as org/name)")
+    # A Hub name is org/name (a few old ones are a bare name): anything else (a leading ./
+    # or ~, several slashes, a trailing one, a backslash, a bare name not in the cache) was
+    # meant as a folder, and "download it" would be no advice.
+    looks_like_path = (arg.startswith((".", "/", "~")) or arg.count("/") > 1
+                       or arg.endswith("/") or "\\" in arg
+                       or ("/" not in arg and not _cached(arg)))
+    if looks_like_path:
+        raise ModelError(f"{spec}: no folder {arg} (from {Path.cwd()}); give a folder written "
+                         "by save_pretrained, or a cached model's name such as org/name")
     return arg, "cache"
+
+
+def _cached(name: str) -> bool:
+    """Whether the local Hugging Face cache holds a model of this name."""
+    from huggingface_hub import constants
+
+    return (Path(constants.HF_HUB_CACHE) / f"models--{name.replace('/', '--')}").is_dir()
 
 
 def _output(config, model_type: str, kind: str | None, metric: bool | None,

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import os_reason
 from ..files import sha256_file
 from .errors import ModelError
 from .base import Model, torch_device
@@ -86,20 +87,36 @@ def load(arg: str, spec: str, *, device: str = "auto", post_process: bool = Fals
 
 
 def _read(path: Path) -> dict:
-    import pickle
-
     import torch
 
     try:
         # weights_only: tensors and plain values only, so a crafted file cannot run code.
         obj = torch.load(path, map_location="cpu", weights_only=True)
-    except (pickle.UnpicklingError, RuntimeError, EOFError, ValueError, OSError) as exc:
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ModelError(f"{path}: not a PyTorch checkpoint that can be read safely ({reason})") from None
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read ({os_reason(exc)})") from None
+    except Exception:  # torch fails on a foreign file in many ways (UnpicklingError, KeyError, ...)
+        # Never torch's own text: it advises weights_only=False, which runs whatever the file holds.
+        raise ModelError(f"{path}: not a PyTorch checkpoint of tensors ({_what_file(path)}); "
+                         "monodepth2 folders hold state_dicts saved with torch.save") from None
     if not isinstance(obj, dict):
         raise ModelError(f"{path}: holds a {type(obj).__name__}; expected a state_dict (a dict "
                          "of tensors)")
     return obj
+
+
+def _what_file(path: Path) -> str:
+    """What the file is, as far as its first bytes tell: torch.save writes a zip archive
+    (older versions, a pickle)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+    except OSError as exc:
+        return os_reason(exc)
+    if head.startswith(b"PK\x03\x04"):
+        return "a zip archive holding objects other than tensors and plain values, or damaged"
+    if head[:1] == b"\x80":
+        return "a pickle holding objects other than tensors and plain values, or damaged"
+    return "neither a zip archive nor a pickle" if head else "an empty file"
 
 
 def _input_size(enc: dict, path: Path) -> tuple[int, int]:

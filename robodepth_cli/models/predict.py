@@ -19,6 +19,13 @@ what its maps hold (``output`` disparity or depth, ``scale`` relative or metric,
 and the robodepth version. It is written once the model has produced its first valid
 batch, before any prediction file; a later run into the same PRED must be of the same
 model on the same dataset's split, or it is refused (the files would mix two models).
+PRED is refused inside the dataset: the build's manifest lists every file there, and
+``verify`` would then report the predictions as extra files.
+
+Memory: a batch holds at most :data:`BATCH_PIXELS` pixels, counted at the larger of the
+image size and the network's fixed input size (when the model has one), so
+``--batch-size`` beyond that (``-b 100000``) is lowered to what fits instead of holding a
+whole variant, and its activations, at once (:func:`batch_limit`).
 """
 
 from __future__ import annotations
@@ -38,6 +45,12 @@ from ..errors import cannot_write, os_reason
 from .errors import ModelError
 
 RECORD = "predictions.json"
+# The most pixels one forward pass holds: the memory of a batch (its images, the model's
+# float copies and activations) grows with its pixels. 2**22: 34 images of 192 x 640, 9 of
+# 375 x 1242, 13 of 480 x 640, so the default 8 is never lowered on the benchmarks; a
+# ResNet-18 monodepth2 on the CPU peaks at about 1.75 GB there (0.7 GB at 8 images, 3.1 GB
+# at 68: about 41 MB per 192 x 640 image).
+BATCH_PIXELS = 1 << 22
 # What must agree for a run to add to an earlier one's predictions.
 _SAME = ("adapter", "identity", "options", "evaluate")
 
@@ -102,6 +115,60 @@ def make_record(dataset: BuiltDataset, model) -> dict:
             "images": len(dataset.keys), **model.record()}
 
 
+def _pixels(size) -> int | None:
+    """``height x width`` of a size given as ``(h, w)`` or as a processor's
+    ``{"height": h, "width": w}``; None for anything else (``{"shortest_edge": 384}``)."""
+    if isinstance(size, dict):
+        size = (size.get("height"), size.get("width"))
+    if (isinstance(size, (list, tuple)) and len(size) == 2
+            and all(isinstance(v, int) and v > 0 for v in size)):
+        return size[0] * size[1]
+    return None
+
+
+def batch_limit(requested: int, image_size, input_size=None) -> int:
+    """The images per batch for ``requested`` (``--batch-size``) under :data:`BATCH_PIXELS`,
+    each image counted at the larger of its own size and the network's input size; at
+    least 1. An unknown image size leaves ``requested`` as it is (the per-image form
+    limits each batch as it reads it)."""
+    pixels = max(_pixels(image_size) or 0, _pixels(input_size) or 0)
+    if pixels == 0:
+        return requested
+    return max(1, min(requested, BATCH_PIXELS // pixels))
+
+
+def _chunks(paths: Sequence[Path], batch_size: int, image_size, input_size) -> list[list[Path]]:
+    """``paths`` in batches of at most ``batch_size`` images and :data:`BATCH_PIXELS`
+    pixels; a build without one size reads each image's size from its header."""
+    if image_size is not None:
+        n = batch_limit(batch_size, image_size, input_size)
+        return [list(paths[i:i + n]) for i in range(0, len(paths), n)]
+    from PIL import Image
+
+    per_input = _pixels(input_size) or 0
+    chunks, current, held = [], [], 0
+    for p in paths:
+        with Image.open(p) as im:
+            pixels = max(im.width * im.height, per_input)
+        if current and (len(current) == batch_size or held + pixels > BATCH_PIXELS):
+            chunks.append(current)
+            current, held = [], 0
+        current.append(p)
+        held += pixels
+    return chunks + ([current] if current else [])
+
+
+def check_outside(dataset: BuiltDataset, pred: Path) -> None:
+    """Refuse a PRED that is the dataset's folder or lies inside it (symlinks resolved):
+    the build's manifest lists every file there, so ``verify`` would fail on the
+    predictions, and a rebuild could delete them."""
+    d, p = Path(os.path.realpath(dataset.path)), Path(os.path.realpath(pred))
+    if p == d or p.is_relative_to(d):
+        raise ModelError(f"--out {pred}: inside the dataset {dataset.path}, whose files its "
+                         "manifest lists (verify would report the predictions as extra files); "
+                         "give a folder outside it")
+
+
 def prepare_output(pred: Path, record: dict) -> bool:
     """Check that PRED can hold these predictions before any work: it is writable, and it
     is new, empty, or an earlier run's of the same model on the same split. Returns
@@ -116,9 +183,11 @@ def prepare_output(pred: Path, record: dict) -> bool:
                              f"({earlier.get('dataset_path')}); use another --out")
         for key in _SAME:
             if earlier.get(key) != record.get(key):
+                why = (" (its weights, or a python: module's file, changed since)"
+                       if key == "identity" else "")
                 raise ModelError(f"--out {pred}: holds predictions of another model or setting "
-                                 f"({earlier.get('model')}, {key} differs); use another --out "
-                                 "or delete it")
+                                 f"({earlier.get('model')}, {key} differs{why}); use another "
+                                 "--out or delete it")
     elif pred.is_dir() and any(pred.iterdir()):
         raise ModelError(f"--out {pred}: not empty and holds no {RECORD} (not written by "
                          "robodepth predict); use a new or empty folder")
@@ -256,6 +325,7 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     if batch_size < 1:
         raise ModelError(f"--batch-size {batch_size}: must be at least 1")
     pred = Path(pred)
+    check_outside(dataset, pred)
     record = make_record(dataset, model)
     created = prepare_output(pred, record)
     recorded = read_record(pred) is not None
@@ -270,7 +340,7 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
         with ThreadPoolExecutor(1) as reader:
             for v in todo:
                 paths = v.images()
-                chunks = [paths[i:i + batch_size] for i in range(0, len(paths), batch_size)]
+                chunks = _chunks(paths, batch_size, dataset.size, model.input_size)
                 out_writer = (ImageFilesWriter(pred, v) if dataset.size is None
                               else PredictionWriter(v.prediction_file(pred), len(paths)))
                 with out_writer as out:

@@ -7,6 +7,11 @@ uint8 RGB numpy array (one size per batch), and returns ``N`` maps: an ``N x h x
 ``N x 1 x h x w``) floating-point numpy array or torch tensor, or a list of ``N`` maps of
 one size. What the maps hold is the user's to say: ``--kind disp|sigmoid|depth`` and
 ``--metric`` (metres) or ``--relative`` (the default: right up to a scale and shift).
+
+The record's identity holds the sha256 of the module's own file, so a run into a PRED
+whose module was edited since is refused rather than mixing old and new predictions.
+Only that file is tracked: modules it imports, weights or data it reads, the environment
+and a changed function in an already-imported module are not.
 """
 
 from __future__ import annotations
@@ -51,10 +56,25 @@ def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = 
     metric = bool(metric)
     align, space = default_alignment(metric)
     path = getattr(module, "__file__", None)
-    identity = {"module": module_name, "callable": attr, "file": path}
+    identity = {"module": module_name, "callable": attr, "file": path,
+                "sha256": _file_hash(path, spec)}
     return Model(spec=spec, adapter="python", kind=kind, metric=metric, align=align,
                  align_space=space, input_size=None, identity=identity, run=run,
                  device="the function's own device")
+
+
+def _file_hash(path: str | None, spec: str) -> str | None:
+    """The sha256 of the module's source file (None for a module without one: a built-in
+    or a namespace package)."""
+    from ..errors import os_reason
+    from ..files import sha256_file
+
+    if not path or not Path(path).is_file():
+        return None
+    try:
+        return sha256_file(path)
+    except OSError as exc:
+        raise ModelError(f"{spec}: {path}: cannot read ({os_reason(exc)})") from None
 
 
 def _import(name: str, spec: str):
