@@ -15,6 +15,7 @@ from typing import Sequence
 
 from .. import benchmarks as B
 from ..evaluation import results as R, scores as S
+from ..evaluation.csvrows import normalise_name
 from ..errors import RobodepthError
 from . import published as P
 
@@ -111,7 +112,7 @@ def _variant_rows(text: str) -> list[dict]:
             key = k.strip().lower()
             if key == "corruption":
                 chained = ":" in (v or "") or "+" in (v or "")  # a chain keeps its canonical text
-                row[key] = "".join((v or "").split()) if chained else R._normalise_name(v or "")
+                row[key] = "".join((v or "").split()) if chained else normalise_name(v or "")
             elif key == "level":
                 level = float(v) if (v or "").strip() else 0.0  # a chain's row may leave it empty
                 row[key] = int(level) if level.is_integer() else level
