@@ -71,6 +71,6 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         common.write_bytes(plot_file, render(fig, plot_file.suffix.lower().lstrip(".")))
         common.wrote(plot_file)
     if as_json:
-        click.echo(json.dumps(result.to_json(), indent=2))
+        click.echo(json.dumps(result.to_json(), indent=2, allow_nan=False))
     else:
         click.echo(S.format_table(result), nl=False)

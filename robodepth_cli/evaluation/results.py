@@ -33,6 +33,10 @@ from ..errors import os_reason
 from .csvrows import ScoreError, data_rows, level as _level, normalise_name, number
 
 
+class FitError(ScoreError):
+    """A row that another benchmark could take: a corruption or level not of this one."""
+
+
 def dee(abs_rel: float, a1: float) -> float:
     """Depth estimation error ``(abs_rel - a1 + 1) / 2``."""
     return (abs_rel - a1 + 1.0) / 2.0
@@ -124,11 +128,11 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
                 raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
         elif name not in benchmark.corruptions:
             if name in CATEGORY:
-                raise ScoreError(f"{where}: {name} is not a corruption of {benchmark.name}")
-            raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
+                raise FitError(f"{where}: {name} is not a corruption of {benchmark.name}")
+            raise FitError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
                              f"valid: clean, {', '.join(benchmark.corruptions)}")
         elif not 1 <= level <= benchmark.n_levels:
-            raise ScoreError(f"{where}: level {level} of {name} is outside "
+            raise FitError(f"{where}: level {level} of {name} is outside "
                              f"1..{benchmark.n_levels} for {benchmark.name}")
         if isinstance(level, float):
             if (name, level) in seen:
@@ -174,7 +178,7 @@ def _chain(cells: Mapping[str, str], benchmark: Benchmark, where: str) -> str:
         raise ScoreError(f"{where}: {exc}") from None
     for step in chain.steps:
         if step.name not in benchmark.corruptions:
-            raise ScoreError(f"{where}: chain {chain.text}: {step.name} is not a corruption of {benchmark.name}")
+            raise FitError(f"{where}: chain {chain.text}: {step.name} is not a corruption of {benchmark.name}")
     if cells["level"].strip() not in ("", "0", "0.0"):
         raise ScoreError(f"{where}: a chain's row has level 0 (its levels are in its name), "
                          f"not {cells['level'].strip()!r}")
@@ -255,12 +259,12 @@ def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
     if styles and names & styles:
         raise ScoreError(f"{path}: mixes KITTI-S styles ({', '.join(sorted(names & styles))}) "
                          f"with corruptions ({', '.join(sorted(names - styles))})")
-    fits, complete, first_error = [], [], None
+    fits, complete, errors = [], [], []
     for bench in BENCHMARKS.values():
         try:
             results = parse_results(text, str(path), bench)
         except ScoreError as exc:
-            first_error = first_error or exc
+            errors.append(exc)
             continue
         fits.append(bench.name)
         if not results.missing(bench):
@@ -270,7 +274,10 @@ def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
     if len(fits) == 1:
         return fits[0]
     if not fits:
-        raise ScoreError(f"{first_error} (with --benchmark, the error may be clearer)")
+        # A bad header, number or duplicate is wrong whatever the benchmark: naming one
+        # would not help. Rows that merely fit none (a corruption or level of neither) might.
+        real = [e for e in errors if not isinstance(e, FitError)]
+        raise real[0] if real else ScoreError(f"{errors[0]} (with --benchmark, the error may be clearer)")
     raise ScoreError(f"{path}: the rows fit {' and '.join(fits)}; say which with --benchmark")
 
 

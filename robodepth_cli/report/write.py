@@ -178,7 +178,7 @@ def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _:
              "table.tex": head + "\n".join(T.to_latex(t) for t in report.tables[:2]),
              "table.md": f"# RoboDepth report: {T.bench_name(report.benchmark)}\n\n"
                          + "\n".join(T.to_markdown(t) for t in report.tables[:4]),
-             "scores.json": json.dumps(to_json(report), indent=2) + "\n"}
+             "scores.json": json.dumps(to_json(report), indent=2, allow_nan=False) + "\n"}
     for name, text in files.items():
         progress(name)
         write_atomic(out / name, text.encode("utf-8"))
