@@ -105,8 +105,12 @@ def check_writable(path: str | os.PathLike, flag: str | None = None) -> None:
     if not existing.is_dir():
         raise RobodepthError(cannot_write(path, f"{existing} is not a directory", flag))
     if existing != parent:  # missing folders are made at the end: can the first be?
-        if not os.access(existing, os.W_OK | os.X_OK):
-            raise RobodepthError(cannot_write(path, f"{existing}: Permission denied", flag))
+        # Made and removed, not judged by os.access: root passes that where nothing can be
+        # made (a read-only mount, /proc).
+        try:
+            os.rmdir(tempfile.mkdtemp(prefix=_TEMP_PREFIX, suffix=_TEMP_SUFFIX, dir=existing))
+        except OSError as exc:
+            raise RobodepthError(cannot_write(path, exc, flag)) from None
         return
     try:
         fd, tmp = tempfile.mkstemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=parent)

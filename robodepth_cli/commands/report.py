@@ -14,7 +14,8 @@ from ..errors import RobodepthError
 @click.argument("results", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", "out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Directory to write index.html, figures/, table.tex, table.md and scores.json "
-                   "into (created if needed; files of an earlier report there are replaced).")
+                   "into, whole or not at all (created if needed; an earlier report there is "
+                   "replaced, its figures that this one does not draw removed).")
 @click.option("--name", "names", multiple=True, metavar="NAME",
               help="Model name of each RESULTS file, in order (once per file); default: the "
                    "file name without .csv.")
@@ -73,5 +74,9 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
         report.figures.append(qualitative(report, dataset, list(preds), frame, kind))
     written = W.write(report, out, progress=say)
     models = ", ".join(m.name for m in report.models)
+    removed = ""
+    if written.removed:
+        removed = (f"; removed {len(written.removed)} figure files of the earlier report there: "
+                   + ", ".join(str(p.relative_to(out)) for p in written.removed))
     click.echo(f"wrote {out / 'index.html'} ({report.benchmark}: {models}; "
-               f"{len(written)} files under {out})", err=True)
+               f"{len(written.files)} files under {out}{removed})", err=True)

@@ -1,6 +1,8 @@
 """Make a report: score the inputs, draw the figures, write the page, tables and JSON.
 
-Output layout under OUT (every file written atomically; an existing OUT is updated in place):
+Output layout under OUT (written whole or not at all: into a temporary folder, then moved
+into place; an earlier report's files there are replaced, and figures of it that this one
+does not draw are removed, so nothing stale is left):
 
     index.html       the page (self-contained)
     table.tex        booktabs tables (summary like the paper's Table 1, then the details)
@@ -37,13 +39,20 @@ class Report:
     dataset: dict | None = None
 
 
+FIGURES = "figures"
+
+
 def check_writable(out: Path) -> None:
-    """Refuse, before any work, an OUT in which the report's files could not be created."""
+    """Refuse, before any work, an OUT in which the report could not be written: by
+    creating there what :func:`write` creates (a folder beside a new OUT, a file in an
+    existing one), since permission bits do not tell (root, read-only mounts, /proc)."""
     from ..files import check_writable as check
 
     if out.exists() and not out.is_dir():
         raise I.ReportError(f"--out {out}: exists and is not a directory")
-    check(out / "figures" / "radar.svg", "--out")
+    if (out / FIGURES).exists() and not (out / FIGURES).is_dir():
+        raise I.ReportError(f"--out {out}: {out / FIGURES} exists and is not a directory")
+    check(out / "index.html" if out.is_dir() else out, "--out")
 
 
 def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None, context: str,
@@ -150,19 +159,104 @@ def to_json(report: Report) -> dict:
     return doc
 
 
-def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None) -> list[Path]:
-    """Write every output of ``report`` under ``out``; return the paths written."""
+@dataclass
+class Written:
+    """What :func:`write` left under OUT: the files of this report, and those of an
+    earlier report there that it removed (figures it does not draw)."""
+
+    files: list[Path]
+    removed: list[Path]
+
+
+def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None) -> Written:
+    """Write every output of ``report`` under ``out``, whole or not at all (an interrupt or
+    a write error leaves ``out`` as it was); :class:`ReportError` when a file cannot be
+    written."""
+    import shutil
+    import tempfile
+
+    from ..errors import cannot_write
+    from ..files import atomic_directory
+
+    try:
+        if not out.is_dir() or not any(out.iterdir()):
+            with atomic_directory(out) as stage:
+                names = _write_into(report, stage, progress)
+            return Written([out / n for n in names], [])
+        # An earlier report (or the user's files) is there: stage inside OUT (same file
+        # system, and only OUT need be writable), then move the new files over the old.
+        stage = Path(tempfile.mkdtemp(prefix=".report.", suffix=".part", dir=out))
+        try:
+            names = _write_into(report, stage, progress)
+            with _signals_held():
+                removed = _replace(stage, out, names)
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
+    except OSError as exc:
+        raise I.ReportError(cannot_write(out, exc, "--out")) from None
+    return Written([out / n for n in names], removed)
+
+
+def _replace(stage: Path, out: Path, names: list[str]) -> list[Path]:
+    """Move the staged report into ``out``: the files over the earlier ones, ``figures/``
+    as a whole; return the earlier figures that are gone. Anything of the user's in the old
+    ``figures/`` (not a figure file) is moved into the new one."""
+    import os
+
+    removed: list[Path] = []
+    old = out / FIGURES
+    if old.is_dir():
+        os.replace(old, stage / ".old-figures")
+        for f in sorted((stage / ".old-figures").iterdir()):
+            if f.name in {Path(n).name for n in names if n.startswith(FIGURES + "/")}:
+                continue
+            if f.is_file() and f.suffix in (".svg", ".pdf", ".png"):
+                removed.append(old / f.name)
+            else:
+                os.replace(f, stage / FIGURES / f.name)
+    for n in names:
+        if "/" not in n:
+            os.replace(stage / n, out / n)
+    os.replace(stage / FIGURES, old)
+    return removed
+
+
+class _signals_held:
+    """Hold Ctrl-C and SIGTERM for the few renames that put a report in place, so an
+    interrupt never leaves half of the new report beside half of the old one (it acts
+    as soon as they are done)."""
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self.held = threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask")
+        if self.held:
+            self.mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+
+    def __exit__(self, *exc):
+        if self.held:
+            import signal
+
+            signal.pthread_sigmask(signal.SIG_SETMASK, self.mask)
+        return False
+
+
+def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> list[str]:
+    """Write every output of ``report`` into the empty folder ``out``; return their paths
+    relative to it."""
     from ..evaluation import plot
     from ..files import write_atomic
 
-    written: list[Path] = []
+    written: list[str] = []
     page_figs = []
     for stem, title, caption, fig in report.figures:
-        progress(f"figures/{stem}")
-        paths = plot.save(fig, out / "figures" / stem)
-        written += paths.values()
+        progress(f"{FIGURES}/{stem}")
+        paths = plot.save(fig, out / FIGURES / stem)
+        written += [f"{FIGURES}/{p.name}" for p in paths.values()]
         page_figs.append(PageFigure(stem, title, caption, paths["svg"].read_text(encoding="utf-8")))
         plot.close(fig)
+    (out / FIGURES).mkdir(exist_ok=True)  # a report of no figure still replaces an old figures/
     context = "all"
     kinds = {r.kind for r in report.rows}
     if "published" not in kinds:
@@ -182,5 +276,5 @@ def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _:
     for name, text in files.items():
         progress(name)
         write_atomic(out / name, text.encode("utf-8"))
-        written.append(out / name)
+        written.append(name)
     return written
