@@ -35,10 +35,11 @@ from ..errors import RobodepthError
                    "once per RESULTS file in order (fewer is fine): adds a qualitative figure.")
 @click.option("--frame", default=0, show_default=True, type=click.IntRange(min=0),
               help="With --pred: which image of the split (0 = first) the qualitative figure shows.")
-@click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
-              help="With --pred: what the predictions hold (as for robodepth evaluate; default "
-                   "disp for KITTI, depth for NYU).")
-def report_command(results, out, names, benchmark, context, dataset, preds, frame, kind):
+@click.option("--kind", "kinds", multiple=True, type=click.Choice(["disp", "sigmoid", "depth"]),
+              help="With --pred: what the predictions hold (as for robodepth evaluate), once per "
+                   "--pred in order or once for all; default: what each PRED/predictions.json "
+                   "records, else disp for KITTI and depth for NYU.")
+def report_command(results, out, names, benchmark, context, dataset, preds, frame, kinds):
     """A report of one or more models: a self-contained HTML page, the figures (SVG, PDF,
     PNG), LaTeX and Markdown tables and a versioned scores.json.
 
@@ -62,7 +63,9 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
         raise RobodepthError(f"--pred given {len(preds)} times for {len(results)} results files; "
                              "give it at most once per file, in the same order")
     from ..evaluation.plot import _mpl
+    from ..report.qualitative import check_kinds
 
+    check_kinds(kinds, preds)
     _mpl()  # refuse before anything is created when matplotlib is missing
     W.check_writable(out)
     report = W.assemble(list(results), list(names), benchmark, context, dataset)
@@ -71,7 +74,12 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     if preds:
         from ..report.qualitative import qualitative
 
-        report.figures.append(qualitative(report, dataset, list(preds), frame, kind))
+        figure, guessed = qualitative(report, dataset, list(preds), frame, kinds)
+        report.figures.append(figure)
+        for pred, kind in guessed:
+            click.echo(f"robodepth: warning: --pred {pred}: no predictions.json says what it holds; "
+                       f"drawn as {kind} (the {report.benchmark} default); give --kind if wrong",
+                       err=True)
     written = W.write(report, out, progress=say)
     models = ", ".join(m.name for m in report.models)
     removed = ""
