@@ -64,6 +64,8 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     if missing:
         click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
     result = S.score(res, bench, base, allow_partial=True)
+    if plot_file is not None and result.note:
+        raise RobodepthError(f"--plot: {results}: {result.note} (no CE to draw)")
     if plot_file is not None:
         from ..evaluation.plot import Model, ce_figure, render
 

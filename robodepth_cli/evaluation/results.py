@@ -91,6 +91,12 @@ class Results:
     decimal: dict[str, dict[float, float]] = field(default_factory=dict)  # name -> level -> DEE
     chains: dict[str, float] = field(default_factory=dict)  # canonical chain text -> DEE
 
+    @property
+    def beyond_only(self) -> bool:
+        """Rows beyond the benchmark and none of it (a chains-only build's): no mCE, mRR
+        or mDEE to compute, and nothing of the benchmark missing by mistake."""
+        return not self.dee and bool(self.decimal or self.chains)
+
     def missing(self, benchmark: Benchmark) -> list[tuple[str, int]]:
         """The (corruption, level) variants of ``benchmark`` with no row, in benchmark order."""
         return [(n, lv) for n in benchmark.corruptions for lv in benchmark.levels
@@ -156,10 +162,7 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
     if clean is None:
         raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); "
                          "RR needs the clean DEE")
-    if not table:
-        if decimal or chains:
-            raise ScoreError(f"{source}: no corruption rows at the benchmark's integer levels, only the "
-                             f"clean one and rows beyond the benchmark; mCE and mRR need them")
+    if not table and not decimal and not chains:
         raise ScoreError(f"{source}: no corruption rows, only the clean one")
     return Results(source, clean, {n: dict(sorted(table[n].items()))
                                    for n in benchmark.corruptions if n in table},
@@ -349,7 +352,7 @@ def describe_variants(variants: Iterable[tuple[str, int | None]], n_levels: int 
 def missing_message(results: Results, benchmark: Benchmark) -> str | None:
     """``"FILE: missing N of M variants: ..."``, or None when every variant has a row."""
     missing = results.missing(benchmark)
-    if not missing:
+    if not missing or results.beyond_only:
         return None
     total = len(benchmark.corruptions) * benchmark.n_levels
     if results.looks_like:  # the list of missing variants would only bury this

@@ -147,6 +147,19 @@ def load(paths: Sequence[Path], names: Sequence[str], benchmark: str) -> list[Mo
     return out
 
 
+def beyond_only(models: Sequence[Model]) -> str:
+    """Why there is no mCE, mRR or mDEE when every model's results hold rows beyond the
+    benchmark only (chains, decimal levels); "" when all have the benchmark's rows. A
+    report of both kinds is refused: its tables could not compare them."""
+    notes = [m.row.scores.note if m.row.scores is not None else "" for m in models]
+    if any(notes) and not all(notes):
+        only = next(m for m, n in zip(models, notes) if n)
+        full = next(m for m, n in zip(models, notes) if not n)
+        raise ReportError(f"{only.path}: has rows beyond the benchmark only, {full.path} has the "
+                          "benchmark's: make one report of each kind")
+    return notes[0] if all(notes) else ""
+
+
 def context(benchmark: str, which: str) -> list[Row]:
     """The published models as rows: ``all`` of them, only the ``baseline`` or ``none``."""
     if which == "none":

@@ -37,6 +37,7 @@ class Report:
     tables: list[T.Table]
     figures: list[tuple[str, str, str, object]] = field(default_factory=list)  # stem, title, caption, Figure
     dataset: dict | None = None
+    note: str = ""  # why there is no mCE, mRR or mDEE (results beyond the benchmark only)
 
 
 FIGURES = "figures"
@@ -63,6 +64,10 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
     models = I.load(paths, names, bench)
     rows = [m.row for m in models] + I.context(bench, context)
     info = I.dataset_info(dataset, bench) if dataset is not None else None
+    note = I.beyond_only(models)
+    if note:  # no benchmark score: the clean DEE and the rows beyond it, yours only
+        return Report(bench, models, [m.row for m in models],
+                      [T.beyond_table([m.row for m in models], bench, clean=True)], dataset=info, note=note)
     if bench == I.KITTI_S:
         tables = [T.styles_table(rows)]
     else:
@@ -98,26 +103,35 @@ def draw(report: Report) -> None:
                      F.ranking_figure([(r.name, r.mdee) for r in mine],
                                          [(m.name, S_mean(m.dee)) for m in P.style_models()], bench)))
         return
+    pm = [plot.Model(r.name, r.scores) for r in mine]
+    if report.note:
+        if any(r.scores.curves for r in mine):
+            figs.append(_severity(pm, bench))
+        return
     series = [(r.name, {c.name: c.dee for c in r.scores.corruptions}) for r in mine]
     figs.append(("radar", "DEE per corruption", "Each model's DEE per corruption (mean over the "
                  "levels), the paper's Fig. 1 form; the grey dashed line is the baseline.",
                  F.radar_figure(series, bench, (base.name, base.dee))))
-    pm = [plot.Model(r.name, r.scores) for r in mine]
     figs.append(("ce", "CE per corruption", "Corruption error per corruption against the "
                  "baseline's 100% (dashed).", plot.ce_figure(pm, bench)))
     figs.append(("levels", "DEE against level", "DEE at each level, one panel per corruption; "
                  "the grey dashed line is the baseline's published mean over the levels.",
                  F.levels_figure(pm, bench, (base.name, base.dee))))
     if any(r.scores.curves for r in mine):
-        figs.append(("severity", "DEE against continuous severity", "Beyond the benchmark: DEE at "
-                     "every level present, integer and decimal, for each corruption with decimal-level "
-                     "rows; in no mCE or mRR.",
-                     F.severity_figure([m for m in pm if m.scores.curves], bench)))
+        figs.append(_severity(pm, bench))
     points = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr) for r in mine]
     context = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr)
                for r in I.context(bench, "all")]
     figs.append(("summary", "mCE and mRR against clean DEE", "Your models (coloured) among "
                  "the paper's (grey).", F.summary_figure(points, context, bench)))
+
+
+def _severity(pm: list, bench: str) -> tuple:
+    from . import figures as F
+
+    return ("severity", "DEE against continuous severity", "Beyond the benchmark: DEE at "
+            "every level present, integer and decimal, for each corruption with decimal-level "
+            "rows; in no mCE or mRR.", F.severity_figure([m for m in pm if m.scores.curves], bench))
 
 
 def S_mean(values: dict) -> float:
@@ -131,14 +145,18 @@ def to_json(report: Report) -> dict:
     docs/report.md): one object per model of the user's, nothing of the published ones."""
     doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "robodepth": __version__,
            "benchmark": report.benchmark, "dataset": report.dataset, "models": []}
-    if report.benchmark != I.KITTI_S:
+    if report.note:
+        doc["note"] = report.note
+    if report.benchmark != I.KITTI_S and not report.note:
         b = report.models[0].row.scores.baseline
         doc["baseline"] = {"name": b.name, "clean_dee": b.clean, "dee": dict(b.dee)}
     for m in report.models:
         r = m.row
         entry = {"model": m.name, "results": str(m.path), "results_sha256": m.sha256,
                  "clean_dee": r.clean}
-        if r.scores is not None:
+        if report.note:
+            entry["beyond_benchmark"] = r.scores.to_json()["beyond_benchmark"]
+        elif r.scores is not None:
             s = r.scores
             entry["scores"] = {"mce": s.overall.ce, "mrr": s.overall.rr, "mdee": s.overall.dee,
                                "categories": {g.name: {"mce": g.ce, "mrr": g.rr, "mdee": g.dee}
@@ -262,15 +280,17 @@ def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> l
     if "published" not in kinds:
         context = "baseline" if "baseline" in kinds else "none"
     page = render_page(benchmark=report.benchmark, models=report.models, tables=report.tables,
-                       figures=page_figs, dataset=report.dataset, context=context)
+                       figures=page_figs, dataset=report.dataset, context=context, note=report.note)
     head = (f"% RoboDepth report on {T.bench_name(report.benchmark)}, made by robodepth {__version__}.\n"
             "% Needs \\usepackage{booktabs} and \\usepackage{graphicx} (for \\resizebox).\n"
-            f"% Published rows: {P.CITATION}.\n\n")
+            f"% Published rows: {P.CITATION}.\n"
+            + (f"% {report.note[0].upper()}{report.note[1:]}.\n" if report.note else "") + "\n")
     # LaTeX: the paper's Table 1 and its per-corruption DEE table; Markdown adds CE and RR.
     # The per-level table (90 columns on KITTI-C) stays on the page and in scores.json.
     files = {"index.html": page,
              "table.tex": head + "\n".join(T.to_latex(t) for t in report.tables[:2]),
              "table.md": f"# RoboDepth report: {T.bench_name(report.benchmark)}\n\n"
+                         + (f"{report.note[0].upper()}{report.note[1:]}.\n\n" if report.note else "")
                          + "\n".join(T.to_markdown(t) for t in report.tables[:4]),
              "scores.json": json.dumps(to_json(report), indent=2, allow_nan=False) + "\n"}
     for name, text in files.items():
