@@ -3,7 +3,8 @@ into :class:`Results`, and the per-variant formulas (DEE, CE, RR) its rows need.
 
 Results CSV
     A header row is required; columns are found by name (case-insensitive, surrounding
-    spaces ignored, in any order; other columns such as ``sq_rel`` or ``rmse`` are ignored).
+    spaces ignored, in any order; the other columns are not scored, but their numbers are
+    checked: :mod:`.csvrows`).
     Required: ``corruption``, ``level`` and either both ``abs_rel`` and ``a1`` or ``dee``
     (not both, which would be ambiguous). One row per (corruption, level); the clean row has
     corruption ``clean`` and level ``0``. Blank lines and lines starting with ``#`` are
@@ -16,7 +17,8 @@ Results CSV
     empty), as ``robodepth evaluate`` writes them for such builds. mCE, mRR and mDEE stay
     defined as the benchmark defines them, on its corruptions at its integer levels; the
     extra rows are reported as severity curves (DEE against the level, integer and decimal
-    levels together) and chain DEE rows, in a section of their own.
+    levels together) and chain DEE rows, in a section of their own. A file with such rows
+    only (a chain set's) has no mCE, mRR or mDEE, and says why (:attr:`Results.beyond_only`).
 """
 
 from __future__ import annotations
