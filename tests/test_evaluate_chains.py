@@ -132,7 +132,7 @@ def test_chains_only_build_is_evaluated_and_scored(chains_only, cli):
     assert "abs_rel" in res.stdout  # the metrics
     assert "no mCE, mRR or mDEE: they are defined on kitti-c's corruptions at its integer levels 1..5" in res.stdout
     assert "Beyond the benchmark (not in mCE, mRR or mDEE)" in res.stdout
-    assert f"dark:2+gaussian_noise:2" in res.stdout and f"{dee['dark:2+gaussian_noise:2']:.3f}" in res.stdout
+    assert "dark:2+gaussian_noise:2" in res.stdout and f"{dee['dark:2+gaussian_noise:2']:.3f}" in res.stdout
     assert "warning" not in res.output and "missing" not in res.output
     score = cli("score", csv_path)
     assert score.exit_code == 0, score.output

@@ -35,7 +35,7 @@ def _rows(fig, n_rows, cols):
     return [[fig.axes[r * cols + k].images[0].get_array() for k in range(cols)] for r in range(1, n_rows + 1)]
 
 
-def test_depth_and_disparity_models_drawn_alike(small_build, tmp_path, cli):
+def test_depth_and_disparity_models_drawn_alike(small_build, tmp_path, cli):  # noqa: F811
     from robodepth_cli.report import write as W
     from robodepth_cli.report.qualitative import qualitative
 
@@ -58,7 +58,7 @@ def test_depth_and_disparity_models_drawn_alike(small_build, tmp_path, cli):
     assert top > bottom and "as --kind says" in caption
 
 
-def test_kind_of_a_folder_without_record_is_said(small_build, tmp_path, cli):
+def test_kind_of_a_folder_without_record_is_said(small_build, tmp_path, cli):  # noqa: F811
     plain = _preds(small_build, tmp_path / "PLAIN", "disp", record=False)
     a = evaluate_csv(tmp_path / "a.csv", "kitti-c", "MonoViT")
     out = tmp_path / "out"
