@@ -117,5 +117,28 @@ def test_nan_in_an_unscored_column_is_refused_not_written(tmp_path, cli):
     _one_line(cli("report", nan, "--out", out), f"{nan}:6: sq_rel 'nan' is not a finite number")
     _one_line(cli("report", huge, "--out", out), f"{huge}:6: abs_rel 1e+308 is absurd")
     assert not out.exists()
+
+
+def test_interrupt_while_moving_into_place_is_held_and_told(tmp_path, cli, monkeypatch):
+    """Ctrl-C during the renames that replace an earlier report acts once they are done,
+    and says the report was written (not "nothing was written")."""
+    import os
+    import signal
+
+    from robodepth_cli.report import write as W
+
+    k = evaluate_csv(tmp_path / "k.csv", "kitti-c", "MonoViT")
+    out = tmp_path / "out"
     assert cli("report", k, "--out", out).exit_code == 0
-    json.loads((out / "scores.json").read_text(), parse_constant=lambda c: pytest.fail(c))
+    replace = W._replace
+
+    def interrupted(*args):
+        os.kill(os.getpid(), signal.SIGINT)
+        return replace(*args)
+
+    monkeypatch.setattr(W, "_replace", interrupted)
+    other = evaluate_csv(tmp_path / "other.csv", "kitti-c", "DIFFNet")
+    res = cli("report", other, "--name", "other", "--out", out)
+    assert res.exit_code == 130, res.output
+    assert res.output.strip().endswith(f"robodepth: interrupted; the report was written to {out}")
+    assert json.loads((out / "scores.json").read_text())["models"][0]["model"] == "other"

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from ..errors import RobodepthError
+from . import common
 
 
 @click.command("report")
@@ -80,7 +81,8 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
             click.echo(f"robodepth: warning: --pred {pred}: no predictions.json says what it holds; "
                        f"drawn as {kind} (the {report.benchmark} default); give --kind if wrong",
                        err=True)
-    written = W.write(report, out, progress=say)
+    written = W.write(report, out, progress=say,
+                      published=lambda: common.on_interrupt(f"the report was written to {out}"))
     models = ", ".join(m.name for m in report.models)
     removed = ""
     if written.removed:

@@ -186,10 +186,12 @@ class Written:
     removed: list[Path]
 
 
-def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None) -> Written:
+def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None,
+          published: Callable[[], None] = lambda: None) -> Written:
     """Write every output of ``report`` under ``out``, whole or not at all (an interrupt or
     a write error leaves ``out`` as it was); :class:`ReportError` when a file cannot be
-    written."""
+    written. ``published`` is called once the report is in place, before an interrupt
+    held meanwhile acts (so the command can say what an interrupt leaves)."""
     import shutil
     import tempfile
 
@@ -197,19 +199,21 @@ def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _:
     from ..files import atomic_directory
 
     try:
-        if not out.is_dir() or not any(out.iterdir()):
-            with atomic_directory(out) as stage:
+        with _Publishing(published) as publishing:
+            if not out.is_dir() or not any(out.iterdir()):
+                with atomic_directory(out) as stage:
+                    names = _write_into(report, stage, progress)
+                    publishing.start()  # the rename, at the end of this block
+                return Written([out / n for n in names], [])
+            # An earlier report (or the user's files) is there: stage inside OUT (same file
+            # system, and only OUT need be writable), then move the new files over the old.
+            stage = Path(tempfile.mkdtemp(prefix=".report.", suffix=".part", dir=out))
+            try:
                 names = _write_into(report, stage, progress)
-            return Written([out / n for n in names], [])
-        # An earlier report (or the user's files) is there: stage inside OUT (same file
-        # system, and only OUT need be writable), then move the new files over the old.
-        stage = Path(tempfile.mkdtemp(prefix=".report.", suffix=".part", dir=out))
-        try:
-            names = _write_into(report, stage, progress)
-            with _signals_held():
+                publishing.start()
                 removed = _replace(stage, out, names)
-        finally:
-            shutil.rmtree(stage, ignore_errors=True)
+            finally:
+                shutil.rmtree(stage, ignore_errors=True)
     except OSError as exc:
         raise I.ReportError(cannot_write(out, exc, "--out")) from None
     return Written([out / n for n in names], removed)
@@ -239,24 +243,40 @@ def _replace(stage: Path, out: Path, names: list[str]) -> list[Path]:
     return removed
 
 
-class _signals_held:
-    """Hold Ctrl-C and SIGTERM for the few renames that put a report in place, so an
-    interrupt never leaves half of the new report beside half of the old one (it acts
-    as soon as they are done)."""
+class _Publishing:
+    """From :meth:`start` to the end of the ``with`` block, Ctrl-C and SIGTERM are held, so
+    an interrupt never leaves half of a new report beside half of an old one, nor a report
+    in place after "nothing was written"; ``published`` is called when the block ends
+    without error, then a held interrupt acts. (Python-level handlers, not a signal mask:
+    a mask holds a signal from one thread only, and any other thread would take it.)"""
+
+    def __init__(self, published: Callable[[], None]):
+        self.published, self.previous, self.caught = published, {}, False
 
     def __enter__(self):
+        return self
+
+    def start(self) -> None:
         import signal
         import threading
 
-        self.held = threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask")
-        if self.held:
-            self.mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self.previous[sig] = signal.signal(sig, self._hold)
 
-    def __exit__(self, *exc):
-        if self.held:
-            import signal
+    def _hold(self, signum, frame) -> None:
+        self.caught = True
 
-            signal.pthread_sigmask(signal.SIG_SETMASK, self.mask)
+    def __exit__(self, kind, *_):
+        import signal
+
+        for sig, handler in self.previous.items():
+            if handler is not None:  # None: a handler not set from Python, which stays
+                signal.signal(sig, handler)
+        if kind is None:
+            self.published()
+            if self.caught:
+                raise KeyboardInterrupt
         return False
 
 
