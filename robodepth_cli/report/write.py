@@ -271,8 +271,8 @@ class _Publishing:
         import signal
 
         for sig, handler in self.previous.items():
-            if handler is not None:  # None: a handler not set from Python, which stays
-                signal.signal(sig, handler)
+            # None: a handler set outside Python, which cannot be put back; the default then.
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
         if kind is None:
             self.published()
             if self.caught:
