@@ -94,3 +94,80 @@ def test_nyu_chains_keep_nyus_corruptions():
     text = "corruption,level,dee\nclean,0,0.1\ndark,1,0.2\nfog:1+dark:2,0,0.4\n"
     with pytest.raises(ScoreError, match="chain fog:1\\+dark:2: fog is not a corruption of nyudepth2-c"):
         parse_results(text, "r.csv", nyu)
+
+
+@pytest.fixture(scope="module")
+def chains_only(fixtures_dir, tmp_path_factory, cli):
+    """The documented chain-set workflow: a build from configs/protocols/chains.yaml (no
+    single corruption), predictions for it, its results CSV."""
+    from robodepth_cli.files import data_dir
+
+    tmp = tmp_path_factory.mktemp("chains")
+    out = tmp / "KITTI_CHAINS"
+    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
+              fixtures_dir / "kitti_split.txt", "--out", out, "--size", "64x96",
+              "--config", data_dir("configs") / "protocols" / "chains.yaml", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    gts = np.empty(2, object)
+    for i, shape in enumerate(GT_SHAPES):
+        gts[i] = lidar_gt(shape, i)
+    np.savez_compressed(out / "gt_depths.npz", data=gts)
+    pred = tmp / "PRED"
+    for k, v in enumerate(open_dataset(out).variants()):
+        v.save_predictions(pred, np.stack([fake_disp((64, 96), i, 0.05 * (1 + k)) for i in range(2)]))
+    return out, pred, tmp
+
+
+def test_chains_only_build_is_evaluated_and_scored(chains_only, cli):
+    """evaluate --score and score show the metrics and every chain's DEE, with a note
+    saying why there is no mCE; nothing is refused (issue 26 item 9)."""
+    out, pred, tmp = chains_only
+    csv_path = tmp / "chains.csv"
+    res = cli("evaluate", out, "--pred", pred, "--out", csv_path, "--score")
+    assert res.exit_code == 0, res.output
+    with open(csv_path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 9 and rows[0]["corruption"] == "clean"
+    dee = {r["corruption"]: (float(r["abs_rel"]) - float(r["a1"]) + 1) / 2 for r in rows}
+    assert "abs_rel" in res.stdout  # the metrics
+    assert "no mCE, mRR or mDEE: they are defined on kitti-c's corruptions at its integer levels 1..5" in res.stdout
+    assert "Beyond the benchmark (not in mCE, mRR or mDEE)" in res.stdout
+    assert "dark:2+gaussian_noise:2" in res.stdout and f"{dee['dark:2+gaussian_noise:2']:.3f}" in res.stdout
+    assert "warning" not in res.output and "missing" not in res.output
+    score = cli("score", csv_path)
+    assert score.exit_code == 0, score.output
+    assert "no mCE, mRR or mDEE" in score.stdout and "mCE n/a" not in score.stdout
+    doc = json.loads(cli("score", csv_path, "--json").stdout)
+    assert doc["mce"] is None and doc["partial"] is False and doc["missing"] == []
+    assert doc["note"].startswith("no mCE, mRR or mDEE")
+    assert doc["beyond_benchmark"]["chains"] == {c: pytest.approx(d) for c, d in dee.items() if c != "clean"}
+    plot = cli("score", csv_path, "--plot", tmp / "ce.png")
+    assert plot.exit_code == 2 and "no CE to draw" in plot.output and not (tmp / "ce.png").exists()
+
+
+def test_chains_only_results_are_reported(chains_only, cli):
+    """report shows the clean DEE and each chain's DEE, with the note, and no figure that
+    needs a benchmark score; mixing such a file with a benchmark one is refused."""
+    pytest.importorskip("matplotlib")
+    from test_report import evaluate_csv
+
+    out, pred, tmp = chains_only
+    csv_path = tmp / "chains-r.csv"
+    assert cli("evaluate", out, "--pred", pred, "--out", csv_path).exit_code == 0
+    rep = tmp / "report"
+    res = cli("report", csv_path, "--out", rep)
+    assert res.exit_code == 0, res.output
+    doc = json.loads((rep / "scores.json").read_text())
+    assert doc["note"].startswith("no mCE, mRR or mDEE") and "baseline" not in doc
+    chains = json.loads(cli("score", csv_path, "--json").stdout)["beyond_benchmark"]["chains"]
+    assert doc["models"][0]["beyond_benchmark"]["chains"] == chains and len(chains) == 8
+    assert "mce" not in doc["models"][0].get("scores", {})
+    page = (rep / "index.html").read_text()
+    assert "No mCE, mRR or mDEE: they are defined on" in page
+    assert "frost:2 + defocus blur:1.5" in page and f"{chains['frost:2+defocus_blur:1.5']:.3f}" in page
+    assert sorted(p.name for p in (rep / "figures").iterdir()) == []
+    md = (rep / "table.md").read_text()
+    assert "frost:2 + defocus blur:1.5" in md and "No mCE, mRR or mDEE" in md
+    full = evaluate_csv(tmp / "full.csv", "kitti-c", "MonoViT")
+    res = cli("report", full, csv_path, "--out", tmp / "mixed")
+    assert res.exit_code == 2 and "has rows beyond the benchmark only" in res.output

@@ -368,6 +368,15 @@ GOOD = "corruption,level,abs_rel,a1\nclean,0,0.1,0.9\n"
     ("corruption,level,dee\nclean,0,0.1\nfog,1,1.2\n", 3, "dee 1.2 is outside [0, 1] (DES1"),
     ("corruption,level,dee\nclean,0,0.1\nfog,1,-0.01\n", 3, "dee -0.01 is outside [0, 1]"),
     ("corruption,level,dee\nclean,0,1\nfog,1,0.1\n", 2, "clean DEE 1 must be below 1"),
+    # Every number of a row is checked, scored or not: NaN would reach scores.json, a huge
+    # abs_rel would make mCE infinite.
+    ("corruption,level,abs_rel,sq_rel,a1\nclean,0,0.1,0.5,0.9\nfog,1,0.1,nan,0.9\n", 3,
+     "sq_rel 'nan' is not a finite number"),
+    (GOOD + "fog,1,1e308,0.9\n", 3, "abs_rel 1e+308 is absurd (above 1e+06"),
+    ("corruption,level,abs_rel,rmse,a1\nclean,0,0.1,2e6,0.9\n", 2, "rmse 2e+06 is absurd"),
+    ("corruption,level,abs_rel,a1,a3\nclean,0,0.1,0.9,1.2\n", 2, "a3 1.2 is outside [0, 1]"),
+    ("corruption,level,abs_rel,a1,seconds\nclean,0,0.1,0.9,inf\n", 2, "seconds 'inf' is not a finite number"),
+    ("corruption,level,dee,silog\nclean,0,0.1,-3\n", 2, "silog -3 is negative"),
 ])
 def test_bad_rows_are_one_line_errors(tmp_path, text, line, problem, cli):
     path = write(tmp_path, text)
@@ -388,6 +397,30 @@ def test_bad_files_are_one_line_errors(tmp_path, text, problem, cli):
     assert result.exit_code == 2
     assert result.output.startswith(f"robodepth: error: {path}: {problem}")
     assert result.output.count("\n") == 1
+
+
+def test_text_columns_of_the_users_are_kept_out_of_the_checks(tmp_path, cli):
+    path = write(tmp_path, "corruption,level,dee,note\nclean,0,0.1,first run\n"
+                 + "".join(f"fog,{lv},0.2,\n" for lv in range(1, 6)))
+    result = cli("score", path, "-b", "kitti-c", "--allow-partial", "--json")
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["corruptions"]["fog"]["dee"] == pytest.approx(0.2)
+
+
+def test_benchmark_hint_only_where_it_can_help(tmp_path, cli):
+    """Without --benchmark, an error that every benchmark gives alike (a bad number, a bad
+    header) is not followed by advice to give it; one that differs by benchmark is."""
+    bad_number = write(tmp_path, GOOD + "fog,1,abc,0.9\n", "n.csv")
+    res = cli("score", bad_number)
+    assert res.exit_code == 2 and "abs_rel 'abc' is not a number" in res.output
+    assert "--benchmark" not in res.output
+    assert "--benchmark" not in cli("score", write(tmp_path, "", "e.csv")).output
+    # Level 5 of dark: fine on KITTI-C, out of range on NYUDepth2-C; fog 6 out of range on
+    # both, but the two say different things (1..5, 1..4): --benchmark picks the message.
+    levels = write(tmp_path, GOOD + "dark,5,0.1,0.9\nfog,6,0.1,0.9\n", "l.csv")
+    res = cli("score", levels)
+    assert res.exit_code == 2 and res.output.count("\n") == 1
+    assert res.output.rstrip().endswith("(with --benchmark, the error may be clearer)")
 
 
 def test_benchmark_specific_corruptions_and_levels(tmp_path, cli):

@@ -156,7 +156,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
         doc = {**result.to_json(), "csv": str(out)}
         if scored is not None:
             doc["scores"] = scored.to_json()
-        click.echo(json.dumps(doc, indent=2))
+        click.echo(json.dumps(doc, indent=2, allow_nan=False))
     else:
         click.echo(result.summary(), nl=False)
     common.wrote(f"{out} (replaced)" if replacing else out)

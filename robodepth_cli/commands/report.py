@@ -8,13 +8,15 @@ from pathlib import Path
 import click
 
 from ..errors import RobodepthError
+from . import common
 
 
 @click.command("report")
 @click.argument("results", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", "out", required=True, type=click.Path(file_okay=False, path_type=Path),
               help="Directory to write index.html, figures/, table.tex, table.md and scores.json "
-                   "into (created if needed; files of an earlier report there are replaced).")
+                   "into, whole or not at all (created if needed; an earlier report there is "
+                   "replaced, its figures that this one does not draw removed).")
 @click.option("--name", "names", multiple=True, metavar="NAME",
               help="Model name of each RESULTS file, in order (once per file); default: the "
                    "file name without .csv.")
@@ -34,10 +36,11 @@ from ..errors import RobodepthError
                    "once per RESULTS file in order (fewer is fine): adds a qualitative figure.")
 @click.option("--frame", default=0, show_default=True, type=click.IntRange(min=0),
               help="With --pred: which image of the split (0 = first) the qualitative figure shows.")
-@click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
-              help="With --pred: what the predictions hold (as for robodepth evaluate; default "
-                   "disp for KITTI, depth for NYU).")
-def report_command(results, out, names, benchmark, context, dataset, preds, frame, kind):
+@click.option("--kind", "kinds", multiple=True, type=click.Choice(["disp", "sigmoid", "depth"]),
+              help="With --pred: what the predictions hold (as for robodepth evaluate), once per "
+                   "--pred in order or once for all; default: what each PRED/predictions.json "
+                   "records, else disp for KITTI and depth for NYU.")
+def report_command(results, out, names, benchmark, context, dataset, preds, frame, kinds):
     """A report of one or more models: a self-contained HTML page, the figures (SVG, PDF,
     PNG), LaTeX and Markdown tables and a versioned scores.json.
 
@@ -61,7 +64,9 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
         raise RobodepthError(f"--pred given {len(preds)} times for {len(results)} results files; "
                              "give it at most once per file, in the same order")
     from ..evaluation.plot import _mpl
+    from ..report.qualitative import check_kinds
 
+    check_kinds(kinds, preds)
     _mpl()  # refuse before anything is created when matplotlib is missing
     W.check_writable(out)
     report = W.assemble(list(results), list(names), benchmark, context, dataset)
@@ -70,8 +75,18 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     if preds:
         from ..report.qualitative import qualitative
 
-        report.figures.append(qualitative(report, dataset, list(preds), frame, kind))
-    written = W.write(report, out, progress=say)
+        figure, guessed = qualitative(report, dataset, list(preds), frame, kinds)
+        report.figures.append(figure)
+        for pred, kind in guessed:
+            click.echo(f"robodepth: warning: --pred {pred}: no predictions.json says what it holds; "
+                       f"drawn as {kind} (the {report.benchmark} default); give --kind if wrong",
+                       err=True)
+    written = W.write(report, out, progress=say,
+                      published=lambda: common.on_interrupt(f"the report was written to {out}"))
     models = ", ".join(m.name for m in report.models)
+    removed = ""
+    if written.removed:
+        removed = (f"; removed {len(written.removed)} figure files of the earlier report there: "
+                   + ", ".join(str(p.relative_to(out)) for p in written.removed))
     click.echo(f"wrote {out / 'index.html'} ({report.benchmark}: {models}; "
-               f"{len(written)} files under {out})", err=True)
+               f"{len(written.files)} files under {out}{removed})", err=True)

@@ -64,6 +64,8 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     if missing:
         click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
     result = S.score(res, bench, base, allow_partial=True)
+    if plot_file is not None and result.note:
+        raise RobodepthError(f"--plot: {results}: {result.note} (no CE to draw)")
     if plot_file is not None:
         from ..evaluation.plot import Model, ce_figure, render
 
@@ -71,6 +73,6 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         common.write_bytes(plot_file, render(fig, plot_file.suffix.lower().lstrip(".")))
         common.wrote(plot_file)
     if as_json:
-        click.echo(json.dumps(result.to_json(), indent=2))
+        click.echo(json.dumps(result.to_json(), indent=2, allow_nan=False))
     else:
         click.echo(S.format_table(result), nl=False)

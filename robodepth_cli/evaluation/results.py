@@ -3,7 +3,8 @@ into :class:`Results`, and the per-variant formulas (DEE, CE, RR) its rows need.
 
 Results CSV
     A header row is required; columns are found by name (case-insensitive, surrounding
-    spaces ignored, in any order; other columns such as ``sq_rel`` or ``rmse`` are ignored).
+    spaces ignored, in any order; the other columns are not scored, but their numbers are
+    checked: :mod:`.csvrows`).
     Required: ``corruption``, ``level`` and either both ``abs_rel`` and ``a1`` or ``dee``
     (not both, which would be ambiguous). One row per (corruption, level); the clean row has
     corruption ``clean`` and level ``0``. Blank lines and lines starting with ``#`` are
@@ -16,7 +17,8 @@ Results CSV
     empty), as ``robodepth evaluate`` writes them for such builds. mCE, mRR and mDEE stay
     defined as the benchmark defines them, on its corruptions at its integer levels; the
     extra rows are reported as severity curves (DEE against the level, integer and decimal
-    levels together) and chain DEE rows, in a section of their own.
+    levels together) and chain DEE rows, in a section of their own. A file with such rows
+    only (a chain set's) has no mCE, mRR or mDEE, and says why (:attr:`Results.beyond_only`).
 """
 
 from __future__ import annotations
@@ -29,16 +31,28 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from ..benchmarks import BENCHMARKS, CATEGORY, CLEAN, Baseline, Benchmark
-from ..errors import RobodepthError, os_reason
+from ..errors import os_reason
+from .csvrows import ScoreError, data_rows, level as _level, normalise_name, number
 
 
-class ScoreError(RobodepthError):
-    """A results or baseline file that cannot be scored; the message is one line."""
+class FitError(ScoreError):
+    """A row that another benchmark could take: a corruption or level not of this one."""
 
 
 def dee(abs_rel: float, a1: float) -> float:
     """Depth estimation error ``(abs_rel - a1 + 1) / 2``."""
     return (abs_rel - a1 + 1.0) / 2.0
+
+
+def row_dee(cells: Mapping[str, str], use_dee: bool, where: str) -> float:
+    """The DEE of a row: its ``dee`` cell, or ``(abs_rel - a1 + 1) / 2``."""
+    if use_dee:
+        d = number(cells["dee"], "dee", where)
+        if not 0.0 <= d <= 1.0:
+            hint = " (DES1 = abs_rel - a1 + 1? DEE is half of it)" if d > 1.0 else ""
+            raise ScoreError(f"{where}: dee {d:g} is outside [0, 1]{hint}")
+        return d
+    return dee(number(cells["abs_rel"], "abs_rel", where), number(cells["a1"], "a1", where))
 
 
 def mean(values: Iterable[float]) -> float:
@@ -79,101 +93,16 @@ class Results:
     decimal: dict[str, dict[float, float]] = field(default_factory=dict)  # name -> level -> DEE
     chains: dict[str, float] = field(default_factory=dict)  # canonical chain text -> DEE
 
+    @property
+    def beyond_only(self) -> bool:
+        """Rows beyond the benchmark and none of it (a chains-only build's): no mCE, mRR
+        or mDEE to compute, and nothing of the benchmark missing by mistake."""
+        return not self.dee and bool(self.decimal or self.chains)
+
     def missing(self, benchmark: Benchmark) -> list[tuple[str, int]]:
         """The (corruption, level) variants of ``benchmark`` with no row, in benchmark order."""
         return [(n, lv) for n in benchmark.corruptions for lv in benchmark.levels
                 if lv not in self.dee.get(n, {})]
-
-
-def _normalise_name(text: str) -> str:
-    return text.strip().lower().replace("-", "_").replace(" ", "_")
-
-
-def _number(text: str, column: str, where: str) -> float:
-    text = text.strip()
-    if not text:
-        raise ScoreError(f"{where}: empty {column}")
-    try:
-        value = float(text)
-    except ValueError:
-        raise ScoreError(f"{where}: {column} {text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise ScoreError(f"{where}: {column} {text!r} is not a finite number")
-    return value
-
-
-def _level(text: str, where: str) -> int | float:
-    value = _number(text, "level", where)
-    # Spreadsheets and pandas often write integers as 3.0: those are the integer levels.
-    return int(value) if value.is_integer() else value
-
-
-def _row_dee(cells: Mapping[str, str], use_dee: bool, where: str) -> float:
-    if use_dee:
-        d = _number(cells["dee"], "dee", where)
-        if not 0.0 <= d <= 1.0:
-            hint = " (DES1 = abs_rel - a1 + 1? DEE is half of it)" if d > 1.0 else ""
-            raise ScoreError(f"{where}: dee {d:g} is outside [0, 1]{hint}")
-        return d
-    abs_rel = _number(cells["abs_rel"], "abs_rel", where)
-    a1 = _number(cells["a1"], "a1", where)
-    if abs_rel < 0.0:
-        raise ScoreError(f"{where}: abs_rel {abs_rel:g} is negative")
-    if not 0.0 <= a1 <= 1.0:
-        hint = " (a percentage? give a1 as a fraction)" if 1.0 < a1 <= 100.0 else ""
-        raise ScoreError(f"{where}: a1 {a1:g} is outside [0, 1]{hint}")
-    return dee(abs_rel, a1)
-
-
-def _columns(header: list[str], source: str, line: int) -> tuple[dict[str, int], bool]:
-    """Map the needed column names to their indices; return it and whether ``dee`` is used."""
-    index: dict[str, int] = {}
-    for i, name in enumerate(header):
-        key = name.strip().lower()
-        if key in index:
-            raise ScoreError(f"{source}:{line}: column {key!r} appears twice in the header")
-        index[key] = i
-    missing = [c for c in ("corruption", "level") if c not in index]
-    has_metrics = "abs_rel" in index or "a1" in index
-    if "dee" in index and has_metrics:
-        raise ScoreError(f"{source}:{line}: header has both dee and abs_rel/a1; keep one")
-    use_dee = "dee" in index
-    if not use_dee:
-        missing += [c for c in ("abs_rel", "a1") if c not in index]
-    if missing:
-        need = "corruption, level, abs_rel, a1 (or dee instead of abs_rel, a1)"
-        if len(header) == 1 and any(sep in header[0] for sep in ";\t"):
-            raise ScoreError(f"{source}:{line}: columns must be separated by commas, "
-                             f"not semicolons or tabs; need {need}")
-        raise ScoreError(f"{source}:{line}: header lacks {', '.join(missing)}; "
-                         f"the first row must name the columns: {need}")
-    wanted = ("corruption", "level") + (("dee",) if use_dee else ("abs_rel", "a1"))
-    return {c: index[c] for c in wanted}, use_dee
-
-
-def _data_rows(text: str, source: str):
-    """The data rows of a results CSV as ``(line, "source:line", {column: cell}, use_dee)``:
-    blank and ``#`` lines skipped, the header found and checked (:func:`_columns`), short
-    rows, a malformed file and a file with no header refused (ScoreError)."""
-    reader = csv.reader(io.StringIO(text))
-    columns: dict[str, int] | None = None
-    use_dee = False
-    try:
-        for row in reader:
-            line = reader.line_num
-            if not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
-                continue
-            if columns is None:
-                columns, use_dee = _columns(row, source, line)
-                continue
-            where = f"{source}:{line}"
-            if any(i >= len(row) for i in columns.values()):
-                raise ScoreError(f"{where}: only {len(row)} cells; the header names more columns")
-            yield line, where, {c: row[i] for c, i in columns.items()}, use_dee
-    except csv.Error as exc:
-        raise ScoreError(f"{source}:{reader.line_num}: malformed CSV: {exc}") from None
-    if columns is None:
-        raise ScoreError(f"{source}: no header row; the file is empty")
 
 
 def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
@@ -189,16 +118,16 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
     decimal: dict[str, dict[float, float]] = {}
     chains: dict[str, float] = {}
     chain_lines: dict[str, int] = {}
-    for line, where, cells, use_dee in _data_rows(text, source):
+    for line, where, cells, use_dee in data_rows(text, source):
         if ":" in cells["corruption"] or "+" in cells["corruption"]:  # a chain
             chain = _chain(cells, benchmark, where)
             if chain in chains:
                 raise ScoreError(f"{where}: duplicate row for chain {chain} "
                                  f"(first on line {chain_lines[chain]})")
             chain_lines[chain] = line
-            chains[chain] = _row_dee(cells, use_dee, where)
+            chains[chain] = row_dee(cells, use_dee, where)
             continue
-        name = _normalise_name(cells["corruption"])
+        name = normalise_name(cells["corruption"])
         if not name:
             raise ScoreError(f"{where}: empty corruption")
         level = _level(cells["level"], where)
@@ -207,24 +136,24 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
                 raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
         elif name not in benchmark.corruptions:
             if name in CATEGORY:
-                raise ScoreError(f"{where}: {name} is not a corruption of {benchmark.name}")
-            raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
+                raise FitError(f"{where}: {name} is not a corruption of {benchmark.name}")
+            raise FitError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
                              f"valid: clean, {', '.join(benchmark.corruptions)}")
         elif not 1 <= level <= benchmark.n_levels:
-            raise ScoreError(f"{where}: level {level} of {name} is outside "
+            raise FitError(f"{where}: level {level} of {name} is outside "
                              f"1..{benchmark.n_levels} for {benchmark.name}")
         if isinstance(level, float):
             if (name, level) in seen:
                 raise ScoreError(f"{where}: duplicate row for {name} level {level} "
                                  f"(first on line {seen[name, level]})")
             seen[name, level] = line
-            decimal.setdefault(name, {})[level] = _row_dee(cells, use_dee, where)
+            decimal.setdefault(name, {})[level] = row_dee(cells, use_dee, where)
             continue
         if (name, level) in seen:
             raise ScoreError(f"{where}: duplicate row for {name} level {level} "
                              f"(first on line {seen[name, level]})")
         seen[name, level] = line
-        value = _row_dee(cells, use_dee, where)
+        value = row_dee(cells, use_dee, where)
         if name == CLEAN:
             if value >= 1.0:
                 raise ScoreError(f"{where}: clean DEE {value:g} must be below 1 "
@@ -235,10 +164,7 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
     if clean is None:
         raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); "
                          "RR needs the clean DEE")
-    if not table:
-        if decimal or chains:
-            raise ScoreError(f"{source}: no corruption rows at the benchmark's integer levels, only the "
-                             f"clean one and rows beyond the benchmark; mCE and mRR need them")
+    if not table and not decimal and not chains:
         raise ScoreError(f"{source}: no corruption rows, only the clean one")
     return Results(source, clean, {n: dict(sorted(table[n].items()))
                                    for n in benchmark.corruptions if n in table},
@@ -257,7 +183,7 @@ def _chain(cells: Mapping[str, str], benchmark: Benchmark, where: str) -> str:
         raise ScoreError(f"{where}: {exc}") from None
     for step in chain.steps:
         if step.name not in benchmark.corruptions:
-            raise ScoreError(f"{where}: chain {chain.text}: {step.name} is not a corruption of {benchmark.name}")
+            raise FitError(f"{where}: chain {chain.text}: {step.name} is not a corruption of {benchmark.name}")
     if cells["level"].strip() not in ("", "0", "0.0"):
         raise ScoreError(f"{where}: a chain's row has level 0 (its levels are in its name), "
                          f"not {cells['level'].strip()!r}")
@@ -323,7 +249,7 @@ def _row_names(text: str) -> list[str]:
     if "corruption" not in header:
         return []
     i = header.index("corruption")
-    return [_normalise_name(r[i]) for r in rows[1:] if i < len(r)]
+    return [normalise_name(r[i]) for r in rows[1:] if i < len(r)]
 
 
 def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
@@ -338,12 +264,12 @@ def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
     if styles and names & styles:
         raise ScoreError(f"{path}: mixes KITTI-S styles ({', '.join(sorted(names & styles))}) "
                          f"with corruptions ({', '.join(sorted(names - styles))})")
-    fits, complete, first_error = [], [], None
+    fits, complete, errors = [], [], []
     for bench in BENCHMARKS.values():
         try:
             results = parse_results(text, str(path), bench)
         except ScoreError as exc:
-            first_error = first_error or exc
+            errors.append(exc)
             continue
         fits.append(bench.name)
         if not results.missing(bench):
@@ -353,7 +279,10 @@ def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
     if len(fits) == 1:
         return fits[0]
     if not fits:
-        raise ScoreError(f"{first_error} (with --benchmark, the error may be clearer)")
+        # A bad header, number or duplicate is wrong whatever the benchmark: naming one
+        # would not help. Rows that merely fit none (a corruption or level of neither) might.
+        real = [e for e in errors if not isinstance(e, FitError)]
+        raise real[0] if real else ScoreError(f"{errors[0]} (with --benchmark, the error may be clearer)")
     raise ScoreError(f"{path}: the rows fit {' and '.join(fits)}; say which with --benchmark")
 
 
@@ -377,8 +306,8 @@ def parse_style_results(text: str, source: str, styles: tuple[str, ...]) -> Styl
     a row; anything else is a ScoreError naming the line."""
     seen: dict[str, int] = {}
     values: dict[str, float] = {}
-    for line, where, cells, use_dee in _data_rows(text, source):
-        name = _normalise_name(cells["corruption"])
+    for line, where, cells, use_dee in data_rows(text, source):
+        name = normalise_name(cells["corruption"])
         if name != CLEAN and name not in styles:
             raise ScoreError(f"{where}: unknown style {cells['corruption'].strip()!r}; "
                              f"valid: clean, {', '.join(styles)}")
@@ -388,7 +317,7 @@ def parse_style_results(text: str, source: str, styles: tuple[str, ...]) -> Styl
         if name in seen:
             raise ScoreError(f"{where}: duplicate row for {name} (first on line {seen[name]})")
         seen[name] = line
-        values[name] = _row_dee(cells, use_dee, where)
+        values[name] = row_dee(cells, use_dee, where)
     missing = [s for s in styles if s not in values]
     if missing:
         raise ScoreError(f"{source}: missing {len(missing)} of {len(styles)} KITTI-S styles: "
@@ -425,7 +354,7 @@ def describe_variants(variants: Iterable[tuple[str, int | None]], n_levels: int 
 def missing_message(results: Results, benchmark: Benchmark) -> str | None:
     """``"FILE: missing N of M variants: ..."``, or None when every variant has a row."""
     missing = results.missing(benchmark)
-    if not missing:
+    if not missing or results.beyond_only:
         return None
     total = len(benchmark.corruptions) * benchmark.n_levels
     if results.looks_like:  # the list of missing variants would only bury this

@@ -52,6 +52,7 @@ class Scores:
     # DEE at every level present (integer and decimal, ascending); chains' DEE.
     curves: dict[str, dict[float, float]] = field(default_factory=dict)
     chains: dict[str, float] = field(default_factory=dict)
+    note: str = ""  # why there is no mCE, mRR or mDEE (rows beyond the benchmark only)
 
     def to_json(self) -> dict:
         """The JSON form; keys are documented in docs/evaluation.md and stay stable. A results file
@@ -74,6 +75,8 @@ class Scores:
             "partial": bool(self.missing),
             "missing": [{"corruption": n, "level": lv} for n, lv in self.missing],
         }
+        if self.note:
+            doc["note"] = self.note
         if self.curves or self.chains:
             from ..corruptions.severity import level_text
 
@@ -107,7 +110,7 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
             # CE divides by it; a zero is a broken or placeholder baseline, not a model.
             raise ScoreError(f"{baseline.name}: the baseline DEE of {name} is "
                              f"{baseline.dee[name]:g}; CE divides by it, so it must be above 0")
-    missing = results.missing(benchmark)
+    missing = [] if results.beyond_only else results.missing(benchmark)
     if missing and not allow_partial:
         check_complete(results, benchmark)
     rows = []
@@ -123,7 +126,15 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
     categories = tuple(_group(cat, [r for r in rows if r.category == cat]) for cat in CATEGORIES)
     curves = {n: dict(sorted({**results.dee.get(n, {}), **d}.items())) for n, d in results.decimal.items()}
     return Scores(benchmark.name, benchmark.n_levels, results.source, baseline, results.clean, tuple(rows),
-                  categories, _group("overall", rows), tuple(missing), curves, dict(results.chains))
+                  categories, _group("overall", rows), tuple(missing), curves, dict(results.chains),
+                  no_score_note(benchmark) if results.beyond_only else "")
+
+
+def no_score_note(benchmark: Benchmark) -> str:
+    """Why results with rows beyond the benchmark only have no mCE, mRR or mDEE."""
+    return (f"no mCE, mRR or mDEE: they are defined on {benchmark.name}'s corruptions at its "
+            f"integer levels 1..{benchmark.n_levels}, and these results have no such row, only "
+            "rows beyond the benchmark (chains, decimal levels), whose DEE is shown")
 
 
 # --------------------------------------------------------------------------- table
@@ -147,6 +158,8 @@ def format_table(s: Scores) -> str:
     lines = [f"{s.benchmark}: {s.source}",
              f"baseline: {s.baseline.name} (clean DEE {s.baseline.clean:.3f})",
              f"clean DEE: {s.clean_dee:.3f}", "", head]
+    if s.note:
+        return "\n".join([lines[0], lines[2], "", s.note] + _beyond(s)) + "\n"
     for cat, group in zip(CATEGORIES, s.categories):
         lines.append(cat)
         for c in s.corruptions:

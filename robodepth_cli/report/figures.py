@@ -299,17 +299,21 @@ def qualitative_figure(labels: Sequence[str], images: Sequence, rows: Sequence[t
     scale per model, set by its clean prediction (2nd-98th percentile), so a corruption's
     effect shows as a change of colour."""
     import numpy as np
+    from matplotlib.transforms import offset_copy
 
     h, w = np.asarray(images[0]).shape[:2]
     cols, nrows = len(images), 1 + len(rows)
     panel_w = 2.7
-    fig = _figure(panel_w * cols + 1.2, panel_w * h / w * nrows + 0.35 * nrows + 0.9)
+    names = [_wrap(name, panel_w * cols) for name, _ in rows]
+    extra_lines = sum(name.count("\n") for name in names)
+    fig = _figure(panel_w * cols + 1.2,
+                  panel_w * h / w * nrows + 0.35 * nrows + 0.9 + 0.17 * extra_lines)
     axes = fig.subplots(nrows, cols, squeeze=False)
     for k, (label, image) in enumerate(zip(labels, images)):
         axes[0][k].imshow(image, extent=(0, w, h, 0))
         axes[0][k].set_title(pretty(label), fontsize=9)
     axes[0][0].set_ylabel("input", fontsize=9)
-    for r, (name, maps) in enumerate(rows, start=1):
+    for r, ((_, maps), name) in enumerate(zip(rows, names), start=1):
         clean = np.asarray(maps[0])
         lo, hi = np.percentile(clean, 2), np.percentile(clean, 98)
         if not hi > lo:
@@ -318,7 +322,15 @@ def qualitative_figure(labels: Sequence[str], images: Sequence, rows: Sequence[t
         for k, m in enumerate(maps):
             im = axes[r][k].imshow(m, cmap="magma", vmin=lo, vmax=hi, extent=(0, w, h, 0),
                                    interpolation="nearest")
-        axes[r][0].set_ylabel(name, fontsize=9, color=style(r - 1)["color"], fontweight="bold")
+        # The name above its row, across the row (a rotated label is only as long as the row
+        # is high: long names ran into each other); wrapped where it is wider than the row.
+        # Out of the layout, which would widen the first column to the name's width (even
+        # as a title); the row's empty titles keep the lines' height free above it.
+        above = offset_copy(axes[r][0].transAxes, fig=fig, y=TITLE_PAD, units="points")
+        axes[r][0].text(0, 1, name, transform=above, ha="left", va="bottom", fontsize=9,
+                        color=style(r - 1)["color"], fontweight="bold").set_in_layout(False)
+        for ax in axes[r]:
+            ax.set_title("\n".join(" " * (name.count("\n") + 1)), fontsize=9)
         bar = fig.colorbar(im, ax=axes[r].tolist(), shrink=0.85, pad=0.01, ticks=[lo, hi])
         bar.ax.set_yticklabels(["far", "near"], fontsize=8)
     for row in axes:
@@ -328,3 +340,15 @@ def qualitative_figure(labels: Sequence[str], images: Sequence, rows: Sequence[t
     _title(fig, f"One frame of {bench_title(benchmark)}: {frame}",
            "top: the input; below: each model's prediction (inverse depth, bright is near)")
     return fig
+
+
+TITLE_PAD = 6.0  # points between an axes and its title: matplotlib's axes.titlepad
+
+
+def _wrap(text: str, width_in: float, fontsize: float = 9.0) -> str:
+    """``text`` in lines that fit ``width_in`` inches of bold ``fontsize`` type (at most
+    0.7 em a character, wider than the average), broken at spaces, else anywhere."""
+    import textwrap
+
+    per_line = max(8, int(width_in * 72 / (0.7 * fontsize)))
+    return "\n".join(textwrap.wrap(text, per_line, break_long_words=True)) or text

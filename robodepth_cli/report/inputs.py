@@ -15,6 +15,7 @@ from typing import Sequence
 
 from .. import benchmarks as B
 from ..evaluation import results as R, scores as S
+from ..evaluation.csvrows import normalise_name
 from ..errors import RobodepthError
 from . import published as P
 
@@ -111,7 +112,7 @@ def _variant_rows(text: str) -> list[dict]:
             key = k.strip().lower()
             if key == "corruption":
                 chained = ":" in (v or "") or "+" in (v or "")  # a chain keeps its canonical text
-                row[key] = "".join((v or "").split()) if chained else R._normalise_name(v or "")
+                row[key] = "".join((v or "").split()) if chained else normalise_name(v or "")
             elif key == "level":
                 level = float(v) if (v or "").strip() else 0.0  # a chain's row may leave it empty
                 row[key] = int(level) if level.is_integer() else level
@@ -144,6 +145,19 @@ def load(paths: Sequence[Path], names: Sequence[str], benchmark: str) -> list[Mo
             row = Row(name, "yours", res.clean, scores=S.score(res, bench), source=str(path))
         out.append(Model(name, path, row, _variant_rows(text), sha256_bytes(text.encode())))
     return out
+
+
+def beyond_only(models: Sequence[Model]) -> str:
+    """Why there is no mCE, mRR or mDEE when every model's results hold rows beyond the
+    benchmark only (chains, decimal levels); "" when all have the benchmark's rows. A
+    report of both kinds is refused: its tables could not compare them."""
+    notes = [m.row.scores.note if m.row.scores is not None else "" for m in models]
+    if any(notes) and not all(notes):
+        only = next(m for m, n in zip(models, notes) if n)
+        full = next(m for m, n in zip(models, notes) if not n)
+        raise ReportError(f"{only.path}: has rows beyond the benchmark only, {full.path} has the "
+                          "benchmark's: make one report of each kind")
+    return notes[0] if all(notes) else ""
 
 
 def context(benchmark: str, which: str) -> list[Row]:

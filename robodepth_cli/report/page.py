@@ -71,7 +71,7 @@ def inline_svg(svg: str, prefix: str, label: str = "") -> str:
 
 
 def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures: Sequence[PageFigure],
-           dataset: dict | None, context: str) -> str:
+           dataset: dict | None, context: str, note: str = "") -> str:
     """The page: title, the models and their files, the summary table, the figures, the
     per-corruption tables, notes on the scores and the paper to cite."""
     e = html.escape
@@ -98,9 +98,12 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
                      f'{e(str(dataset["seed"]))}), fingerprint <code>{e(dataset["fingerprint"][:16])}</code>.</p>')
     tables = list(tables)
     parts += ["<h2>Scores</h2>", to_html(tables[0])]
-    if context != "all":
+    if note:
+        parts.append(f'<p class="note">{e(note[0].upper() + note[1:])}.</p>')
+    elif context != "all":
         parts.append(f'<p class="note">Published rows shown: {e(context)} (--published).</p>')
-    parts.append("<h2>Figures</h2>")
+    if figures:
+        parts.append("<h2>Figures</h2>")
     for f in figures:
         links = " ".join(f'<a href="figures/{e(f.stem)}.{ext}">{ext.upper()}</a>'
                          for ext in ("svg", "pdf", "png"))

@@ -46,8 +46,43 @@ def inverse_depth(pred: np.ndarray, kind: str) -> np.ndarray:
     return np.where(np.isfinite(m), m, 0.0)
 
 
-def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, kind: str | None):
-    """The figure entry (stem, title, caption, Figure) for ``report``'s page."""
+DRAWN = {"disp": "disparity", "sigmoid": "sigmoid output", "depth": "depth, drawn inverted"}
+
+
+def check_kinds(kinds: Sequence[str], preds: Sequence[Path]) -> None:
+    """``--kind`` is given once per ``--pred``, once for all, or not at all."""
+    if kinds and not preds:
+        raise ReportError("--kind needs --pred (it says what the predictions hold)")
+    if kinds and len(kinds) not in (1, len(preds)):
+        raise ReportError(f"--kind given {len(kinds)} times for {len(preds)} --pred folders; give "
+                          "it once per --pred in the same order, once for all, or not at all "
+                          "(each folder's predictions.json says it)")
+
+
+def pred_kinds(preds: Sequence[Path], kinds: Sequence[str], dataset_name: str) -> list[tuple[str, str]]:
+    """What each ``--pred`` holds and where that was read: ``(kind, source)`` with source
+    ``--kind``, ``predictions.json`` (what robodepth predict recorded) or ``default`` (the
+    dataset's evaluation default: disp for KITTI, depth for NYU). ``kinds`` is ``--kind``
+    as given: not at all, once for every ``--pred``, or once per ``--pred`` in order."""
+    from ..models.predict import read_record
+
+    check_kinds(kinds, preds)
+    default = "depth" if dataset_name == "nyudepth2-c" else "disp"
+    out = []
+    for i, pred in enumerate(preds):
+        if kinds:
+            out.append((kinds[i if len(kinds) > 1 else 0], "--kind"))
+            continue
+        record = read_record(Path(pred)) if Path(pred).is_dir() else None
+        kind = (record or {}).get("evaluate", {}).get("kind")
+        out.append((kind, "predictions.json") if kind in DRAWN else (default, "default"))
+    return out
+
+
+def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, kinds: Sequence[str] = ()):
+    """The figure entry (stem, title, caption, Figure) for ``report``'s page, and the
+    ``(pred, kind)`` of each ``--pred`` drawn with the dataset's default kind because
+    neither ``--kind`` nor a ``predictions.json`` said what it holds."""
     from ..evaluation.predictions import find_predictions
     from ..imageio import read_rgb
     from .figures import qualitative_figure
@@ -56,13 +91,13 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
     if frame >= len(dataset.keys):
         raise ReportError(f"--frame {frame}: {dataset_dir} has {len(dataset.keys)} images "
                           f"(0..{len(dataset.keys) - 1})")
-    kind = kind or ("depth" if dataset.name == "nyudepth2-c" else "disp")
+    held = pred_kinds(preds, kinds, dataset.name)
     variants = choose_variants(dataset)
     models = report.models[:len(preds)]
     images, rows = [], []
     for v in variants:
         images.append(np.asarray(read_rgb(v.images()[frame])))
-    for model, pred in zip(models, preds):
+    for model, pred, (kind, _) in zip(models, preds, held):
         row = []
         for v in variants:
             found = find_predictions(Path(pred), v, 256.0)
@@ -76,10 +111,13 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
             if m.ndim != 2:
                 raise ReportError(f"--pred {pred}: prediction {frame} of {v.label} is not a 2-D map")
             row.append(inverse_depth(m, kind))
-        rows.append((model.name, row))
+        rows.append((f"{model.name}  ({DRAWN[kind]})", row))
     key = dataset.keys[frame]
     fig = qualitative_figure([v.label for v in variants], images, rows, dataset.name, key)
-    names = ", ".join(m.name for m in models)
-    return ("qualitative", "One frame", f"Frame {frame} ({key}) of {dataset_dir}: the clean "
-            f"image and {len(variants) - 1} variants, with the predictions of {names} under "
-            "each (inverse depth, one colour scale per model, set by its clean prediction).", fig)
+    said = {"--kind": "as --kind says", "predictions.json": "as its predictions.json records",
+            "default": f"the {dataset.name} default"}
+    names = ", ".join(f"{m.name} ({DRAWN[k]}, {said[s]})" for m, (k, s) in zip(models, held))
+    entry = ("qualitative", "One frame", f"Frame {frame} ({key}) of {dataset_dir}: the clean "
+             f"image and {len(variants) - 1} variants, with the predictions of {names} under "
+             "each (inverse depth, one colour scale per model, set by its clean prediction).", fig)
+    return entry, [(pred, k) for pred, (k, s) in zip(preds, held) if s == "default"]

@@ -123,9 +123,10 @@ def levels_table(rows: Sequence[Row], benchmark: str) -> Table:
                  cols, list(rows), values)
 
 
-def beyond_table(rows: Sequence[Row], benchmark: str) -> Table | None:
+def beyond_table(rows: Sequence[Row], benchmark: str, clean: bool = False) -> Table | None:
     """Rows beyond the benchmark (decimal levels, chains) of the user's models: DEE at every
-    level of each severity curve, then each chain's DEE. None when there are none."""
+    level of each severity curve, then each chain's DEE (after the clean DEE if ``clean``).
+    None when there are none."""
     from ..corruptions.severity import level_text
 
     curves: dict[str, set] = {}
@@ -136,11 +137,12 @@ def beyond_table(rows: Sequence[Row], benchmark: str) -> Table | None:
         chains.update(dict.fromkeys(r.scores.chains))
     if not curves and not chains:
         return None
-    cols = [Column(f"{n} {level_text(lv)}", level_text(lv), n.replace("_", " "), LOW, 3)
-            for n, levels in curves.items() for lv in sorted(levels)]
+    cols = [Column("clean", "Clean DEE", "", LOW, 3)] if clean else []
+    cols += [Column(f"{n} {level_text(lv)}", level_text(lv), n.replace("_", " "), LOW, 3)
+             for n, levels in curves.items() for lv in sorted(levels)]
     cols += [Column(c, c.replace("_", " ").replace("+", " + "), "Chains", LOW, 3) for c in chains]
-    values = [{**{f"{n} {level_text(lv)}": d for n, curve in r.scores.curves.items() for lv, d in curve.items()},
-               **r.scores.chains} for r in rows]
+    values = [{"clean": r.clean, **{f"{n} {level_text(lv)}": d for n, curve in r.scores.curves.items()
+                                    for lv, d in curve.items()}, **r.scores.chains} for r in rows]
     return Table("Beyond the benchmark", "beyond",
                  f"DEE of the variants beyond {bench_name(benchmark)} (your models): severity curves "
                  "(each corruption with decimal-level rows, at every level present) and chains of "

@@ -1,6 +1,8 @@
 """Make a report: score the inputs, draw the figures, write the page, tables and JSON.
 
-Output layout under OUT (every file written atomically; an existing OUT is updated in place):
+Output layout under OUT (written whole or not at all: into a temporary folder, then moved
+into place; an earlier report's files there are replaced, and figures of it that this one
+does not draw are removed, so nothing stale is left):
 
     index.html       the page (self-contained)
     table.tex        booktabs tables (summary like the paper's Table 1, then the details)
@@ -35,15 +37,23 @@ class Report:
     tables: list[T.Table]
     figures: list[tuple[str, str, str, object]] = field(default_factory=list)  # stem, title, caption, Figure
     dataset: dict | None = None
+    note: str = ""  # why there is no mCE, mRR or mDEE (results beyond the benchmark only)
+
+
+FIGURES = "figures"
 
 
 def check_writable(out: Path) -> None:
-    """Refuse, before any work, an OUT in which the report's files could not be created."""
+    """Refuse, before any work, an OUT in which the report could not be written: by
+    creating there what :func:`write` creates (a folder beside a new OUT, a file in an
+    existing one), since permission bits do not tell (root, read-only mounts, /proc)."""
     from ..files import check_writable as check
 
     if out.exists() and not out.is_dir():
         raise I.ReportError(f"--out {out}: exists and is not a directory")
-    check(out / "figures" / "radar.svg", "--out")
+    if (out / FIGURES).exists() and not (out / FIGURES).is_dir():
+        raise I.ReportError(f"--out {out}: {out / FIGURES} exists and is not a directory")
+    check(out / "index.html" if out.is_dir() else out, "--out")
 
 
 def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None, context: str,
@@ -54,6 +64,10 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
     models = I.load(paths, names, bench)
     rows = [m.row for m in models] + I.context(bench, context)
     info = I.dataset_info(dataset, bench) if dataset is not None else None
+    note = I.beyond_only(models)
+    if note:  # no benchmark score: the clean DEE and the rows beyond it, yours only
+        return Report(bench, models, [m.row for m in models],
+                      [T.beyond_table([m.row for m in models], bench, clean=True)], dataset=info, note=note)
     if bench == I.KITTI_S:
         tables = [T.styles_table(rows)]
     else:
@@ -89,26 +103,35 @@ def draw(report: Report) -> None:
                      F.ranking_figure([(r.name, r.mdee) for r in mine],
                                          [(m.name, S_mean(m.dee)) for m in P.style_models()], bench)))
         return
+    pm = [plot.Model(r.name, r.scores) for r in mine]
+    if report.note:
+        if any(r.scores.curves for r in mine):
+            figs.append(_severity(pm, bench))
+        return
     series = [(r.name, {c.name: c.dee for c in r.scores.corruptions}) for r in mine]
     figs.append(("radar", "DEE per corruption", "Each model's DEE per corruption (mean over the "
                  "levels), the paper's Fig. 1 form; the grey dashed line is the baseline.",
                  F.radar_figure(series, bench, (base.name, base.dee))))
-    pm = [plot.Model(r.name, r.scores) for r in mine]
     figs.append(("ce", "CE per corruption", "Corruption error per corruption against the "
                  "baseline's 100% (dashed).", plot.ce_figure(pm, bench)))
     figs.append(("levels", "DEE against level", "DEE at each level, one panel per corruption; "
                  "the grey dashed line is the baseline's published mean over the levels.",
                  F.levels_figure(pm, bench, (base.name, base.dee))))
     if any(r.scores.curves for r in mine):
-        figs.append(("severity", "DEE against continuous severity", "Beyond the benchmark: DEE at "
-                     "every level present, integer and decimal, for each corruption with decimal-level "
-                     "rows; in no mCE or mRR.",
-                     F.severity_figure([m for m in pm if m.scores.curves], bench)))
+        figs.append(_severity(pm, bench))
     points = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr) for r in mine]
     context = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr)
                for r in I.context(bench, "all")]
     figs.append(("summary", "mCE and mRR against clean DEE", "Your models (coloured) among "
                  "the paper's (grey).", F.summary_figure(points, context, bench)))
+
+
+def _severity(pm: list, bench: str) -> tuple:
+    from . import figures as F
+
+    return ("severity", "DEE against continuous severity", "Beyond the benchmark: DEE at "
+            "every level present, integer and decimal, for each corruption with decimal-level "
+            "rows; in no mCE or mRR.", F.severity_figure([m for m in pm if m.scores.curves], bench))
 
 
 def S_mean(values: dict) -> float:
@@ -122,14 +145,18 @@ def to_json(report: Report) -> dict:
     docs/report.md): one object per model of the user's, nothing of the published ones."""
     doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "robodepth": __version__,
            "benchmark": report.benchmark, "dataset": report.dataset, "models": []}
-    if report.benchmark != I.KITTI_S:
+    if report.note:
+        doc["note"] = report.note
+    if report.benchmark != I.KITTI_S and not report.note:
         b = report.models[0].row.scores.baseline
         doc["baseline"] = {"name": b.name, "clean_dee": b.clean, "dee": dict(b.dee)}
     for m in report.models:
         r = m.row
         entry = {"model": m.name, "results": str(m.path), "results_sha256": m.sha256,
                  "clean_dee": r.clean}
-        if r.scores is not None:
+        if report.note:
+            entry["beyond_benchmark"] = r.scores.to_json()["beyond_benchmark"]
+        elif r.scores is not None:
             s = r.scores
             entry["scores"] = {"mce": s.overall.ce, "mrr": s.overall.rr, "mdee": s.overall.dee,
                                "categories": {g.name: {"mce": g.ce, "mrr": g.rr, "mdee": g.dee}
@@ -150,37 +177,144 @@ def to_json(report: Report) -> dict:
     return doc
 
 
-def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None) -> list[Path]:
-    """Write every output of ``report`` under ``out``; return the paths written."""
+@dataclass
+class Written:
+    """What :func:`write` left under OUT: the files of this report, and those of an
+    earlier report there that it removed (figures it does not draw)."""
+
+    files: list[Path]
+    removed: list[Path]
+
+
+def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None,
+          published: Callable[[], None] = lambda: None) -> Written:
+    """Write every output of ``report`` under ``out``, whole or not at all (an interrupt or
+    a write error leaves ``out`` as it was); :class:`ReportError` when a file cannot be
+    written. ``published`` is called once the report is in place, before an interrupt
+    held meanwhile acts (so the command can say what an interrupt leaves)."""
+    import shutil
+    import tempfile
+
+    from ..errors import cannot_write
+    from ..files import atomic_directory
+
+    try:
+        with _Publishing(published) as publishing:
+            if not out.is_dir() or not any(out.iterdir()):
+                with atomic_directory(out) as stage:
+                    names = _write_into(report, stage, progress)
+                    publishing.start()  # the rename, at the end of this block
+                return Written([out / n for n in names], [])
+            # An earlier report (or the user's files) is there: stage inside OUT (same file
+            # system, and only OUT need be writable), then move the new files over the old.
+            stage = Path(tempfile.mkdtemp(prefix=".report.", suffix=".part", dir=out))
+            try:
+                names = _write_into(report, stage, progress)
+                publishing.start()
+                removed = _replace(stage, out, names)
+            finally:
+                shutil.rmtree(stage, ignore_errors=True)
+    except OSError as exc:
+        raise I.ReportError(cannot_write(out, exc, "--out")) from None
+    return Written([out / n for n in names], removed)
+
+
+def _replace(stage: Path, out: Path, names: list[str]) -> list[Path]:
+    """Move the staged report into ``out``: the files over the earlier ones, ``figures/``
+    as a whole; return the earlier figures that are gone. Anything of the user's in the old
+    ``figures/`` (not a figure file) is moved into the new one."""
+    import os
+
+    removed: list[Path] = []
+    old = out / FIGURES
+    if old.is_dir():
+        os.replace(old, stage / ".old-figures")
+        for f in sorted((stage / ".old-figures").iterdir()):
+            if f.name in {Path(n).name for n in names if n.startswith(FIGURES + "/")}:
+                continue
+            if f.is_file() and f.suffix in (".svg", ".pdf", ".png"):
+                removed.append(old / f.name)
+            else:
+                os.replace(f, stage / FIGURES / f.name)
+    for n in names:
+        if "/" not in n:
+            os.replace(stage / n, out / n)
+    os.replace(stage / FIGURES, old)
+    return removed
+
+
+class _Publishing:
+    """From :meth:`start` to the end of the ``with`` block, Ctrl-C and SIGTERM are held, so
+    an interrupt never leaves half of a new report beside half of an old one, nor a report
+    in place after "nothing was written"; ``published`` is called when the block ends
+    without error, then a held interrupt acts. (Python-level handlers, not a signal mask:
+    a mask holds a signal from one thread only, and any other thread would take it.)"""
+
+    def __init__(self, published: Callable[[], None]):
+        self.published, self.previous, self.caught = published, {}, False
+
+    def __enter__(self):
+        return self
+
+    def start(self) -> None:
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self.previous[sig] = signal.signal(sig, self._hold)
+
+    def _hold(self, signum, frame) -> None:
+        self.caught = True
+
+    def __exit__(self, kind, *_):
+        import signal
+
+        for sig, handler in self.previous.items():
+            # None: a handler set outside Python, which cannot be put back; the default then.
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        if kind is None:
+            self.published()
+            if self.caught:
+                raise KeyboardInterrupt
+        return False
+
+
+def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> list[str]:
+    """Write every output of ``report`` into the empty folder ``out``; return their paths
+    relative to it."""
     from ..evaluation import plot
     from ..files import write_atomic
 
-    written: list[Path] = []
+    written: list[str] = []
     page_figs = []
     for stem, title, caption, fig in report.figures:
-        progress(f"figures/{stem}")
-        paths = plot.save(fig, out / "figures" / stem)
-        written += paths.values()
+        progress(f"{FIGURES}/{stem}")
+        paths = plot.save(fig, out / FIGURES / stem)
+        written += [f"{FIGURES}/{p.name}" for p in paths.values()]
         page_figs.append(PageFigure(stem, title, caption, paths["svg"].read_text(encoding="utf-8")))
         plot.close(fig)
+    (out / FIGURES).mkdir(exist_ok=True)  # a report of no figure still replaces an old figures/
     context = "all"
     kinds = {r.kind for r in report.rows}
     if "published" not in kinds:
         context = "baseline" if "baseline" in kinds else "none"
     page = render_page(benchmark=report.benchmark, models=report.models, tables=report.tables,
-                       figures=page_figs, dataset=report.dataset, context=context)
+                       figures=page_figs, dataset=report.dataset, context=context, note=report.note)
     head = (f"% RoboDepth report on {T.bench_name(report.benchmark)}, made by robodepth {__version__}.\n"
             "% Needs \\usepackage{booktabs} and \\usepackage{graphicx} (for \\resizebox).\n"
-            f"% Published rows: {P.CITATION}.\n\n")
+            f"% Published rows: {P.CITATION}.\n"
+            + (f"% {report.note[0].upper()}{report.note[1:]}.\n" if report.note else "") + "\n")
     # LaTeX: the paper's Table 1 and its per-corruption DEE table; Markdown adds CE and RR.
     # The per-level table (90 columns on KITTI-C) stays on the page and in scores.json.
     files = {"index.html": page,
              "table.tex": head + "\n".join(T.to_latex(t) for t in report.tables[:2]),
              "table.md": f"# RoboDepth report: {T.bench_name(report.benchmark)}\n\n"
+                         + (f"{report.note[0].upper()}{report.note[1:]}.\n\n" if report.note else "")
                          + "\n".join(T.to_markdown(t) for t in report.tables[:4]),
-             "scores.json": json.dumps(to_json(report), indent=2) + "\n"}
+             "scores.json": json.dumps(to_json(report), indent=2, allow_nan=False) + "\n"}
     for name, text in files.items():
         progress(name)
         write_atomic(out / name, text.encode("utf-8"))
-        written.append(out / name)
+        written.append(name)
     return written
