@@ -33,6 +33,18 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
 @click.option("--pattern", metavar="GLOB,GLOB", help="custom: which files under ROOT (default: png, jpg, jpeg, bmp, tif, tiff, webp at any depth, any case), e.g. '**/*_leftImg8bit.png'.")
 @click.option("--list", metavar="FILE", help="custom: build exactly these images, in this order (one path relative to ROOT a line).")
+@click.option("--depth", metavar="DIR", help="custom: the depth maps of the images, paired by --depth-pattern "
+              "(default: the image's relative path with a depth extension), written to OUT/gt/ for evaluate.")
+@click.option("--depth-pattern", metavar="TEMPLATE", help="custom/zero-shot: where an image's depth map is under "
+              "the depth directory, from {path} {dir} {stem} {name} {ext} {parts[i]}, e.g. '{dir}/{stem}_depth.npy'.")
+@click.option("--depth-mask", metavar="TEMPLATE", help="custom/zero-shot: a mask file per image (0 = invalid), "
+              "a template like --depth-pattern.")
+@click.option("--depth-scale", metavar="S", help="custom/zero-shot: the depth files hold depth x S (256 "
+              "KITTI-style PNGs, 1000 millimetres); needed for 16-bit PNGs.")
+@click.option("--depth-format", type=click.Choice(["png", "npy", "npz", "pfm", "exr", "dpt", "raw"]),
+              help="custom/zero-shot: read every depth file in this form (default: by its extension).")
+@click.option("--depth-size", type=click.Choice(["match", "any"]), help="custom/zero-shot: match (default): "
+              "a depth map must have its image's size; any: any size.")
 @click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
 @click.option("--only-styles", metavar="A,B|all", help="kitti-s: comma-separated style names, or 'all'.")
 @click.option("--vgg", metavar="FILE", help="kitti-s: AdaIN encoder checkpoint (vgg_normalised.pth).")
@@ -55,7 +67,8 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
-    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom) from ROOT into OUT.
+    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom, or a zero-shot set:
+    diode-c, sintel-c, eth3d-c) from ROOT into OUT.
 
     Writes OUT/clean/<image>, OUT/<corruption>/<level>/<image> and (--compose)
     OUT/<chain>/<image> (kitti-s: OUT/<style>/<image>) as PNG, where <image> is

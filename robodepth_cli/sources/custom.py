@@ -28,10 +28,12 @@ from pathlib import Path
 
 from ..errors import InvalidValueError, RobodepthError, os_reason
 from ..keys import custom_key, relative_parts
+from .depth_pairs import OPTIONS as DEPTH_OPTIONS
 
 IMAGE_EXTS = ("png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp")
 DEFAULT_PATTERNS = tuple(f"**/*.{e}" for e in IMAGE_EXTS)
-OPTIONS = ("pattern", "list")  # config keys (and flags --pattern, --list) of a custom build
+# config keys (and flags --pattern, --list, --depth...) of a custom build
+OPTIONS = ("pattern", "list") + DEPTH_OPTIONS
 
 
 class CustomSourceError(RobodepthError):
@@ -113,6 +115,10 @@ def parse_patterns(text) -> tuple[str, ...]:
 def check_option(key: str, value, base: Path):
     """The checked value of config key ``pattern`` (comma-separated text or a list) or
     ``list`` (a file, relative to ``base``); :class:`InvalidValueError` saying what is wrong."""
+    if key in DEPTH_OPTIONS:
+        from .depth_pairs import check_option as check_depth_option
+
+        return check_depth_option(key, value, base)
     if key == "pattern":
         return parse_patterns(value)
     if key == "list":
@@ -198,6 +204,9 @@ def find_sources(root: Path, cfg, out: Path | None = None):
     from ..files import sha256_bytes
 
     listed = cfg.extra.get("list")
+    depth = cfg.extra.get("depth")
+    if depth and not Path(depth).is_dir():
+        raise CustomSourceError(f"{depth}: the depth directory (--depth) does not exist")
     patterns = cfg.extra.get("pattern") or DEFAULT_PATTERNS
     if listed and cfg.extra.get("pattern"):
         raise CustomSourceError("--pattern and --list both given: the list alone says which images "

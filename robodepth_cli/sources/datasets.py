@@ -211,6 +211,8 @@ class Dataset:
     corruptions: tuple[str, ...] = CORRUPTIONS  # this dataset's own, in benchmark order
     n_levels: int = N_LEVELS  # levels 1..n_levels
     discovers_sources: bool = False  # True: images found under the root, no split (custom)
+    depth_in_root: bool = False  # True: a zero-shot preset, its depth maps under the root
+    evaluation: tuple = ()  # (key, value) defaults of `robodepth evaluate` beyond the protocol's
 
     def variant_names(self) -> tuple[str, ...]:
         """The variants this dataset has; ``all`` in a configuration means these."""
@@ -303,6 +305,8 @@ class CustomDataset(Dataset):
     :mod:`robodepth_cli.sources.custom`."""
 
     discovers_sources: bool = True
+    # Defaults of `robodepth evaluate` on a build of it: crop, min_depth, max_depth
+    evaluation: tuple = (("crop", "none"),)
 
     def options(self) -> tuple[str, ...]:
         from .custom import OPTIONS
