@@ -9,7 +9,6 @@ import zlib
 
 import numpy as np
 import pytest
-
 from _trees import random_image, save
 
 H, W = 48, 64

@@ -9,7 +9,12 @@ import zlib
 import numpy as np
 import pytest
 
-from robodepth_cli.sources.depth_io import DepthError, depth_format, read_depth, read_mask
+from robodepth_cli.sources.depth_io import (
+    DepthError,
+    depth_format,
+    read_depth,
+    read_mask,
+)
 
 NAN = np.nan
 

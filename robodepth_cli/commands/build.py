@@ -17,7 +17,8 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.command("build")
 @click.argument("dataset", metavar="DATASET")
 @click.option("--root", required=True, type=click.Path(path_type=Path),
-              help="KITTI raw root (holds 2011_09_26/...), the NYU Depth V2 test root, or (custom) any folder of images.")
+              help="KITTI raw root (holds 2011_09_26/...), the NYU Depth V2 test root, (custom) any folder of images, "
+                   "or a zero-shot set's download (diode-c, sintel-c, eth3d-c).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output directory; rerunning into it resumes.")
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),

@@ -9,8 +9,8 @@ evaluated. Workers (``evaluate --jobs N``) get the same object: it holds only pa
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -66,8 +66,8 @@ class DepthMaps:
                                   "the crop and depth range")
         return self.shapes[i], index, np.asarray(depth.reshape(-1)[index])
 
-    def share(self, path: Path) -> "DepthMaps":
+    def share(self, path: Path) -> DepthMaps:
         return self  # paths only: each worker reads the maps it evaluates
 
-    def open(self) -> "DepthMaps":
+    def open(self) -> DepthMaps:
         return self

@@ -324,6 +324,15 @@ DATASETS: dict[str, Dataset] = {
     "nyudepth2-c": _benchmark_dataset("nyudepth2-c", "nyu"),
     "kitti-s": StyleDataset("kitti-s", "eigen"),
     "custom": CustomDataset("custom", ""),
+    # The zero-shot sets: custom builds whose pairing rule and reader are the preset's
+    # (configs/<name>.yaml) and whose depth maps are under the root. Evaluation defaults
+    # (crop, valid depth range) and where each comes from: docs/datasets-with-depth.md.
+    "diode-c": CustomDataset("diode-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 0.6), ("max_depth", 350.0))),
+    "sintel-c": CustomDataset("sintel-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 1e-3), ("max_depth", 70.0))),
+    "eth3d-c": CustomDataset("eth3d-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 1e-5), ("max_depth", 1000.0))),
 }
 
 

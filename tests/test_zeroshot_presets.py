@@ -1,0 +1,138 @@
+"""The zero-shot presets (diode-c, sintel-c, eth3d-c): a small tree in each official layout
+and units, written here from the dataset's documentation, then the whole loop build ->
+predict -> evaluate -> score, with the ground truth and the metrics worked out by hand."""
+
+from __future__ import annotations
+
+import csv
+import struct
+
+import numpy as np
+import pytest
+
+from _trees import random_image, save
+
+H, W = 48, 64
+PREDICTED = 2.0  # metres: the model below predicts this everywhere
+
+MODEL = f'''
+import numpy as np
+
+def constant(images):
+    return np.full(images.shape[:3], {PREDICTED}, np.float32)
+'''
+
+
+def _depth(seed, low, high):
+    return np.random.default_rng(seed).uniform(low, high, (H, W)).astype(np.float32)
+
+
+def diode_tree(root):
+    """DIODE val: <split>/scene_*/scan_*/<id>.png, <id>_depth.npy (H x W x 1, metres),
+    <id>_depth_mask.npy (H x W, 1 valid). Returns {image key: expected ground truth}."""
+    want = {}
+    for i, (split, name) in enumerate([("indoors", "00019_00183_indoors_000_010"),
+                                       ("outdoor", "00022_00193_outdoor_000_000")]):
+        folder = root / split / f"scene_000{19 + 3 * i}" / f"scan_00{183 + 10 * i}"
+        save(folder / f"{name}.png", random_image(H, W, seed=i))
+        d = _depth(i, 0.1, 400.0)
+        mask = np.ones((H, W), np.float32)
+        mask[10:14, 20:30] = 0
+        np.save(folder / f"{name}_depth.npy", d[:, :, None])
+        np.save(folder / f"{name}_depth_mask.npy", mask)
+        gt = d.copy()
+        gt[mask == 0] = np.nan
+        want[f"{folder.relative_to(root).as_posix()}/{name}.png"] = gt
+    return want
+
+
+def sintel_tree(root):
+    """MPI Sintel training: final/<scene>/frame_NNNN.png and depth/<scene>/frame_NNNN.dpt
+    (tag 202021.25, width, height, float32 rows); the clean pass beside it is not built."""
+    want = {}
+    for i in (1, 2):
+        name = f"frame_{i:04d}"
+        save(root / "training" / "final" / "alley_1" / f"{name}.png", random_image(H, W, seed=i))
+        save(root / "training" / "clean" / "alley_1" / f"{name}.png", random_image(H, W, seed=9))
+        d = _depth(i, 0.5, 100.0)  # beyond 70 m is out of the evaluation's range
+        path = root / "training" / "depth" / "alley_1" / f"{name}.dpt"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(struct.pack("<fii", 202021.25, W, H) + d.astype("<f4").tobytes())
+        want[f"training/final/alley_1/{name}.png"] = d
+    return want
+
+
+def eth3d_tree(root):
+    """ETH3D multi-view DSLR: <scene>/images/dslr_images/DSC_NNNN.JPG and, under the same
+    name, <scene>/ground_truth_depth/dslr_images/DSC_NNNN.JPG: float32 row-major, the image's
+    size, no header, infinity where there is no ground truth."""
+    want = {}
+    for i, scene in enumerate(["courtyard", "facade"]):
+        name = f"DSC_{286 + i:04d}.JPG"
+        save(root / scene / "images" / "dslr_images" / f"{name[:-4]}.jpg", random_image(H, W, seed=i))
+        (root / scene / "images" / "dslr_images" / f"{name[:-4]}.jpg").rename(
+            root / scene / "images" / "dslr_images" / name)
+        d = _depth(i, 0.5, 30.0)
+        d[:5] = np.inf
+        path = root / scene / "ground_truth_depth" / "dslr_images" / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(d.astype("<f4").tobytes())
+        gt = d.copy()
+        gt[:5] = np.nan
+        want[f"{scene}/images/dslr_images/{name[:-4]}.png"] = gt
+    return want
+
+
+# preset: (tree maker, valid depth range of its evaluation)
+PRESETS = {"diode-c": (diode_tree, 0.6, 350.0), "sintel-c": (sintel_tree, 1e-3, 70.0),
+           "eth3d-c": (eth3d_tree, 1e-5, 1000.0)}
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_whole_loop(preset, tmp_path, cli):
+    make, low, high = PRESETS[preset]
+    root, out, pred = tmp_path / "root", tmp_path / "out", tmp_path / "pred"
+    want = make(root)
+    res = cli("build", preset, "--root", root, "--out", out, "--corruptions", "fog,dark",
+              "--levels", "1,2", "--jobs", 1)
+    assert res.exit_code == 0, res.output
+    built = sorted(p.relative_to(out / "clean").as_posix() for p in (out / "clean").rglob("*.png"))
+    assert built == sorted(want)  # exactly the preset's images (not Sintel's clean pass)
+    for key, gt in want.items():
+        got = np.load(out / "gt" / (key[:-4] + ".npy"))
+        np.testing.assert_array_equal(np.isnan(got), np.isnan(gt))
+        np.testing.assert_allclose(got[~np.isnan(got)], gt[~np.isnan(gt)], rtol=1e-6)
+    assert cli("verify", out).exit_code == 0
+    (tmp_path / "m.py").write_text(MODEL)
+    res = cli("predict", out, "-m", f"python:{tmp_path / 'm.py'}:constant", "--kind", "depth",
+              "--metric", "-o", pred)
+    assert res.exit_code == 0, res.output
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
+    assert res.exit_code == 0, res.output
+    assert f"depths {low:g}..{high:g}" in res.output and "crop none" in res.output
+    # By hand: every valid pixel (inside the preset's range, not masked), no crop, the
+    # constant prediction; AbsRel and delta1 per image, then their mean.
+    abs_rel, a1 = [], []
+    for key in sorted(want):
+        g = want[key]
+        g = g[(g > low) & (g < high)].astype(np.float64)
+        abs_rel.append(np.mean(np.abs(g - PREDICTED) / g))
+        a1.append(np.mean(np.maximum(g / PREDICTED, PREDICTED / g) < 1.25))
+    with open(tmp_path / "r.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["corruption"], r["level"]) for r in rows] == [
+        ("clean", "0"), ("dark", "1"), ("dark", "2"), ("fog", "1"), ("fog", "2")]
+    for r in rows:
+        assert float(r["abs_rel"]) == pytest.approx(np.mean(abs_rel), rel=1e-5)
+        assert float(r["a1"]) == pytest.approx(np.mean(a1), rel=1e-6)
+    res = cli("score", tmp_path / "r.csv", "--benchmark", preset)
+    assert res.exit_code == 0, res.output
+    assert f"baseline: none ({preset} has no published one" in res.output
+    assert "mRR 100.00" in res.output and "mCE n/a" in res.output
+
+
+def test_the_datasets_without_a_published_baseline_are_the_builds_with_depth():
+    from robodepth_cli.benchmarks import UNPUBLISHED
+    from robodepth_cli.sources.datasets import DATASETS
+
+    assert set(UNPUBLISHED) == {n for n, d in DATASETS.items() if d.discovers_sources}
