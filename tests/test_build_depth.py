@@ -4,27 +4,15 @@ size, covered by verify, evaluated and scored (the loop on a folder of your own)
 from __future__ import annotations
 
 import csv
-import struct
-import zlib
 
 import numpy as np
 import pytest
+from _depth_files import png16
 from _trees import random_image, save
 
 H, W = 48, 64
 
 
-def _png16(path, values):
-    """A 16-bit greyscale PNG from the PNG specification (big-endian samples, filter 0)."""
-    h, w = values.shape
-
-    def chunk(kind, data):
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-
-    rows = b"".join(b"\0" + values[r].astype(">u2").tobytes() for r in range(h))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, 0, 0, 0, 0))
-                     + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
 
 
 def _depth(seed):
@@ -77,10 +65,10 @@ def test_png_pattern_scale_and_mask_at_own_size(tmp_path, cli):
     save(tmp_path / "img" / "x" / "f_left.png", random_image(H, W, seed=3))
     raw = np.full((H // 2, W // 2), 512, np.uint16)
     raw[0, 0] = 0
-    _png16(tmp_path / "gtd" / "x" / "f_left_depth.png", raw)
+    png16(tmp_path / "gtd" / "x" / "f_left_depth.png", raw)
     mask = np.ones((H // 2, W // 2), np.uint16)
     mask[1, 1] = 0
-    _png16(tmp_path / "gtd" / "x" / "f_left_valid.png", mask)
+    png16(tmp_path / "gtd" / "x" / "f_left_valid.png", mask)
     flags = ("--depth", tmp_path / "gtd", "--depth-pattern", "{dir}/{stem}_depth.png",
              "--depth-mask", "{parts[0]}/{stem}_valid.png", "--depth-scale", 256)
     res = _build(cli, tmp_path, *flags)

@@ -4,10 +4,10 @@ library) from its documentation, read back, compared with values worked out by h
 from __future__ import annotations
 
 import struct
-import zlib
 
 import numpy as np
 import pytest
+from _depth_files import png16
 
 from robodepth_cli.sources.depth_io import (
     DepthError,
@@ -24,29 +24,18 @@ def _same(a, b):
     np.testing.assert_allclose(np.nan_to_num(a), np.nan_to_num(np.asarray(b, dtype=float)), rtol=1e-6)
 
 
-def _png16(path, values):
-    """A 16-bit greyscale PNG written from the PNG specification (IHDR bit depth 16,
-    colour type 0, big-endian samples, filter 0 per row), not by the reader's library."""
-    h, w = values.shape
-
-    def chunk(kind, data):
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-
-    rows = b"".join(b"\0" + values[r].astype(">u2").tobytes() for r in range(h))
-    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, 0, 0, 0, 0))
-                     + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
 
 
 def test_png16_kitti_scale_and_millimetres(tmp_path):
     raw = np.array([[0, 256, 512], [1000, 65535, 1]], np.uint16)
-    _png16(tmp_path / "d.png", raw)
+    png16(tmp_path / "d.png", raw)
     _same(read_depth(tmp_path / "d.png", scale=256),
           [[NAN, 1.0, 2.0], [1000 / 256, 65535 / 256, 1 / 256]])
     _same(read_depth(tmp_path / "d.png", scale=1000), [[NAN, 0.256, 0.512], [1.0, 65.535, 0.001]])
 
 
 def test_png_needs_a_scale_and_16_bits(tmp_path):
-    _png16(tmp_path / "d.png", np.ones((2, 2), np.uint16))
+    png16(tmp_path / "d.png", np.ones((2, 2), np.uint16))
     with pytest.raises(DepthError, match="need a scale"):
         read_depth(tmp_path / "d.png")
     import cv2
@@ -160,7 +149,7 @@ def test_exr_one_channel(tmp_path):
 
 
 def test_masks_and_errors(tmp_path):
-    _png16(tmp_path / "m.png", np.array([[0, 1], [255, 0]], np.uint16))
+    png16(tmp_path / "m.png", np.array([[0, 1], [255, 0]], np.uint16))
     np.testing.assert_array_equal(read_mask(tmp_path / "m.png"), [[False, True], [True, False]])
     with pytest.raises(DepthError, match="no such file|cannot read"):
         read_depth(tmp_path / "none.npy")

@@ -10,6 +10,7 @@ import struct
 import numpy as np
 import pytest
 
+from _depth_files import png16
 from _trees import random_image, save
 
 H, W = 48, 64
@@ -83,18 +84,63 @@ def eth3d_tree(root):
     return want
 
 
-# preset: (tree maker, valid depth range of its evaluation)
-PRESETS = {"diode-c": (diode_tree, 0.6, 350.0), "sintel-c": (sintel_tree, 1e-3, 70.0),
-           "eth3d-c": (eth3d_tree, 1e-5, 1000.0)}
+def scannet_tree(root):
+    """ScanNet as SensReader exports a scan: <scene>/color/<n>.jpg and, smaller,
+    <scene>/depth/<n>.png (16-bit millimetres, 0 = no depth)."""
+    want = {}
+    for i, n in enumerate((0, 20)):
+        save(root / "scene0707_00" / "color" / f"{n}.jpg", random_image(2 * H, 2 * W, seed=i))
+        raw = np.random.default_rng(i).integers(1200, 4000, (H, W)).astype(np.uint16)
+        raw[0, :9] = 0
+        raw[1, :9] = 15000  # beyond the evaluation's 10 m
+        png16(root / "scene0707_00" / "depth" / f"{n}.png", raw)
+        gt = raw / 1000.0
+        gt[raw == 0] = np.nan
+        want[f"scene0707_00/color/{n}.png"] = gt
+    return want
+
+
+def vkitti2_tree(root):
+    """Virtual KITTI 2, the RGB and depth downloads in two trees:
+    <Scene>/<variation>/frames/rgb/Camera_0/rgb_NNNNN.jpg and
+    <Scene>/<variation>/frames/depth/Camera_0/depth_NNNNN.png (16-bit centimetres, 65535
+    for the sky); only the clone variation is built."""
+    want = {}
+    for i, scene in enumerate(["Scene01", "Scene20"]):
+        for variation in ("clone", "fog"):
+            rgb = root / scene / variation / "frames" / "rgb" / "Camera_0" / f"rgb_{i:05d}.jpg"
+            save(rgb, random_image(H, W, seed=i))
+        raw = np.random.default_rng(i).integers(50, 12000, (H, W)).astype(np.uint16)
+        raw[:4] = 65535
+        png16(root.parent / "depth" / scene / "clone" / "frames" / "depth" / "Camera_0"
+              / f"depth_{i:05d}.png", raw)
+        want[f"{scene}/clone/frames/rgb/Camera_0/rgb_{i:05d}.png"] = raw / 100.0
+    return want
+
+
+def eigen_crop(h, w):
+    """KITTI's Eigen crop (rows 0.3324324 H .. 0.91351351 H, columns 0.0359477 W ..
+    0.96405229 W) as a mask."""
+    inside = np.zeros((h, w), bool)
+    inside[int(0.3324324 * h):int(0.91351351 * h), int(0.0359477 * w):int(0.96405229 * w)] = True
+    return inside
+
+
+# preset: (tree maker, valid depth range of its evaluation, crop, extra build flags)
+PRESETS = {"diode-c": (diode_tree, 0.6, 350.0, None, ()),
+           "sintel-c": (sintel_tree, 1e-3, 70.0, None, ()),
+           "eth3d-c": (eth3d_tree, 1e-5, 1000.0, None, ()),
+           "scannet-c": (scannet_tree, 1e-3, 10.0, None, ()),
+           "vkitti2-c": (vkitti2_tree, 1e-5, 80.0, eigen_crop, ("--depth", "{tmp}/depth"))}
 
 
 @pytest.mark.parametrize("preset", PRESETS)
 def test_whole_loop(preset, tmp_path, cli):
-    make, low, high = PRESETS[preset]
+    make, low, high, crop, flags = PRESETS[preset]
     root, out, pred = tmp_path / "root", tmp_path / "out", tmp_path / "pred"
     want = make(root)
     res = cli("build", preset, "--root", root, "--out", out, "--corruptions", "fog,dark",
-              "--levels", "1,2", "--jobs", 1)
+              "--levels", "1,2", "--jobs", 1, *(f.format(tmp=tmp_path) for f in flags))
     assert res.exit_code == 0, res.output
     built = sorted(p.relative_to(out / "clean").as_posix() for p in (out / "clean").rglob("*.png"))
     assert built == sorted(want)  # exactly the preset's images (not Sintel's clean pass)
@@ -109,13 +155,15 @@ def test_whole_loop(preset, tmp_path, cli):
     assert res.exit_code == 0, res.output
     res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv")
     assert res.exit_code == 0, res.output
-    assert f"depths {low:g}..{high:g}" in res.output and "crop none" in res.output
+    assert f"depths {low:g}..{high:g}" in res.output
+    assert f"crop {'eigen' if crop else 'none'}" in res.output
     # By hand: every valid pixel (inside the preset's range, not masked), no crop, the
     # constant prediction; AbsRel and delta1 per image, then their mean.
     abs_rel, a1 = [], []
     for key in sorted(want):
         g = want[key]
-        g = g[(g > low) & (g < high)].astype(np.float64)
+        inside = crop(*g.shape) if crop else np.ones(g.shape, bool)
+        g = g[(g > low) & (g < high) & inside].astype(np.float64)
         abs_rel.append(np.mean(np.abs(g - PREDICTED) / g))
         a1.append(np.mean(np.maximum(g / PREDICTED, PREDICTED / g) < 1.25))
     with open(tmp_path / "r.csv", newline="") as fh:

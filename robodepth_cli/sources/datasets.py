@@ -333,6 +333,10 @@ DATASETS: dict[str, Dataset] = {
         ("crop", "none"), ("min_depth", 1e-3), ("max_depth", 70.0))),
     "eth3d-c": CustomDataset("eth3d-c", "", depth_in_root=True, evaluation=(
         ("crop", "none"), ("min_depth", 1e-5), ("max_depth", 1000.0))),
+    "scannet-c": CustomDataset("scannet-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 1e-3), ("max_depth", 10.0))),
+    "vkitti2-c": CustomDataset("vkitti2-c", "", depth_in_root=True, evaluation=(
+        ("crop", "eigen"), ("min_depth", 1e-5), ("max_depth", 80.0))),
 }
 
 

@@ -10,8 +10,9 @@ Config keys (each also a flag ``--depth-...``):
     where an image's depth map is, relative to ``depth``: a template with the image's
     ``{path}`` (its path relative to the root without the extension), ``{dir}`` (its
     directory, ``.`` at the top), ``{stem}`` (file name without extension), ``{name}``
-    (file name), ``{ext}`` (extension with the dot) and ``{parts[i]}`` (its i-th directory),
-    e.g. ``{dir}/{stem}_depth.npy``. Unset: the same relative path with a depth extension
+    (file name), ``{ext}`` (extension with the dot), ``{digits}`` (the last run of digits
+    in the stem: ``00042`` of ``rgb_00042``) and ``{parts[i]}`` (its i-th directory), e.g.
+    ``{dir}/{stem}_depth.npy``. Unset: the same relative path with a depth extension
     (``.png``, ``.npy``, ``.npz``, ``.pfm``, ``.exr``, ``.dpt``), the one that exists.
 ``depth_mask``
     a template like ``depth_pattern`` for a mask file whose 0 pixels are invalid (DIODE).
@@ -29,6 +30,7 @@ from __future__ import annotations
 
 import math
 import posixpath
+import re
 import string
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -38,7 +40,7 @@ from ..keys import relative_parts
 from .depth_io import EXTENSIONS, FORMATS
 
 OPTIONS = ("depth", "depth_pattern", "depth_mask", "depth_scale", "depth_format", "depth_size")
-FIELDS = ("path", "dir", "stem", "name", "ext", "parts")
+FIELDS = ("path", "dir", "stem", "name", "ext", "digits", "parts")
 SIZES = ("match", "any")
 
 
@@ -129,9 +131,13 @@ def fill(template: str, rel: str) -> str:
     :class:`InvalidValueError` when it names a path outside the depth directory."""
     p = PurePosixPath(rel)
     dirs = list(p.parent.parts)
+    digits = re.findall(r"\d+", p.stem)
+    if "{digits}" in template and not digits:
+        raise InvalidValueError(f"{template!r}: the name {p.name} has no digits")
     try:
         text = template.format(path=str(p.with_suffix("")), dir=str(p.parent), stem=p.stem,
-                               name=p.name, ext=p.suffix, parts=dirs)
+                               name=p.name, ext=p.suffix, digits=digits[-1] if digits else "",
+                               parts=dirs)
     except IndexError:
         raise InvalidValueError(f"{template!r}: {rel} has only {len(dirs)} directories") from None
     out = posixpath.normpath(text)
