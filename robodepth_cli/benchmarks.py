@@ -86,7 +86,8 @@ BENCHMARKS: dict[str, Benchmark] = {
 # Datasets with corruptions but no published baseline: their results are scored against a
 # baseline results CSV the user names (score --baseline), else as DEE and RR only. The names
 # are those of robodepth_cli.sources.datasets' builds with depth.
-UNPUBLISHED = ("custom", "diode-c", "sintel-c", "eth3d-c", "scannet-c", "vkitti2-c")
+UNPUBLISHED = ("custom", "diode-c", "sintel-c", "eth3d-c", "scannet-c", "vkitti2-c",
+               "cityscapes-c")
 
 
 def unpublished(name: str, corruptions: tuple[str, ...] = CORRUPTIONS,

@@ -160,3 +160,17 @@ def test_masks_and_errors(tmp_path):
         depth_format(tmp_path / "d.tif")
     with pytest.raises(DepthError, match="scale"):
         read_depth(tmp_path / "m.png", scale=0)
+
+
+def test_cityscapes_disparity_to_depth(tmp_path):
+    # disparity = (p - 1) / 256 where p > 0; depth = baseline * fx / disparity
+    png16(tmp_path / "f_disparity.png", np.array([[257, 513, 0], [1, 1025, 65535]], np.uint16))
+    (tmp_path / "f_camera.json").write_text(
+        '{"extrinsic": {"baseline": 0.2}, "intrinsic": {"fx": 2000.0}}')
+    got = read_depth(tmp_path / "f_disparity.png", fmt="cityscapes", camera=tmp_path / "f_camera.json")
+    _same(got, [[400.0, 200.0, NAN], [NAN, 100.0, 400.0 / (65534 / 256)]])
+    with pytest.raises(DepthError, match="needs its camera file"):
+        read_depth(tmp_path / "f_disparity.png", fmt="cityscapes")
+    (tmp_path / "bad.json").write_text('{"extrinsic": {}}')
+    with pytest.raises(DepthError, match="not a Cityscapes camera file"):
+        read_depth(tmp_path / "f_disparity.png", fmt="cityscapes", camera=tmp_path / "bad.json")

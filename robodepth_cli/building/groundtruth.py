@@ -103,8 +103,8 @@ def plan_depth(rule, root: Path, sources) -> GtPlan:
             plan.jobs.append(GtJob(output, "", "", (rule, None, None), f"no image: {src.error}"))
             continue
         found = pair(rule, src.rel)
-        inputs = [rule.fingerprint(), _stat(base / found.depth)] + ([_stat(base / found.mask)]
-                                                                    if found.mask else [])
+        inputs = [rule.fingerprint()] + [_stat(base / f) for f in (found.depth, found.mask,
+                                                                    found.camera) if f]
         plan.jobs.append(GtJob(output, found.depth, _fingerprint(*inputs),
                                (rule, found, src), found.error))
     return plan
@@ -279,7 +279,8 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
         if size is None and (rule.same_size or rule.fmt == "raw"):
             raise RobodepthError(f"{src.path}: cannot read the image's size")
         depth = read_depth(base / found.depth, fmt=rule.fmt, scale=rule.scale,
-                           mask=base / found.mask if found.mask else None, shape=size)
+                           mask=base / found.mask if found.mask else None, shape=size,
+                           camera=base / found.camera if found.camera else None)
         if rule.same_size and depth.shape != size:
             raise RobodepthError(f"{base / found.depth}: depth map of {depth.shape[0]} x "
                                  f"{depth.shape[1]}, its image {src.rel} is {size[0]} x {size[1]} "

@@ -18,7 +18,7 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.argument("dataset", metavar="DATASET")
 @click.option("--root", required=True, type=click.Path(path_type=Path),
               help="KITTI raw root (holds 2011_09_26/...), the NYU Depth V2 test root, (custom) any folder of images, "
-                   "or a zero-shot set's download (diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c).")
+                   "or a zero-shot set's download (diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output directory; rerunning into it resumes.")
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
@@ -37,12 +37,14 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--depth", metavar="DIR", help="custom: the depth maps of the images, paired by --depth-pattern "
               "(default: the image's relative path with a depth extension), written to OUT/gt/ for evaluate.")
 @click.option("--depth-pattern", metavar="TEMPLATE", help="custom/zero-shot: where an image's depth map is under "
-              "the depth directory, from {path} {dir} {stem} {name} {ext} {digits} {parts[i]}, e.g. '{dir}/{stem}_depth.npy'.")
+              "the depth directory, from {path} {dir} {stem} {name} {ext} {digits} {prefix} {parts[i]}, e.g. '{dir}/{stem}_depth.npy'.")
 @click.option("--depth-mask", metavar="TEMPLATE", help="custom/zero-shot: a mask file per image (0 = invalid), "
               "a template like --depth-pattern.")
+@click.option("--depth-camera", metavar="TEMPLATE", help="custom/zero-shot: the camera file of each "
+              "Cityscapes disparity (--depth-format cityscapes), a template like --depth-pattern.")
 @click.option("--depth-scale", metavar="S", help="custom/zero-shot: the depth files hold depth x S (256 "
               "KITTI-style PNGs, 1000 millimetres); needed for 16-bit PNGs.")
-@click.option("--depth-format", type=click.Choice(["png", "npy", "npz", "pfm", "exr", "dpt", "raw"]),
+@click.option("--depth-format", type=click.Choice(["png", "npy", "npz", "pfm", "exr", "dpt", "raw", "cityscapes"]),
               help="custom/zero-shot: read every depth file in this form (default: by its extension).")
 @click.option("--depth-size", type=click.Choice(["match", "any"]), help="custom/zero-shot: match (default): "
               "a depth map must have its image's size; any: any size.")
@@ -69,7 +71,7 @@ _LISTED = 20  # paths shown per kind of problem by verify
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
     """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom, or a zero-shot set:
-    diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c) from ROOT into OUT.
+    diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c) from ROOT into OUT.
 
     Writes OUT/clean/<image>, OUT/<corruption>/<level>/<image> and (--compose)
     OUT/<chain>/<image> (kitti-s: OUT/<style>/<image>) as PNG, where <image> is

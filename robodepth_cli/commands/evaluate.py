@@ -35,8 +35,9 @@ DEFAULT_OUT = "results.csv"
 @click.option("--align-space", type=click.Choice(["depth", "disparity"]),
               help="Align the depth, or the disparity against 1/gt (relative models' default "
                    "from predictions.json). Default: depth.")
-@click.option("--crop", type=click.Choice(["garg", "eigen", "none"]),
-              help="The evaluation crop (default: garg for kitti, eigen for nyu).")
+@click.option("--crop", type=click.Choice(["garg", "eigen", "cityscapes", "none"]),
+              help="The evaluation crop (default: garg for kitti, eigen for nyu, the dataset's "
+                   "own for a zero-shot set, none for custom).")
 @click.option("--min-depth", type=float, metavar="M",
               help="Valid ground truth and clamp: above M metres (default 0.001).")
 @click.option("--max-depth", type=float, metavar="M",

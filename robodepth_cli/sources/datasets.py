@@ -337,6 +337,8 @@ DATASETS: dict[str, Dataset] = {
         ("crop", "none"), ("min_depth", 1e-3), ("max_depth", 10.0))),
     "vkitti2-c": CustomDataset("vkitti2-c", "", depth_in_root=True, evaluation=(
         ("crop", "eigen"), ("min_depth", 1e-5), ("max_depth", 80.0))),
+    "cityscapes-c": CustomDataset("cityscapes-c", "", depth_in_root=True, evaluation=(
+        ("crop", "cityscapes"), ("min_depth", 1e-3), ("max_depth", 80.0))),
 }
 
 

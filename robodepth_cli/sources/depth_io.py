@@ -25,6 +25,10 @@ unless ``fmt`` names one:
 ``raw``
     ETH3D: float32 little-endian values, row by row, no header; the size must be given
     (``shape``: the image's).
+``cityscapes``
+    Cityscapes' disparity: a 16-bit PNG whose pixel ``p > 0`` is the disparity
+    ``(p - 1) / 256`` (``p = 0``: none), turned into depth ``baseline x fx / disparity``
+    with ``extrinsic.baseline`` and ``intrinsic.fx`` of the frame's ``camera`` JSON file.
 
 Invalid everywhere: 0, negative values, NaN and infinity (ETH3D marks its holes with
 infinity, KITTI and the PNG forms with 0), and where ``mask`` (a second map of the same size:
@@ -41,7 +45,7 @@ import numpy as np
 
 from ..errors import RobodepthError, os_reason
 
-FORMATS = ("png", "npy", "npz", "pfm", "exr", "dpt", "raw")
+FORMATS = ("png", "npy", "npz", "pfm", "exr", "dpt", "raw", "cityscapes")
 EXTENSIONS = {".png": "png", ".npy": "npy", ".npz": "npz", ".pfm": "pfm", ".exr": "exr",
               ".dpt": "dpt"}
 DPT_TAG = 202021.25
@@ -66,14 +70,20 @@ def depth_format(path: str | Path, fmt: str | None = None) -> str:
 
 
 def read_depth(path: str | Path, *, fmt: str | None = None, scale: float | None = None,
-               mask: str | Path | None = None, shape: tuple[int, int] | None = None) -> np.ndarray:
+               mask: str | Path | None = None, shape: tuple[int, int] | None = None,
+               camera: str | Path | None = None) -> np.ndarray:
     """The depth map at ``path`` in metres (float32, H x W), NaN where it is invalid (see the
     module docstring). ``scale``: the file holds ``depth x scale``; ``mask``: a file whose 0
-    pixels are invalid; ``shape``: (H, W) of a ``raw`` file. Raises :class:`DepthError`."""
+    pixels are invalid; ``shape``: (H, W) of a ``raw`` file; ``camera``: the JSON file of a
+    ``cityscapes`` disparity. Raises :class:`DepthError`."""
     path = Path(path)
     form = depth_format(path, fmt)
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise DepthError(f"{path}: depth scale {scale!r} must be a positive number")
+    if form == "cityscapes":
+        if camera is None:
+            raise DepthError(f"{path}: a Cityscapes disparity needs its camera file")
+        scale = _disparity_scale(Path(camera), path)
     try:
         values = _READERS[form](path, shape)
     except DepthError:
@@ -90,7 +100,10 @@ def read_depth(path: str | Path, *, fmt: str | None = None, scale: float | None 
     elif values.dtype.kind != "f":
         raise DepthError(f"{path}: depth values of dtype {values.dtype}; expected numbers")
     depth = values.astype(np.float32)
-    if scale is not None:
+    if form == "cityscapes":
+        with np.errstate(divide="ignore"):  # p <= 1: no disparity, made NaN below
+            depth = np.float32(scale) / ((depth - 1) / 256)
+    elif scale is not None:
         depth /= np.float32(scale)
     with np.errstate(invalid="ignore"):
         depth[~(np.isfinite(depth) & (depth > 0))] = np.nan
@@ -225,10 +238,27 @@ def _raw(path: Path, shape) -> np.ndarray:
     return data.reshape(h, w)
 
 
+def _disparity_scale(camera: Path, path: Path) -> float:
+    """``baseline x fx`` of a Cityscapes camera file (metres x pixels)."""
+    import json
+
+    try:
+        data = json.loads(camera.read_text(encoding="utf-8"))
+        value = float(data["extrinsic"]["baseline"]) * float(data["intrinsic"]["fx"])
+    except OSError as exc:
+        raise DepthError(f"{camera}: cannot read the camera file ({os_reason(exc)})") from None
+    except (ValueError, KeyError, TypeError):
+        raise DepthError(f"{camera}: not a Cityscapes camera file (extrinsic.baseline, "
+                         f"intrinsic.fx) for {path}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise DepthError(f"{camera}: baseline x fx is {value!r}; must be positive")
+    return value
+
+
 def _check_side(path: Path, w: int, h: int) -> None:
     if not (0 < w < _MAX_SIDE and 0 < h < _MAX_SIDE):
         raise DepthError(f"{path}: header says {w} x {h}; not a depth map's size")
 
 
 _READERS = {"png": _png, "npy": _npy, "npz": _npz, "pfm": _pfm, "exr": _exr, "dpt": _dpt,
-            "raw": _raw}
+            "raw": _raw, "cityscapes": _png}

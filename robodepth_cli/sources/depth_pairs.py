@@ -11,11 +11,14 @@ Config keys (each also a flag ``--depth-...``):
     ``{path}`` (its path relative to the root without the extension), ``{dir}`` (its
     directory, ``.`` at the top), ``{stem}`` (file name without extension), ``{name}``
     (file name), ``{ext}`` (extension with the dot), ``{digits}`` (the last run of digits
-    in the stem: ``00042`` of ``rgb_00042``) and ``{parts[i]}`` (its i-th directory), e.g.
-    ``{dir}/{stem}_depth.npy``. Unset: the same relative path with a depth extension
+    in the stem: ``00042`` of ``rgb_00042``), ``{prefix}`` (the stem up to its last ``_``:
+    ``bonn_000000_000019`` of ``bonn_000000_000019_leftImg8bit``) and ``{parts[i]}`` (its
+    i-th directory), e.g. ``{dir}/{stem}_depth.npy``. Unset: the same relative path with a depth extension
     (``.png``, ``.npy``, ``.npz``, ``.pfm``, ``.exr``, ``.dpt``), the one that exists.
 ``depth_mask``
     a template like ``depth_pattern`` for a mask file whose 0 pixels are invalid (DIODE).
+``depth_camera``
+    a template like ``depth_pattern`` for the camera file a ``cityscapes`` disparity needs.
 ``depth_scale``
     the file holds ``depth x scale`` (256 KITTI-style PNGs, 1000 millimetres).
 ``depth_format``
@@ -39,8 +42,9 @@ from ..errors import InvalidValueError
 from ..keys import relative_parts
 from .depth_io import EXTENSIONS, FORMATS
 
-OPTIONS = ("depth", "depth_pattern", "depth_mask", "depth_scale", "depth_format", "depth_size")
-FIELDS = ("path", "dir", "stem", "name", "ext", "digits", "parts")
+OPTIONS = ("depth", "depth_pattern", "depth_mask", "depth_camera", "depth_scale", "depth_format",
+           "depth_size")
+FIELDS = ("path", "dir", "stem", "name", "ext", "digits", "prefix", "parts")
 SIZES = ("match", "any")
 
 
@@ -51,12 +55,13 @@ class DepthRule:
     directory: str  # absolute
     pattern: str | None = None
     mask: str | None = None
+    camera: str | None = None
     scale: float | None = None
     fmt: str | None = None
     same_size: bool = True
 
     def fingerprint(self) -> str:
-        return f"{self.pattern}|{self.mask}|{self.scale!r}|{self.fmt}|{self.same_size}"
+        return f"{self.pattern}|{self.mask}|{self.camera}|{self.scale!r}|{self.fmt}|{self.same_size}"
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,7 @@ class DepthPair:
 
     depth: str = ""  # relative to the rule's directory
     mask: str = ""
+    camera: str = ""
     error: str = ""
 
 
@@ -93,7 +99,7 @@ def check_option(key: str, value, base: Path):
         if not isinstance(value, str) or not value.strip():
             raise InvalidValueError(f"expected the directory of the depth maps, got {value!r}")
         return str((base / Path(value).expanduser()).resolve())
-    if key in ("depth_pattern", "depth_mask"):
+    if key in ("depth_pattern", "depth_mask", "depth_camera"):
         return check_template(value, key)
     if key == "depth_scale":
         try:
@@ -122,7 +128,7 @@ def rule_of(extra: dict, root: Path, in_root: bool) -> DepthRule | None:
     if directory is None:
         return None
     return DepthRule(directory, extra.get("depth_pattern"), extra.get("depth_mask"),
-                     extra.get("depth_scale"), extra.get("depth_format"),
+                     extra.get("depth_camera"), extra.get("depth_scale"), extra.get("depth_format"),
                      extra.get("depth_size", "match") == "match")
 
 
@@ -137,7 +143,7 @@ def fill(template: str, rel: str) -> str:
     try:
         text = template.format(path=str(p.with_suffix("")), dir=str(p.parent), stem=p.stem,
                                name=p.name, ext=p.suffix, digits=digits[-1] if digits else "",
-                               parts=dirs)
+                               prefix=p.stem.rpartition("_")[0] or p.stem, parts=dirs)
     except IndexError:
         raise InvalidValueError(f"{template!r}: {rel} has only {len(dirs)} directories") from None
     out = posixpath.normpath(text)
@@ -164,8 +170,10 @@ def pair(rule: DepthRule, rel: str) -> DepthPair:
                                        f"{rel}; say which with --depth-pattern")
             depth = found[0]
         mask = fill(rule.mask, rel) if rule.mask else ""
+        camera = fill(rule.camera, rel) if rule.camera else ""
     except InvalidValueError as exc:
         return DepthPair(error=f"{rel}: {exc}")
-    if mask and not (root / mask).is_file():
-        return DepthPair(error=f"{root / mask}: no such mask file (for {rel})")
-    return DepthPair(depth, mask)
+    for what, extra in (("mask", mask), ("camera", camera)):
+        if extra and not (root / extra).is_file():
+            return DepthPair(error=f"{root / extra}: no such {what} file (for {rel})")
+    return DepthPair(depth, mask, camera)
