@@ -87,7 +87,7 @@ BENCHMARKS: dict[str, Benchmark] = {
 # baseline results CSV the user names (score --baseline), else as DEE and RR only. The names
 # are those of robodepth_cli.sources.datasets' builds with depth.
 UNPUBLISHED = ("custom", "diode-c", "sintel-c", "eth3d-c", "scannet-c", "vkitti2-c",
-               "cityscapes-c")
+               "cityscapes-c", "drivingstereo-c")
 
 
 def unpublished(name: str, corruptions: tuple[str, ...] = CORRUPTIONS,

@@ -144,6 +144,25 @@ def cityscapes_tree(root):
     return want
 
 
+def drivingstereo_tree(root):
+    """DrivingStereo's weather sets, each in its folder: <weather>/left-image-full-size/<frame>.jpg
+    and <weather>/depth-map-full-size/<frame>.png (16-bit, depth x 256, 0 = none). Returns
+    the expected ground truth of the foggy frames, which --split foggy builds."""
+    want = {}
+    for i, weather in enumerate(("sunny", "cloudy", "foggy", "rainy")):
+        for j in range(2 if weather == "foggy" else 1):
+            name = f"2018-10-25-07-37-26_2018-10-25-07-4{j}-0{i}-500"
+            save(root / weather / "left-image-full-size" / f"{name}.jpg", random_image(H, W, seed=i + j))
+            raw = np.random.default_rng(i + j).integers(256, 256 * 6, (H, W)).astype(np.uint16)
+            raw[20:, :3] = 0  # no lidar return
+            png16(root / weather / "depth-map-full-size" / f"{name}.png", raw)
+            gt = raw / 256.0
+            gt[raw == 0] = np.nan
+            if weather == "foggy":
+                want[f"foggy/left-image-full-size/{name}.png"] = gt
+    return want
+
+
 def cityscapes_crop(h, w):
     """ManyDepth's Cityscapes crop: rows H/4 .. 3H/4, columns 3W/32 .. 29W/32 (rows
     256..767 and columns 192..1855 of 1024 x 2048)."""
@@ -166,7 +185,8 @@ PRESETS = {"diode-c": (diode_tree, 0.6, 350.0, None, ()),
            "eth3d-c": (eth3d_tree, 1e-5, 1000.0, None, ()),
            "scannet-c": (scannet_tree, 1e-3, 10.0, None, ()),
            "vkitti2-c": (vkitti2_tree, 1e-5, 80.0, eigen_crop, ("--depth", "{tmp}/depth")),
-           "cityscapes-c": (cityscapes_tree, 1e-3, 80.0, cityscapes_crop, ())}
+           "cityscapes-c": (cityscapes_tree, 1e-3, 80.0, cityscapes_crop, ()),
+           "drivingstereo-c": (drivingstereo_tree, 1e-3, 80.0, None, ("--split", "foggy"))}
 
 
 @pytest.mark.parametrize("preset", PRESETS)
@@ -219,3 +239,24 @@ def test_the_datasets_without_a_published_baseline_are_the_builds_with_depth():
     from robodepth_cli.sources.datasets import DATASETS
 
     assert set(UNPUBLISHED) == {n for n, d in DATASETS.items() if d.discovers_sources}
+
+
+def test_a_real_condition_alone(tmp_path, cli):
+    """--corruptions none: the clean images of a real-condition set (DrivingStereo rainy)
+    with their ground truth, evaluated on their own."""
+    root, out = tmp_path / "root", tmp_path / "out"
+    drivingstereo_tree(root)
+    res = cli("build", "drivingstereo-c", "--root", root, "--out", out, "--split", "rainy",
+              "--corruptions", "none")
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in out.iterdir()) == ["build.json", "clean", "gt", "manifest.csv"]
+    assert [p.parent.name for p in (out / "gt").rglob("*.npy")] == ["left-image-full-size"]
+    assert cli("verify", out).exit_code == 0
+    (tmp_path / "m.py").write_text(MODEL)
+    assert cli("predict", out, "-m", f"python:{tmp_path / 'm.py'}:constant", "--kind", "depth",
+               "--metric", "-o", tmp_path / "P").exit_code == 0
+    res = cli("evaluate", out, "--pred", tmp_path / "P", "--out", tmp_path / "r.csv")
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "r.csv").read_text().splitlines()[1].startswith("clean,0,")
+    res = cli("build", "drivingstereo-c", "--root", root, "--out", tmp_path / "x", "--split", "snowy")
+    assert res.exit_code == 2 and "valid: sunny, cloudy, foggy, rainy, all" in res.output

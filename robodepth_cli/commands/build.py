@@ -18,12 +18,12 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.argument("dataset", metavar="DATASET")
 @click.option("--root", required=True, type=click.Path(path_type=Path),
               help="KITTI raw root (holds 2011_09_26/...), the NYU Depth V2 test root, (custom) any folder of images, "
-                   "or a zero-shot set's download (diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c).")
+                   "or a zero-shot set's download (diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output directory; rerunning into it resumes.")
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
               help="Your own YAML config, applied over the DATASET preset.")
-@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test) or a split file.")
+@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test; drivingstereo-c: sunny, cloudy, foggy, rainy, all) or a split file.")
 @click.option("--corruptions", metavar="A,B|all|none", help="Comma-separated corruption names, 'all', or 'none' (only --compose chains).")
 @click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3 or 1,2.5,4: decimals allowed), or 'all'.")
 @click.option("--compose", metavar="CHAIN,CHAIN", help="Also build these chains of corruptions, e.g. "
@@ -71,7 +71,7 @@ _LISTED = 20  # paths shown per kind of problem by verify
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
     """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom, or a zero-shot set:
-    diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c) from ROOT into OUT.
+    diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c) from ROOT into OUT.
 
     Writes OUT/clean/<image>, OUT/<corruption>/<level>/<image> and (--compose)
     OUT/<chain>/<image> (kitti-s: OUT/<style>/<image>) as PNG, where <image> is

@@ -198,16 +198,18 @@ def check_keys(rels, where: str) -> list[str]:
     return keys
 
 
-def find_sources(root: Path, cfg, out: Path | None = None):
+def find_sources(root: Path, cfg, out: Path | None = None, split_patterns: str | None = None):
     """The sources of a custom build: ``(list of (key, rel), split record)`` where the
-    record describes how they were found (for ``build.json``)."""
+    record describes how they were found (for ``build.json``). ``split_patterns``: those of
+    a preset's named split, used unless ``pattern`` or ``list`` is given."""
     from ..files import sha256_bytes
 
     listed = cfg.extra.get("list")
     depth = cfg.extra.get("depth")
     if depth and not Path(depth).is_dir():
         raise CustomSourceError(f"{depth}: the depth directory (--depth) does not exist")
-    patterns = cfg.extra.get("pattern") or DEFAULT_PATTERNS
+    patterns = (cfg.extra.get("pattern") or (split_patterns and parse_patterns(split_patterns))
+                or DEFAULT_PATTERNS)
     if listed and cfg.extra.get("pattern"):
         raise CustomSourceError("--pattern and --list both given: the list alone says which images "
                                 "to build; give one of them")

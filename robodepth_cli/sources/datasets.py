@@ -305,6 +305,8 @@ class CustomDataset(Dataset):
     :mod:`robodepth_cli.sources.custom`."""
 
     discovers_sources: bool = True
+    # Named subsets (name, comma-separated patterns), chosen by the `split` key (preset sets)
+    splits: tuple = ()
     # Defaults of `robodepth evaluate` on a build of it: crop, min_depth, max_depth
     evaluation: tuple = (("crop", "none"),)
 
@@ -318,6 +320,11 @@ class CustomDataset(Dataset):
 
         return check_option(key, value, base)
 
+
+_WEATHERS = ("sunny", "cloudy", "foggy", "rainy")  # DrivingStereo's weather sets
+_WEATHER_SPLITS = tuple((w, f"{w}/left-image-full-size/*.jpg,{w}/left-image-full-size/*.png")
+                        for w in _WEATHERS) + (
+    ("all", ",".join(f"{w}/left-image-full-size/*.{e}" for w in _WEATHERS for e in ("jpg", "png"))),)
 
 DATASETS: dict[str, Dataset] = {
     "kitti-c": _benchmark_dataset("kitti-c", "eigen"),
@@ -339,6 +346,8 @@ DATASETS: dict[str, Dataset] = {
         ("crop", "eigen"), ("min_depth", 1e-5), ("max_depth", 80.0))),
     "cityscapes-c": CustomDataset("cityscapes-c", "", depth_in_root=True, evaluation=(
         ("crop", "cityscapes"), ("min_depth", 1e-3), ("max_depth", 80.0))),
+    "drivingstereo-c": CustomDataset("drivingstereo-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 1e-3), ("max_depth", 80.0)), splits=_WEATHER_SPLITS),
 }
 
 
