@@ -56,6 +56,12 @@ def test_depth_beside_the_images_verified(folder, cli):
         row = _rows(out)[f"gt/{rel}.npy"]
         assert (row["variant"], row["height"], row["width"], row["error"]) == ("gt", "48", "64", "")
     assert cli("verify", out).exit_code == 0
+    res = _build(cli, tmp_path, "--depth", tmp_path / "depth")  # a rerun has nothing to do
+    assert res.exit_code == 0 and "0 written" in res.output
+    np.save(tmp_path / "depth" / "park" / "b.npy", maps["park/b"] * 2)  # a changed map is redone
+    res = _build(cli, tmp_path, "--depth", tmp_path / "depth")
+    assert res.exit_code == 0 and "1 written" in res.output
+    assert np.nanmax(np.load(out / "gt" / "park" / "b.npy")) == np.max(maps["park/b"] * 2)
     np.save(out / "gt" / "park" / "b.npy", np.ones((H, W), np.float32))
     res = cli("verify", out)
     assert res.exit_code == 1 and "gt/park/b.npy" in res.output
@@ -150,3 +156,13 @@ def test_evaluate_and_score_with_and_without_a_baseline(folder, cli):
     res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r2.csv", "--score")
     assert res.exit_code == 0, res.output
     assert "mCE n/a" in res.output
+
+
+def test_depth_of_is_where_a_builds_depth_comes_from(folder):
+    from robodepth_cli.sources.depth_pairs import depth_of
+
+    tmp_path, maps = folder
+    extra = {"depth": str(tmp_path / "depth")}
+    got = depth_of(extra, tmp_path / "img", False, "street/a.jpg")
+    assert np.isnan(got[0, 0]) and got[10, 10] == maps["street/a"][10, 10]
+    assert depth_of({}, tmp_path / "img", False, "street/a.jpg") is None  # no --depth

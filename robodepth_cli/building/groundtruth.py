@@ -267,7 +267,7 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
     import numpy as np
 
     from ..files import sha256_bytes, write_atomic
-    from ..sources.depth_io import read_depth
+    from ..sources.depth_pairs import read_pair
 
     target = out / job.output
     rule, found, src = job.frames
@@ -278,9 +278,7 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
         size = _image_size(src)
         if size is None and (rule.same_size or rule.fmt == "raw"):
             raise RobodepthError(f"{src.path}: cannot read the image's size")
-        depth = read_depth(base / found.depth, fmt=rule.fmt, scale=rule.scale,
-                           mask=base / found.mask if found.mask else None, shape=size,
-                           camera=base / found.camera if found.camera else None)
+        depth = read_pair(rule, found, size)
         if rule.same_size and depth.shape != size:
             raise RobodepthError(f"{base / found.depth}: depth map of {depth.shape[0]} x "
                                  f"{depth.shape[1]}, its image {src.rel} is {size[0]} x {size[1]} "

@@ -177,3 +177,26 @@ def pair(rule: DepthRule, rel: str) -> DepthPair:
         if extra and not (root / extra).is_file():
             return DepthPair(error=f"{root / extra}: no such {what} file (for {rel})")
     return DepthPair(depth, mask, camera)
+
+
+def read_pair(rule: DepthRule, found: DepthPair, shape: tuple[int, int] | None = None):
+    """The depth map of a pair (:func:`pair`) in metres, NaN where invalid, read with the
+    rule's form, scale, mask and camera (:func:`~.depth_io.read_depth`); ``shape``: the
+    image's (H, W), which a ``raw`` map needs. Raises ``DepthError`` (a RobodepthError)."""
+    from .depth_io import DepthError, read_depth
+
+    if found.error:
+        raise DepthError(found.error)
+    base = Path(rule.directory)
+    return read_depth(base / found.depth, fmt=rule.fmt, scale=rule.scale,
+                      mask=base / found.mask if found.mask else None, shape=shape,
+                      camera=base / found.camera if found.camera else None)
+
+
+def depth_of(extra: dict, root: Path, in_root: bool, rel: str,
+             shape: tuple[int, int] | None = None):
+    """The depth map of the image at ``rel`` (relative to ``root``) in a build with options
+    ``extra`` (a configuration's dataset keys), or None when the build reads no depth: where
+    the depth of a custom build's or zero-shot set's image comes from, in one call."""
+    rule = rule_of(extra, root, in_root)
+    return None if rule is None else read_pair(rule, pair(rule, rel), shape)
