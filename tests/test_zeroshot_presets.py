@@ -9,7 +9,6 @@ import struct
 
 import numpy as np
 import pytest
-
 from _depth_files import png16
 from _trees import random_image, save
 
