@@ -166,3 +166,14 @@ def test_depth_of_is_where_a_builds_depth_comes_from(folder):
     got = depth_of(extra, tmp_path / "img", False, "street/a.jpg")
     assert np.isnan(got[0, 0]) and got[10, 10] == maps["street/a"][10, 10]
     assert depth_of({}, tmp_path / "img", False, "street/a.jpg") is None  # no --depth
+
+
+def test_a_depth_folder_inside_the_root_is_not_searched_for_images(tmp_path, cli):
+    save(tmp_path / "data" / "a.png", random_image(H, W, seed=1))
+    png16(tmp_path / "data" / "depth" / "a.png", np.full((H, W), 1000, np.uint16))
+    res = cli("build", "custom", "--root", tmp_path / "data", "--depth", tmp_path / "data" / "depth",
+              "--depth-scale", 1000, "--out", tmp_path / "out", "--corruptions", "fog", "--levels", 1)
+    assert res.exit_code == 0, res.output
+    assert [p.relative_to(tmp_path / "out").as_posix() for p in (tmp_path / "out").rglob("*.png")
+            if "clean" in p.parts] == ["clean/a.png"]
+    assert np.all(np.load(tmp_path / "out" / "gt" / "a.npy") == 1.0)

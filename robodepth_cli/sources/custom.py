@@ -132,18 +132,19 @@ def check_option(key: str, value, base: Path):
 
 # --- discovery ---------------------------------------------------------------------------
 
-def discover(root: Path, patterns, exclude: Path | None = None) -> list[str]:
+def discover(root: Path, patterns, exclude=()) -> list[str]:
     """The relative posix paths of the files under the resolved directory ``root`` that
     match ``patterns``, sorted. Directory symlinks are followed (each real directory
-    once); ``exclude``, a directory, is not entered (a build refuses an OUT inside the root
-    before looking for sources; this keeps the walk out of it all the same)."""
+    once); the directories ``exclude`` are not entered (a build refuses an OUT inside the
+    root before looking for sources; this keeps the walk out of it all the same, and out
+    of a --depth directory inside the root, whose PNG maps are no images)."""
     regexes = [compile_pattern(p) for p in patterns]
     seen_dirs: set[str] = set()
-    skip = os.path.realpath(exclude) if exclude is not None else None
+    skip = {os.path.realpath(e) for e in exclude if e is not None}
     found = []
     for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
         real = os.path.realpath(dirpath)
-        if real in seen_dirs or real == skip:
+        if real in seen_dirs or real in skip:
             dirnames[:] = []
             continue
         seen_dirs.add(real)
@@ -218,7 +219,7 @@ def find_sources(root: Path, cfg, out: Path | None = None, split_patterns: str |
         where = str(listed)
         record = {"path": str(listed), "sha256": sha256_bytes(Path(listed).read_bytes())}
     else:
-        rels = discover(root, patterns, exclude=out)
+        rels = discover(root, patterns, exclude=(out, depth))
         if not rels:
             raise CustomSourceError(f"{root}: no file matches {','.join(patterns)} (use --pattern "
                                     f"to choose others)")
