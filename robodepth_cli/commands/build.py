@@ -65,8 +65,9 @@ _LISTED = 20  # paths shown per kind of problem by verify
                    "files ~25% larger) or compact (libpng, smaller files). Default: the way OUT "
                    "was built, else fast.")
 @click.option("--gt/--no-gt", default=True, show_default=True,
-              help="Also write the ground truth: OUT/gt_depths.npz (KITTI, from the velodyne scans) "
-                   "or OUT/gt/<scene>/sync_depth_N.png (NYU).")
+              help="Also write the ground truth: OUT/gt_depths.npz (KITTI, from the velodyne scans), "
+                   "OUT/gt/<scene>/sync_depth_N.png (NYU) or OUT/gt/<image>.npy (custom --depth, "
+                   "the zero-shot sets).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
@@ -83,6 +84,8 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
     ROOT/<date>/<drive>/velodyne_points (if a scan is missing, a note says so and
     'robodepth gt kitti' makes it later), NYU's OUT/gt/<scene>/sync_depth_N.png. For
     nyudepth2-c, ROOT may be the official nyu_depth_v2_labeled.mat instead of a BTS folder.
+    A custom build with --depth DIR and the zero-shot sets write each image's depth map as
+    OUT/gt/<image>.npy (float32 metres, NaN where invalid, at the map's own size).
 
     Rerunning the same command redoes only missing or changed outputs. Exit status: 0 all
     done, 1 some images failed (the rest is built; see the summary), 2 refused before any
@@ -103,6 +106,9 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
           --scheduler tcp://head:8786
       robodepth build custom --root cityscapes/leftImg8bit/val --out CITYSCAPES_C \\
           --pattern '**/*_leftImg8bit.png' --levels 3
+      robodepth build custom --root MINE/rgb --depth MINE/depth --depth-scale 1000 --out MINE_C
+      robodepth build diode-c --root DIODE/val --out DIODE_C
+      robodepth build drivingstereo-c --root DS --split foggy --corruptions none --out DS_FOGGY
     """
     from ..building.pipeline import build
     from ..building.config import resolve
