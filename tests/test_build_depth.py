@@ -125,7 +125,7 @@ def two_metres(images):
 '''
 
 
-def test_evaluate_and_score_with_and_without_a_baseline(folder, cli):
+def test_evaluate_and_score_with_and_without_a_baseline(folder, cli, monkeypatch):
     tmp_path, maps = folder
     assert _build(cli, tmp_path, "--depth", tmp_path / "depth").exit_code == 0
     (tmp_path / "m.py").write_text(MODEL)
@@ -147,13 +147,19 @@ def test_evaluate_and_score_with_and_without_a_baseline(folder, cli):
     for key in [("clean", "0"), ("fog", "2")]:  # the prediction ignores the image
         assert float(rows[key]["abs_rel"]) == pytest.approx(np.mean(abs_rel), rel=1e-5)
         assert float(rows[key]["a1"]) == pytest.approx(np.mean(a1), rel=1e-6)
+    # Worker processes read the maps themselves: the same numbers to the last digit.
+    monkeypatch.setattr("robodepth_cli.evaluation.evaluate.MAPS_PER_WORKER", 1)
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r2.csv", "--max-depth", 15,
+              "--jobs", 2)
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "r2.csv").read_bytes() == (tmp_path / "r.csv").read_bytes()
     res = cli("score", tmp_path / "r.csv", "--benchmark", "custom")
     assert res.exit_code == 0, res.output
     assert "baseline: none" in res.output and "mCE n/a" in res.output and "mRR 100.00" in res.output
     res = cli("score", tmp_path / "r.csv", "--benchmark", "custom", "--baseline", tmp_path / "r.csv")
     assert res.exit_code == 0, res.output
     assert "mCE 100.00" in res.output
-    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r2.csv", "--score")
+    res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r3.csv", "--score")
     assert res.exit_code == 0, res.output
     assert "mCE n/a" in res.output
 
