@@ -26,7 +26,8 @@ from typing import Sequence
 import numpy as np
 
 from .errors import InvalidValueError, RobodepthError, cannot_write
-from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir
+from .output.layout import (CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, depth_gt_name, output_path,
+                            variant_dir)
 from .output.record import BuildRecord
 
 
@@ -262,13 +263,23 @@ class BuiltDataset:
         field (``bathroom/sync_depth_00045.png``) when the build's split file is still there
         unchanged, else BTS's naming, ``<scene>/rgb_NNNNN`` -> ``<scene>/sync_depth_NNNNN.png``
         (other names keep theirs, as ``.png``)."""
+        if self._with_depth:
+            return [depth_gt_name(k) for k in self.keys]  # float maps, <key stem>.npy
         listed = _split_depths(self.record)
         return [listed.get(k) or bts_depth_name(k) for k in self.keys]
 
+    @property
+    def _with_depth(self) -> bool:
+        """Whether this is a build that pairs depth maps (custom --depth, a zero-shot set)."""
+        from .sources.datasets import get_dataset
+
+        return get_dataset(self.name).discovers_sources
+
     def ground_truth(self) -> Path | None:
         """The build's own ground truth (``gt_depths.npz`` for KITTI datasets, ``gt/`` for
-        NYU), or None when it has none."""
-        path = self.path / (GT_DIR if self.name == "nyudepth2-c" else GT_FILE)
+        NYU and builds with depth), or None when it has none."""
+        in_dir = self.name == "nyudepth2-c" or self._with_depth
+        path = self.path / (GT_DIR if in_dir else GT_FILE)
         return path if path.exists() else None
 
 

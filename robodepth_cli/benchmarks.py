@@ -54,7 +54,7 @@ class Benchmark:
     name: str
     corruptions: tuple[str, ...]
     n_levels: int
-    baseline: Baseline
+    baseline: Baseline | None  # None: no published one (:func:`unpublished`)
 
     @property
     def levels(self) -> range:
@@ -81,6 +81,20 @@ BENCHMARKS: dict[str, Benchmark] = {
         "AdaBins EfficientNet-B5", 0.112, _NYU,
         ".132 .194 .212 .235 .206 .184 .384 .153 .151 .390 .374 .294 .380 .124 .154")),
 }
+
+
+# Datasets with corruptions but no published baseline: their results are scored against a
+# baseline results CSV the user names (score --baseline), else as DEE and RR only. The names
+# are those of robodepth_cli.sources.datasets' builds with depth.
+UNPUBLISHED = ("custom", "diode-c", "sintel-c", "eth3d-c", "scannet-c", "vkitti2-c",
+               "cityscapes-c", "drivingstereo-c")
+
+
+def unpublished(name: str, corruptions: tuple[str, ...] = CORRUPTIONS,
+                n_levels: int = N_LEVELS) -> Benchmark:
+    """The benchmark of a dataset without a published baseline (by default every corruption
+    at levels 1..5; a build of fewer: those it has), baseline None."""
+    return Benchmark(name, tuple(c for c in CORRUPTIONS if c in corruptions), n_levels, None)
 
 
 def get_benchmark(name: str) -> Benchmark:

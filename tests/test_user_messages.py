@@ -120,14 +120,14 @@ def test_cached_split_with_a_wrong_checksum_says_so_before_fetching(tmp_path, mo
 
 @pytest.mark.parametrize("preset, flags, expected", [
     ("kitti-s", {"corruptions": "fog"},
-     "--corruptions does not apply to kitti-s (it is a setting of kitti-c, nyudepth2-c, custom); "
+     "--corruptions does not apply to kitti-s (it is a setting of kitti-c, nyudepth2-c, custom, diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c); "
      "kitti-s picks its styles with --only-styles"),
     ("kitti-c", {"alpha": "0.5"}, "--alpha does not apply to kitti-c (it is a setting of kitti-s)"),
     ("kitti-c", {"only_styles": "sketch"},
      "--only-styles does not apply to kitti-c (it is a setting of kitti-s); "
      "kitti-c picks its corruptions with --corruptions"),
     ("kitti-s", {"levels": "1"}, "--levels does not apply to kitti-s (it is a setting of kitti-c, "
-                                 "nyudepth2-c, custom); kitti-s has no levels (one output per style)"),
+                                 "nyudepth2-c, custom, diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c); kitti-s has no levels (one output per style)"),
 ])
 def test_a_flag_of_another_dataset_does_not_apply(preset, flags, expected):
     with pytest.raises(ConfigError) as err:

@@ -289,6 +289,11 @@ class _Resolver:
 
     def _check(self, loc: str, key: str, v, base: Path):
         ds = self.dataset
+        if key == "split" and ds.discovers_sources and ds.splits:
+            if v not in dict(ds.splits):  # a preset's named subsets, e.g. weather sets
+                raise ConfigError(f"{loc}: {ds.name} has no split {v!r}; valid: "
+                                  f"{', '.join(dict(ds.splits))}")
+            return v
         if key == "split":
             if ds.discovers_sources:
                 raise ConfigError(f"{loc}: {ds.name} has no split: it builds the images found under "
@@ -364,7 +369,7 @@ class _Resolver:
             raise ConfigError(f"preset {self.preset!r}: missing keys {', '.join(missing)}")
         ds = self.dataset
         variants = tuple(self.values[ds.variant_key]) + tuple(self.values.get("compose", ()))
-        if not variants:
+        if not variants and not ds.discovers_sources:  # a folder's clean images alone are a set
             where = self.origin.get("compose") or self.origin[ds.variant_key]
             raise ConfigError(f"{where}: nothing to build: {ds.variant_key} none and no compose chains")
         seen = set(self.values.get("train", {}).get("corruptions", ())) & set(self.values[ds.variant_key])

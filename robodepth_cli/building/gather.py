@@ -93,7 +93,7 @@ def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
     if ds.discovers_sources:
         from ..sources import custom
 
-        found, split = custom.find_sources(root, cfg, out)
+        found, split = custom.find_sources(root, cfg, out, dict(ds.splits).get(cfg.split))
         sources = [_oriented(Source.find(root, Entry(n, key, (rel,))))
                    for n, (key, rel) in enumerate(found, 1)]
         if all(s.error for s in sources):

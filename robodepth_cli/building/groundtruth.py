@@ -9,6 +9,12 @@
   made from the labeled ``.mat`` when that is the root, copied from a BTS test folder
   otherwise (when every listed depth file is there; else a note).
 
+- A build with depth (``custom --depth``, the zero-shot presets): ``OUT/gt/<key stem>.npy``
+  per image, the depth map paired with it (:mod:`robodepth_cli.sources.depth_pairs`) read by
+  :func:`robodepth_cli.sources.depth_io.read_depth` into float32 metres, NaN where invalid,
+  at its own size (never resized). A missing, unreadable or all-invalid map, or one of
+  another size than its image when sizes must match, is that image's failed row.
+
 Rows have the variant ``gt``, no level, seed 0 and the depth map's size (0 x 0 for the npz,
 whose maps differ in size). ``params`` fingerprints the inputs (file sizes and modification times, and
 for KITTI the frame list), so a rebuild skips ground truth whose file matches its row and
@@ -23,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import RobodepthError, cannot_write
-from ..output.layout import GT_DIR, GT_FILE
+from ..output.layout import GT_DIR, GT_FILE, depth_gt_name
 from ..output.manifest import Row
 
 GT = "gt"  # the variant of ground-truth rows
@@ -43,7 +49,7 @@ class GtJob:
 
 @dataclass
 class GtPlan:
-    kind: str  # "kitti" or "nyu"
+    kind: str  # "kitti", "nyu" or "depth"
     root: Path
     split_name: str
     jobs: list[GtJob]
@@ -71,6 +77,37 @@ def plan_gt(split_format: str, root: Path, split_path: Path, limit: int | None,
     if split_format == "eigen":
         return _plan_kitti(root, split_path, limit, rerun)
     return _plan_nyu(root, split_path, limit, rerun)
+
+
+def plan_for(ds, cfg, root: Path, split_path: str | None, sources, frames: int,
+             rerun: str | None) -> GtPlan | None:
+    """The ground truth of a build: from the split for KITTI and NYU, from the paired depth
+    maps for a build with depth; None for a custom build without depth."""
+    if not ds.discovers_sources:
+        return plan_gt(ds.split_format, root, Path(split_path), frames, rerun)
+    from ..sources.depth_pairs import rule_of
+
+    rule = rule_of(cfg.extra, root, ds.depth_in_root)
+    return None if rule is None else plan_depth(rule, root, sources)
+
+
+def plan_depth(rule, root: Path, sources) -> GtPlan:
+    """One job per source image: its depth map paired by ``rule`` (see the module docstring)."""
+    from ..sources.depth_pairs import pair
+
+    plan = GtPlan("depth", root, "", [])
+    base = Path(rule.directory)
+    for src in sources:
+        output = f"{GT_DIR}/{depth_gt_name(src.key)}"
+        if src.error:
+            plan.jobs.append(GtJob(output, "", "", (rule, None, None), f"no image: {src.error}"))
+            continue
+        found = pair(rule, src.rel)
+        inputs = [rule.fingerprint()] + [_stat(base / f) for f in (found.depth, found.mask,
+                                                                    found.camera) if f]
+        plan.jobs.append(GtJob(output, found.depth, _fingerprint(*inputs),
+                               (rule, found, src), found.error))
+    return plan
 
 
 def _later(what: str, rerun: str | None) -> str:
@@ -163,9 +200,10 @@ def run_gt(plan: GtPlan, out: Path, done: dict[str, Row], progress: bool = False
     if plan.kind == "kitti":
         yield from _run_kitti(plan, todo[0], out, progress)
         return
+    run = _run_depth if plan.kind == "depth" else _run_nyu
     with progress_bar("depth", len(todo), progress=progress, desc="ground truth") as bar:
         for job in todo:
-            yield _run_nyu(plan, job, out)
+            yield run(plan, job, out)
             bar.update(1)
 
 
@@ -221,3 +259,52 @@ def _run_nyu(plan: GtPlan, job: GtJob, out: Path):
     return "written", _row(job, sha256_bytes(data), size=size)
 
 
+
+
+def _run_depth(plan: GtPlan, job: GtJob, out: Path):
+    import io
+
+    import numpy as np
+
+    from ..files import sha256_bytes, write_atomic
+    from ..sources.depth_pairs import read_pair
+
+    target = out / job.output
+    rule, found, src = job.frames
+    try:
+        if job.error:
+            raise RobodepthError(job.error)
+        base = Path(rule.directory)
+        size = _image_size(src)
+        if size is None and (rule.same_size or rule.fmt == "raw"):
+            raise RobodepthError(f"{src.path}: cannot read the image's size")
+        depth = read_pair(rule, found, size)
+        if rule.same_size and depth.shape != size:
+            raise RobodepthError(f"{base / found.depth}: depth map of {depth.shape[0]} x "
+                                 f"{depth.shape[1]}, its image {src.rel} is {size[0]} x {size[1]} "
+                                 "(--depth-size any allows it)")
+        if not np.isfinite(depth).any():
+            raise RobodepthError(f"{base / found.depth}: no valid depth (every pixel is 0, "
+                                 "negative, NaN, infinite or masked)")
+    except RobodepthError as exc:
+        target.unlink(missing_ok=True)
+        return "failed", _row(job, error=str(exc))
+    buf = io.BytesIO()
+    np.save(buf, depth, allow_pickle=False)
+    data = buf.getvalue()
+    try:
+        write_atomic(target, data)
+    except OSError as exc:
+        return "fatal", _row(job, error=cannot_write(target, exc))
+    return "written", _row(job, sha256_bytes(data), size=depth.shape)
+
+
+def _image_size(src) -> tuple[int, int] | None:
+    """(H, W) of a source image as stored: the depth map is the stored image's."""
+    from PIL import Image
+
+    try:
+        with Image.open(src.path) as im:
+            return im.height, im.width
+    except Exception:  # unreadable: the caller says so
+        return None

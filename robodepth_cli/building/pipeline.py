@@ -21,7 +21,7 @@ impossible is checked before the first image is touched:
    is left, decodes and resizes the source once, writes the clean image and renders the
    rest, writing each PNG atomically. It returns one ``(JobState, manifest row)`` per job,
    never images; the main process appends the rows to the manifest as tasks finish;
-6. :func:`finish`: compact the manifest and write the final build record.
+6. :func:`add_ground_truth` and :func:`finish`: the ground truth, the manifest, the record.
 
 A source image that cannot be read fails its own outputs (rows with an error) and the rest
 goes on; a write error (disk full, permissions) stops the build.
@@ -200,18 +200,16 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
                                  f"by {'their' if turned > 1 else 'its'} EXIF orientation, as "
                                  f"viewers show {'them' if turned > 1 else 'it'} (listed in "
                                  f"{RECORD}: exif_orientation)")
-        # A custom build has no ground truth to add.
-        if gt and not ds.discovers_sources and not (summary.interrupted or summary.fatal):
-            add_ground_truth(ds, root, Path(split["path"]), len(keys), out, summary, progress,
-                             rerun=shlex.join(command) if command else None)
+        if gt and not (summary.interrupted or summary.fatal):
+            add_ground_truth(ds, cfg, root, split.get("path"), sources, len(keys), out, summary,
+                             progress, rerun=shlex.join(command) if command else None)
         finish(out, record, summary)
     return summary
 
 
 def _warn_above_cpus(workers: int, jobs: int) -> None:
     cpus = os.cpu_count() or 1
-    if workers > cpus:
-        # Each worker holds its own images: past one per CPU they only add memory and contention.
+    if workers > cpus:  # each worker holds its own images: past one per CPU, only contention
         print(f"robodepth: warning: {workers} workers (--jobs {jobs}) on {cpus} CPU"
               f"{'s' if cpus > 1 else ''}: the extra workers only add memory and contention "
               f"(--jobs auto: one per CPU)", file=sys.stderr)
@@ -385,15 +383,18 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
                 return
 
 
-def add_ground_truth(ds: Dataset, root: Path, split_path: Path, frames: int, out: Path,
-                     summary: Summary, progress: bool, rerun: str | None = None) -> None:
-    """Write the ground truth of the first ``frames`` split entries, the ones the build in
-    ``out`` holds (see :mod:`robodepth_cli.building.groundtruth`), as manifest rows counted in
-    ``summary``; when it cannot be made at all, only a note (naming ``rerun``, the
-    command that adds it once the files are there)."""
+def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None,
+                     sources: list[Source], frames: int, out: Path, summary: Summary,
+                     progress: bool, rerun: str | None = None) -> None:
+    """Write the ground truth of the first ``frames`` split entries (those in ``out``), or of
+    the ``sources`` of a build with depth (:mod:`robodepth_cli.building.groundtruth`), as
+    manifest rows counted in ``summary``; when it cannot be made at all, only a note
+    (naming ``rerun``, the command that adds it once the files are there)."""
     from . import groundtruth as build_gt
 
-    plan = build_gt.plan_gt(ds.split_format, root, split_path, frames, rerun)
+    plan = build_gt.plan_for(ds, cfg, root, split_path, sources, frames, rerun)
+    if plan is None:
+        return
     if plan.note:
         summary.notes.append(plan.note)
         return

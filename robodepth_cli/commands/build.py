@@ -17,12 +17,13 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.command("build")
 @click.argument("dataset", metavar="DATASET")
 @click.option("--root", required=True, type=click.Path(path_type=Path),
-              help="KITTI raw root (holds 2011_09_26/...), the NYU Depth V2 test root, or (custom) any folder of images.")
+              help="KITTI raw root (holds 2011_09_26/...), the NYU Depth V2 test root, (custom) any folder of images, "
+                   "or a zero-shot set's download (diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output directory; rerunning into it resumes.")
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
               help="Your own YAML config, applied over the DATASET preset.")
-@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test) or a split file.")
+@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test; drivingstereo-c: sunny, cloudy, foggy, rainy, all) or a split file.")
 @click.option("--corruptions", metavar="A,B|all|none", help="Comma-separated corruption names, 'all', or 'none' (only --compose chains).")
 @click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3 or 1,2.5,4: decimals allowed), or 'all'.")
 @click.option("--compose", metavar="CHAIN,CHAIN", help="Also build these chains of corruptions, e.g. "
@@ -33,6 +34,20 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
 @click.option("--pattern", metavar="GLOB,GLOB", help="custom: which files under ROOT (default: png, jpg, jpeg, bmp, tif, tiff, webp at any depth, any case), e.g. '**/*_leftImg8bit.png'.")
 @click.option("--list", metavar="FILE", help="custom: build exactly these images, in this order (one path relative to ROOT a line).")
+@click.option("--depth", metavar="DIR", help="custom: the depth maps of the images, paired by --depth-pattern "
+              "(default: the image's relative path with a depth extension), written to OUT/gt/ for evaluate.")
+@click.option("--depth-pattern", metavar="TEMPLATE", help="custom/zero-shot: where an image's depth map is under "
+              "the depth directory, from {path} {dir} {stem} {name} {ext} {digits} {prefix} {parts[i]}, e.g. '{dir}/{stem}_depth.npy'.")
+@click.option("--depth-mask", metavar="TEMPLATE", help="custom/zero-shot: a mask file per image (0 = invalid), "
+              "a template like --depth-pattern.")
+@click.option("--depth-camera", metavar="TEMPLATE", help="custom/zero-shot: the camera file of each "
+              "Cityscapes disparity (--depth-format cityscapes), a template like --depth-pattern.")
+@click.option("--depth-scale", metavar="S", help="custom/zero-shot: the depth files hold depth x S (256 "
+              "KITTI-style PNGs, 1000 millimetres); needed for 16-bit PNGs.")
+@click.option("--depth-format", type=click.Choice(["png", "npy", "npz", "pfm", "exr", "dpt", "raw", "cityscapes"]),
+              help="custom/zero-shot: read every depth file in this form (default: by its extension).")
+@click.option("--depth-size", type=click.Choice(["match", "any"]), help="custom/zero-shot: match (default): "
+              "a depth map must have its image's size; any: any size.")
 @click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
 @click.option("--only-styles", metavar="A,B|all", help="kitti-s: comma-separated style names, or 'all'.")
 @click.option("--vgg", metavar="FILE", help="kitti-s: AdaIN encoder checkpoint (vgg_normalised.pth).")
@@ -50,12 +65,14 @@ _LISTED = 20  # paths shown per kind of problem by verify
                    "files ~25% larger) or compact (libpng, smaller files). Default: the way OUT "
                    "was built, else fast.")
 @click.option("--gt/--no-gt", default=True, show_default=True,
-              help="Also write the ground truth: OUT/gt_depths.npz (KITTI, from the velodyne scans) "
-                   "or OUT/gt/<scene>/sync_depth_N.png (NYU).")
+              help="Also write the ground truth: OUT/gt_depths.npz (KITTI, from the velodyne scans), "
+                   "OUT/gt/<scene>/sync_depth_N.png (NYU) or OUT/gt/<image>.npy (custom --depth, "
+                   "the zero-shot sets).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
-    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom) from ROOT into OUT.
+    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom, or a zero-shot set:
+    diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c) from ROOT into OUT.
 
     Writes OUT/clean/<image>, OUT/<corruption>/<level>/<image> and (--compose)
     OUT/<chain>/<image> (kitti-s: OUT/<style>/<image>) as PNG, where <image> is
@@ -67,6 +84,8 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
     ROOT/<date>/<drive>/velodyne_points (if a scan is missing, a note says so and
     'robodepth gt kitti' makes it later), NYU's OUT/gt/<scene>/sync_depth_N.png. For
     nyudepth2-c, ROOT may be the official nyu_depth_v2_labeled.mat instead of a BTS folder.
+    A custom build with --depth DIR and the zero-shot sets write each image's depth map as
+    OUT/gt/<image>.npy (float32 metres, NaN where invalid, at the map's own size).
 
     Rerunning the same command redoes only missing or changed outputs. Exit status: 0 all
     done, 1 some images failed (the rest is built; see the summary), 2 refused before any
@@ -87,6 +106,9 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
           --scheduler tcp://head:8786
       robodepth build custom --root cityscapes/leftImg8bit/val --out CITYSCAPES_C \\
           --pattern '**/*_leftImg8bit.png' --levels 3
+      robodepth build custom --root MINE/rgb --depth MINE/depth --depth-scale 1000 --out MINE_C
+      robodepth build diode-c --root DIODE/val --out DIODE_C
+      robodepth build drivingstereo-c --root DS --split foggy --corruptions none --out DS_FOGGY
     """
     from ..building.pipeline import build
     from ..building.config import resolve

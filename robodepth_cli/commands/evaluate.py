@@ -35,8 +35,9 @@ DEFAULT_OUT = "results.csv"
 @click.option("--align-space", type=click.Choice(["depth", "disparity"]),
               help="Align the depth, or the disparity against 1/gt (relative models' default "
                    "from predictions.json). Default: depth.")
-@click.option("--crop", type=click.Choice(["garg", "eigen", "none"]),
-              help="The evaluation crop (default: garg for kitti, eigen for nyu).")
+@click.option("--crop", type=click.Choice(["garg", "eigen", "cityscapes", "none"]),
+              help="The evaluation crop (default: garg for kitti, eigen for nyu, the dataset's "
+                   "own for a zero-shot set, none for custom).")
 @click.option("--min-depth", type=float, metavar="M",
               help="Valid ground truth and clamp: above M metres (default 0.001).")
 @click.option("--max-depth", type=float, metavar="M",
@@ -94,6 +95,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     from .. import benchmarks as B
     from ..evaluation import results as R, scores as S
     from ..api import open_dataset
+    from ..sources.datasets import get_dataset
 
     from ..files import check_writable
 
@@ -117,14 +119,22 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
              if given[k] is None and v is not None and v == recorded.get(k)]
     if taken:
         click.echo(f"robodepth: from {pred / 'predictions.json'}: {', '.join(taken)}", err=True)
+    # A zero-shot set's own crop and depth range (custom builds: no crop) unless flags say.
+    own = dict(get_dataset(dataset.name).evaluation)
     setup = make_setup(protocol or ("nyu" if dataset.name == "nyudepth2-c" else "kitti"),
-                       kind, stereo, png_scale, align=align, align_space=align_space, crop=crop,
-                       min_depth=min_depth, max_depth=max_depth)
+                       kind, stereo, png_scale, align=align, align_space=align_space,
+                       crop=crop or own.get("crop"),
+                       min_depth=own.get("min_depth") if min_depth is None else min_depth,
+                       max_depth=own.get("max_depth") if max_depth is None else max_depth)
     bench = None
-    if with_score:
+    if with_score and dataset.name in B.UNPUBLISHED:  # DEE and RR; CE needs robodepth score --baseline
+        built = [v for v in dataset.variants() if v.level is not None and v.level == int(v.level)]
+        bench = B.unpublished(dataset.name, tuple(v.name for v in built),
+                              max((int(v.level) for v in built), default=1))
+    elif with_score:
         if dataset.name not in B.BENCHMARKS:
             raise RobodepthError(f"--score: {dataset.name} has no robustness scores (they exist "
-                                 f"for {', '.join(B.BENCHMARKS)})")
+                                 f"for {', '.join((*B.BENCHMARKS, *B.UNPUBLISHED))})")
         bench = B.get_benchmark(dataset.name)
     with progress_bar("img", progress=progress) as bar:
         def set_total(n):

@@ -6,14 +6,17 @@ from pathlib import Path
 
 import click
 
+from ..benchmarks import UNPUBLISHED
 from ..errors import RobodepthError
 from . import common
 
 @click.command("score")
 @click.argument("results", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--benchmark", "-b", type=click.Choice(["kitti-c", "nyudepth2-c"]),
+@click.option("--benchmark", "-b", type=click.Choice(["kitti-c", "nyudepth2-c", *UNPUBLISHED]),
               help="Which benchmark the results are on (sets corruptions, levels, baseline); "
-                   "default: inferred from the rows (the benchmark they are a complete set of).")
+                   "default: inferred from the rows (the benchmark they are a complete set of). "
+                   "A dataset without a published baseline (custom, diode-c, ...) must be named: "
+                   "its corruptions and levels are those of the rows, CE needs --baseline.")
 @click.option("--baseline", "baseline_file", type=click.Path(dir_okay=False, path_type=Path),
               help="Baseline results in the same CSV form (complete), instead of the published one.")
 @click.option("--allow-partial", is_flag=True,
@@ -53,7 +56,10 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         if benchmark not in B.BENCHMARKS:
             raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
                                  "robodepth report shows their DEE per style and mDEE")
-    bench = B.get_benchmark(benchmark)
+    if benchmark in UNPUBLISHED:
+        bench = _unpublished(benchmark, R.read_results(results, B.unpublished(benchmark)))
+    else:
+        bench = B.get_benchmark(benchmark)
     res = R.read_results(results, bench)
     base = None
     if baseline_file is not None:
@@ -76,3 +82,12 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         click.echo(json.dumps(result.to_json(), indent=2, allow_nan=False))
     else:
         click.echo(S.format_table(result), nl=False)
+
+
+def _unpublished(name: str, res):
+    """The benchmark of ``name`` (no published baseline) that ``res`` is on: the corruptions
+    it has rows of, levels 1 to the highest level among them."""
+    from .. import benchmarks as B
+
+    top = max(lv for levels in res.dee.values() for lv in levels)
+    return B.unpublished(name, tuple(res.dee), top)

@@ -157,7 +157,8 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     gt_path = gt if gt is not None else dataset.ground_truth()
     if gt_path is None:
         raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
-                              "NYU); build it with ground truth, run robodepth gt, or pass --gt")
+                              "NYU and builds with --depth); build it with ground truth, run "
+                              "robodepth gt, or pass --gt")
     gt_path = Path(gt_path)
     names = dataset.depth_names() if gt_path.is_dir() else dataset.keys
     truth = load_ground_truth(gt_path, names, setup.protocol, setup.valid)

@@ -145,6 +145,10 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
     together (peak ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``).
     """
     path = Path(path)
+    if path.is_dir() and names and all(n.endswith(".npy") for n in names):
+        from .depthmaps import DepthMaps  # a build with depth: one float map per image
+
+        return DepthMaps(path, names, protocol, valid or VALID[protocol])
     gt = GroundTruth(str(path), protocol, valid)
     if path.is_dir():
         for i, name in enumerate(names):

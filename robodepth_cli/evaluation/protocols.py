@@ -51,7 +51,8 @@ KINDS = ("disp", "sigmoid", "depth")
 PNG_SCALE = {"kitti": 256.0, "nyu": 1000.0}  # BTS's units: KITTI depth * 256, NYU millimetres
 ALIGNS = ("none", "median", "scale", "scale-shift")
 ALIGN_SPACES = ("depth", "disparity")
-CROPS = ("garg", "eigen", "none")
+CROPS = ("garg", "eigen", "cityscapes", "none")
+CITYSCAPES_CROP = (0.25, 0.75, 0.09375, 0.90625)  # top, bottom, left, right: ManyDepth's
 DEFAULT_CROP = {"kitti": "garg", "nyu": "eigen"}
 MAX_DEPTH = {"kitti": KITTI_MAX_DEPTH, "nyu": NYU_MAX_DEPTH}
 
@@ -91,10 +92,15 @@ def crop_box(crop: str, protocol: str, height: int, width: int) -> tuple[int, in
     ``garg``: :func:`garg_crop`. ``eigen``: on KITTI (protocol kitti), rows
     ``int(0.3324324 H)`` .. ``int(0.91351351 H)``, columns ``int(0.0359477 W)`` ..
     ``int(0.96405229 W)``; on NYU (protocol nyu), rows 45..470 and columns 41..600 of the
-    480 x 640 map. ``none``: the whole map.
+    480 x 640 map. ``cityscapes``: rows ``int(0.25 H)`` .. ``int(0.75 H)``, columns
+    ``int(0.09375 W)`` .. ``int(0.90625 W)`` (ManyDepth's rows 256..767 and columns
+    192..1855 of a 1024 x 2048 frame). ``none``: the whole map.
     """
     if crop == "garg":
         return garg_crop(height, width)
+    if crop == "cityscapes":
+        t, b, left, right = CITYSCAPES_CROP
+        return int(t * height), int(b * height), int(left * width), int(right * width)
     if crop == "eigen":
         if protocol == "nyu":
             return NYU_EIGEN_CROP

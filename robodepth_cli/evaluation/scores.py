@@ -42,7 +42,7 @@ class Scores:
     benchmark: str
     n_levels: int
     source: str
-    baseline: Baseline
+    baseline: Baseline | None  # None: no baseline, so no CE
     clean_dee: float
     corruptions: tuple[CorruptionScore, ...]
     categories: tuple[GroupScore, ...]
@@ -60,8 +60,9 @@ class Scores:
         doc = {
             "benchmark": self.benchmark,
             "results": self.source,
-            "baseline": {"name": self.baseline.name, "clean_dee": self.baseline.clean,
-                         "dee": dict(self.baseline.dee)},
+            "baseline": None if self.baseline is None else {
+                "name": self.baseline.name, "clean_dee": self.baseline.clean,
+                "dee": dict(self.baseline.dee)},
             "clean_dee": self.clean_dee,
             "corruptions": {
                 c.name: {"category": c.category, "dee": c.dee, "ce": c.ce, "rr": c.rr,
@@ -91,13 +92,15 @@ def _group(name: str, members: list[CorruptionScore]) -> GroupScore:
     present = [c for c in members if c.dee is not None]
     if not present:
         return GroupScore(name, 0, None, None, None)
-    return GroupScore(name, len(present), mean(c.dee for c in present),
-                      mean(c.ce for c in present), mean(c.rr for c in present))
+    ce = None if present[0].ce is None else mean(c.ce for c in present)
+    return GroupScore(name, len(present), mean(c.dee for c in present), ce,
+                      mean(c.rr for c in present))
 
 
 def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = None,
           *, allow_partial: bool = False) -> Scores:
-    """Score ``results`` against ``baseline`` (default: the benchmark's published one).
+    """Score ``results`` against ``baseline`` (default: the benchmark's published one; with
+    neither, CE, mCE and their category means are None: DEE and RR need no baseline).
 
     Per corruption: DEE is the mean over the levels present, CE and RR as in
     :func:`corruption_error` and :func:`resilience_rate`. Category means and the overall
@@ -105,7 +108,7 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
     unless ``allow_partial``; then they are listed in ``Scores.missing``.
     """
     baseline = baseline or benchmark.baseline
-    for name in benchmark.corruptions:
+    for name in benchmark.corruptions if baseline is not None else ():
         if name in results.dee and not baseline.dee[name] > 0.0:
             # CE divides by it; a zero is a broken or placeholder baseline, not a model.
             raise ScoreError(f"{baseline.name}: the baseline DEE of {name} is "
@@ -119,7 +122,8 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
         if levels:
             d = levels.values()
             rows.append(CorruptionScore(name, CATEGORY[name], dict(levels), mean(d),
-                                        corruption_error(d, baseline.dee[name]),
+                                        None if baseline is None
+                                        else corruption_error(d, baseline.dee[name]),
                                         resilience_rate(d, results.clean)))
         else:
             rows.append(CorruptionScore(name, CATEGORY[name], {}, None, None, None))
@@ -156,7 +160,9 @@ def format_table(s: Scores) -> str:
     w = max(len(n) for n in (*CORRUPTIONS, *CATEGORIES)) + 2
     head = f"{'':<{w}}{'DEE':>8}{'CE %':>9}{'RR %':>9}"
     lines = [f"{s.benchmark}: {s.source}",
-             f"baseline: {s.baseline.name} (clean DEE {s.baseline.clean:.3f})",
+             (f"baseline: {s.baseline.name} (clean DEE {s.baseline.clean:.3f})" if s.baseline
+              else f"baseline: none ({s.benchmark} has no published one; --baseline CSV, any "
+                   "model's results on it, gives CE and mCE)"),
              f"clean DEE: {s.clean_dee:.3f}", "", head]
     if s.note:
         return "\n".join([lines[0], lines[2], "", s.note] + _beyond(s)) + "\n"

@@ -14,6 +14,8 @@ rule that places each output. Nothing else in the package spells these names.
     OUT/<chain dir>/<key>        a chain of corruptions, e.g. fog-3+gaussian_noise-2.5/
     OUT/gt_depths.npz            KITTI ground truth, monodepth2's format (:data:`GT_FILE`)
     OUT/gt/<depth path>          NYU ground truth, BTS's layout (:data:`GT_DIR`)
+    OUT/gt/<key stem>.npy        a build with depth (custom --depth, the zero-shot presets):
+                                 float32 metres, NaN where invalid, at the map's own size
 
 ``<key>`` is the dataset-relative path of the source image with the extension ``.png``
 (KITTI: ``kitti_data/<date>/<drive>/image_02/data/<frame>.png``), so each variant directory
@@ -34,7 +36,7 @@ GT_FILE = "gt_depths.npz"
 GT_DIR = "gt"
 
 __all__ = ["MANIFEST", "RECORD", "LOCK", "JOURNAL", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
-           "variant_dir", "output_path"]
+           "variant_dir", "output_path", "depth_gt_name"]
 
 
 def variant_dir(variant: str, level: float | None) -> str:
@@ -54,3 +56,9 @@ def output_path(variant: str, level: float | None, key: str) -> str:
     """The path of one output relative to OUT: ``<variant dir>/<key>``."""
     return f"{variant_dir(variant, level)}/{key}"
 
+
+
+def depth_gt_name(key: str) -> str:
+    """Where a build with depth keeps the ground truth of the image with ``key``, relative
+    to :data:`GT_DIR`: the key with ``.npy`` for its ``.png``."""
+    return key[: -len(".png")] + ".npy" if key.endswith(".png") else key + ".npy"

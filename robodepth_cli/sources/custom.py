@@ -28,10 +28,12 @@ from pathlib import Path
 
 from ..errors import InvalidValueError, RobodepthError, os_reason
 from ..keys import custom_key, relative_parts
+from .depth_pairs import OPTIONS as DEPTH_OPTIONS
 
 IMAGE_EXTS = ("png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp")
 DEFAULT_PATTERNS = tuple(f"**/*.{e}" for e in IMAGE_EXTS)
-OPTIONS = ("pattern", "list")  # config keys (and flags --pattern, --list) of a custom build
+# config keys (and flags --pattern, --list, --depth...) of a custom build
+OPTIONS = ("pattern", "list") + DEPTH_OPTIONS
 
 
 class CustomSourceError(RobodepthError):
@@ -113,6 +115,10 @@ def parse_patterns(text) -> tuple[str, ...]:
 def check_option(key: str, value, base: Path):
     """The checked value of config key ``pattern`` (comma-separated text or a list) or
     ``list`` (a file, relative to ``base``); :class:`InvalidValueError` saying what is wrong."""
+    if key in DEPTH_OPTIONS:
+        from .depth_pairs import check_option as check_depth_option
+
+        return check_depth_option(key, value, base)
     if key == "pattern":
         return parse_patterns(value)
     if key == "list":
@@ -126,18 +132,19 @@ def check_option(key: str, value, base: Path):
 
 # --- discovery ---------------------------------------------------------------------------
 
-def discover(root: Path, patterns, exclude: Path | None = None) -> list[str]:
+def discover(root: Path, patterns, exclude=()) -> list[str]:
     """The relative posix paths of the files under the resolved directory ``root`` that
     match ``patterns``, sorted. Directory symlinks are followed (each real directory
-    once); ``exclude``, a directory, is not entered (a build refuses an OUT inside the root
-    before looking for sources; this keeps the walk out of it all the same)."""
+    once); the directories ``exclude`` are not entered (a build refuses an OUT inside the
+    root before looking for sources; this keeps the walk out of it all the same, and out
+    of a --depth directory inside the root, whose PNG maps are no images)."""
     regexes = [compile_pattern(p) for p in patterns]
     seen_dirs: set[str] = set()
-    skip = os.path.realpath(exclude) if exclude is not None else None
+    skip = {os.path.realpath(e) for e in exclude if e is not None}
     found = []
     for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
         real = os.path.realpath(dirpath)
-        if real in seen_dirs or real == skip:
+        if real in seen_dirs or real in skip:
             dirnames[:] = []
             continue
         seen_dirs.add(real)
@@ -192,13 +199,18 @@ def check_keys(rels, where: str) -> list[str]:
     return keys
 
 
-def find_sources(root: Path, cfg, out: Path | None = None):
+def find_sources(root: Path, cfg, out: Path | None = None, split_patterns: str | None = None):
     """The sources of a custom build: ``(list of (key, rel), split record)`` where the
-    record describes how they were found (for ``build.json``)."""
+    record describes how they were found (for ``build.json``). ``split_patterns``: those of
+    a preset's named split, used unless ``pattern`` or ``list`` is given."""
     from ..files import sha256_bytes
 
     listed = cfg.extra.get("list")
-    patterns = cfg.extra.get("pattern") or DEFAULT_PATTERNS
+    depth = cfg.extra.get("depth")
+    if depth and not Path(depth).is_dir():
+        raise CustomSourceError(f"{depth}: the depth directory (--depth) does not exist")
+    patterns = (cfg.extra.get("pattern") or (split_patterns and parse_patterns(split_patterns))
+                or DEFAULT_PATTERNS)
     if listed and cfg.extra.get("pattern"):
         raise CustomSourceError("--pattern and --list both given: the list alone says which images "
                                 "to build; give one of them")
@@ -207,7 +219,7 @@ def find_sources(root: Path, cfg, out: Path | None = None):
         where = str(listed)
         record = {"path": str(listed), "sha256": sha256_bytes(Path(listed).read_bytes())}
     else:
-        rels = discover(root, patterns, exclude=out)
+        rels = discover(root, patterns, exclude=(out, depth))
         if not rels:
             raise CustomSourceError(f"{root}: no file matches {','.join(patterns)} (use --pattern "
                                     f"to choose others)")

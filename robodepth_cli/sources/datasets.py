@@ -211,6 +211,8 @@ class Dataset:
     corruptions: tuple[str, ...] = CORRUPTIONS  # this dataset's own, in benchmark order
     n_levels: int = N_LEVELS  # levels 1..n_levels
     discovers_sources: bool = False  # True: images found under the root, no split (custom)
+    depth_in_root: bool = False  # True: a zero-shot preset, its depth maps under the root
+    evaluation: tuple = ()  # (key, value) defaults of `robodepth evaluate` beyond the protocol's
 
     def variant_names(self) -> tuple[str, ...]:
         """The variants this dataset has; ``all`` in a configuration means these."""
@@ -303,6 +305,10 @@ class CustomDataset(Dataset):
     :mod:`robodepth_cli.sources.custom`."""
 
     discovers_sources: bool = True
+    # Named subsets (name, comma-separated patterns), chosen by the `split` key (preset sets)
+    splits: tuple = ()
+    # Defaults of `robodepth evaluate` on a build of it: crop, min_depth, max_depth
+    evaluation: tuple = (("crop", "none"),)
 
     def options(self) -> tuple[str, ...]:
         from .custom import OPTIONS
@@ -315,11 +321,33 @@ class CustomDataset(Dataset):
         return check_option(key, value, base)
 
 
+_WEATHERS = ("sunny", "cloudy", "foggy", "rainy")  # DrivingStereo's weather sets
+_WEATHER_SPLITS = tuple((w, f"{w}/left-image-full-size/*.jpg,{w}/left-image-full-size/*.png")
+                        for w in _WEATHERS) + (
+    ("all", ",".join(f"{w}/left-image-full-size/*.{e}" for w in _WEATHERS for e in ("jpg", "png"))),)
+
 DATASETS: dict[str, Dataset] = {
     "kitti-c": _benchmark_dataset("kitti-c", "eigen"),
     "nyudepth2-c": _benchmark_dataset("nyudepth2-c", "nyu"),
     "kitti-s": StyleDataset("kitti-s", "eigen"),
     "custom": CustomDataset("custom", ""),
+    # The zero-shot sets: custom builds whose pairing rule and reader are the preset's
+    # (configs/<name>.yaml) and whose depth maps are under the root. Evaluation defaults
+    # (crop, valid depth range) and where each comes from: docs/datasets-with-depth.md.
+    "diode-c": CustomDataset("diode-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 0.6), ("max_depth", 350.0))),
+    "sintel-c": CustomDataset("sintel-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 1e-3), ("max_depth", 70.0))),
+    "eth3d-c": CustomDataset("eth3d-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 1e-5), ("max_depth", 1000.0))),
+    "scannet-c": CustomDataset("scannet-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 1e-3), ("max_depth", 10.0))),
+    "vkitti2-c": CustomDataset("vkitti2-c", "", depth_in_root=True, evaluation=(
+        ("crop", "eigen"), ("min_depth", 1e-5), ("max_depth", 80.0))),
+    "cityscapes-c": CustomDataset("cityscapes-c", "", depth_in_root=True, evaluation=(
+        ("crop", "cityscapes"), ("min_depth", 1e-3), ("max_depth", 80.0))),
+    "drivingstereo-c": CustomDataset("drivingstereo-c", "", depth_in_root=True, evaluation=(
+        ("crop", "none"), ("min_depth", 1e-3), ("max_depth", 80.0)), splits=_WEATHER_SPLITS),
 }
 
 
