@@ -1,0 +1,133 @@
+"""Tensor building blocks shared by the torch corruptions, each the exact counterpart of a
+numpy-engine helper: the same float32/float64 operations in the same order, one operation
+per torch call (so no fused multiply-add changes a rounding)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import torch
+
+TorchFn = Callable[[torch.Tensor, object, Sequence[np.random.Generator]], torch.Tensor]
+
+_TORCH: dict[str, TorchFn] = {}
+
+
+def register(fn: TorchFn) -> TorchFn:
+    """Decorator: the torch version of the corruption of the same name."""
+    if fn.__name__ in _TORCH:
+        raise ValueError(f"{fn.__name__!r} registered twice in the torch engine")
+    _TORCH[fn.__name__] = fn
+    return fn
+
+
+def implemented() -> dict[str, TorchFn]:
+    return dict(_TORCH)
+
+
+def tensor(arr: np.ndarray, device) -> torch.Tensor:
+    """A copy of numpy ``arr`` (a table; often read-only) on ``device``."""
+    return torch.from_numpy(np.array(arr)).to(device)
+
+
+def f32(v) -> float:
+    """``v`` rounded to float32, as a Python float: a scalar a float32 tensor uses as is."""
+    return float(np.float32(v))
+
+
+def fma(a: torch.Tensor, b, c: torch.Tensor) -> torch.Tensor:
+    """float32 ``a * b + c`` rounded once, as a fused multiply-add (OpenCV's SIMD code uses
+    them): the float32 product is exact in float64, so only the sum is rounded (twice, to
+    float64 then float32, which differs from one rounding only on rare exact ties)."""
+    b = b.to(torch.float64) if isinstance(b, torch.Tensor) else b
+    return (a.to(torch.float64) * b + c.to(torch.float64)).to(torch.float32)
+
+
+def truncate(v: torch.Tensor, scale: float = 255.0) -> torch.Tensor:
+    """``uint8(floor(clip(v * scale, 0, 255)))`` (numpy engine: ``truncate_to_uint8``);
+    ``scale`` is rounded to ``v``'s precision, as numpy does with a Python float."""
+    out = v * scale
+    return out.clamp_(0.0, 255.0).to(torch.uint8)
+
+
+def drawn(rngs: Sequence[np.random.Generator], draw, device, dtype=None) -> torch.Tensor:
+    """``draw(rng)`` for every image's generator, in batch order, stacked on ``device``."""
+    arr = np.stack([draw(rng) for rng in rngs])
+    t = torch.from_numpy(arr).to(device)
+    return t if dtype is None else t.to(dtype)
+
+
+def hwc_order(u: torch.Tensor) -> torch.Tensor:
+    """Per-element draws made in C order of an H x W x 3 image (N x H x W x 3) as N x 3 x H x W."""
+    return u.permute(0, 3, 1, 2)
+
+
+def sample_law(x: torch.Tensor, table, u: torch.Tensor) -> torch.Tensor:
+    """:meth:`~..._sampling.ValueTable.sample` on tensors: element ``i`` of uint8 ``x`` is
+    the first ``j`` with ``u[i] < cdf[x[i], j]`` (float64 comparisons, the same guide
+    start), ``u`` float64 shaped like ``x``."""
+    dev = x.device
+    cdf = tensor(table.cdf, dev).reshape(-1)
+    guide = tensor(table.guide.astype(np.int64), dev).reshape(-1)
+    n_guide = table.guide.shape[1]
+    k = x.to(torch.int64)
+    row = k * 256  # cdf rows are 256 wide
+    j = guide[k * n_guide + (u * n_guide).to(torch.int64)]
+    while True:
+        step = (u >= cdf[row + j]).to(torch.int64)
+        if not bool(step.any()):
+            return j.to(torch.uint8)
+        j = j + step
+
+
+def shifted(img: torch.Tensor, dy: int, dx: int) -> torch.Tensor:
+    """``img[..., clamp(row - dy), clamp(col - dx)]``: shifted by ``dy`` rows and ``dx``
+    columns, the uncovered band repeating the nearest row or column."""
+    h, w = img.shape[-2:]
+    dev = img.device
+    rows = (torch.arange(h, device=dev) - dy).clamp_(0, h - 1)
+    cols = (torch.arange(w, device=dev) - dx).clamp_(0, w - 1)
+    return img.index_select(-2, rows).index_select(-1, cols)
+
+
+def shift_blur(img: torch.Tensor, radius: int, sigma: float, angle: float) -> torch.Tensor:
+    """The numpy engine's ``motion_blur.shift_blur`` of one image (``... x H x W``, any
+    real dtype): float32 ``sum_t k_t * shifted(img)`` accumulated tap by tap."""
+    from ..motion_blur import motion_taps
+
+    dys, dxs, ks = motion_taps(radius, sigma, angle, tuple(img.shape[-2:]))
+    src = img.to(torch.float32)
+    acc = torch.zeros_like(src)
+    for dy, dx, k in zip(dys.tolist(), dxs.tolist(), ks.tolist()):
+        acc += shifted(src, dy, dx) * f32(k)
+    return acc
+
+
+def zoom_layer(img: torch.Tensor, r0, r1, wy, c0, wx) -> torch.Tensor:
+    """One bilinear layer of the numpy engine's ``zoom_blur._accumulate``: rows blended
+    ``a + wy * (b - a)``, then columns ``v + wx * (v' - v)`` with ``v'`` the column after
+    ``v`` in the blended full-width row, zero past its end. ``img`` float32 ``... x H x W``."""
+    dev = img.device
+    r0, r1 = torch.from_numpy(r0).to(dev), torch.from_numpy(r1).to(dev)
+    a = img.index_select(-2, r0)
+    rows = a + torch.from_numpy(wy).to(dev)[:, None] * (img.index_select(-2, r1) - a)
+    rows = torch.nn.functional.pad(rows, (0, 1))
+    c0 = torch.from_numpy(c0).to(dev)
+    v = rows.index_select(-1, c0)
+    return v + torch.from_numpy(wx).to(dev) * (rows.index_select(-1, c0 + 1) - v)
+
+
+def zoomed(img: torch.Tensor, z: float, *, crop: bool) -> torch.Tensor:
+    """The numpy engine's ``clipped_zoom`` (``crop=True``: the centre crop zoomed, the whole
+    layer) or ``linear_zoom`` (``crop=False``) of float32 ``... x H x W``."""
+    from ..zoom_blur import linear_taps, zoom_axis
+
+    h, w = img.shape[-2:]
+    if crop:
+        (top, ch, oh), (left, cw, ow) = zoom_axis(h, z), zoom_axis(w, z)
+    else:
+        (top, ch, oh), (left, cw, ow) = (0, h, round(h * z)), (0, w, round(w * z))
+    r0, r1, wy = linear_taps(ch, oh, top, oh)
+    c0, _, wx = linear_taps(cw, ow, left, ow)
+    return zoom_layer(img, r0, r1, wy, c0, wx)
