@@ -139,3 +139,16 @@ def test_importing_the_engine_package_imports_no_torch():
             "assert 'torch' not in sys.modules, 'torch imported'; print(len(t.__all__))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
+
+
+def test_a_batch_in_pieces_gives_the_same_result(monkeypatch):
+    """A large batch runs in pieces to bound memory; the pieces change no value, even with
+    one generator shared by all items (drawn from in item order)."""
+    from robodepth_cli.corruptions.torch_engine import _engine
+
+    images = [smooth_image(32, 40, seed=s) for s in range(5)]
+    batch = torch_engine.to_batch(images, "cpu")
+    whole = torch_engine.corrupt_batch(batch, "snow", 2, [np.random.default_rng(4)] * 5)
+    monkeypatch.setattr(_engine, "CHUNK_PIXELS", 2 * 32 * 40)
+    pieces = torch_engine.corrupt_batch(batch, "snow", 2, [np.random.default_rng(4)] * 5)
+    assert torch.equal(whole, pieces)

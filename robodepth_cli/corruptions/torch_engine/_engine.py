@@ -59,7 +59,21 @@ def _check_batch(x) -> torch.Tensor:
     return x
 
 
+# Pixels per piece of a batch: the float64 temporaries of one piece stay within a few GB
+# (brightness holds about 15 float64 values per pixel and channel).
+CHUNK_PIXELS = 1 << 23
+
+
 def _apply(name: str, x: torch.Tensor, level, rngs: Sequence[np.random.Generator]) -> torch.Tensor:
+    """``name`` on ``x``, in pieces of at most :data:`CHUNK_PIXELS` pixels, in item order
+    (every draw is its item's, so the pieces change nothing but the memory held)."""
+    step = max(1, CHUNK_PIXELS // (x.shape[2] * x.shape[3]))
+    if len(x) <= step:
+        return _apply_all(name, x, level, rngs)
+    return torch.cat([_apply_all(name, x[i:i + step], level, rngs[i:i + step]) for i in range(0, len(x), step)])
+
+
+def _apply_all(name: str, x: torch.Tensor, level, rngs: Sequence[np.random.Generator]) -> torch.Tensor:
     fn = REGISTRY[name]
     if fn is None:
         arrays = from_batch(x)

@@ -65,20 +65,30 @@ def hwc_order(u: torch.Tensor) -> torch.Tensor:
 
 def sample_law(x: torch.Tensor, table, u: torch.Tensor) -> torch.Tensor:
     """:meth:`~..._sampling.ValueTable.sample` on tensors: element ``i`` of uint8 ``x`` is
-    the first ``j`` with ``u[i] < cdf[x[i], j]`` (float64 comparisons, the same guide
-    start), ``u`` float64 shaped like ``x``."""
+    the first ``j`` with ``u[i] < cdf[x[i], j]`` (float64 comparisons, so the very same
+    ``j``), ``u`` float64 shaped like ``x``.
+
+    The numpy engine walks up from its guide entry, one step at a time; a whole tensor
+    would wait for its slowest element (a tail value can be a hundred steps away), so here
+    a binary search runs between the guide entries of the uniform's bucket and of the next
+    one, which bracket the answer, in a fixed number of steps."""
     dev = x.device
     cdf = tensor(table.cdf, dev).reshape(-1)
-    guide = tensor(table.guide.astype(np.int64), dev).reshape(-1)
     n_guide = table.guide.shape[1]
+    # guide[k, b + 1] (255 past the last bucket) is the first j with cdf > (b + 1) / n >= u.
+    upper = np.concatenate([table.guide[:, 1:], np.full((len(table.guide), 1), 255, np.uint8)], axis=1)
+    guide = tensor(table.guide.astype(np.int64), dev).reshape(-1)
+    upper = tensor(upper.astype(np.int64), dev).reshape(-1)
     k = x.to(torch.int64)
+    bucket = k * n_guide + (u * n_guide).to(torch.int64)
+    lo, hi = guide[bucket], upper[bucket]
     row = k * 256  # cdf rows are 256 wide
-    j = guide[k * n_guide + (u * n_guide).to(torch.int64)]
-    while True:
-        step = (u >= cdf[row + j]).to(torch.int64)
-        if not bool(step.any()):
-            return j.to(torch.uint8)
-        j = j + step
+    for _ in range(9):  # 2**8 > 255: the bracket is a single j after 8 halvings
+        mid = (lo + hi) // 2
+        above = u >= cdf[row + mid]
+        lo = torch.where(above, mid + 1, lo)
+        hi = torch.where(above, hi, mid)
+    return lo.to(torch.uint8)
 
 
 def shifted(img: torch.Tensor, dy: int, dx: int) -> torch.Tensor:
