@@ -255,7 +255,7 @@ class Dataset:
         if config.extra.get("engine") == "torch":
             from .engines import TorchCorruptionRenderer
 
-            return TorchCorruptionRenderer(self.name, config.seed, config.extra["device"])
+            return TorchCorruptionRenderer(self.name, config.seed, config.extra["device"], config.jobs)
         return CorruptionRenderer(self.name, config.seed)
 
     def libraries(self) -> tuple[str, ...]:

@@ -55,14 +55,20 @@ class TorchCorruptionRenderer:
     """The torch engine's renderer: one source image's jobs, each with the generators of
     :func:`robodepth_cli.corruptions.render`, on ``device``."""
 
-    def __init__(self, dataset: str, seed: int, device: str):
+    def __init__(self, dataset: str, seed: int, device: str, jobs: int = 1):
         self.dataset = dataset
         self.seed = seed
         self.device = device
+        # Several local workers share the cores: one torch thread each, as OpenCV gets.
+        self.threads = 1 if jobs > 1 and device == "cpu" else None
 
     def render(self, clean, key, jobs):
         from ..corruptions import torch_engine
 
+        if self.threads:
+            import torch
+
+            torch.set_num_threads(self.threads)
         batch = torch_engine.to_batch([clean], torch_engine.resolve_device(self.device))
         for job in jobs:
             try:

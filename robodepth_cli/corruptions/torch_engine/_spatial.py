@@ -93,7 +93,10 @@ def defocus_blur(x, level, rngs):
     n, ch, h, w = x.shape
     src = x.to(torch.float32).reshape(n * ch, 1, h, w)
     padded = torch.nn.functional.pad(src, (r, r, r, r), mode="reflect")
-    out = torch.nn.functional.conv2d(padded, k[None, None])
+    # Full float32 on a GPU too: cuDNN would otherwise round the operands to TF32.
+    with torch.backends.cudnn.flags(enabled=torch.backends.cudnn.enabled, benchmark=False,
+                                    deterministic=True, allow_tf32=False):
+        out = torch.nn.functional.conv2d(padded, k[None, None])
     return truncate(out.reshape(n, ch, h, w), 1.0)
 
 
