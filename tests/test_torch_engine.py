@@ -148,7 +148,8 @@ def test_a_batch_in_pieces_gives_the_same_result(monkeypatch):
 
     images = [smooth_image(32, 40, seed=s) for s in range(5)]
     batch = torch_engine.to_batch(images, "cpu")
+    monkeypatch.setattr(_engine, "CPU_CHUNK_PIXELS", 5 * 32 * 40)
     whole = torch_engine.corrupt_batch(batch, "snow", 2, [np.random.default_rng(4)] * 5)
-    monkeypatch.setattr(_engine, "CHUNK_PIXELS", 2 * 32 * 40)
+    monkeypatch.setattr(_engine, "CPU_CHUNK_PIXELS", 2 * 32 * 40)
     pieces = torch_engine.corrupt_batch(batch, "snow", 2, [np.random.default_rng(4)] * 5)
     assert torch.equal(whole, pieces)

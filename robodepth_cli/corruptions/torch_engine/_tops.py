@@ -91,26 +91,23 @@ def sample_law(x: torch.Tensor, table, u: torch.Tensor) -> torch.Tensor:
     return lo.to(torch.uint8)
 
 
-def shifted(img: torch.Tensor, dy: int, dx: int) -> torch.Tensor:
-    """``img[..., clamp(row - dy), clamp(col - dx)]``: shifted by ``dy`` rows and ``dx``
-    columns, the uncovered band repeating the nearest row or column."""
-    h, w = img.shape[-2:]
-    dev = img.device
-    rows = (torch.arange(h, device=dev) - dy).clamp_(0, h - 1)
-    cols = (torch.arange(w, device=dev) - dx).clamp_(0, w - 1)
-    return img.index_select(-2, rows).index_select(-1, cols)
-
-
 def shift_blur(img: torch.Tensor, radius: int, sigma: float, angle: float) -> torch.Tensor:
     """The numpy engine's ``motion_blur.shift_blur`` of one image (``... x H x W``, any
-    real dtype): float32 ``sum_t k_t * shifted(img)`` accumulated tap by tap."""
+    real dtype): float32 ``sum_t k_t * img[clamp(row - dy_t), clamp(col - dx_t)]``
+    accumulated tap by tap. The clamped reads are slices of the image padded once by
+    repeating its edges."""
     from ..motion_blur import motion_taps
 
-    dys, dxs, ks = motion_taps(radius, sigma, angle, tuple(img.shape[-2:]))
+    h, w = img.shape[-2:]
+    dys, dxs, ks = motion_taps(radius, sigma, angle, (h, w))
+    py, px = int(np.abs(dys).max(initial=0)), int(np.abs(dxs).max(initial=0))
     src = img.to(torch.float32)
+    lead = src.shape[:-2]
+    padded = torch.nn.functional.pad(src.reshape(1, -1, h, w), (px, px, py, py), mode="replicate")
+    padded = padded.reshape(*lead, h + 2 * py, w + 2 * px)
     acc = torch.zeros_like(src)
     for dy, dx, k in zip(dys.tolist(), dxs.tolist(), ks.tolist()):
-        acc += shifted(src, dy, dx) * f32(k)
+        acc += padded[..., py - dy:py - dy + h, px - dx:px - dx + w] * f32(k)
     return acc
 
 
