@@ -32,13 +32,13 @@ def check_option(key: str, value):
 
 def settle(extra: dict, where: dict[str, str]) -> dict:
     """``extra`` with ``engine`` (default numpy) and ``device`` decided: ``cpu`` for the
-    numpy engine (a ``device`` other than cpu is refused: it has no GPU path), the device
+    numpy engine (``cuda`` is refused: it has no GPU path), the device
     ``auto`` picks for torch (``cuda`` refused when torch sees no GPU). ``where`` names the
     flag or file that set each key, for the messages."""
     engine = extra.get("engine") or "numpy"
     device = extra.get("device")
     if engine == "numpy":
-        if device not in (None, "cpu"):
+        if device == "cuda":
             raise InvalidValueError(f"{where.get('device', '--device')}: {device} needs --engine torch "
                                     f"(the numpy engine runs on the CPU)")
         return {**extra, "engine": engine, "device": "cpu"}

@@ -84,8 +84,8 @@ def sample_law(x: torch.Tensor, table, u: torch.Tensor) -> torch.Tensor:
     lo, hi = guide[bucket], upper[bucket]
     row = k * 256  # cdf rows are 256 wide
     for _ in range(9):  # 2**8 > 255: the bracket is a single j after 8 halvings
-        mid = (lo + hi) // 2
-        above = u >= cdf[row + mid]
+        mid = (lo + hi) >> 1
+        above = u >= torch.take(cdf, row + mid)
         lo = torch.where(above, mid + 1, lo)
         hi = torch.where(above, hi, mid)
     return lo.to(torch.uint8)
