@@ -15,7 +15,7 @@ from .. import motion_blur as _motion
 from .. import pixelate as _pixelate
 from .. import zoom_blur as _zoom
 from ..severity import BLEND, Blend, interpolate
-from ._tops import f32, fma, register, shift_blur, tensor, truncate, zoomed
+from ._tops import drawn, f32, fma, register, shift_blur, tensor, truncate, zoomed
 
 # Pillow's fixed-point precision of 8-bit resampling weights.
 _PRECISION_BITS = 32 - 8 - 2
@@ -155,7 +155,7 @@ def elastic_transform(x, level, rngs):
     n, ch, h, w = x.shape
     dev = x.device
     m_alpha = 0.005 * h * 250 * interpolate(_elastic.LEVELS, level)
-    u = torch.from_numpy(np.stack([rng.random((2, h, w), dtype=np.float32) for rng in rngs])).to(dev)
+    u = drawn(rngs, lambda rng: rng.random((2, h, w), dtype=np.float32), dev)
     u = _smooth(_smooth(u, 0.01 * h, 2), 0.01 * w, 3)
     u = u * f32(2 * m_alpha)
     gx = u[:, 0] + (torch.arange(w, device=dev, dtype=torch.float64) - m_alpha).to(torch.float32)

@@ -51,11 +51,9 @@ def truncate(v: torch.Tensor, scale: float = 255.0) -> torch.Tensor:
     return out.clamp_(0.0, 255.0).to(torch.uint8)
 
 
-def drawn(rngs: Sequence[np.random.Generator], draw, device, dtype=None) -> torch.Tensor:
+def drawn(rngs: Sequence[np.random.Generator], draw, device) -> torch.Tensor:
     """``draw(rng)`` for every image's generator, in batch order, stacked on ``device``."""
-    arr = np.stack([draw(rng) for rng in rngs])
-    t = torch.from_numpy(arr).to(device)
-    return t if dtype is None else t.to(dtype)
+    return torch.from_numpy(np.stack([draw(rng) for rng in rngs])).to(device)
 
 
 def hwc_order(u: torch.Tensor) -> torch.Tensor:

@@ -9,7 +9,7 @@ from .. import fog as _fog
 from .. import snow as _snow
 from ..severity import interpolate
 from ..zoom_blur import zoom_axis
-from ._tops import f32, register, shift_blur, truncate, zoomed
+from ._tops import drawn, f32, register, shift_blur, truncate, zoomed
 
 
 @register
@@ -19,7 +19,7 @@ def fog(x, level, rngs):
     t, d = interpolate(_fog.LEVELS, level)
     _, _, h, w = x.shape
     n = _fog.next_power_of_two(max(h, w))
-    plasma = torch.from_numpy(np.stack([_fog.plasma_fractal(n, d, rng, (h, w)) for rng in rngs])).to(x.device)
+    plasma = drawn(rngs, lambda rng: _fog.plasma_fractal(n, d, rng, (h, w)), x.device)
     m = x.amax(dim=(1, 2, 3)).tolist()
     out = []
     for img, plasma_i, top in zip(x, plasma, m):
