@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from PIL import Image
 
-from . import corruptions, seeding
+from . import corruptions, seeding, transforms_batch
 from .corruptions.severity import LevelError
 from .errors import InvalidValueError, RobodepthError
 from .imageio import ImageError
@@ -115,6 +115,9 @@ class Corrupt:
     the build uses for that (seed, dataset, corruption, level, key), so given the build's
     clean image the result equals the built file pixel for pixel. Without a key each call
     draws from the transform's own generator.
+
+    An ``N x 3 x H x W`` batch (on any device) is corrupted there by the torch engine, item
+    ``i`` with ``key[i]`` when ``key`` is a sequence of keys (see :mod:`.transforms_batch`).
     """
 
     def __init__(self, name: str, level=None, seed: int | None = 0, dataset: str = "custom"):
@@ -155,6 +158,8 @@ class Corrupt:
         return corruptions.corrupt_chain(arr, self.chain, rngs)
 
     def __call__(self, img, key: str | None = None):
+        if transforms_batch.is_batch(img):  # key: one per item, or None
+            return transforms_batch.corrupt(self, img, key, TorchAPIError)
         arr, back = _to_array(img)
         try:
             out = self._apply(arr, key)
@@ -174,6 +179,10 @@ class RandomCorrupt:
     All draws (whether to corrupt, which corruption and level, the corruption's own
     randomness) come from one generator per process seeded from ``seed``
     (``None``: fresh entropy). Defaults: all 18 corruptions, levels 1 to 5.
+
+    ``t(batch, keys=None, epoch=0)`` on an ``N x 3 x H x W`` batch returns ``(batch,
+    applied)``, ``applied[i]`` the ``name:level`` item ``i`` got or ``""``; with ``keys`` each
+    item draws from its own generator (seed, key, epoch) (see :mod:`.transforms_batch`).
     """
 
     def __init__(self, names: Sequence[str] | None = None, levels: Sequence[int] | None = None,
@@ -190,7 +199,11 @@ class RandomCorrupt:
         self.names, self.levels, self.p = names, tuple(_check(names[0], lv)[1] for lv in levels), float(p)
         self._gen = _ProcessGenerator(seed)
 
-    def __call__(self, img):
+    def __call__(self, img, keys=None, epoch: int = 0):
+        if transforms_batch.is_batch(img):
+            return transforms_batch.random_corrupt(self, img, keys, int(epoch), TorchAPIError)
+        if keys is not None:
+            raise TorchAPIError("keys= is for a batch (an N x 3 x H x W tensor), one key per item")
         rng = self._gen.get()
         if rng.random() >= self.p:
             return img
@@ -232,7 +245,8 @@ class RandomChain:
     (a one-element torch tensor), so DataLoader workers see it even when they outlive the
     epoch (``persistent_workers=True``): a copy of the transform made by pickling outside
     torch's multiprocessing (a plain ``pickle.dumps``) no longer follows the original's
-    :meth:`set_epoch`. :meth:`draw` gives the chain without applying it.
+    :meth:`set_epoch`. :meth:`draw` gives the chain without applying it. ``t(batch, keys, epoch=None)``
+    on an ``N x 3 x H x W`` batch returns ``(batch, chains)``, item ``i`` as ``t(item_i, keys[i], epoch)`` makes it.
     """
 
     def __init__(self, names: Sequence[str] | None = None, steps=(1, 3), severity=(1.0, 5.0),
@@ -325,6 +339,8 @@ class RandomChain:
         return Chain(tuple(steps))
 
     def __call__(self, img, key, epoch: int | None = None):
+        if transforms_batch.is_batch(img):  # key: one per item
+            return transforms_batch.random_chain(self, img, key, epoch, TorchAPIError)
         chain = self.draw(key, epoch)
         if chain is None:
             return img, ""

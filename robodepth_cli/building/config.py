@@ -378,6 +378,13 @@ class _Resolver:
                               f"testing; a held-out protocol trains on other corruptions")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
+        if "engine" in ds.options():  # the corruption datasets: which engine, on which device
+            from ..sources.engines import settle
+
+            try:
+                extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()})
+            except InvalidValueError as exc:
+                raise ConfigError(str(exc)) from None
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),
                            size=self.values["size"], variants=tuple(variants), levels=tuple(levels),
                            seed=self.values["seed"], jobs=self.values["jobs"],

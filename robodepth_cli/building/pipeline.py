@@ -288,7 +288,7 @@ def worker_files(cfg: BuildConfig) -> list[str]:
     the checkpoints), as absolute paths; a cluster's workers must see them too."""
     # A custom build's --list is read by the main process only.
     return [os.path.abspath(v) for k, v in cfg.extra.items()
-            if k != "list" and isinstance(v, str) and os.path.isfile(v)]
+            if k not in ("list", "engine", "device") and isinstance(v, str) and os.path.isfile(v)]
 
 
 def native_size(src: Source) -> tuple[int, int] | None:

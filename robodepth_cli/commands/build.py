@@ -54,8 +54,12 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--decoder", metavar="FILE", help="kitti-s: AdaIN decoder checkpoint (decoder.pth).")
 @click.option("--alpha", metavar="A", help="kitti-s: style strength 0..1 (preset: 1).")
 @click.option("--style-size", metavar="N", help="kitti-s: shorter side of the style images (preset: 512).")
+@click.option("--engine", type=click.Choice(["numpy", "torch"]),
+              help="kitti-c, nyudepth2-c, custom: the corruption engine (default numpy, the published "
+                   "bytes; torch: the torch engine on --device, see docs/torch-engine.md).")
 @click.option("--device", metavar="auto|cpu|cuda", help="kitti-s: where AdaIN runs (preset: auto, a CUDA GPU "
-              "when there is one, else the CPU; the build says which).")
+              "when there is one, else the CPU; the build says which). With --engine torch: where the "
+              "corruptions run (default auto).")
 @click.option("--scheduler", metavar="ADDR", help="Run on the Dask cluster of this scheduler (tcp://HOST:8786); "
               "ROOT and OUT must be shared paths every worker sees.")
 @click.option("--scheduler-file", metavar="FILE", help="Like --scheduler, with the address read from the "

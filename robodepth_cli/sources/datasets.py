@@ -239,15 +239,25 @@ class Dataset:
         return out
 
     def options(self) -> tuple[str, ...]:
-        """Config keys of this dataset beyond the common ones (none here)."""
-        return ()
+        """Config keys of this dataset beyond the common ones: the engine and its device."""
+        from .engines import OPTIONS
+
+        return OPTIONS
 
     def check_option(self, key: str, value, base: Path):
         """The checked value of option ``key``; :class:`InvalidValueError` saying what is wrong.
         ``base`` is the directory relative paths are resolved against."""
+        from . import engines
+
+        if key in engines.OPTIONS:
+            return engines.check_option(key, value)
         raise InvalidValueError(f"{self.name} has no option {key!r}")
 
     def renderer(self, config) -> Renderer:
+        if config.extra.get("engine") == "torch":
+            from .engines import TorchCorruptionRenderer
+
+            return TorchCorruptionRenderer(self.name, config.seed, config.extra["device"], config.jobs)
         return CorruptionRenderer(self.name, config.seed)
 
     def libraries(self) -> tuple[str, ...]:
@@ -313,12 +323,12 @@ class CustomDataset(Dataset):
     def options(self) -> tuple[str, ...]:
         from .custom import OPTIONS
 
-        return OPTIONS
+        return OPTIONS + super().options()
 
     def check_option(self, key: str, value, base: Path):
-        from .custom import check_option
+        from .custom import OPTIONS, check_option
 
-        return check_option(key, value, base)
+        return check_option(key, value, base) if key in OPTIONS else super().check_option(key, value, base)
 
 
 _WEATHERS = ("sunny", "cloudy", "foggy", "rainy")  # DrivingStereo's weather sets

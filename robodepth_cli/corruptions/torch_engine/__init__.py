@@ -1,0 +1,31 @@
+"""The torch engine of the corruptions: the same 18 corruptions, formulas and random
+draws as the numpy engine, on a batch ``N x 3 x H x W`` uint8 tensor on any device.
+
+Each image of a batch has its own numpy generator (the very streams the numpy engine
+uses, :func:`robodepth_cli.seeding.job_rng`); every random draw is made from it on the
+CPU, in the numpy engine's order, and moved to the device, so on CPU torch most
+corruptions give the numpy engine's bytes (docs/torch-engine.md says which, and how far
+the others are). glass_blur and jpeg_compression run through the numpy engine on the CPU.
+
+Importing the package imports no torch: :func:`corrupt_batch`, :func:`render_batch`,
+:func:`resolve_device` and ``REGISTRY`` load the engine on first use.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+_ENGINE = ("REGISTRY", "ON_CPU", "corrupt_batch", "corrupt_chain_batch", "render_batch", "resolve_device",
+           "to_batch", "from_batch")
+
+__all__ = list(_ENGINE)
+
+
+def __getattr__(name: str):
+    if name in _ENGINE:
+        return getattr(importlib.import_module("._engine", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_ENGINE))
