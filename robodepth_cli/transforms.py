@@ -245,8 +245,9 @@ class RandomChain:
     (a one-element torch tensor), so DataLoader workers see it even when they outlive the
     epoch (``persistent_workers=True``): a copy of the transform made by pickling outside
     torch's multiprocessing (a plain ``pickle.dumps``) no longer follows the original's
-    :meth:`set_epoch`. :meth:`draw` gives the chain without applying it. ``t(batch, keys, epoch=None)``
-    on an ``N x 3 x H x W`` batch returns ``(batch, chains)``, item ``i`` as ``t(item_i, keys[i], epoch)`` makes it.
+    :meth:`set_epoch`. :meth:`draw` gives the chain without applying it.
+    ``t(batch, keys, epoch=None)`` on an ``N x 3 x H x W`` batch returns ``(batch, chains)``,
+    item ``i`` as ``t(item_i, keys[i], epoch)`` makes it.
     """
 
     def __init__(self, names: Sequence[str] | None = None, steps=(1, 3), severity=(1.0, 5.0),
