@@ -16,11 +16,13 @@ _PAD = 4
 
 
 def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
-                  seed: int = 0, key: str = "image", thumb_width: int = 320) -> Image.Image:
+                  seed: int = 0, key: str = "image", thumb_width: int = 320,
+                  depth=None) -> Image.Image:
     """One row per corruption or chain (label, then one cell per level) under a first row
     holding the clean image. Cells are the corrupted images scaled to ``thumb_width`` pixels
     wide. A chain's steps written without a level take the column's level
-    (``fog+gaussian_noise``); the others keep theirs."""
+    (``fog+gaussian_noise``); the others keep theirs. ``depth`` (metres) is the scene's,
+    for the depth-aware corruptions."""
     names, levels = list(names), list(levels)
     h, w = clean.shape[:2]
     tw = min(thumb_width, w)
@@ -51,9 +53,9 @@ def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
         for j, level in enumerate(levels):
             if chained:
                 out = render(clean, expand_chain(name, [level])[0].text, None,
-                             seed=seed, dataset="preview", key=key)
+                             seed=seed, dataset="preview", key=key, depth=depth)
             elif level <= REGISTRY[name].n_levels:
-                out = render(clean, name, level, seed=seed, dataset="preview", key=key)
+                out = render(clean, name, level, seed=seed, dataset="preview", key=key, depth=depth)
             else:
                 continue
             sheet.paste(thumb(out), (label_w + j * (tw + _PAD) + _PAD, y))

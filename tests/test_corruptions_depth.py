@@ -131,7 +131,7 @@ def test_forward_motion_of_a_fronto_parallel_plane_is_a_pure_zoom():
     h, w, z = 48, 64, 10.0
     x = smooth_image(h, w)
     out = corrupt(x, "zoom_3d", 3, RNG(0), depth=np.full((h, w), z))
-    travel = 0.14 * z  # level 3: 0.14 of the median depth
+    travel = 0.10 * z  # level 3: 0.10 of the median depth
     corner = math.hypot(w / 2, h / 2)
     n = frames_for(corner * (z / (z - travel / 2) - z / (z + travel / 2)))
     cy, cx = (h - 1) / 2, (w - 1) / 2
