@@ -12,7 +12,7 @@ from ..errors import InvalidValueError
 from ..imageio import as_rgb
 from ._depth import DepthError, scene_depth
 from .registry import Corruption, registry
-from .chains import Chain, looks_like_chain, parse_chain
+from .chains import Chain, expand_chain, looks_like_chain, parse_chain
 from .severity import parse_level
 
 # Importing a module registers its corruption(s).
@@ -103,8 +103,9 @@ def render(clean: np.ndarray, variant: str, level, *, seed: int, dataset: str, k
 
 
 def needs_depth(variant: str) -> bool:
-    """Whether ``variant`` (a corruption's name or a chain's text) has a depth-aware step."""
-    names = parse_chain(variant).names if looks_like_chain(variant) else (variant,)
+    """Whether ``variant`` (a corruption's name, a chain's text or a chain template whose
+    steps lack levels) has a depth-aware step."""
+    names = expand_chain(variant, (1,))[0].names if looks_like_chain(variant) else (variant,)
     return any(get(n).needs_depth for n in names)
 
 
