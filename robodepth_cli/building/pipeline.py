@@ -47,6 +47,7 @@ from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
 from ..output.record import BuildRecord, plan_entry
 from ..sources.datasets import Dataset, Renderer, get_dataset
+from ..sources.scenedepth import depth_for
 from . import checks as buildchecks
 from .checks import BuildError
 from .config import BuildConfig
@@ -221,7 +222,7 @@ def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | N
     """The dataset's renderer, with its depth source when a variant needs depth; it may
     check the user's files (KITTI-S loads and validates the checkpoints and style images,
     refusing bad ones with their own errors), which is why this runs before OUT is touched."""
-    return ds.renderer(cfg, ds.depth_for(cfg.variants, root, split_path))
+    return ds.renderer(cfg, depth_for(ds, cfg.variants, root, split_path))
 
 
 def prepare_out(out: Path) -> Path:

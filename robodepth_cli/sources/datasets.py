@@ -239,19 +239,6 @@ class Dataset:
         part of ``all``."""
         return tuple(DEPTH_AWARE) if self.leveled and not self.discovers_sources else ()
 
-    def depth_for(self, variants: Sequence[str], root: Path, split_path: str | None):
-        """Where the depth-aware corruptions among ``variants`` (names or chains) get each
-        source's depth (a :class:`~.scenedepth.DepthSource`); None when none needs depth.
-        The configuration has already refused them for a dataset without depth."""
-        from ..corruptions.chains import looks_like_chain, parse_chain
-
-        names = {n for v in variants for n in (parse_chain(v).names if looks_like_chain(v) else (v,))}
-        if not names & set(self.depth_variant_names()):
-            return None
-        from .scenedepth import for_dataset
-
-        return for_dataset(self.split_format, Path(root), Path(split_path or ""))
-
     def levels(self) -> tuple[int, ...]:
         """The levels this dataset has (none for a dataset without levels)."""
         return tuple(range(1, self.n_levels + 1)) if self.leveled else ()

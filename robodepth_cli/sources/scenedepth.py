@@ -4,9 +4,10 @@ A :class:`DepthSource` gives the depth of one source (by its key) in metres, NaN
 missing, at the build's output size or at its own with the same aspect ratio (the
 corruption engine fills and resizes it: :mod:`robodepth_cli.corruptions._depth`). It is
 small and picklable (the renderer carries it to the workers) and reads its files lazily.
-The renderer asks it for a source's depth only when a job needs it, so the builder needs
-no other hook: a custom build's depth folder (``build custom --depth DIR``) plugs in as one
-more :class:`DepthSource`.
+The renderer asks it for a source's depth only when a job needs it; :func:`depth_for`
+chooses it for a build. A custom build's depth folder (``build custom --depth DIR``) plugs
+in as one more :class:`DepthSource` chosen there (and the dataset's
+``depth_variant_names`` then lists the depth-aware corruptions).
 
 - :class:`NyuDepth`: NYU Depth V2's own dense ground truth: the split line's
   ``sync_depth`` PNG (millimetres, 0 missing) under a BTS test folder, or the labeled
@@ -118,10 +119,19 @@ def densify_grid(sparse: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return out.reshape(h, w)
 
 
-def for_dataset(split_format: str, root: Path, split_path: Path) -> DepthSource:
-    """The depth source of a KITTI (``eigen``) or NYU (``nyu``) build."""
-    if split_format == "eigen":
-        return KittiLidarDepth(root)
+def depth_for(ds, variants, root: Path, split_path: str | None) -> DepthSource | None:
+    """Where the depth-aware corruptions among ``variants`` (names or chains) of a build of
+    dataset ``ds`` get each source's depth; None when no variant needs depth. The
+    configuration has already refused them for a dataset without depth
+    (:meth:`~.datasets.Dataset.depth_variant_names` is empty)."""
+    from ..corruptions.chains import looks_like_chain, parse_chain
+
+    names = {n for v in variants for n in (parse_chain(v).names if looks_like_chain(v) else (v,))}
+    if not names & set(ds.depth_variant_names()):
+        return None
+    if ds.split_format == "eigen":
+        return KittiLidarDepth(Path(root))
     from .datasets import read_split
 
-    return NyuDepth(root, {e.key: (e.fields[0], e.fields[1]) for e in read_split(split_path, "nyu")})
+    entries = read_split(Path(split_path or ""), "nyu")
+    return NyuDepth(Path(root), {e.key: (e.fields[0], e.fields[1]) for e in entries})
