@@ -54,38 +54,46 @@ def _splat(depth, a, tz, cx, cy, zbuf):
 @njit
 def _grow(values, known, key):
     """Fill the unknown pixels of ``values`` (H x W x C), pass by pass, each from its known
-    8-neighbour with the largest ``key``; ``known`` is updated."""
+    8-neighbour with the largest ``key`` (known before the pass); ``known`` is updated."""
     h, w, ch = values.shape
-    left = 0
+    n = 0
     for y in range(h):
         for x in range(w):
             if not known[y, x]:
+                n += 1
+    ty = np.empty(n, np.int64)
+    tx = np.empty(n, np.int64)
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if not known[y, x]:
+                ty[n], tx[n] = y, x
+                n += 1
+    src = np.empty(n, np.int64)
+    while n > 0:
+        for i in range(n):
+            y, x = ty[i], tx[i]
+            best, found = -1.0, -1
+            for dy in range(-1, 2):
+                for dx in range(-1, 2):
+                    yy, xx = y + dy, x + dx
+                    if 0 <= yy < h and 0 <= xx < w and known[yy, xx] and key[yy, xx] > best:
+                        best, found = key[yy, xx], yy * w + xx
+            src[i] = found
+        left = 0
+        for i in range(n):
+            y, x = ty[i], tx[i]
+            if src[i] >= 0:
+                by, bx = src[i] // w, src[i] % w
+                for c in range(ch):
+                    values[y, x, c] = values[by, bx, c]
+                known[y, x] = True  # the search of this pass is over: no one reads it now
+            else:
+                ty[left], tx[left] = y, x  # still to fill: kept, in order, at the front
                 left += 1
-    while left > 0:
-        newly = np.zeros((h, w), np.bool_)
-        for y in range(h):
-            for x in range(w):
-                if known[y, x]:
-                    continue
-                best, by, bx = -1.0, -1, -1
-                for dy in range(-1, 2):
-                    for dx in range(-1, 2):
-                        yy, xx = y + dy, x + dx
-                        if 0 <= yy < h and 0 <= xx < w and known[yy, xx] and key[yy, xx] > best:
-                            best, by, bx = key[yy, xx], yy, xx
-                if by >= 0:
-                    for c in range(ch):
-                        values[y, x, c] = values[by, bx, c]
-                    newly[y, x] = True
-        count = 0
-        for y in range(h):
-            for x in range(w):
-                if newly[y, x]:
-                    known[y, x] = True
-                    count += 1
-        if count == 0:
+        if left == n:
             break
-        left -= count
+        n = left
 
 
 @njit
