@@ -59,20 +59,26 @@ def lens_blur(x: np.ndarray, depth: np.ndarray, focus: float, radius: float) -> 
     cover = np.zeros((h, w), np.float32)
     rgba = np.empty((h, w, 4), np.float32)
     for k in np.unique(layers):  # ascending k: far to near
-        mask = (layers == k).astype(np.float32)
+        inside = layers == k
         r = min(radius, abs(int(k)) * STEP)
-        np.multiply(img, mask[:, :, None], out=rgba[:, :, :3])
-        rgba[:, :, 3] = mask
+        # Only the layer's bounding box grown by the kernel: beyond it the layer adds
+        # nothing, and the zeros of the margin reflect as zeros at the box's edge.
+        rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
+        m = int(np.ceil(r)) + 1
+        box = (slice(max(rows[0] - m, 0), min(rows[-1] + m + 1, h)),
+               slice(max(cols[0] - m, 0), min(cols[-1] + m + 1, w)))
+        mask = inside[box].astype(np.float32)
+        part = rgba[box]
+        np.multiply(img[box], mask[:, :, None], out=part[:, :, :3])
+        part[:, :, 3] = mask
         if r >= STEP:
-            blurred = cv2.filter2D(rgba, -1, disk(r), borderType=cv2.BORDER_REFLECT_101)
-        else:
-            blurred = rgba
-        alpha = blurred[:, :, 3]
+            part = cv2.filter2D(part, -1, disk(r), borderType=cv2.BORDER_REFLECT_101)
+        alpha = part[:, :, 3]
         behind = 1.0 - alpha
-        colour *= behind[:, :, None]
-        colour += blurred[:, :, :3]
-        cover *= behind
-        cover += alpha
+        colour[box] *= behind[:, :, None]
+        colour[box] += part[:, :, :3]
+        cover[box] *= behind
+        cover[box] += alpha
     # Every pixel is in a layer whose kernel has weight at its centre, so cover > 0.
     colour /= np.maximum(cover, 1e-6)[:, :, None]
     return colour
