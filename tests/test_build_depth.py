@@ -117,3 +117,21 @@ def test_depth_aware_names_are_listed_never_all():
     assert cfg.variants == ("near_focus", "fog_3d", "motion_3d:2+contrast:1")
     for preset in ("kitti-c", "nyudepth2-c"):
         assert not set(resolve(preset, flags={"corruptions": "all"}).variants) & set(DEPTH_NAMES)
+
+
+def test_nyu_build_from_the_labeled_file_uses_its_raw_depths(tmp_path, cli):
+    from _gt_trees import SCENES, write_labeled, write_split
+
+    mat = tmp_path / "nyu_depth_v2_labeled.mat"
+    _, depth = write_labeled(mat)  # uniform 0..10 m, a block of zeros (missing) at 4:8, :4
+    split = write_split(tmp_path / "split.txt", [1])
+    out = tmp_path / "out"
+    res = cli("build", "nyudepth2-c", "--root", mat, "--split", split, "--out", out,
+              "--corruptions", "fog_3d", "--levels", "4", "--jobs", "1", "--no-gt")
+    assert res.exit_code == 0, res.output
+    key = f"{SCENES[1]}/rgb_00001.png"
+    clean = np.asarray(Image.open(out / "clean" / key), dtype=np.float64)
+    d = depth[1].astype(np.float64)
+    d[d <= 0] = np.nan
+    want = fog_by_hand(clean, np.clip(nearest_fill(d), 0.05, 1000), 40.0)
+    np.testing.assert_array_equal(np.asarray(Image.open(out / "fog_3d" / "4" / key)), want)

@@ -116,7 +116,8 @@ def _depth_for(image: np.ndarray, depth, steps, what: str = ""):
     if not aware:
         return None
     if depth is None:
-        raise DepthError(f"{what or aware[0]}: {aware[0]} needs the scene's depth, and none was given")
+        where = f"chain {what}: " if what else ""
+        raise DepthError(f"{where}{aware[0]} needs the scene's depth, and none was given")
     return scene_depth(depth, image.shape[:2])
 
 
