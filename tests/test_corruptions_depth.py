@@ -95,8 +95,8 @@ def test_blur_grows_monotonically_with_distance_from_the_focal_plane(name, depth
     k0 = int(order[0])
     np.testing.assert_array_equal(out[:, inner[k0]], x[:, inner[k0]])
     ranked = [sharp[k] for k in order]
-    distinct = [r for r in np.diff([ratio[k] for k in order])]
-    for a, b, gap in zip(ranked, ranked[1:], distinct):
+    gaps = np.diff([ratio[k] for k in order])
+    for a, b, gap in zip(ranked, ranked[1:], gaps):
         if gap > 0.02:
             assert b < a, (name, ratio, sharp)
         else:  # the same radius (capped at R): the same blur
