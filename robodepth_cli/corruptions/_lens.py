@@ -7,8 +7,9 @@ radius is proportional to ``|d - f| / d = |1 - f/d|``, linear in inverse depth. 
 (the cap keeps a far focus from blurring the nearest objects without bound).
 
 Rendering (layered, back to front): the pixels are split into layers of ``f/d`` spaced so
-that neighbouring layers differ by half a pixel of radius, the focal plane ``f/d = 1``
-being one layer's centre (so it stays exactly sharp). From the farthest layer to the
+that neighbouring layers differ by half a pixel of radius (``R / 2`` for a lens under a
+pixel), the focal plane ``f/d = 1`` being one layer's centre (so it stays exactly sharp);
+a disk of up to half a pixel covers only its own pixel, so ``R <= 0.5`` blurs nothing. From the farthest layer to the
 nearest, each layer's premultiplied colour and its mask are blurred with an anti-aliased
 disk of the layer's radius and laid *over* what lies behind it; the sum is divided by the
 accumulated coverage. A layer's blur only spreads its own pixels: a sharp near object keeps
@@ -23,7 +24,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-STEP = 0.5  # pixels of blur radius between neighbouring layers
+STEP = 0.5  # pixels of blur radius between neighbouring layers (R / 2 for R under a pixel)
 U_CAP = 2.0  # f/d beyond this (d < f/2) has the full radius R: one layer
 
 
@@ -40,18 +41,25 @@ def disk(radius: float) -> np.ndarray:
     return k
 
 
+def spacing(radius: float) -> float:
+    """Blur radius between neighbouring layers: :data:`STEP`, or ``radius / 2`` when that
+    is smaller, so that even a sub-pixel lens has a layer at its full radius."""
+    return min(STEP, radius / 2)
+
+
 def layer_of(depth: np.ndarray, focus: float, radius: float) -> np.ndarray:
-    """Each pixel's layer index ``k``: the layer's ``f/d`` is ``1 + k * STEP / radius``
-    and its blur radius ``min(radius, |k| * STEP)``; 0 is the focal plane."""
+    """Each pixel's layer index ``k``: the layer's ``f/d`` is ``1 + k * s / radius``
+    and its blur radius ``min(radius, |k| * s)``, ``s`` the :func:`spacing`; 0 is the
+    focal plane."""
     u = np.minimum(focus / depth.astype(np.float64), U_CAP)
-    return np.rint((u - 1.0) * (radius / STEP)).astype(np.int32)
+    return np.rint((u - 1.0) * (radius / spacing(radius))).astype(np.int32)
 
 
 def lens_blur(x: np.ndarray, depth: np.ndarray, focus: float, radius: float) -> np.ndarray:
     """``x`` (uint8 H x W x 3) seen through a thin lens focused at ``focus`` metres whose
     blur radius at infinity is ``radius`` pixels: float32 H x W x 3 in 0..255."""
     img = x.astype(np.float32)
-    if radius < STEP / 2:
+    if radius <= STEP:  # a disk of up to half a pixel covers its own pixel only
         return img
     layers = layer_of(depth, focus, radius)
     h, w = layers.shape
@@ -60,7 +68,7 @@ def lens_blur(x: np.ndarray, depth: np.ndarray, focus: float, radius: float) -> 
     rgba = np.empty((h, w, 4), np.float32)
     for k in np.unique(layers):  # ascending k: far to near
         inside = layers == k
-        r = min(radius, abs(int(k)) * STEP)
+        r = min(radius, abs(int(k)) * spacing(radius))
         # Only the layer's bounding box grown by the kernel: beyond it the layer adds
         # nothing, and the zeros of the margin reflect as zeros at the box's edge.
         rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
@@ -71,7 +79,7 @@ def lens_blur(x: np.ndarray, depth: np.ndarray, focus: float, radius: float) -> 
         part = rgba[box]
         np.multiply(img[box], mask[:, :, None], out=part[:, :, :3])
         part[:, :, 3] = mask
-        if r >= STEP:
+        if r > STEP:
             part = cv2.filter2D(part, -1, disk(r), borderType=cv2.BORDER_REFLECT_101)
         alpha = part[:, :, 3]
         behind = 1.0 - alpha
