@@ -241,3 +241,13 @@ def test_same_inputs_give_the_same_bytes_in_another_process():
                      for n in DEPTH_NAMES)
     there = subprocess.run([sys.executable, "-c", _DIGESTS], capture_output=True, text=True, check=True).stdout
     assert there.strip() == here
+
+
+def test_the_image_only_transforms_refuse_depth_aware_corruptions():
+    from robodepth_cli.transforms import Corrupt, RandomChain, RandomCorrupt, TorchAPIError
+
+    for make in (lambda: Corrupt("fog_3d", 2), lambda: Corrupt("brightness:1+zoom_3d:2"),
+                 lambda: RandomCorrupt(names=["fog", "near_focus"]), lambda: RandomChain(names=["motion_3d", "fog"])):
+        with pytest.raises(TorchAPIError, match="needs the scene's depth"):
+            make()
+    Corrupt("fog", 2)  # the 18 as before
