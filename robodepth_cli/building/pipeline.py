@@ -47,7 +47,6 @@ from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
 from ..output.record import BuildRecord, plan_entry
 from ..sources.datasets import Dataset, Renderer, get_dataset
-from ..sources.scenedepth import depth_for
 from . import checks as buildchecks
 from .checks import BuildError
 from .config import BuildConfig
@@ -219,9 +218,9 @@ def _warn_above_cpus(workers: int, jobs: int) -> None:
 
 
 def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None) -> Renderer:
-    """The dataset's renderer, with its depth source when a variant needs depth; it may
-    check the user's files (KITTI-S loads and validates the checkpoints and style images,
-    refusing bad ones with their own errors), which is why this runs before OUT is touched."""
+    """The renderer, with the depth source a variant needs; it may refuse files (KITTI-S's), so before OUT."""
+    from ..sources.scenedepth import depth_for
+
     return ds.renderer(cfg, depth_for(ds, cfg.variants, root, split_path))
 
 
