@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
 
-from robodepth_cli.corruptions import REGISTRY, corrupt  # noqa: E402
+from robodepth_cli.corruptions import NAMES, REGISTRY, corrupt  # noqa: E402
 from robodepth_cli.imageio import encode_png, resize_lanczos  # noqa: E402
 
 SIZE = (1024, 2048)
@@ -48,7 +48,7 @@ def frame(seed: int = 0) -> np.ndarray:
 def all_variants(x: np.ndarray) -> tuple[float, float, list[np.ndarray] | None]:
     rng = np.random.default_rng(0)
     t, c = time.perf_counter(), time.process_time()
-    for name, corr in REGISTRY.items():
+    for name, corr in ((n, REGISTRY[n]) for n in NAMES):  # the 18: no depth here
         for level in range(1, corr.n_levels + 1):
             corrupt(x, name, level, rng)
     return time.perf_counter() - t, time.process_time() - c
@@ -57,7 +57,7 @@ def all_variants(x: np.ndarray) -> tuple[float, float, list[np.ndarray] | None]:
 def per_corruption(x: np.ndarray) -> dict[str, float]:
     rng = np.random.default_rng(0)
     out = {}
-    for name, corr in REGISTRY.items():
+    for name, corr in ((n, REGISTRY[n]) for n in NAMES):  # the 18: no depth here
         c = time.process_time()
         for level in range(1, corr.n_levels + 1):
             corrupt(x, name, level, rng)
@@ -67,7 +67,7 @@ def per_corruption(x: np.ndarray) -> dict[str, float]:
 
 def png_time(x: np.ndarray) -> float:
     rng = np.random.default_rng(0)
-    outs = [corrupt(x, name, 3, rng) for name in REGISTRY]
+    outs = [corrupt(x, name, 3, rng) for name in NAMES]
     c = time.process_time()
     for o in outs:
         encode_png(o, 1)

@@ -16,8 +16,8 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = ("corruptions.py", "png.py", "build.py", "stylize.py", "cluster.py", "gt.py", "evaluate.py",
-           "source_hash.py", "large.py", "severity.py", "predict.py", "torch_engine.py")
+SCRIPTS = ("corruptions.py", "depth.py", "png.py", "build.py", "stylize.py", "cluster.py", "gt.py",
+           "evaluate.py", "source_hash.py", "large.py", "severity.py", "predict.py", "torch_engine.py")
 
 
 def main() -> int:

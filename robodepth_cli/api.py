@@ -322,7 +322,8 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     from .corruptions.chains import looks_like_chain
 
     # benchmark order, levels ascending, then the chains by name
-    order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
+    order = [CLEAN, *ds.variant_names(), *ds.depth_variant_names(),
+             *sorted({v for v, _ in built if looks_like_chain(v)})]
     variants = sorted((vl for vl in built if vl[0] in order),
                       key=lambda vl: (order.index(vl[0]), vl[1] or 0))
     dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants))

@@ -36,6 +36,17 @@ CATEGORY: dict[str, str] = {
 CORRUPTIONS: tuple[str, ...] = tuple(CATEGORY)
 N_LEVELS = 5  # every corruption defines levels 1..5; a benchmark may use fewer
 
+# Corruptions beyond the benchmarks, made from the scene's depth as well as its image
+# (docs/depth-aware-corruptions.md). No benchmark, score or baseline includes them, and
+# 'all' never selects them: they need a depth map that not every input has.
+DEPTH_AWARE: dict[str, str] = {
+    "fog_3d": WEATHER, "near_focus": SENSOR, "far_focus": SENSOR, "motion_3d": SENSOR,
+    "zoom_3d": SENSOR,
+}
+ALL_CATEGORY: dict[str, str] = {**CATEGORY, **DEPTH_AWARE}
+"""Every corruption robodepth makes, the benchmarks' 18 first, with its category."""
+ALL_CORRUPTIONS: tuple[str, ...] = tuple(ALL_CATEGORY)
+
 
 @dataclass(frozen=True)
 class Baseline:

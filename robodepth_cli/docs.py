@@ -26,7 +26,7 @@ def _level_text(c, level: int) -> str:
 def corruption_table(markdown: bool = False) -> str:
     """Every corruption with its category and the parameters of each level."""
     head = ["#", "name", "category", "parameters", "level 1", "level 2", "level 3", "level 4", "level 5"]
-    rows = [[str(i), c.name, c.category, ", ".join(c.fields)]
+    rows = [[str(i), c.name, c.category + (", needs depth" if c.needs_depth else ""), ", ".join(c.fields)]
             + [_level_text(c, lv) if lv <= c.n_levels else "" for lv in range(1, 6)]
             for i, c in enumerate(REGISTRY.values(), 1)]
     if markdown:

@@ -16,13 +16,15 @@ _PAD = 4
 
 
 def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
-                  seed: int = 0, key: str = "image", thumb_width: int = 320) -> Image.Image:
+                  seed: int = 0, key: str = "image", thumb_width: int = 320,
+                  depth=None) -> Image.Image:
     """One row per corruption or chain (label, then one cell per level) under a first row
     holding the clean image. Cells are the corrupted images scaled to ``thumb_width`` pixels
     wide. A chain's steps written without a level take the column's level
     (``fog+gaussian_noise``); the others keep theirs. A chain whose steps all have their
     level (``fog:3+gaussian_noise:2.5``) is the same image in every column, so it is drawn
-    once, in the first column, labelled "fixed levels"."""
+    once, in the first column, labelled "fixed levels". ``depth`` (metres) is the scene's,
+    for the depth-aware corruptions."""
     names, levels = list(names), list(levels)
     h, w = clean.shape[:2]
     tw = min(thumb_width, w)
@@ -56,9 +58,9 @@ def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
                 break
             if chained:
                 out = render(clean, expand_chain(name, [level])[0].text, None,
-                             seed=seed, dataset="preview", key=key)
+                             seed=seed, dataset="preview", key=key, depth=depth)
             elif level <= REGISTRY[name].n_levels:
-                out = render(clean, name, level, seed=seed, dataset="preview", key=key)
+                out = render(clean, name, level, seed=seed, dataset="preview", key=key, depth=depth)
             else:
                 continue
             sheet.paste(thumb(out), (label_w + j * (tw + _PAD) + _PAD, y))

@@ -88,9 +88,19 @@ class _ProcessGenerator:
 def _check(name: str, level) -> tuple[str, int | float]:
     try:
         c = corruptions.get(name)
-        return c.name, corruptions.check_level(c, level)
+        checked = c.name, corruptions.check_level(c, level)
     except (InvalidValueError, LevelError) as exc:
         raise TorchAPIError(str(exc)) from None
+    _no_depth(name)
+    return checked
+
+
+def _no_depth(variant: str) -> None:
+    """The transforms see images only: a depth-aware corruption is refused up front."""
+    if corruptions.needs_depth(variant):
+        raise TorchAPIError(f"{variant}: needs the scene's depth, which the transforms do not "
+                            f"take; call robodepth_cli.corruptions.corrupt(image, name, level, "
+                            f"rng, depth=...)")
 
 
 # --- transforms ----------------------------------------------------------------------------
@@ -128,6 +138,7 @@ class Corrupt:
                 self.chain = parse_chain(name)
             except ChainError as exc:
                 raise TorchAPIError(str(exc)) from None
+            _no_depth(self.chain.text)
             self.name, self.level = self.chain.text, None
         else:
             self.chain = None

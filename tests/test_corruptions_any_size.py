@@ -243,12 +243,27 @@ def test_frost_texture_scaled_up_for_a_large_image():
 
 # --- every corruption at every size: shape, range, and once at 1024 x 2048 ------------
 
+def scene_depth(name: str, size) -> np.ndarray | None:
+    """A depth for the depth-aware corruptions (None for the 18): a road-like ramp from
+    60 m at the top to 3 m at the bottom, with a box at 5 m."""
+    if not REGISTRY[name].needs_depth:
+        return None
+    h, w = size
+    d = np.repeat(np.linspace(60.0, 3.0, h)[:, None], w, axis=1)
+    d[h // 3: h // 2, w // 4: w // 2] = 5.0
+    return d
+
+
 @pytest.mark.parametrize("size", [SMALL, KITTI], ids=lambda s: f"{s[0]}x{s[1]}")
 @pytest.mark.parametrize("name", list(REGISTRY))
 def test_every_corruption_every_level(name, size):
     clean = photo(size)
     for level in range(1, REGISTRY[name].n_levels + 1):
-        out = corrupt(clean, name, level, np.random.default_rng(level))
+        out = corrupt(clean, name, level, np.random.default_rng(level), depth=scene_depth(name, size))
+        if name in ("near_focus", "far_focus") and REGISTRY[name].params(level)["radius_px"] * size[1] / 640 <= 0.5:
+            # the lens's radius scales with the width: up to half a pixel, no blur at all
+            np.testing.assert_array_equal(out, clean)
+            continue
         assert_sane(out, clean, f"{name} {level} at {size}")
 
 
@@ -265,5 +280,5 @@ def test_the_smallest_image():
     clean = photo((32, 32))
     for name in REGISTRY:
         for level in (1, REGISTRY[name].n_levels):
-            out = corrupt(clean, name, level, np.random.default_rng(0))
+            out = corrupt(clean, name, level, np.random.default_rng(0), depth=scene_depth(name, (32, 32)))
             assert out.shape == (32, 32, 3) and out.dtype == np.uint8

@@ -556,3 +556,16 @@ def test_benchmark_is_inferred_from_the_rows(tmp_path, cli):
     styles = write(tmp_path, "corruption,level,dee\nclean,0,0.1\ncartoon,0,0.3\n", "s.csv")
     res = cli("score", styles)
     assert res.exit_code == 2 and "KITTI-S results" in res.output
+
+
+def test_depth_aware_rows_are_severity_curves_beyond_the_benchmark(tmp_path, cli):
+    # fog_3d has no baseline: its DEE by level is reported apart; mCE is fog's alone
+    text = dee_csv(0.1, {"fog": 0.2}, 5) + "fog_3d,1,0.15\nfog_3d,4,0.3\nfog_3d:2+contrast:1,0,0.25\n"
+    result = cli("score", write(tmp_path, text), "-b", "kitti-c", "--allow-partial", "--json")
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["beyond_benchmark"]["severity_curves"]["fog_3d"] == {"1": 0.15, "4": 0.3}
+    assert doc["beyond_benchmark"]["chains"] == {"fog_3d:2+contrast:1": 0.25}
+    assert doc["mce"] == pytest.approx(100 * 0.2 / 0.155)  # fog's baseline DEE is .155
+    bad = write(tmp_path, text + "fog_3d,6,0.4\n", "bad.csv")
+    assert "level 6 of fog_3d is outside 1..5" in cli("score", bad, "-b", "kitti-c", "--allow-partial").output

@@ -126,13 +126,15 @@ def _names(loc: str, v) -> list:
 
 
 def choose_names(loc: str, v, valid: tuple[str, ...], noun: str, *, owner: str = "",
-                 known: tuple[str, ...] = ()) -> tuple[str, ...]:
+                 known: tuple[str, ...] = (), extra: tuple[str, ...] = ()) -> tuple[str, ...]:
     """The names ``v`` selects from ``valid`` (``all``, a list, or comma-separated text),
     in the given order without repeats; :class:`ConfigError` naming ``loc`` otherwise.
-    A name in ``known`` but not in ``valid`` is refused as one that ``owner`` lacks."""
+    A name in ``known`` but not in ``valid`` is refused as one that ``owner`` lacks.
+    Names in ``extra`` may be listed but ``all`` does not select them."""
     if v == ALL:
         return valid
     v = _names(loc, v)
+    valid = valid + tuple(n for n in extra if n not in valid)
     for name in v:
         if name in valid:
             continue
@@ -316,12 +318,12 @@ class _Resolver:
         if key == ds.variant_key and v == NONE and ds.leveled:
             return ()  # only chains
         if key == "compose":
-            return choose_chains(loc, v, ds.n_levels, ds.variant_names(), ds.name)
+            return choose_chains(loc, v, ds.n_levels, ds.variant_names() + ds.depth_variant_names(), ds.name)
         if key == "train":
             return check_train(loc, v, ds)
         if key == ds.variant_key:
             return choose_names(loc, v, ds.variant_names(), ds.variant_noun, owner=ds.name,
-                                known=ds.known_variant_names())
+                                known=ds.known_variant_names(), extra=ds.depth_variant_names())
         if key == "levels":
             # A dataset without levels accepts the key and ignores it.
             return choose_levels(loc, v, ds.levels() if ds.leveled else None, owner=ds.name)

@@ -165,7 +165,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
     png = buildchecks.png_method(out, cfg.png, previous)
     check_png(png)
-    renderer = make_renderer(ds, cfg)
+    renderer = make_renderer(ds, cfg, root, split.get("path"))
     out = prepare_out(out)
     with manifest.BuildLock(out):
         claim_out(out)
@@ -190,7 +190,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         keys = buildchecks.built_keys(plans)
         split = {**split, "images": len(keys), "keys": keys}
         record = start_record(cfg, ds, root, out, split, executor, command, plans, png,
-                              orientation_record(ds, sources))
+                              orientation_record(ds, sources), getattr(renderer, "depth", None))
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1, png=png)
         summary = run_tasks(tasks, ctx, executor, out, progress)
@@ -215,11 +215,11 @@ def _warn_above_cpus(workers: int, jobs: int) -> None:
               f"(--jobs auto: one per CPU)", file=sys.stderr)
 
 
-def make_renderer(ds: Dataset, cfg: BuildConfig) -> Renderer:
-    """The dataset's renderer; it may check the user's files (KITTI-S loads and validates
-    the checkpoints and style images, refusing bad ones with their own errors), which is
-    why this runs before OUT is touched."""
-    return ds.renderer(cfg)
+def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None) -> Renderer:
+    """The renderer, with the depth source a variant needs; it may refuse files (KITTI-S's), so before OUT."""
+    from ..sources.scenedepth import depth_for
+
+    return ds.renderer(cfg, depth_for(ds, cfg.variants, root, split_path))
 
 
 def prepare_out(out: Path) -> Path:
@@ -320,12 +320,12 @@ def _same_source(row: Row, src: Source) -> bool:
 def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: dict,
                  executor: Executor, command: list[str] | None,
                  plans: list[dict] | None = None, png: str = "fast",
-                 exif_orientation: dict | None = None) -> BuildRecord:
+                 exif_orientation: dict | None = None, depth=None) -> BuildRecord:
     """Write the build record of a build that starts now (status ``running``) and return it.
     ``split`` is :func:`gather_sources`' account of the sources (``keys``: the entries
     built, in order); ``plans`` every request made
     into this OUT so far (see :mod:`robodepth_cli.building.checks`), which verify checks;
-    ``png`` how the PNGs are written."""
+    ``png`` how the PNGs are written; ``depth`` the depth source of the depth-aware variants."""
     record = BuildRecord(
         robodepth=__version__, command=command or [], dataset=ds.name,
         config=cfg.as_dict(), seed=cfg.seed, root=str(root), out=str(out.resolve()),
@@ -333,7 +333,7 @@ def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: di
         versions=library_versions(ds), png_compress_level=PNG_COMPRESS_LEVEL,
         png=png, png_encoder=PNG_ENCODERS[png], executor=executor.describe(),
         started=build_record.now(), finished=None, status="running",
-        exif_orientation=exif_orientation,
+        exif_orientation=exif_orientation, depth=depth.describe() if depth else None,
     )
     try:
         build_record.write_record(out, record)

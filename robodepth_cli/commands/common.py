@@ -30,11 +30,14 @@ def on_interrupt(kept: str) -> None:
 
 
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
-    """The corruptions ``value`` selects ('all', a name or a comma list), in order."""
-    from ..benchmarks import CORRUPTIONS
-    from ..building.config import choose_names
+    """The corruptions ``value`` selects ('all': the benchmarks' 18; a name or a comma list
+    of any, the depth-aware ones included), in order."""
+    from ..benchmarks import ALL_CORRUPTIONS, CORRUPTIONS
+    from ..building.config import ALL, choose_names
 
-    return list(choose_names(flag, value, CORRUPTIONS, "corruption"))
+    if value == ALL:
+        return list(CORRUPTIONS)
+    return list(choose_names(flag, value, ALL_CORRUPTIONS, "corruption"))
 
 
 def levels(value: str, flag: str = "--level") -> list:

@@ -15,7 +15,8 @@ from . import common
 @click.option("--format", "fmt", type=click.Choice(["text", "markdown", "json"]), default="text",
               show_default=True, help="Plain table, the Markdown table of docs/corruptions.md, or JSON.")
 def list_command(fmt):
-    """List the 18 corruptions with their category and per-level parameters."""
+    """List the corruptions (the benchmarks' 18, then those that also need the scene's
+    depth) with their category and per-level parameters."""
     from ..corruptions import REGISTRY
     from ..docs import corruption_table
 
@@ -24,6 +25,7 @@ def list_command(fmt):
 
         click.echo(json.dumps([
             {"name": c.name, "category": c.category, "deterministic": c.deterministic,
+             "needs_depth": c.needs_depth,
              "levels": [c.params(lv) for lv in range(1, c.n_levels + 1)],
              "between_levels": dict(zip(c.fields, c.rules)), "formula": c.doc}
             for c in REGISTRY.values()], indent=2))
@@ -45,7 +47,12 @@ def list_command(fmt):
 @click.option("--out", "-o", required=True, type=click.Path(),
               help="Output .png for one image; otherwise (or ending with /) a directory "
                    "receiving NAME/LEVEL.png and CHAIN.png (e.g. fog-3+gaussian_noise-2.5.png).")
-def corrupt_command(image, corruption, level, seed, size, out):
+@click.option("--depth", "depth_file", type=click.Path(dir_okay=False), metavar="FILE",
+              help="The scene's depth, which fog_3d, near_focus, far_focus, motion_3d and zoom_3d "
+                   "need: a .npy of metres or a 16-bit PNG (with --depth-scale).")
+@click.option("--depth-scale", type=float, metavar="S",
+              help="A 16-bit depth PNG's value per metre: 256 for KITTI, 1000 for millimetres (NYU).")
+def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth_scale):
     """Corrupt one image (its EXIF orientation applied first).
 
     \b
@@ -53,6 +60,7 @@ def corrupt_command(image, corruption, level, seed, size, out):
     robodepth corrupt frame.png -c fog -l 1,1.5,2 --out out/      # out/fog/1.png ...
     robodepth corrupt frame.png -c fog:3+gaussian_noise:2.5 --out fog_noise.png
     robodepth corrupt frame.png -c all -l all --size 192x640 --out corrupted/
+    robodepth corrupt frame.png -c fog_3d -l 3 --depth depth.png --depth-scale 256 --out f.png
     """
     from ..corruptions import render
 
@@ -74,16 +82,40 @@ def corrupt_command(image, corruption, level, seed, size, out):
                 f"level (-c NAME -l N), or one chain, to write that file, or end the name with / "
                 f"to make it a directory")
     clean = common.load_input(image, size)
+    depth = _depth(depth_file, depth_scale, [v for _, v, _ in jobs], clean)
     key = Path(image).name
     if not single:
         common.on_interrupt(f"the images written so far are kept under {out}, each complete")
     for name, variant, lv in jobs:
-        img = render(clean, variant, lv, seed=seed, dataset="image", key=key)
+        img = render(clean, variant, lv, seed=seed, dataset="image", key=key, depth=depth)
         common.write_png(target if single else directory / name, img)
     if single:
         common.wrote(f"{target} ({common.hxw(*img.shape[:2])})")
     else:
         common.wrote(f"{len(jobs)} images under {out}")
+
+
+def _depth(path: str | None, scale: float | None, variants: list[str], clean: np.ndarray):
+    """The depth map of ``--depth`` (None without it), checked against the image; a
+    depth-aware corruption without one is refused before any work."""
+    from ..corruptions import needs_depth
+    from ..corruptions._depth import DepthError, scene_depth
+    from ..sources.depthfile import read_depth
+
+    if path is None:
+        if scale is not None:
+            raise RobodepthError("--depth-scale: is for a 16-bit --depth PNG, and no --depth was given")
+        aware = next((v for v in variants if needs_depth(v)), None)
+        if aware:
+            raise RobodepthError(f"--corruption {aware}: needs the scene's depth; give --depth FILE "
+                                 f"(.npy in metres, or a 16-bit PNG with --depth-scale)")
+        return None
+    depth = read_depth(path, scale)
+    try:
+        scene_depth(depth, clean.shape[:2])
+    except DepthError as exc:
+        raise RobodepthError(f"--depth {path}: {str(exc).removeprefix('depth: ')}") from None
+    return depth
 
 
 def _describe(items: list[str], level_list: list) -> str:
@@ -124,7 +156,12 @@ def _describe(items: list[str], level_list: list) -> str:
 @click.option("--seed", "-s", default=0, show_default=True, type=int, help="An integer >= 0.")
 @click.option("--thumb-width", default=320, show_default=True, type=click.IntRange(32, 2000),
               help="Width of each cell in pixels.")
-def preview_command(image, out, corruption, level, size, seed, thumb_width):
+@click.option("--depth", "depth_file", type=click.Path(dir_okay=False), metavar="FILE",
+              help="The scene's depth, which fog_3d, near_focus, far_focus, motion_3d and zoom_3d "
+                   "need: a .npy of metres or a 16-bit PNG (with --depth-scale).")
+@click.option("--depth-scale", type=float, metavar="S",
+              help="A 16-bit depth PNG's value per metre: 256 for KITTI, 1000 for millimetres (NYU).")
+def preview_command(image, out, corruption, level, size, seed, thumb_width, depth_file, depth_scale):
     """A labelled contact sheet: the clean image, then one row per corruption or chain and
     one column per level.
 
@@ -139,7 +176,8 @@ def preview_command(image, out, corruption, level, size, seed, thumb_width):
     level_list = common.levels(level, "--levels")
     rows = common.items(corruption, level_list)
     clean = common.load_input(image, size)
+    depth = _depth(depth_file, depth_scale, rows, clean)
     sheet = contact_sheet(clean, rows, level_list, seed=seed, key=Path(image).name,
-                          thumb_width=thumb_width)
+                          thumb_width=thumb_width, depth=depth)
     common.write_png(target, np.asarray(sheet))
     common.wrote(f"{target} ({common.hxw(sheet.height, sheet.width)})")

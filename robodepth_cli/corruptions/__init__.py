@@ -1,6 +1,8 @@
-"""The 18 corruptions of the RoboDepth benchmark, at any severity in [1, 5], alone or chained.
+"""The 18 corruptions of the RoboDepth benchmark and the depth-aware ones, at any severity
+in [1, 5], alone or chained.
 
-``REGISTRY`` maps each name, in benchmark order, to its :class:`Corruption` record (category,
+``REGISTRY`` maps each name, in benchmark order (the depth-aware ones last; ``NAMES`` is
+the benchmarks' 18, ``DEPTH_NAMES`` the others), to its :class:`Corruption` record (category,
 parameter table with its interpolation rules, function). :func:`corrupt` is the checked
 entry point; :func:`corrupt_chain` applies a :class:`~.chains.Chain`.
 
@@ -13,10 +15,11 @@ from __future__ import annotations
 
 import importlib
 
-from ..benchmarks import CATEGORIES, CATEGORY, DATA, SENSOR, WEATHER
+from ..benchmarks import ALL_CATEGORY, CATEGORIES, DATA, SENSOR, WEATHER
 from .severity import LevelError, level_text, parse_level
 
-_ENGINE = ("REGISTRY", "NAMES", "Corruption", "corrupt", "corrupt_chain", "render", "get", "check_level")
+_ENGINE = ("REGISTRY", "NAMES", "DEPTH_NAMES", "DepthError", "Corruption", "corrupt",
+           "corrupt_chain", "render", "get", "check_level", "needs_depth")
 
 __all__ = ["CATEGORIES", "WEATHER", "SENSOR", "DATA", "LevelError", "level_text", "parse_level",
            *_ENGINE]
@@ -25,7 +28,7 @@ __all__ = ["CATEGORIES", "WEATHER", "SENSOR", "DATA", "LevelError", "level_text"
 def __getattr__(name: str):
     if name in _ENGINE:
         return getattr(importlib.import_module("._engine", __name__), name)
-    if name in CATEGORY:  # a corruption's own module
+    if name in ALL_CATEGORY:  # a corruption's own module
         return importlib.import_module(f".{name}", __name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

@@ -10,8 +10,9 @@ import numpy as np
 
 from ..errors import InvalidValueError
 from ..imageio import as_rgb
+from ._depth import DepthError, scene_depth
 from .registry import Corruption, registry
-from .chains import Chain, looks_like_chain, parse_chain
+from .chains import Chain, expand_chain, looks_like_chain, parse_chain
 from .severity import parse_level
 
 # Importing a module registers its corruption(s).
@@ -19,17 +20,21 @@ from . import (  # noqa: F401  (imported for registration)
     brightness, dark, fog, frost, snow, contrast,
     defocus_blur, glass_blur, motion_blur, zoom_blur, elastic_transform, color_quant,
     gaussian_noise, impulse_noise, shot_noise, iso_noise, pixelate, jpeg_compression,
+    fog_3d, near_focus, far_focus, motion_3d, zoom_3d,
 )
 
 REGISTRY: dict[str, Corruption] = registry()
-NAMES: tuple[str, ...] = tuple(REGISTRY)
+NAMES: tuple[str, ...] = tuple(n for n, c in REGISTRY.items() if not c.needs_depth)
+"""The benchmarks' 18, which need only the image."""
+DEPTH_NAMES: tuple[str, ...] = tuple(n for n, c in REGISTRY.items() if c.needs_depth)
+"""The corruptions that also take the scene's depth."""
 
 def get(name: str) -> Corruption:
     """The registry record of ``name``; :class:`InvalidValueError` listing the valid names otherwise."""
     try:
         return REGISTRY[name]
     except (KeyError, TypeError):
-        raise InvalidValueError(f"unknown corruption {name!r}; valid: {', '.join(NAMES)}") from None
+        raise InvalidValueError(f"unknown corruption {name!r}; valid: {', '.join(REGISTRY)}") from None
 
 
 def check_level(corruption: Corruption, level) -> int | float:
@@ -38,27 +43,34 @@ def check_level(corruption: Corruption, level) -> int | float:
     return parse_level(level, top=corruption.n_levels, what=corruption.name)
 
 
-def corrupt(image: np.ndarray, name: str, level, rng: np.random.Generator) -> np.ndarray:
+def corrupt(image: np.ndarray, name: str, level, rng: np.random.Generator, depth=None) -> np.ndarray:
     """Apply corruption ``name`` at ``level`` (1..5, decimals allowed: see
     :mod:`.severity`) to ``image``.
 
     ``image`` is uint8 RGB H x W x 3 with H, W >= 32; grayscale and RGBA are converted.
     All randomness comes from ``rng`` (a ``numpy.random.Generator``). Returns a new uint8
     H x W x 3 array; the input is never modified.
+
+    ``depth`` is the scene's depth in metres (H x W; NaN, 0 or inf where missing), which a
+    depth-aware corruption needs (:class:`DepthError` without it) and the others ignore;
+    it is prepared by :func:`~._depth.scene_depth` (filled, sized to the image).
     """
     c = get(name)
     level = check_level(c, level)
     _check_rng(rng)
-    return _apply(c, as_rgb(image), level, rng)
+    image = as_rgb(image)
+    return _apply(c, image, level, rng, _depth_for(image, depth, (c,)))
 
 
-def corrupt_chain(image: np.ndarray, chain: Chain | str, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+def corrupt_chain(image: np.ndarray, chain: Chain | str, rngs: Sequence[np.random.Generator],
+                  depth=None) -> np.ndarray:
     """Apply the steps of ``chain`` (a :class:`~.chains.Chain` or its text) in order, step
     ``k`` drawing from ``rngs[k]`` (one generator per step:
     :func:`robodepth_cli.seeding.chain_rngs` gives the reproducible ones).
 
     Each step is exactly :func:`corrupt` of the previous step's output, so a chain of
-    deterministic steps equals applying them one after another."""
+    deterministic steps equals applying them one after another. Every depth-aware step
+    receives the same ``depth``: no step moves the scene's geometry."""
     if not isinstance(chain, Chain):
         chain = parse_chain(chain)
     rngs = list(rngs)
@@ -67,23 +79,46 @@ def corrupt_chain(image: np.ndarray, chain: Chain | str, rngs: Sequence[np.rando
     for rng in rngs:
         _check_rng(rng)
     out = as_rgb(image)
-    for step, rng in zip(chain.steps, rngs):
-        out = _apply(get(step.name), out, step.level, rng)
+    steps = [get(step.name) for step in chain.steps]
+    d = _depth_for(out, depth, steps, chain.text)
+    for step, c, rng in zip(chain.steps, steps, rngs):
+        out = _apply(c, out, step.level, rng, d)
     return out
 
 
-def render(clean: np.ndarray, variant: str, level, *, seed: int, dataset: str, key: str) -> np.ndarray:
+def render(clean: np.ndarray, variant: str, level, *, seed: int, dataset: str, key: str,
+           depth=None) -> np.ndarray:
     """The image of one job: corruption ``variant`` at ``level``, or, when ``variant`` is a
     chain (its text; ``level`` is then unused), that chain; every draw from the job's own
     generators (:func:`~robodepth_cli.seeding.job_rng`,
     :func:`~robodepth_cli.seeding.chain_rngs`). The one rule by which ``corrupt``,
-    ``preview``, a build and the torch transforms turn a job into pixels."""
+    ``preview``, a build and the torch transforms turn a job into pixels. ``depth`` as
+    :func:`corrupt` takes it."""
     from .. import seeding
 
     if looks_like_chain(variant):
         chain = parse_chain(variant)
-        return corrupt_chain(clean, chain, seeding.chain_rngs(seed, dataset, chain, key))
-    return corrupt(clean, variant, level, seeding.job_rng(seed, dataset, variant, level, key))
+        return corrupt_chain(clean, chain, seeding.chain_rngs(seed, dataset, chain, key), depth)
+    return corrupt(clean, variant, level, seeding.job_rng(seed, dataset, variant, level, key), depth)
+
+
+def needs_depth(variant: str) -> bool:
+    """Whether ``variant`` (a corruption's name, a chain's text or a chain template whose
+    steps lack levels) has a depth-aware step."""
+    names = expand_chain(variant, (1,))[0].names if looks_like_chain(variant) else (variant,)
+    return any(get(n).needs_depth for n in names)
+
+
+def _depth_for(image: np.ndarray, depth, steps, what: str = ""):
+    """The prepared depth when one of ``steps`` needs it (None otherwise); a depth-aware
+    step without a depth is refused."""
+    aware = [c.name for c in steps if c.needs_depth]
+    if not aware:
+        return None
+    if depth is None:
+        where = f"chain {what}: " if what else ""
+        raise DepthError(f"{where}{aware[0]} needs the scene's depth, and none was given")
+    return scene_depth(depth, image.shape[:2])
 
 
 def _check_rng(rng) -> None:
@@ -91,10 +126,10 @@ def _check_rng(rng) -> None:
         raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
 
 
-def _apply(c: Corruption, image: np.ndarray, level, rng: np.random.Generator) -> np.ndarray:
+def _apply(c: Corruption, image: np.ndarray, level, rng: np.random.Generator, depth) -> np.ndarray:
     x = image.view()
     x.flags.writeable = False  # corruption functions are pure: writing to the input fails loudly
-    out = c.fn(x, level, rng)
+    out = c.fn(x, depth, level, rng) if c.needs_depth else c.fn(x, level, rng)
     if out.dtype != np.uint8 or out.shape != x.shape:
         raise AssertionError(f"{c.name} returned {out.dtype} {out.shape} for {x.shape}")
     return out

@@ -36,7 +36,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from ..benchmarks import CATEGORY, CORRUPTIONS, N_LEVELS
+from ..benchmarks import ALL_CATEGORY, ALL_CORRUPTIONS, N_LEVELS
 from ..errors import RobodepthError
 from .severity import LevelError, level_text, parse_level
 
@@ -124,8 +124,8 @@ def expand_chain(text: str, levels, *, top: int = N_LEVELS, where: str = "") -> 
         if not m and not bare:
             raise fail(f"step {k} {part.strip()!r} is not NAME:LEVEL (e.g. 'fog:3')")
         name = (m or bare).group(1)
-        if name not in CATEGORY:
-            raise fail(f"step {k}: unknown corruption {name!r}; valid: {', '.join(CORRUPTIONS)}")
+        if name not in ALL_CATEGORY:
+            raise fail(f"step {k}: unknown corruption {name!r}; valid: {', '.join(ALL_CORRUPTIONS)}")
         if m:
             try:
                 steps.append((name, parse_level(m.group(2), top=top, what=f"step {k} ({name})")))

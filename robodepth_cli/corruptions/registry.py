@@ -1,6 +1,7 @@
 """The one registry of corruptions, shared by the CLI, the builder, the docs and the tests.
 
-Each corruption module defines a pure function ``name(x, level, rng) -> uint8 image`` and
+Each corruption module defines a pure function ``name(x, level, rng) -> uint8 image`` (a
+depth-aware one ``name(x, depth, level, rng)``, registered with ``depth=True``) and
 registers it with :func:`register`, declaring its parameter table (one entry per level,
 levels 1..5) and how each parameter is interpolated between levels (:mod:`.severity`). Its category and its place in every listing come from
 :mod:`robodepth_cli.benchmarks`, which names the corruptions that exist.
@@ -13,7 +14,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..benchmarks import CATEGORY, CORRUPTIONS, N_LEVELS
+from ..benchmarks import ALL_CATEGORY, ALL_CORRUPTIONS, N_LEVELS
 from .severity import LINEAR, RULES, interpolate
 
 CorruptionFn = Callable[[np.ndarray, int, np.random.Generator], np.ndarray]
@@ -29,6 +30,7 @@ class Corruption:
     deterministic: bool
     fn: CorruptionFn
     doc: str
+    needs_depth: bool = False  # fn(x, depth, level, rng): depth in metres, H x W float32
 
     @property
     def n_levels(self) -> int:
@@ -49,17 +51,18 @@ _REGISTRY: dict[str, Corruption] = {}
 
 
 def register(fields: Sequence[str], levels: Sequence, *, rules: Sequence[str] | None = None,
-             deterministic: bool = False):
+             deterministic: bool = False, depth: bool = False):
     """Decorator: add a corruption function to the registry under its own name, which must
-    be one of :data:`robodepth_cli.benchmarks.CORRUPTIONS`. ``rules`` names, per field, how
+    be one of :data:`robodepth_cli.benchmarks.ALL_CORRUPTIONS`; ``depth`` marks one that
+    takes the scene's depth (:data:`~robodepth_cli.benchmarks.DEPTH_AWARE`). ``rules`` names, per field, how
     it is interpolated between integer levels (default: all ``linear``); the function
     itself applies them (through :func:`~.severity.interpolate`)."""
     rules = tuple(rules) if rules is not None else (LINEAR,) * len(fields)
 
     def decorate(fn: CorruptionFn) -> CorruptionFn:
         name = fn.__name__
-        if name not in CATEGORY:
-            raise ValueError(f"{name!r} is not a benchmark corruption")
+        if name not in ALL_CATEGORY:
+            raise ValueError(f"{name!r} is not a known corruption")
         if len(levels) != N_LEVELS:
             raise ValueError(f"{name}: {len(levels)} parameter entries, expected one per level 1..{N_LEVELS}")
         if len(rules) != len(fields) or not set(rules) <= set(RULES):
@@ -68,13 +71,14 @@ def register(fields: Sequence[str], levels: Sequence, *, rules: Sequence[str] | 
             raise ValueError(f"{name!r} registered twice")
         _REGISTRY[name] = Corruption(
             name=name,
-            category=CATEGORY[name],
+            category=ALL_CATEGORY[name],
             fields=tuple(fields),
             levels=tuple(levels),
             rules=rules,
             deterministic=deterministic,
             fn=fn,
             doc=(fn.__doc__ or "").strip(),
+            needs_depth=depth,
         )
         return fn
 
@@ -82,6 +86,6 @@ def register(fields: Sequence[str], levels: Sequence, *, rules: Sequence[str] | 
 
 
 def registry() -> dict[str, Corruption]:
-    """All registered corruptions, in benchmark order."""
+    """All registered corruptions, in benchmark order, the depth-aware ones last."""
     # Benchmark order, whatever order the modules were imported in.
-    return {name: _REGISTRY[name] for name in CORRUPTIONS if name in _REGISTRY}
+    return {name: _REGISTRY[name] for name in ALL_CORRUPTIONS if name in _REGISTRY}

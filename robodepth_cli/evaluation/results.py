@@ -12,9 +12,9 @@ Results CSV
     [0, 1] (a value above 1 is almost surely the paper's DES1 = abs_rel - a1 + 1, which
     lacks the halving).
 
-    Rows beyond the benchmark are read too, and kept apart: a corruption at a decimal
-    level (``fog,2.5``) and a chain of corruptions (``fog:3+gaussian_noise:2.5``, level 0 or
-    empty), as ``robodepth evaluate`` writes them for such builds. mCE, mRR and mDEE stay
+    Rows beyond the benchmark are read too, and kept apart: a corruption at a decimal level
+    (``fog,2.5``) or a depth-aware one (``fog_3d,3``: no baseline), and a chain
+    (``fog:3+gaussian_noise:2.5``, level 0 or empty), as ``robodepth evaluate`` writes them. mCE, mRR and mDEE stay
     defined as the benchmark defines them, on its corruptions at its integer levels; the
     extra rows are reported as severity curves (DEE against the level, integer and decimal
     levels together) and chain DEE rows, in a section of their own. A file with such rows
@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from ..benchmarks import BENCHMARKS, CATEGORY, CLEAN, Baseline, Benchmark
+from ..benchmarks import BENCHMARKS, CATEGORY, CLEAN, DEPTH_AWARE, Baseline, Benchmark
 from ..errors import os_reason
 from .csvrows import ScoreError, data_rows, level as _level, normalise_name, number
 
@@ -134,7 +134,7 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
         if name == CLEAN:
             if level != 0:
                 raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
-        elif name not in benchmark.corruptions:
+        elif name not in benchmark.corruptions and name not in DEPTH_AWARE:
             if name in CATEGORY:
                 raise FitError(f"{where}: {name} is not a corruption of {benchmark.name}")
             raise FitError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
@@ -142,7 +142,7 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
         elif not 1 <= level <= benchmark.n_levels:
             raise FitError(f"{where}: level {level} of {name} is outside "
                              f"1..{benchmark.n_levels} for {benchmark.name}")
-        if isinstance(level, float):
+        if isinstance(level, float) or name in DEPTH_AWARE:  # a severity curve
             if (name, level) in seen:
                 raise ScoreError(f"{where}: duplicate row for {name} level {level} "
                                  f"(first on line {seen[name, level]})")
@@ -168,7 +168,7 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
         raise ScoreError(f"{source}: no corruption rows, only the clean one")
     return Results(source, clean, {n: dict(sorted(table[n].items()))
                                    for n in benchmark.corruptions if n in table},
-                   decimal={n: dict(sorted(decimal[n].items())) for n in benchmark.corruptions if n in decimal},
+                   decimal={n: dict(sorted(decimal[n].items())) for n in (*benchmark.corruptions, *DEPTH_AWARE) if n in decimal},
                    chains=dict(sorted(chains.items())))
 
 
@@ -182,7 +182,7 @@ def _chain(cells: Mapping[str, str], benchmark: Benchmark, where: str) -> str:
     except ChainError as exc:
         raise ScoreError(f"{where}: {exc}") from None
     for step in chain.steps:
-        if step.name not in benchmark.corruptions:
+        if step.name not in benchmark.corruptions and step.name not in DEPTH_AWARE:
             raise FitError(f"{where}: chain {chain.text}: {step.name} is not a corruption of {benchmark.name}")
     if cells["level"].strip() not in ("", "0", "0.0"):
         raise ScoreError(f"{where}: a chain's row has level 0 (its levels are in its name), "

@@ -63,6 +63,9 @@ class BuildRecord:
     # A custom build: {"applied": true, "turned": [the sources turned upright by their EXIF
     # orientation]}; absent for the presets (read as stored) and before orientation applied.
     exif_orientation: dict[str, Any] | None = None
+    # Where the depth-aware corruptions' depth came from ({"kind", "method", "version"});
+    # absent when the build has none.
+    depth: dict[str, Any] | None = None
     other: dict[str, Any] = field(default_factory=dict)  # keys this version does not know
 
     # ----------------------------------------------------------------------- reading
@@ -113,7 +116,7 @@ class BuildRecord:
 
     def to_dict(self) -> dict[str, Any]:
         data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "other"}
-        for optional in ("summary", "plans", "png", "exif_orientation"):  # absent, not null, when unset
+        for optional in ("summary", "plans", "png", "exif_orientation", "depth"):  # absent, not null, when unset
             if data[optional] is None:
                 del data[optional]
         return {**self.other, **data}

@@ -17,7 +17,7 @@ from typing import Iterator, Protocol, Sequence
 
 import numpy as np
 
-from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS
+from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, DEPTH_AWARE, N_LEVELS
 from ..errors import InvalidValueError, os_reason
 from ..imageio import ImageError
 # SOURCE_EXTS: tried in this order when a split names no extension.
@@ -179,23 +179,36 @@ def locate(root: Path, entry: Entry) -> tuple[str, Path]:
 
 
 class CorruptionRenderer:
-    """Applies the corruptions, each job with its own generator (see :mod:`.seeding`)."""
+    """Applies the corruptions, each job with its own generator (see :mod:`.seeding`);
+    the depth-aware ones get the source's depth from ``depth`` (a
+    :class:`~.scenedepth.DepthSource`), read once per source and only when a job needs it."""
 
-    def __init__(self, dataset: str, seed: int):
+    def __init__(self, dataset: str, seed: int, depth=None):
         self.dataset = dataset
         self.seed = seed
+        self.depth = depth
 
     def render(self, clean, key, jobs):
-        from ..corruptions import render
+        from ..corruptions import needs_depth, render
 
+        depth: object = None
         for job in jobs:
             try:
-                yield job, render(clean, job.variant, job.level, seed=self.seed, dataset=self.dataset, key=key)
+                if depth is None and self.depth is not None and needs_depth(job.variant):
+                    depth = self.depth.depth(key, clean.shape[:2])
+                yield job, render(clean, job.variant, job.level, seed=self.seed, dataset=self.dataset,
+                                  key=key, depth=depth)
             except Exception as exc:  # one broken variant must not sink the other outputs
                 yield job, exc
 
     def fingerprint(self, variant: str) -> str:
-        return ""  # a corruption's output depends only on the seed, the size and the source
+        # A corruption's output depends only on the seed, the size and the source, and a
+        # depth-aware one's on the depth source too.
+        if self.depth is None:
+            return ""
+        from ..corruptions import needs_depth
+
+        return self.depth.fingerprint if needs_depth(variant) else ""
 
 
 @dataclass(frozen=True)
@@ -221,7 +234,12 @@ class Dataset:
     def known_variant_names(self) -> tuple[str, ...]:
         """Every variant name of this kind, including those this dataset does not have (a
         message then says the dataset lacks it rather than that the name is unknown)."""
-        return CORRUPTIONS
+        return CORRUPTIONS + tuple(DEPTH_AWARE)
+
+    def depth_variant_names(self) -> tuple[str, ...]:
+        """The depth-aware corruptions this dataset can make (it has a depth source); never
+        part of ``all``."""
+        return tuple(DEPTH_AWARE) if self.leveled and not self.discovers_sources else ()
 
     def levels(self) -> tuple[int, ...]:
         """The levels this dataset has (none for a dataset without levels)."""
@@ -253,12 +271,16 @@ class Dataset:
             return engines.check_option(key, value)
         raise InvalidValueError(f"{self.name} has no option {key!r}")
 
-    def renderer(self, config) -> Renderer:
+    def renderer(self, config, depth=None) -> Renderer:
+        """The renderer of a build; ``depth`` the :meth:`depth_source` when the build has
+        depth-aware variants."""
+        numpy_engine = CorruptionRenderer(self.name, config.seed, depth)
         if config.extra.get("engine") == "torch":
             from .engines import TorchCorruptionRenderer
 
-            return TorchCorruptionRenderer(self.name, config.seed, config.extra["device"], config.jobs)
-        return CorruptionRenderer(self.name, config.seed)
+            return TorchCorruptionRenderer(self.name, config.seed, config.extra["device"], config.jobs,
+                                           numpy_engine)
+        return numpy_engine
 
     def libraries(self) -> tuple[str, ...]:
         """Distributions whose versions the build record keeps."""
@@ -293,7 +315,7 @@ class StyleDataset(Dataset):
 
         return check_option(key, value, base)
 
-    def renderer(self, config) -> Renderer:
+    def renderer(self, config, depth=None) -> Renderer:
         from ..styles.inputs import make_renderer
 
         return make_renderer(config)

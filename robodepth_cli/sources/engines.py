@@ -55,15 +55,23 @@ class TorchCorruptionRenderer:
     """The torch engine's renderer: one source image's jobs, each with the generators of
     :func:`robodepth_cli.corruptions.render`, on ``device``."""
 
-    def __init__(self, dataset: str, seed: int, device: str, jobs: int = 1):
+    def __init__(self, dataset: str, seed: int, device: str, jobs: int = 1, numpy_engine=None):
         self.dataset = dataset
+        # The depth-aware corruptions have no torch port: their jobs go to the numpy engine.
+        self.numpy_engine = numpy_engine
         self.seed = seed
         self.device = device
         # Several local workers share the cores: one torch thread each, as OpenCV gets.
         self.threads = 1 if jobs > 1 and device == "cpu" else None
 
     def render(self, clean, key, jobs):
-        from ..corruptions import torch_engine
+        from ..corruptions import needs_depth, torch_engine
+
+        jobs = list(jobs)
+        on_cpu = [job for job in jobs if needs_depth(job.variant)]
+        jobs = [job for job in jobs if not needs_depth(job.variant)]
+        if on_cpu:
+            yield from self.numpy_engine.render(clean, key, on_cpu)
 
         if self.threads:
             import torch
@@ -79,4 +87,6 @@ class TorchCorruptionRenderer:
                 yield job, exc
 
     def fingerprint(self, variant: str) -> str:
-        return TORCH_FINGERPRINT
+        from ..corruptions import needs_depth
+
+        return self.numpy_engine.fingerprint(variant) if needs_depth(variant) else TORCH_FINGERPRINT

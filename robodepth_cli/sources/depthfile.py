@@ -1,0 +1,39 @@
+"""One depth map from a file, in metres, for the depth-aware corruptions of ``corrupt`` and
+``preview`` (``--depth FILE``) and a build's scene depth: :func:`.depth_io.read_depth`, with
+the two flags' rules.
+
+- ``.npy``: a 2-D array of metres (float), read without pickles; ``--depth-scale`` is refused;
+- ``.png``: a 16-bit single-channel PNG whose values divided by ``--depth-scale`` are metres
+  (256 for KITTI's depth maps, 1000 for millimetres as NYU's ``sync_depth`` files).
+
+Zero, NaN and inf mark missing values and come back as NaN; the corruption fills them
+(docs/depth-aware-corruptions.md).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .depth_io import DepthError, read_depth as read_any
+
+
+class DepthFileError(DepthError):
+    """A depth file that cannot be read as metres."""
+
+
+def read_depth(path: str | Path, scale: float | None = None) -> np.ndarray:
+    """The depth map in ``path`` as float64 metres, NaN where missing.
+    :class:`DepthFileError` (or :class:`DepthError`) naming the file otherwise."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".npy" and scale is not None:
+        raise DepthFileError(f"{path}: --depth-scale is for 16-bit PNGs; a .npy holds metres")
+    if suffix == ".png" and scale is None:
+        raise DepthFileError(f"{path}: a 16-bit PNG needs --depth-scale (256 for KITTI, "
+                             f"1000 for millimetres)")
+    if suffix not in (".npy", ".png"):
+        raise DepthFileError(f"{path}: a depth map is a .npy of metres or a 16-bit .png "
+                             f"(with --depth-scale)")
+    return read_any(path, scale=scale).astype(np.float64)
