@@ -9,7 +9,7 @@ TORCH_INDEX ?=
 
 install:
 	$(PIP) install $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX) )torch==2.13.0
-	$(PIP) install -e '.[test,dask,models,figures]'
+	$(PIP) install -e '.[test,dask,models,figures,export]'
 	# Frost textures only: the package's own dependencies (opencv-python, ...) are not wanted.
 	$(PIP) install --no-deps imagecorruptions-imaug==1.1.5
 

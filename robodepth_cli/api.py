@@ -26,6 +26,7 @@ from typing import Sequence
 import numpy as np
 
 from .errors import InvalidValueError, RobodepthError, cannot_write
+from .export.layout import META as EXPORT_META, RECORD as EXPORT_RECORD
 from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir
 from .output.record import BuildRecord
 
@@ -48,6 +49,8 @@ class Variant:
     # The keys whose image of this variant the build did not make, each with the reason
     # (the manifest row's error, or "not built" when the build stopped before it).
     missing: dict[str, str] = field(default_factory=dict, compare=False)
+    # An export's files (robodepth export), read by their path in the build; None: a build.
+    store: object = field(default=None, compare=False, repr=False)
 
     @property
     def relpath(self) -> str:
@@ -78,11 +81,29 @@ class Variant:
         if missing not in ("raise", "skip"):
             raise ValueError(f"missing={missing!r}: expected 'raise' or 'skip'")
         base = self.root / self.relpath
+        if self.store is not None:
+            raise DatasetError(f"{self.root}: an export keeps its images inside its shards, not "
+                               "as files; variant.read(i) gives image i as an array")
         if self.missing and missing == "raise":
             raise DatasetError(f"{base}: {_failed_text(self.missing, len(self.keys))}; rerun the "
                                f"build command to make them, or use images(missing='skip') for "
                                f"the {len(self.keys) - len(self.missing)} that exist")
         return [base / key for key in self.keys if key not in self.missing]
+
+    def read(self, i: int) -> np.ndarray:
+        """Image ``i`` of the split (H x W x 3 uint8), from a build's file or an export's
+        shard (the same bytes, so the same pixels); :class:`DatasetError` for an image the
+        build did not make."""
+        import io
+
+        from .imageio import read_rgb
+
+        key = self.keys[i]
+        if key in self.missing:
+            raise DatasetError(f"{self.root / self.relpath / key}: {self.missing[key]}")
+        if self.store is None:
+            return np.asarray(read_rgb(self.root / self.relpath / key))
+        return np.asarray(read_rgb(io.BytesIO(self.store.read(f"{self.relpath}/{key}"))))
 
     def prediction_file(self, pred: str | os.PathLike) -> Path:
         """Where :meth:`save_predictions` writes: ``PRED/<relpath>.npy``."""
@@ -205,13 +226,14 @@ class BuiltDataset:
 
     def __init__(self, path: Path, record: BuildRecord, keys: tuple[str, ...],
                  variants: Sequence[tuple[str, int | None]],
-                 missing: dict[tuple, dict[str, str]] | None = None):
+                 missing: dict[tuple, dict[str, str]] | None = None, store=None):
         self.path = path
+        self.store = store  # an export's files (robodepth export); None for a build
         self.record = record
         self.name: str = record.dataset
         self.keys = keys
         missing = missing or {}
-        self._variants = tuple(Variant(path, v, lv, keys, missing.get((v, lv), {}))
+        self._variants = tuple(Variant(path, v, lv, keys, missing.get((v, lv), {}), store)
                                for v, lv in variants)
 
     def __repr__(self) -> str:
@@ -267,13 +289,16 @@ class BuiltDataset:
 
     def ground_truth(self) -> Path | None:
         """The build's own ground truth (``gt_depths.npz`` for KITTI datasets, ``gt/`` for
-        NYU), or None when it has none."""
+        NYU), or None when it has none; an export's, copied out of its shards."""
+        if self.store is not None:
+            return self.store.ground_truth()
         path = self.path / (GT_DIR if self.name == "nyudepth2-c" else GT_FILE)
         return path if path.exists() else None
 
 
 def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
-    """Open a dataset directory written by ``robodepth build``.
+    """Open a dataset directory written by ``robodepth build``, or its export (``robodepth
+    export``: the same variants and images, read from its shards with :meth:`Variant.read`).
 
     Reads ``build.json`` (the dataset and the split's image keys in order) and
     ``manifest.csv`` (which variants and levels were built, and which images failed).
@@ -290,8 +315,11 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     path = Path(path)
     if not path.is_dir():
         raise DatasetError(f"{path}: not a directory (expected a dataset made by robodepth build)")
-    record_path = path / RECORD
-    record = read_record(path)
+    meta, store = path, None
+    if (path / EXPORT_META / EXPORT_RECORD).is_file():
+        meta = path / EXPORT_META  # the build's own record and manifest, carried in the export
+    record_path = meta / RECORD
+    record = read_record(meta)
     if record is None:
         raise DatasetError(f"{path}: no {RECORD}; not a dataset made by robodepth build")
     if not isinstance(record.dataset, str):
@@ -302,7 +330,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
         raise DatasetError(f"{record_path}: {exc}") from None
     keys = _split_keys(record, record_path, ds)
     try:
-        rows = read_manifest(path)
+        rows = read_manifest(meta)
     except ManifestError as exc:
         raise DatasetError(str(exc)) from None
     if not rows:
@@ -314,7 +342,11 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
     variants = sorted((vl for vl in built if vl[0] in order),
                       key=lambda vl: (order.index(vl[0]), vl[1] or 0))
-    dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants))
+    if meta != path:
+        from .export.reader import ExportStore
+
+        store = ExportStore(path, keys, rows)
+    dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants), store)
     if dataset.failed and warn:
         import warnings
 

@@ -49,6 +49,8 @@ FORBIDDEN = {
     "building": {"commands", "cli", "evaluation", "torch", "models"},
     "models": {"building", "commands", "cli", "evaluation", "torch"},
     "api": {"building", "commands", "cli", "torch"},
+    # An export reads a finished build (api, output) and never runs, evaluates or judges one.
+    "export": {"building", "commands", "cli", "torch", "evaluation", "models", "styles"},
     # The transforms may read a held-out protocol file as a build checks it (building/config.py);
     # they never run a build.
     "torch": {"building.pipeline", "building.checks", "building.executors", "building.cluster",

@@ -229,10 +229,8 @@ class ImageFilesWriter:
         return False
 
 
-def _read_images(paths: Sequence[Path]) -> list[np.ndarray]:
-    from ..imageio import read_rgb
-
-    return [np.asarray(read_rgb(p)) for p in paths]
+def _read_images(variant: Variant, indices: range) -> list[np.ndarray]:
+    return [variant.read(i) for i in indices]
 
 
 def _same_size_runs(images: list[np.ndarray]):
@@ -269,15 +267,17 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     try:
         with ThreadPoolExecutor(1) as reader:
             for v in todo:
-                paths = v.images()
-                chunks = [paths[i:i + batch_size] for i in range(0, len(paths), batch_size)]
+                if v.missing:
+                    v.images()  # refuses, naming the images the build did not make
+                n = len(v)
+                chunks = [range(i, min(i + batch_size, n)) for i in range(0, n, batch_size)]
                 out_writer = (ImageFilesWriter(pred, v) if dataset.size is None
-                              else PredictionWriter(v.prediction_file(pred), len(paths)))
+                              else PredictionWriter(v.prediction_file(pred), n))
                 with out_writer as out:
-                    pending = reader.submit(_read_images, chunks[0]) if chunks else None
+                    pending = reader.submit(_read_images, v, chunks[0]) if chunks else None
                     for k in range(len(chunks)):
                         images = pending.result()
-                        pending = (reader.submit(_read_images, chunks[k + 1])
+                        pending = (reader.submit(_read_images, v, chunks[k + 1])
                                    if k + 1 < len(chunks) else None)
                         for batch in _same_size_runs(images):
                             maps = model.predict(batch)
