@@ -29,7 +29,7 @@ PKG = REPO / "robodepth_cli"
 ROOT = "robodepth_cli"
 
 HEAVY = {"numpy", "torch", "cv2", "PIL", "scipy", "skimage", "numba", "matplotlib", "transformers",
-         "dask", "distributed", "h5py", "joblib"}
+         "dask", "distributed", "h5py", "joblib", "pyarrow", "webdataset", "datasets"}
 
 # The basics every part may use; they import nothing of the package but each other.
 FOUNDATION = {"errors", "files", "keys", "values", "progress", "benchmarks"}
