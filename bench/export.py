@@ -4,13 +4,13 @@ against the tree, extrapolated to the full KITTI-C (697 sources, 63,427 PNGs).
 A KITTI-C build of N sources (copies of the two fixture frames, 192 x 640, all 18
 corruptions x 5 levels plus clean: 91 PNGs a source) is made once, then exported as a user
 runs it (``python -m robodepth_cli.cli export OUT --format F --to DIR``, a fresh
-interpreter each), with the default shard size (500 MB) and with 8 MB shards (many shards,
+interpreter each), with the default shard size (500 MB) and with 1 MB shards (many shards,
 more per-shard work). Peak memory is the export process's own maximum RSS (``wait4``).
 The straightforward alternative measured in the same run is ``tar cf`` of the tree (what
 one does to ship a folder: no hashing, no per-split files).
 
 Memory is bounded by one row group (64 images) of a parquet shard and one file of a tar
-shard, not by the dataset or the shard: the peak barely moves between 8 MB and 500 MB
+shard, not by the dataset or the shard: the peak barely moves between 1 MB and 500 MB
 shards, nor with N (``--sources``).
 
     python -m bench.export [--sources N] [--keep DIR]
@@ -73,7 +73,7 @@ def main(argv=None) -> int:
         print(f"tar cf of the tree (the alternative): {tar_wall:.2f} s, {tar_rss / 2**20:.0f} MiB "
               f"peak; full KITTI-C ~{tar_wall * scale:.0f} s")
         for fmt in FORMATS:
-            for shard in ("500MB", "8MB"):
+            for shard in ("500MB", "1MB"):
                 to = base / f"{fmt}-{shard}"
                 shutil.rmtree(to, ignore_errors=True)
                 wall, rss = timed([*py, "export", str(out), "--format", fmt, "--to", str(to),

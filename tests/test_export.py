@@ -260,6 +260,23 @@ def test_refusals(build, exports, tmp_path, cli):
     assert not list((tmp_path / "c" / "data").rglob("*.tar"))
 
 
+def test_a_build_with_failed_images_is_refused(tmp_path, cli):
+    from _trees import random_image, save
+
+    root = tmp_path / "root"
+    for i in range(2):
+        path = save(root / f"img{i}.png", random_image(40, 48, seed=i))
+    path.write_bytes(path.read_bytes()[:100])  # unreadable: the build fails it
+    out = tmp_path / "out"
+    assert cli("build", "custom", "--root", root, "--out", out, "--corruptions", "fog",
+               "--levels", "2").exit_code == 1
+    res = cli("export", out, "--format", "parquet", "--to", tmp_path / "x", "--no-progress")
+    assert res.exit_code == 2
+    assert res.output.startswith(f"robodepth: error: {out}: 1 of 2 images failed in the build (img1.png:")
+    assert "export a finished build" in res.output
+    assert not (tmp_path / "x").exists()
+
+
 def test_a_plain_build_imports_no_export_library(tmp_path):
     import subprocess
     import sys
@@ -276,3 +293,37 @@ def test_a_plain_build_imports_no_export_library(tmp_path):
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "[]"
+
+
+def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
+    """NYU's ground truth is a PNG per image: one ground_truth row each, keyed by its image,
+    and evaluate reads them back out of the shards."""
+    out = tmp_path / "NYU_C"
+    res = cli("build", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", FIXTURES / "nyu_split.txt",
+              "--out", out, "--corruptions", "dark", "--levels", "2", "--size", "48x64", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    gts = sorted((out / "gt").rglob("*.png"))
+    assert len(gts) == 2
+    module = tmp_path / "m.py"
+    module.write_text(MODEL)
+    results = []
+    for fmt in ("tree", "parquet", "webdataset"):
+        where = out if fmt == "tree" else tmp_path / fmt
+        if fmt != "tree":
+            res = cli("export", out, "--format", fmt, "--to", where, "--no-progress")
+            assert res.exit_code == 0, res.output
+            assert cli("verify", where).exit_code == 0
+        res = cli("predict", where, "-m", f"python:{module}:brightness", "--kind", "depth", "-o",
+                  tmp_path / f"P_{fmt}")
+        assert res.exit_code == 0, res.output
+        res = cli("evaluate", where, "--pred", tmp_path / f"P_{fmt}", "--out", tmp_path / f"{fmt}.csv")
+        assert res.exit_code == 0, res.output
+        results.append((tmp_path / f"{fmt}.csv").read_text())
+    assert results[0] == results[1] == results[2]
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(tmp_path / "parquet" / "data/ground_truth/test-00000-of-00001.parquet")
+    keys = json.loads((out / "build.json").read_text())["split"]["keys"]
+    assert table.column("key").to_pylist() == keys
+    by_path = dict(zip(table.column("path").to_pylist(), table.column("data").to_pylist()))
+    assert by_path == {p.relative_to(out).as_posix(): p.read_bytes() for p in gts}

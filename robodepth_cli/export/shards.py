@@ -75,8 +75,10 @@ def write_parquet(fh: BinaryIO, out: Path, shard: Shard, gt: bool, progress=None
     import pyarrow.parquet as pq
 
     schema = _schema(gt)
-    # PNG and npz bytes do not compress further: storing them as they are saves the time.
-    with pq.ParquetWriter(fh, schema, compression="none") as writer:
+    # PNG and npz bytes do not compress further, and no two are alike: stored as they are,
+    # without dictionaries or min/max statistics of the blobs (time spent for nothing).
+    with pq.ParquetWriter(fh, schema, compression="none", use_dictionary=False,
+                          write_statistics=["key", "variant", "level", "seed"]) as writer:
         batch: list[tuple[Item, bytes]] = []
         for pair in _payloads(out, shard):
             batch.append(pair)
