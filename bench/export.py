@@ -13,7 +13,7 @@ Memory is bounded by one row group (64 images) of a parquet shard and one file o
 shard, not by the dataset or the shard: the peak barely moves between 1 MB and 500 MB
 shards, nor with N (``--sources``).
 
-    python -m bench.export [--sources N] [--keep DIR]
+    python -m bench.export [--sources N] [--shard-sizes 500MB,1MB] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ def timed(cmd: list[str]) -> tuple[float, int]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sources", type=int, default=16, help="KITTI-C source images")
+    ap.add_argument("--shard-sizes", default="500MB,1MB", help="the --shard-size values timed")
     ap.add_argument("--keep", type=Path, help="work under this directory and keep it")
     args = ap.parse_args(argv)
     base = Path(args.keep or tempfile.mkdtemp(prefix="robodepth-bench-export-"))
@@ -73,7 +74,7 @@ def main(argv=None) -> int:
         print(f"tar cf of the tree (the alternative): {tar_wall:.2f} s, {tar_rss / 2**20:.0f} MiB "
               f"peak; full KITTI-C ~{tar_wall * scale:.0f} s")
         for fmt in FORMATS:
-            for shard in ("500MB", "1MB"):
+            for shard in args.shard_sizes.split(","):
                 to = base / f"{fmt}-{shard}"
                 shutil.rmtree(to, ignore_errors=True)
                 wall, rss = timed([*py, "export", str(out), "--format", fmt, "--to", str(to),

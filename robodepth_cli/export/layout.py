@@ -6,6 +6,7 @@
     DIR/data/<config>/<split>-00000-of-00002.parquet   (or .tar)
     DIR/robodepth/build.json, manifest.csv       the build's own, byte for byte
     DIR/robodepth/export.json                    the export record (:data:`RECORD`)
+    DIR/robodepth/.shards.jsonl                  the shards done, while an export runs
 
 A configuration per variant: ``clean``, each corruption, each style, each chain (its
 directory name), and ``ground_truth``; a split per level (``level_3``, ``level_2.5``), or
@@ -20,6 +21,7 @@ CARD = "README.md"
 DATA = "data"
 META = "robodepth"  # the folder with the build's record and manifest and the export record
 RECORD = "export.json"
+JOURNAL = ".shards.jsonl"  # in META: the shards written so far, while an export runs
 GT_CONFIG = "ground_truth"
 NO_LEVEL = "test"  # the split of a variant without levels
 FORMATS = {"parquet": "parquet", "webdataset": "tar"}  # format -> shard extension

@@ -1,9 +1,11 @@
 """The export driver: check everything first, then write the shards one by one.
 
-Each shard is written under a temporary name and renamed when whole, and the export
-record (``robodepth/export.json``) names the shards done with their sha256: a stopped
-export, run again with the same options, writes only the shards that are missing. The
-card is written last; ``status`` says ``finished`` then.
+Each shard is written under a temporary name and renamed when whole, and a line with its
+sha256 is appended to ``robodepth/.shards.jsonl`` (rewriting the export record after every
+shard would cost the square of their number): a stopped export, run again with the same
+options, writes only the shards that are missing. At the end the export record
+(``robodepth/export.json``) takes every shard's sha256, ``status`` says ``finished``, the
+card is written and the journal removed.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from pathlib import Path
 
 from ..files import atomic_output, check_writable, sha256_file, write_atomic
 from ..output.layout import MANIFEST, RECORD as BUILD_RECORD
-from .layout import CARD, DATA, FORMATS, GT_CONFIG, META, RECORD
+from .layout import CARD, DATA, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
 from .plan import ExportError, Shard, plan
 from .reader import read_export_record
 from .shards import WRITERS
@@ -84,8 +86,11 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
         if not same:
             raise ExportError(f"--to {to}: holds an export of another build or with other options "
                               "(--format, --shard-size); choose a new or empty folder")
-        for e, old in zip(entries, previous["shards"]):
-            e["sha256"], e["bytes"] = old.get("sha256"), old.get("bytes")
+        done = {e["file"]: e for e in previous["shards"] if e.get("sha256")}
+        done.update(_journal(to))
+        for e in entries:
+            if e["file"] in done:
+                e["sha256"], e["bytes"] = done[e["file"]]["sha256"], done[e["file"]]["bytes"]
     record = {**header, "robodepth": version, "status": "running", "shards": entries}
     try:
         write_atomic(to / META / MANIFEST, manifest)
@@ -110,7 +115,8 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
                     write(fh, out, shard, shard.config == GT_CONFIG, meter.update)
                     fh.flush()
                 e["sha256"], e["bytes"] = sha256_file(target), target.stat().st_size
-                _write_record(to, record)
+                with open(to / META / JOURNAL, "a", encoding="utf-8") as fh:
+                    fh.write(json.dumps({k: e[k] for k in ("file", "sha256", "bytes")}) + "\n")
             except OSError as exc:
                 raise ExportError(_cannot(target, exc)) from None
             summary.written += 1
@@ -127,8 +133,26 @@ def _finish(to: Path, dataset, record: dict, fmt: str, version: str) -> None:
     try:
         write_atomic(to / CARD, card(dataset.record, record["shards"], fmt, version).encode("utf-8"))
         _write_record(to, record)
+        (to / META / JOURNAL).unlink(missing_ok=True)
     except OSError as exc:
         raise ExportError(_cannot(to, exc)) from None
+
+
+def _journal(to: Path) -> dict[str, dict]:
+    """The shards a stopped export finished, by file: the journal's complete lines (a line
+    cut short by a kill is ignored; its shard is hashed again)."""
+    done = {}
+    try:
+        lines = (to / META / JOURNAL).read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        return done
+    for line in lines:
+        try:
+            entry = json.loads(line)
+            done[entry["file"]] = entry
+        except (ValueError, KeyError, TypeError):
+            continue
+    return done
 
 
 def _remove_strays(to: Path) -> None:
