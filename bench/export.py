@@ -71,6 +71,7 @@ def main(argv=None) -> int:
               f"({time.perf_counter() - t0:.1f} s)")
         scale = KITTI_FULL / args.sources
         tar_wall, tar_rss = timed(["tar", "cf", str(base / "tree.tar"), "-C", str(base), "KITTI_C"])
+        (base / "tree.tar").unlink()
         print(f"tar cf of the tree (the alternative): {tar_wall:.2f} s, {tar_rss / 2**20:.0f} MiB "
               f"peak; full KITTI-C ~{tar_wall * scale:.0f} s")
         for fmt in FORMATS:
