@@ -76,7 +76,8 @@ class Variant:
         (the default) raises :class:`DatasetError` saying how many and which, before any of
         them is read; ``missing="skip"`` leaves them out and gives the ones that exist (their
         predictions then cover only part of the split: :meth:`save_predictions` wants
-        every image). Rerunning the build command makes the missing ones.
+        every image). Rerunning the build command makes the missing ones. An export has no
+        image files: :class:`DatasetError`, pointing to :meth:`read`.
         """
         if missing not in ("raise", "skip"):
             raise ValueError(f"missing={missing!r}: expected 'raise' or 'skip'")
