@@ -94,6 +94,8 @@ def test_parquet_loads_with_datasets_pixel_for_pixel(build, exports, tmp_path, m
     assert (export / "data/fog/level_3-00001-of-00002.parquet").is_file()
     card = (export / "README.md").read_text()
     assert card.startswith("---\n") and "config_name: \"fog\"" in card and "kong2023robodepth" in card
+    assert "| 3 | fog | weather & lighting | t, d | 1.5, 2 |" in card and "| 1 | brightness" not in card
+    assert "Seed 0; levels [1, 3]; size 48x160 (HxW)" in card and "cc-by-nc-sa-3.0" in card
     manifest = _manifest(build)
     keys = json.loads((build / "build.json").read_text())["split"]["keys"]
     for (config, split), files in _variants(build).items():

@@ -29,6 +29,20 @@ def _source(dataset: str) -> tuple[str, str, str]:
     return SOURCE_TERMS["nyu" if dataset.startswith("nyu") else "custom"]
 
 
+def _parameters(variants: list[str]) -> list[str]:
+    """The section with the parameters of each level of the exported corruptions (a
+    chain's steps included), as ``robodepth list`` gives them; none for styles."""
+    from ..corruptions import REGISTRY
+    from ..docs import corruption_table
+
+    names = {step.split("-")[0] for v in variants for step in v.split("+")} & set(REGISTRY)
+    if not names:
+        return []
+    return ["## Corruption parameters", "", "Per level, as `robodepth list` states them "
+            "(the formulas: robodepth's docs/corruptions.md):", "",
+            corruption_table(markdown=True, names=names), ""]
+
+
 def card(record, shards: list[dict], fmt: str, version: str) -> str:
     """The card's text for an export of the build ``record`` made of ``shards`` (the
     export record's entries)."""
@@ -73,6 +87,7 @@ def card(record, shards: list[dict], fmt: str, version: str) -> str:
         "(`robodepth verify` checks an export against it).",
         f"- Command: `{' '.join(record.command)}`" if record.command else "",
         "",
+        *_parameters(variants),
         "## Licence to check",
         "",
         terms + " The corruptions add no terms of their own.",
