@@ -233,6 +233,37 @@ def test_resume_rewrites_only_the_missing_shard(build, exports, tmp_path, cli):
     assert _tree_bytes(export) == before  # the same shard, byte for byte
 
 
+def test_an_interrupted_export_keeps_whole_shards_and_resumes(build, exports, tmp_path, cli,
+                                                              monkeypatch):
+    from robodepth_cli.export import run
+
+    real = run.WRITERS["webdataset"]
+    calls = []
+
+    def stopping(fh, *args):
+        calls.append(1)
+        if len(calls) == 4:
+            fh.write(b"half a shard")
+            raise KeyboardInterrupt  # Ctrl-C in the middle of the fourth shard
+        return real(fh, *args)
+
+    monkeypatch.setitem(run.WRITERS, "webdataset", stopping)
+    export = tmp_path / "wds"
+    args = ("export", build, "--format", "webdataset", "--to", export, "--shard-size", "20kB",
+            "--no-progress")
+    res = cli(*args)
+    assert res.exit_code == 130
+    assert "robodepth: interrupted; finished shards are kept in" in res.output
+    files = sorted(p.name for p in (export / "data").rglob("*") if p.is_file())
+    assert len(files) == 3 and not any(f.endswith(".part") for f in files)
+    assert len((export / "robodepth/.shards.jsonl").read_text().splitlines()) == 3
+    monkeypatch.setitem(run.WRITERS, "webdataset", real)
+    res = cli(*args)
+    assert res.exit_code == 0 and "(8 written now)" in res.output, res.output
+    assert not (export / "robodepth/.shards.jsonl").exists()
+    assert _tree_bytes(export) == _tree_bytes(exports["webdataset"])
+
+
 def test_refusals(build, exports, tmp_path, cli):
     def refused(*args) -> str:
         res = cli("export", *args, "--no-progress")
