@@ -91,20 +91,28 @@ class Variant:
                                f"the {len(self.keys) - len(self.missing)} that exist")
         return [base / key for key in self.keys if key not in self.missing]
 
-    def read(self, i: int) -> np.ndarray:
-        """Image ``i`` of the split (H x W x 3 uint8), from a build's file or an export's
-        shard (the same bytes, so the same pixels); :class:`DatasetError` for an image the
+    def open(self, i: int):
+        """Image ``i``'s PNG as a binary file object (``Image.open`` takes it): a build's
+        file, or an export's bytes from its shard; :class:`DatasetError` for an image the
         build did not make."""
-        import io
-
-        from .imageio import read_rgb
-
         key = self.keys[i]
         if key in self.missing:
             raise DatasetError(f"{self.root / self.relpath / key}: {self.missing[key]}")
         if self.store is None:
-            return np.asarray(read_rgb(self.root / self.relpath / key))
-        return np.asarray(read_rgb(io.BytesIO(self.store.read(f"{self.relpath}/{key}"))))
+            return open(self.root / self.relpath / key, "rb")
+        import io
+
+        return io.BytesIO(self.store.read(f"{self.relpath}/{key}"))
+
+    def read(self, i: int) -> np.ndarray:
+        """Image ``i`` of the split, H x W x 3 uint8 (a build's file or an export's same
+        bytes: the same pixels), as :meth:`open` finds it."""
+        from .imageio import read_rgb
+
+        if self.store is None and self.keys[i] not in self.missing:
+            return np.asarray(read_rgb(self.root / self.relpath / self.keys[i]))  # errors name it
+        with self.open(i) as fh:
+            return np.asarray(read_rgb(fh))
 
     def prediction_file(self, pred: str | os.PathLike) -> Path:
         """Where :meth:`save_predictions` writes: ``PRED/<relpath>.npy``."""

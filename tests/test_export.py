@@ -182,6 +182,8 @@ def test_open_dataset_and_kittic_read_an_export_as_the_build(build, exports):
         for v, t in zip(ds.variants(), tree.variants()):
             for i in range(len(v)):
                 assert np.array_equal(v.read(i), t.read(i))
+                with v.open(i) as a, t.open(i) as b:
+                    assert a.read() == b.read()
         with pytest.raises(DatasetError, match="inside its shards"):
             ds.variants()[0].images()
         assert ds.ground_truth().read_bytes() == (build / "gt_depths.npz").read_bytes()
