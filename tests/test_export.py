@@ -175,7 +175,7 @@ def test_open_dataset_and_kittic_read_an_export_as_the_build(build, exports):
     from robodepth_cli.torch import KittiC
 
     tree = open_dataset(build)
-    for fmt, export in exports.items():
+    for export in exports.values():
         ds = open_dataset(export)
         assert ds.name == tree.name and ds.keys == tree.keys
         assert [(v.name, v.level) for v in ds.variants()] == [(v.name, v.level) for v in tree.variants()]
