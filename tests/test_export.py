@@ -184,7 +184,7 @@ def test_open_dataset_and_kittic_read_an_export_as_the_build(build, exports):
                 assert np.array_equal(v.read(i), t.read(i))
                 with v.open(i) as a, t.open(i) as b:
                     assert a.read() == b.read()
-        with pytest.raises(DatasetError, match="inside its shards"):
+        with pytest.raises(DatasetError, match="images are in shards; use variant.read"):
             ds.variants()[0].images()
         assert ds.ground_truth().read_bytes() == (build / "gt_depths.npz").read_bytes()
         a, b = KittiC(export, "fog", 3), KittiC(build, "fog", 3)

@@ -104,18 +104,12 @@ def plan(out: Path, dataset, rows: dict, shard_bytes: int) -> list[Shard]:
 
 
 def _ground_truth(out: Path, dataset, rows: dict) -> list[Item]:
-    """The build's ground-truth files as rows: ``gt_depths.npz`` (key "") or, per image,
-    ``gt/<depth name>`` (keyed by the image)."""
-    def item(path, key):
-        row = rows[path]
-        return Item(path, key, row.variant, None, row.seed, row.sha256, _size(out, path))
-
-    if GT_FILE in rows and not rows[GT_FILE].error:
-        return [item(GT_FILE, "")]
-    names = [f"{GT_DIR}/{n}" for n in dataset.depth_names()]
-    if names and all(n in rows and not rows[n].error for n in names):
-        return [item(n, k) for n, k in zip(names, dataset.keys)]
-    return []
+    """The build's ground-truth files as rows, every one the manifest lists as made:
+    ``gt_depths.npz`` (key "") or ``gt/<depth name>`` (keyed by its image, split order)."""
+    key_of = {f"{GT_DIR}/{n}": k for n, k in zip(dataset.depth_names(), dataset.keys)}
+    paths = [GT_FILE, *key_of, *sorted(p for p in rows if p.startswith(GT_DIR + "/") and p not in key_of)]
+    return [Item(p, key_of.get(p, ""), rows[p].variant, None, rows[p].seed, rows[p].sha256,
+                 _size(out, p)) for p in paths if p in rows and not rows[p].error]
 
 
 def _size(out: Path, path: str) -> int:
