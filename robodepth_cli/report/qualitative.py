@@ -49,6 +49,7 @@ def inverse_depth(pred: np.ndarray, kind: str) -> np.ndarray:
 def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, kind: str | None):
     """The figure entry (stem, title, caption, Figure) for ``report``'s page."""
     from ..evaluation.predictions import find_predictions
+    from ..imageio import read_rgb
     from .figures import qualitative_figure
 
     dataset = open_dataset(dataset_dir)
@@ -60,7 +61,7 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
     models = report.models[:len(preds)]
     images, rows = [], []
     for v in variants:
-        images.append(v.read(frame))
+        images.append(np.asarray(read_rgb(v.images()[frame])))
     for model, pred in zip(models, preds):
         row = []
         for v in variants:
