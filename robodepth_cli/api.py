@@ -18,6 +18,7 @@ it says which variants and levels the build has (a subset build has only its own
 
 from __future__ import annotations
 
+import io
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +27,8 @@ from typing import Sequence
 import numpy as np
 
 from .errors import InvalidValueError, RobodepthError, cannot_write
+from .export.layout import META as EXPORT_META, RECORD as EXPORT_RECORD
+from .export.reader import ExportStore
 from .output.layout import (CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, depth_gt_name, output_path,
                             variant_dir)
 from .output.record import BuildRecord
@@ -49,6 +52,7 @@ class Variant:
     # The keys whose image of this variant the build did not make, each with the reason
     # (the manifest row's error, or "not built" when the build stopped before it).
     missing: dict[str, str] = field(default_factory=dict, compare=False)
+    store: object = field(default=None, compare=False, repr=False)  # an export's; None: a build
 
     @property
     def relpath(self) -> str:
@@ -74,16 +78,35 @@ class Variant:
         (the default) raises :class:`DatasetError` saying how many and which, before any of
         them is read; ``missing="skip"`` leaves them out and gives the ones that exist (their
         predictions then cover only part of the split: :meth:`save_predictions` wants
-        every image). Rerunning the build command makes the missing ones.
+        every image). Rerunning the build command makes the missing ones. An export (no
+        files) raises :class:`DatasetError`: use :meth:`read` or :meth:`open`.
         """
         if missing not in ("raise", "skip"):
             raise ValueError(f"missing={missing!r}: expected 'raise' or 'skip'")
         base = self.root / self.relpath
+        if self.store is not None:
+            raise DatasetError(f"{self.root}: an export's images are in shards; use variant.read(i)")
         if self.missing and missing == "raise":
             raise DatasetError(f"{base}: {_failed_text(self.missing, len(self.keys))}; rerun the "
                                f"build command to make them, or use images(missing='skip') for "
                                f"the {len(self.keys) - len(self.missing)} that exist")
         return [base / key for key in self.keys if key not in self.missing]
+
+    def open(self, i: int):
+        """Image ``i``'s PNG as a binary file object, a build's file or an export's bytes
+        (:class:`DatasetError` for an image the build did not make)."""
+        if self.keys[i] in self.missing:
+            raise DatasetError(f"{self.root / self.relpath / self.keys[i]}: {self.missing[self.keys[i]]}")
+        if self.store is None:
+            return open(self.root / self.relpath / self.keys[i], "rb")
+        return io.BytesIO(self.store.read(f"{self.relpath}/{self.keys[i]}"))
+
+    def read(self, i: int) -> np.ndarray:
+        """Image ``i`` (H x W x 3 uint8) as :meth:`open` finds it: the same pixels either way."""
+        from .imageio import read_rgb
+
+        with self.open(i) as fh:  # a build's file by its path, so that errors name it
+            return np.asarray(read_rgb(fh if self.store else self.root / self.relpath / self.keys[i]))
 
     def prediction_file(self, pred: str | os.PathLike) -> Path:
         """Where :meth:`save_predictions` writes: ``PRED/<relpath>.npy``."""
@@ -206,13 +229,13 @@ class BuiltDataset:
 
     def __init__(self, path: Path, record: BuildRecord, keys: tuple[str, ...],
                  variants: Sequence[tuple[str, int | None]],
-                 missing: dict[tuple, dict[str, str]] | None = None):
-        self.path = path
+                 missing: dict[tuple, dict[str, str]] | None = None, store=None):
+        self.path, self.store = path, store  # store: an export's files; None for a build
         self.record = record
         self.name: str = record.dataset
         self.keys = keys
         missing = missing or {}
-        self._variants = tuple(Variant(path, v, lv, keys, missing.get((v, lv), {}))
+        self._variants = tuple(Variant(path, v, lv, keys, missing.get((v, lv), {}), store)
                                for v, lv in variants)
 
     def __repr__(self) -> str:
@@ -277,14 +300,18 @@ class BuiltDataset:
 
     def ground_truth(self) -> Path | None:
         """The build's own ground truth (``gt_depths.npz`` for KITTI datasets, ``gt/`` for
-        NYU and builds with depth), or None when it has none."""
+        NYU and builds with depth), or None when it has none; an export's, copied out of its
+        shards."""
+        if self.store:
+            return self.store.ground_truth()
         in_dir = self.name == "nyudepth2-c" or self._with_depth
         path = self.path / (GT_DIR if in_dir else GT_FILE)
         return path if path.exists() else None
 
 
 def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
-    """Open a dataset directory written by ``robodepth build``.
+    """Open a dataset directory written by ``robodepth build``, or its export (``robodepth
+    export``: the same variants, images read with :meth:`Variant.read`).
 
     Reads ``build.json`` (the dataset and the split's image keys in order) and
     ``manifest.csv`` (which variants and levels were built, and which images failed).
@@ -301,8 +328,10 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     path = Path(path)
     if not path.is_dir():
         raise DatasetError(f"{path}: not a directory (expected a dataset made by robodepth build)")
-    record_path = path / RECORD
-    record = read_record(path)
+    export = (path / EXPORT_META / EXPORT_RECORD).is_file()  # it carries the build's record
+    meta = path / EXPORT_META if export else path  # and manifest
+    record_path = meta / RECORD
+    record = read_record(meta)
     if record is None:
         raise DatasetError(f"{path}: no {RECORD}; not a dataset made by robodepth build")
     if not isinstance(record.dataset, str):
@@ -313,7 +342,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
         raise DatasetError(f"{record_path}: {exc}") from None
     keys = _split_keys(record, record_path, ds)
     try:
-        rows = read_manifest(path)
+        rows = read_manifest(meta)
     except ManifestError as exc:
         raise DatasetError(str(exc)) from None
     if not rows:
@@ -326,7 +355,8 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
              *sorted({v for v, _ in built if looks_like_chain(v)})]
     variants = sorted((vl for vl in built if vl[0] in order),
                       key=lambda vl: (order.index(vl[0]), vl[1] or 0))
-    dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants))
+    store = ExportStore(path, keys, rows) if export else None
+    dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants), store)
     if dataset.failed and warn:
         import warnings
 

@@ -80,6 +80,8 @@ def main():
     Build a dataset:
       robodepth build kitti-c --root KITTI_RAW --out KITTI_C
       robodepth verify KITTI_C
+    Share it as Hugging Face parquet (or WebDataset tar) shards:
+      robodepth export KITTI_C --format parquet --to KITTI_C_HF
     Run a model on every variant, evaluate it and score it:
       robodepth predict KITTI_C --model monodepth2:MODEL_DIR --out PRED
       robodepth evaluate KITTI_C --pred PRED --score

@@ -23,12 +23,13 @@ def _level_text(c, level: int) -> str:
     return ", ".join(_param_text(v) for v in c.params(level).values())
 
 
-def corruption_table(markdown: bool = False) -> str:
-    """Every corruption with its category and the parameters of each level."""
+def corruption_table(markdown: bool = False, names=None) -> str:
+    """Every corruption (or those ``names``) with its category and the parameters of each
+    level."""
     head = ["#", "name", "category", "parameters", "level 1", "level 2", "level 3", "level 4", "level 5"]
     rows = [[str(i), c.name, c.category + (", needs depth" if c.needs_depth else ""), ", ".join(c.fields)]
             + [_level_text(c, lv) if lv <= c.n_levels else "" for lv in range(1, 6)]
-            for i, c in enumerate(REGISTRY.values(), 1)]
+            for i, c in enumerate(REGISTRY.values(), 1) if names is None or c.name in names]
     if markdown:
         lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         lines += ["| " + " | ".join(r) + " |" for r in rows]

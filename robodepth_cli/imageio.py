@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
@@ -76,8 +77,9 @@ def _pil_to_rgb(im: Image.Image) -> Image.Image:
     return im.convert("RGB")
 
 
-def read_rgb(path: str | os.PathLike, *, orient: bool = False) -> Image.Image:
-    """Open an image file fully decoded as an RGB Pillow image, or raise ``ImageError``.
+def read_rgb(path: str | os.PathLike | BinaryIO, *, orient: bool = False) -> Image.Image:
+    """Open an image file (or a binary file object: an export's image) fully decoded as an
+    RGB Pillow image, or raise ``ImageError``.
 
     Grayscale, palette, RGBA and CMYK images are converted to RGB; 16-bit integer pixels
     keep their top 8 bits; float (mode F) pixels must lie in 0..1 and become
@@ -85,7 +87,7 @@ def read_rgb(path: str | os.PathLike, *, orient: bool = False) -> Image.Image:
     is applied first, so a phone photo comes out the way viewers show it (used for single
     images and custom builds; the benchmark sources carry no such tag and are read as stored).
     """
-    path = Path(path)
+    path = path if hasattr(path, "read") else Path(path)
     try:
         with Image.open(path) as im:
             im.load()

@@ -76,7 +76,9 @@ class KittiC(torch.utils.data.Dataset):
         self.level = self.corruption.level
         self.on_the_fly = bool(on_the_fly)
         self.transform = transform
-        self._gt_path = self.root / GT_FILE
+        # An export (robodepth export) is read from its shards, its ground truth copied out.
+        self._store = built.store
+        self._gt_path = self.root / GT_FILE if self._store is None else built.ground_truth()
         self._gt = None
         variant = next((v for v in built.variants() if v.relpath == self._relpath()), None)
         if variant is not None and variant.missing:
@@ -88,7 +90,8 @@ class KittiC(torch.utils.data.Dataset):
             self._index = [i for i, k in enumerate(self.keys) if k not in variant.missing]
             self.keys = [self.keys[i] for i in self._index]
         first = self._path(0) if self.keys else None
-        if first is not None and not first.is_file():
+        there = self._store.has if self._store is not None else lambda p: p.is_file()
+        if first is not None and not there(first if self._store is None else self._output(0)):
             what = ("clean" if self.on_the_fly else self.corruption.name if self.corruption.chain
                     else f"{self.corruption.name} level {self.level}")
             raise TorchAPIError(f"{first}: missing; was {what} "
@@ -102,15 +105,18 @@ class KittiC(torch.utils.data.Dataset):
             return variant_dir(self.corruption.chain.dirname, None)
         return variant_dir(self.corruption.name, self.level)
 
+    def _output(self, i: int) -> str:
+        return f"{self._relpath()}/{self.keys[i]}"
+
     def _path(self, i: int) -> Path:
-        return self.root / self._relpath() / self.keys[i]
+        return self.root / self._output(i)
 
     def __len__(self) -> int:
         return len(self.keys)
 
     def _depth(self, i: int):
         if self._gt is None:
-            if not self._gt_path.is_file():
+            if self._gt_path is None or not self._gt_path.is_file():
                 return None
             from .evaluation.groundtruth import read_depth_maps
 
@@ -123,7 +129,12 @@ class KittiC(torch.utils.data.Dataset):
             raise IndexError(i)
         from .imageio import read_rgb
 
-        img = np.asarray(read_rgb(self._path(i)))
+        if self._store is None:
+            img = np.asarray(read_rgb(self._path(i)))
+        else:
+            import io
+
+            img = np.asarray(read_rgb(io.BytesIO(self._store.read(self._output(i)))))
         if self.on_the_fly:
             img = self.corruption._apply(img, self.keys[i])
         item = {"key": self.keys[i]}

@@ -29,7 +29,7 @@ PKG = REPO / "robodepth_cli"
 ROOT = "robodepth_cli"
 
 HEAVY = {"numpy", "torch", "cv2", "PIL", "scipy", "skimage", "numba", "matplotlib", "transformers",
-         "dask", "distributed", "h5py", "joblib"}
+         "dask", "distributed", "h5py", "joblib", "pyarrow", "webdataset", "datasets"}
 
 # The basics every part may use; they import nothing of the package but each other.
 FOUNDATION = {"errors", "files", "keys", "values", "progress", "benchmarks"}
@@ -49,6 +49,8 @@ FORBIDDEN = {
     "building": {"commands", "cli", "evaluation", "torch", "models"},
     "models": {"building", "commands", "cli", "evaluation", "torch"},
     "api": {"building", "commands", "cli", "torch"},
+    # An export reads a finished build (api, output) and never runs, evaluates or judges one.
+    "export": {"building", "commands", "cli", "torch", "evaluation", "models", "styles"},
     # The transforms may read a held-out protocol file as a build checks it (building/config.py);
     # they never run a build.
     "torch": {"building.pipeline", "building.checks", "building.executors", "building.cluster",

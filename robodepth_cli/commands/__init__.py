@@ -12,6 +12,7 @@ from __future__ import annotations
 from .build import build_command, verify_command
 from .corrupt import corrupt_command, list_command, preview_command
 from .evaluate import evaluate_command
+from .export import export_command
 from .gt import gt_command
 from .predict import predict_command
 from .report import report_command
@@ -21,4 +22,4 @@ from .transfer import transfer_command
 
 COMMANDS = (list_command, corrupt_command, preview_command, build_command, verify_command,
             stylize_command, score_command, predict_command, evaluate_command, gt_command,
-            report_command, transfer_command)
+            report_command, transfer_command, export_command)

@@ -157,17 +157,26 @@ def _executor(cfg):
 def verify_command(out, progress):
     """Re-hash every file in OUT against OUT/manifest.csv and the build's plan.
 
+    OUT may be an export (robodepth export): every image in its shards is hashed against
+    the build's manifest it carries, and changed, missing or extra rows are named.
+
     Reports a build that did not finish (outputs its plan asks for that were never made),
     files that are missing, changed or extra (not in the manifest), and images the build
     recorded as failed, with the reason. Exit status 0 when everything matches, 1
     otherwise; 2 if OUT cannot be verified (no manifest, a damaged one, or a build writing
     there right now).
     """
+    from ..export.reader import is_export
     from ..output.verify import verify
     from ..progress import bar as progress_bar
 
     with progress_bar("file", progress=progress) as bar:
-        report = verify(out, progress=bar.update)
+        if is_export(out):  # robodepth export's folder: its shards against the carried manifest
+            from ..export.verify import verify_export
+
+            report = verify_export(out, progress=bar.update)
+        else:
+            report = verify(out, progress=bar.update)
     if report.incomplete():
         click.echo(report.incomplete())
     for kind in ("missing", "changed", "extra"):

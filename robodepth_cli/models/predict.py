@@ -137,25 +137,26 @@ def batch_limit(requested: int, image_size, input_size=None) -> int:
     return max(1, min(requested, BATCH_PIXELS // pixels))
 
 
-def _chunks(paths: Sequence[Path], batch_size: int, image_size, input_size) -> list[list[Path]]:
-    """``paths`` in batches of at most ``batch_size`` images and :data:`BATCH_PIXELS`
-    pixels; a build without one size reads each image's size from its header."""
+def _chunks(variant: Variant, batch_size: int, image_size, input_size) -> list[range]:
+    """The positions of ``variant``'s images in batches of at most ``batch_size`` images and
+    :data:`BATCH_PIXELS` pixels; a build without one size reads each image's size from its
+    header (a build's file or an export's bytes: :meth:`Variant.open`)."""
+    n = len(variant)
     if image_size is not None:
-        n = batch_limit(batch_size, image_size, input_size)
-        return [list(paths[i:i + n]) for i in range(0, len(paths), n)]
+        step = batch_limit(batch_size, image_size, input_size)
+        return [range(i, min(i + step, n)) for i in range(0, n, step)]
     from PIL import Image
 
     per_input = _pixels(input_size) or 0
-    chunks, current, held = [], [], 0
-    for p in paths:
-        with Image.open(p) as im:
+    chunks, start, held = [], 0, 0
+    for i in range(n):
+        with variant.open(i) as fh, Image.open(fh) as im:
             pixels = max(im.width * im.height, per_input)
-        if current and (len(current) == batch_size or held + pixels > BATCH_PIXELS):
-            chunks.append(current)
-            current, held = [], 0
-        current.append(p)
+        if i > start and (i - start == batch_size or held + pixels > BATCH_PIXELS):
+            chunks.append(range(start, i))
+            start, held = i, 0
         held += pixels
-    return chunks + ([current] if current else [])
+    return chunks + ([range(start, n)] if n > start else [])
 
 
 def check_outside(dataset: BuiltDataset, pred: Path) -> None:
@@ -298,10 +299,8 @@ class ImageFilesWriter:
         return False
 
 
-def _read_images(paths: Sequence[Path]) -> list[np.ndarray]:
-    from ..imageio import read_rgb
-
-    return [np.asarray(read_rgb(p)) for p in paths]
+def _read_images(variant: Variant, indices: range) -> list[np.ndarray]:
+    return [variant.read(i) for i in indices]
 
 
 def _same_size_runs(images: list[np.ndarray]):
@@ -339,15 +338,17 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     try:
         with ThreadPoolExecutor(1) as reader:
             for v in todo:
-                paths = v.images()
-                chunks = _chunks(paths, batch_size, dataset.size, model.input_size)
+                if v.missing:
+                    v.images()  # refuses, naming the images the build did not make
+                n = len(v)
+                chunks = _chunks(v, batch_size, dataset.size, model.input_size)
                 out_writer = (ImageFilesWriter(pred, v) if dataset.size is None
-                              else PredictionWriter(v.prediction_file(pred), len(paths)))
+                              else PredictionWriter(v.prediction_file(pred), n))
                 with out_writer as out:
-                    pending = reader.submit(_read_images, chunks[0]) if chunks else None
+                    pending = reader.submit(_read_images, v, chunks[0]) if chunks else None
                     for k in range(len(chunks)):
                         images = pending.result()
-                        pending = (reader.submit(_read_images, chunks[k + 1])
+                        pending = (reader.submit(_read_images, v, chunks[k + 1])
                                    if k + 1 < len(chunks) else None)
                         for batch in _same_size_runs(images):
                             maps = model.predict(batch)

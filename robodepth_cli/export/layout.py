@@ -1,0 +1,37 @@
+"""Every name an export writes into ``--to DIR`` (nothing else in the package spells them).
+
+::
+
+    DIR/README.md                                the dataset card (YAML header: configs)
+    DIR/data/<config>/<split>-00000-of-00002.parquet   (or .tar)
+    DIR/robodepth/build.json, manifest.csv       the build's own, byte for byte
+    DIR/robodepth/export.json                    the export record (:data:`RECORD`)
+    DIR/robodepth/.shards.jsonl                  the shards done, while an export runs
+
+A configuration per variant: ``clean``, each corruption, each style, each chain (its
+directory name), and ``ground_truth``; a split per level (``level_3``, ``level_2.5``), or
+``test`` for a variant without levels. The shards of a split hold its rows in split order.
+"""
+
+from __future__ import annotations
+
+from ..corruptions.severity import level_text
+
+CARD = "README.md"
+DATA = "data"
+META = "robodepth"  # the folder with the build's record and manifest and the export record
+RECORD = "export.json"
+JOURNAL = ".shards.jsonl"  # in META: the shards written so far, while an export runs
+GT_CONFIG = "ground_truth"
+NO_LEVEL = "test"  # the split of a variant without levels
+FORMATS = {"parquet": "parquet", "webdataset": "tar"}  # format -> shard extension
+
+
+def split_name(level) -> str:
+    """``level_3``, ``level_2.5``, or ``test`` (no level): the names the Hub accepts."""
+    return NO_LEVEL if level is None else f"level_{level_text(level)}"
+
+
+def shard_name(config: str, split: str, index: int, count: int, ext: str) -> str:
+    """``data/<config>/<split>-00000-of-00002.<ext>``, the Hub's sharded-file naming."""
+    return f"{DATA}/{config}/{split}-{index:05d}-of-{count:05d}.{ext}"

@@ -1,0 +1,120 @@
+"""What an export holds: the rows of each configuration and split, cut into shards.
+
+The plan is made from the build's manifest and the sizes of its files alone, so the same
+build and ``--shard-size`` always give the same shards: a stopped export resumes by
+writing the shards that are not there yet.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import InvalidValueError, RobodepthError
+from ..output.layout import GT_DIR, GT_FILE, output_path
+from .layout import GT_CONFIG, NO_LEVEL, shard_name, split_name
+
+DEFAULT_SHARD_SIZE = 500_000_000
+_UNITS = {"": 1, "b": 1, "kb": 10 ** 3, "mb": 10 ** 6, "gb": 10 ** 9}
+
+
+class ExportError(RobodepthError):
+    """A build that cannot be exported, or an export that cannot be written or read."""
+
+
+def parse_size(text: str) -> int:
+    """``500MB``, ``2GB``, ``64kB``, ``1000`` (bytes; decimal units) -> bytes."""
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([a-zA-Z]*)\s*", str(text))
+    unit = m and m.group(2).lower()
+    if not m or unit not in _UNITS:
+        raise InvalidValueError(f"{text!r}: expected a size such as 500MB, 2GB or 64kB")
+    size = int(float(m.group(1)) * _UNITS[unit])
+    if size < 1:
+        raise InvalidValueError(f"{text!r}: must be at least 1 byte")
+    return size
+
+
+@dataclass(frozen=True)
+class Item:
+    """One row of an export: one file of the build."""
+
+    output: str  # its path in the build (and the row's image path)
+    key: str  # the split's image key ("" for KITTI's one ground-truth file)
+    variant: str
+    level: int | float | None
+    seed: int
+    sha256: str  # the manifest's
+    size: int  # bytes
+
+
+@dataclass
+class Shard:
+    config: str
+    split: str
+    index: int
+    count: int  # shards of this split
+    start: int  # the position in the split of its first row
+    items: list[Item] = field(default_factory=list)
+
+    def name(self, ext: str) -> str:
+        return shard_name(self.config, self.split, self.index, self.count, ext)
+
+    @property
+    def size(self) -> int:
+        return sum(i.size for i in self.items)
+
+
+def config_name(variant) -> str:
+    """The configuration of a :class:`~robodepth_cli.api.Variant`: its name, or a chain's
+    directory name (a chain's text holds ``:``)."""
+    return variant.relpath.split("/")[0]
+
+
+def plan(out: Path, dataset, rows: dict, shard_bytes: int) -> list[Shard]:
+    """Every shard of the export of ``dataset`` (an opened build at ``out``), variants in
+    the build's order, then the ground truth; ``rows``: the manifest's rows."""
+    groups: list[tuple[str, str, list[Item]]] = []
+    for v in dataset.variants():
+        items = []
+        for key in v.keys:
+            path = output_path(v.name, v.level, key)
+            row = rows[path]
+            items.append(Item(path, key, v.name, v.level, row.seed, row.sha256, _size(out, path)))
+        groups.append((config_name(v), split_name(v.level), items))
+    truth = _ground_truth(out, dataset, rows)
+    if truth:
+        groups.append((GT_CONFIG, NO_LEVEL, truth))
+    shards = []
+    for config, split, items in groups:
+        cuts: list[list[Item]] = [[]]
+        filled = 0
+        for item in items:
+            if cuts[-1] and filled + item.size > shard_bytes:
+                cuts.append([])
+                filled = 0
+            cuts[-1].append(item)
+            filled += item.size
+        start = 0
+        for i, part in enumerate(cuts):
+            shards.append(Shard(config, split, i, len(cuts), start, part))
+            start += len(part)
+    return shards
+
+
+def _ground_truth(out: Path, dataset, rows: dict) -> list[Item]:
+    """The build's ground-truth files as rows, every one the manifest lists as made:
+    ``gt_depths.npz`` (key "") or ``gt/<depth name>`` (keyed by its image, split order)."""
+    key_of = {f"{GT_DIR}/{n}": k for n, k in zip(dataset.depth_names(), dataset.keys)}
+    paths = [GT_FILE, *key_of, *sorted(p for p in rows if p.startswith(GT_DIR + "/") and p not in key_of)]
+    return [Item(p, key_of.get(p, ""), rows[p].variant, None, rows[p].seed, rows[p].sha256,
+                 _size(out, p)) for p in paths if p in rows and not rows[p].error]
+
+
+def _size(out: Path, path: str) -> int:
+    try:
+        return os.stat(out / path).st_size
+    except OSError as exc:
+        raise ExportError(f"{out / path}: listed in the manifest but cannot be read "
+                          f"({exc.strerror}); run robodepth verify {out}") from None

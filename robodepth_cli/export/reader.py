@@ -1,0 +1,160 @@
+"""Reading an export back: the files of a build, found in its shards by their path in the
+build, each checked against the build's manifest as it is read.
+
+:class:`ExportStore` is what :func:`robodepth_cli.open_dataset` gives a dataset opened from
+an export (``dataset.store``); :func:`shard_rows` reads a whole shard for ``verify`` and the
+ground truth. A parquet read fetches one row group (64 images) and keeps the last one, so
+reading a variant in split order reads each shard once; a tar read seeks to the member.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Iterator
+
+from ..files import sha256_bytes
+from ..output.layout import GT_DIR, GT_FILE
+from .layout import GT_CONFIG, META, RECORD
+from .plan import ExportError
+
+
+def read_export_record(to: Path) -> dict | None:
+    """The export record of ``to``, or None when there is none."""
+    path = Path(to) / META / RECORD
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as exc:
+        raise ExportError(f"{path}: cannot be read as an export record ({exc})") from None
+
+
+def is_export(path: Path) -> bool:
+    return (Path(path) / META / RECORD).is_file()
+
+
+def shard_rows(path: Path, fmt: str, prefix: str) -> Iterator[tuple[str, bytes]]:
+    """(path in the build, bytes) of every file in one shard, in order. Raises whatever
+    the shard's reader raises for a damaged file (the caller names the shard)."""
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
+
+        pf = pq.ParquetFile(path)
+        gt = "data" in pf.schema_arrow.names
+        for batch in pf.iter_batches(batch_size=64, columns=["path", "data"] if gt else ["image"]):
+            if gt:
+                yield from zip(batch.column("path").to_pylist(), batch.column("data").to_pylist())
+            else:
+                for cell in batch.column("image").to_pylist():
+                    yield cell["path"], cell["bytes"]
+        return
+    import tarfile
+
+    with tarfile.open(path, mode="r:") as tar:
+        for member in tar:
+            if not member.isfile() or member.name.endswith(".json"):
+                continue
+            data = tar.extractfile(member).read()
+            yield (f"{prefix}/{member.name}" if prefix else member.name), data
+
+
+class ExportStore:
+    """The files of the build exported into ``path``, by their path in the build."""
+
+    def __init__(self, path: Path, keys, manifest: dict):
+        record = read_export_record(path)
+        self.path = Path(path)
+        if record.get("status") != "finished":
+            raise ExportError(f"{self.path}: the export did not finish; rerun the robodepth export "
+                              "command that made it")
+        self.format = record.get("format")
+        self.shards = record.get("shards") or []
+        self._sha = {p: r.sha256 for p, r in manifest.items() if not r.error}
+        self._where: dict[str, tuple[int, int]] = {}
+        for n, e in enumerate(self.shards):
+            if e["config"] != GT_CONFIG:
+                for j in range(e["rows"]):
+                    self._where[f"{e['prefix']}/{keys[e['start'] + j]}"] = (n, j)
+        self._cache: dict = {}
+        self._gt_dir = None
+
+    def __getstate__(self):  # open files and cached row groups stay in their process
+        return {**self.__dict__, "_cache": {}, "_gt_dir": None}
+
+    def has(self, output: str) -> bool:
+        return output in self._where
+
+    def read(self, output: str) -> bytes:
+        """The bytes of the build's file ``output``; :class:`ExportError` if the export
+        lacks it or holds other bytes than the manifest says."""
+        if output not in self._where:
+            raise ExportError(f"{self.path}: holds no {output}")
+        n, j = self._where[output]
+        file = self.path / self.shards[n]["file"]
+        try:
+            data = self._parquet(file, n, j) if self.format == "parquet" else self._tar(file, n, output)
+        except (OSError, ValueError, KeyError) as exc:  # pyarrow's errors derive from these
+            raise ExportError(f"{file}: cannot be read ({exc}); run robodepth verify "
+                              f"{self.path}") from None
+        if sha256_bytes(data) != self._sha.get(output):
+            raise ExportError(f"{file}: {output} is not the build's (its sha256 is not the "
+                              f"manifest's); run robodepth verify {self.path}")
+        return data
+
+    def _parquet(self, file: Path, n: int, j: int) -> bytes:
+        import pyarrow.parquet as pq
+
+        pf = self._cache.get(("file", n))
+        if pf is None:
+            self._cache = {("file", n): pq.ParquetFile(file)}
+            pf = self._cache[("file", n)]
+        start = 0
+        for g in range(pf.num_row_groups):
+            rows = pf.metadata.row_group(g).num_rows
+            if j < start + rows:
+                break
+            start += rows
+        group = self._cache.get(("group", n, g))
+        if group is None:
+            group = pf.read_row_group(g, columns=["image"]).column("image").to_pylist()
+            self._cache = {("file", n): pf, ("group", n, g): group}
+        return group[j - start]["bytes"]
+
+    def _tar(self, file: Path, n: int, output: str) -> bytes:
+        members = self._cache.get(("members", n))
+        if members is None:
+            import tarfile
+
+            with tarfile.open(file, mode="r:") as tar:
+                members = {m.name: (m.offset_data, m.size) for m in tar if m.isfile()}
+            self._cache[("members", n)] = members
+        prefix = self.shards[n]["prefix"]
+        offset, size = members[output[len(prefix) + 1:]]
+        with open(file, "rb") as fh:
+            fh.seek(offset)
+            return fh.read(size)
+
+    def ground_truth(self) -> Path | None:
+        """The build's ground truth as it wrote it (``gt_depths.npz`` or ``gt/``), copied
+        out of the ground-truth shards into a temporary folder that lives as long as this
+        store; None when the export has none."""
+        entries = [e for e in self.shards if e["config"] == GT_CONFIG]
+        if not entries:
+            return None
+        if self._gt_dir is None:
+            import tempfile
+
+            from ..files import write_atomic
+
+            tmp = tempfile.TemporaryDirectory(prefix="robodepth-gt-")
+            for e in entries:
+                for output, data in shard_rows(self.path / e["file"], self.format, ""):
+                    if sha256_bytes(data) != self._sha.get(output):
+                        raise ExportError(f"{self.path / e['file']}: {output} is not the build's; "
+                                          f"run robodepth verify {self.path}")
+                    write_atomic(os.path.join(tmp.name, output), data)
+            self._gt_dir = tmp
+        root = Path(self._gt_dir.name)
+        return root / GT_FILE if (root / GT_FILE).is_file() else root / GT_DIR

@@ -1,0 +1,175 @@
+"""The export driver: check everything first, then write the shards one by one.
+
+Each shard is written under a temporary name and renamed when whole, and a line with its
+sha256 is appended to ``robodepth/.shards.jsonl`` (rewriting the export record after every
+shard would cost the square of their number): a stopped export, run again with the same
+options, writes only the shards that are missing. At the end the export record
+(``robodepth/export.json``) takes every shard's sha256, ``status`` says ``finished``, the
+card is written and the journal removed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..files import atomic_output, check_writable, sha256_file, write_atomic
+from ..output.layout import MANIFEST, RECORD as BUILD_RECORD
+from .layout import CARD, DATA, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
+from .plan import ExportError, Shard, plan
+from .reader import read_export_record
+from .shards import WRITERS
+
+EXPORT_VERSION = 1
+
+
+@dataclass
+class ExportSummary:
+    shards: int = 0
+    written: int = 0  # shards written by this run (the rest were there already)
+    rows: int = 0
+    size: int = 0  # bytes of the shards
+    source_size: int = 0  # bytes of the build's files exported
+
+
+def _inside(a: Path, b: Path) -> bool:
+    return a == b or b in a.parents
+
+
+def _open_build(out: Path):
+    from ..api import open_dataset
+    from ..output.manifest import lock_holder, read_manifest
+
+    dataset = open_dataset(out, warn=False)
+    holder = lock_holder(out)
+    if holder:
+        raise ExportError(f"{out}: a build (pid {holder}) is writing here right now; export "
+                          "when it has finished")
+    if dataset.failed or dataset.record.status not in ("finished", ""):
+        why = dataset.incomplete() or f"{out}: the build's status is {dataset.record.status!r}"
+        raise ExportError(f"{why}; export a finished build (rerun the build command to finish it)")
+    return dataset, read_manifest(out)
+
+
+def _entry(shard: Shard, fmt: str) -> dict:
+    prefix = "" if shard.config == GT_CONFIG else shard.items[0].output[:-len(shard.items[0].key) - 1]
+    return {"file": shard.name(FORMATS[fmt]), "config": shard.config, "split": shard.split,
+            "prefix": prefix, "start": shard.start, "rows": len(shard.items),
+            "source_bytes": shard.size, "sha256": None, "bytes": None}
+
+
+def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = True,
+           version: str = "") -> ExportSummary:
+    """Export the finished build ``out`` into ``to`` as ``fmt`` shards (see the module)."""
+    from ..files import sha256_bytes
+    from ..progress import bar
+
+    out, to = Path(out), Path(to)
+    if _inside(to.resolve(), out.resolve()) or _inside(out.resolve(), to.resolve()):
+        raise ExportError(f"--to {to}: must be outside the build {out} (and not hold it): the "
+                          "build stays as it is")
+    dataset, rows = _open_build(out)
+    check_writable(to / CARD, "--to")
+    manifest = (out / MANIFEST).read_bytes()
+    shards = plan(out, dataset, rows, shard_bytes)
+    entries = [_entry(s, fmt) for s in shards]
+    header = {"export": EXPORT_VERSION, "format": fmt, "shard_size": shard_bytes,
+              "dataset": dataset.name, "build_manifest_sha256": sha256_bytes(manifest)}
+    previous = read_export_record(to)
+    if previous is None and to.is_dir() and any(to.iterdir()):
+        raise ExportError(f"--to {to}: not empty and not an export; choose a new or empty folder")
+    if previous is not None:
+        same = ({k: previous.get(k) for k in header} == header
+                and [e["file"] for e in previous.get("shards", [])] == [e["file"] for e in entries])
+        if not same:
+            raise ExportError(f"--to {to}: holds an export of another build or with other options "
+                              "(--format, --shard-size); choose a new or empty folder")
+        done = {e["file"]: e for e in previous["shards"] if e.get("sha256")}
+        done.update(_journal(to))
+        for e in entries:
+            if e["file"] in done:
+                e["sha256"], e["bytes"] = done[e["file"]]["sha256"], done[e["file"]]["bytes"]
+    record = {**header, "robodepth": version, "status": "running", "shards": entries}
+    try:
+        write_atomic(to / META / MANIFEST, manifest)
+        write_atomic(to / META / BUILD_RECORD, (out / BUILD_RECORD).read_bytes())
+        _write_record(to, record)
+    except OSError as exc:
+        raise ExportError(_cannot(to, exc)) from None
+    summary = ExportSummary(shards=len(shards), rows=sum(len(s.items) for s in shards),
+                            source_size=sum(s.size for s in shards))
+    write = WRITERS[fmt]
+    with bar("B", summary.source_size, progress=progress, unit_scale=True, unit_divisor=1024,
+             desc="export") as meter:
+        for shard, e in zip(shards, entries):
+            target = to / e["file"]
+            if target.is_file() and e["sha256"] is None:  # renamed, then stopped: hash it now
+                e["sha256"], e["bytes"] = sha256_file(target), target.stat().st_size
+            if target.is_file() and e["bytes"] == target.stat().st_size:
+                meter.update(shard.size)
+                continue
+            try:
+                with atomic_output(target) as fh:
+                    write(fh, out, shard, shard.config == GT_CONFIG, meter.update)
+                    fh.flush()
+                e["sha256"], e["bytes"] = sha256_file(target), target.stat().st_size
+                with open(to / META / JOURNAL, "a", encoding="utf-8") as fh:
+                    fh.write(json.dumps({k: e[k] for k in ("file", "sha256", "bytes")}) + "\n")
+            except OSError as exc:
+                raise ExportError(_cannot(target, exc)) from None
+            summary.written += 1
+    _finish(to, dataset, record, fmt, version)
+    summary.size = sum(e["bytes"] for e in entries)
+    return summary
+
+
+def _finish(to: Path, dataset, record: dict, fmt: str, version: str) -> None:
+    from .card import card
+
+    _remove_strays(to)
+    record["status"] = "finished"
+    try:
+        write_atomic(to / CARD, card(dataset.record, record["shards"], fmt, version).encode("utf-8"))
+        _write_record(to, record)
+        (to / META / JOURNAL).unlink(missing_ok=True)
+    except OSError as exc:
+        raise ExportError(_cannot(to, exc)) from None
+
+
+def _journal(to: Path) -> dict[str, dict]:
+    """The shards a stopped export finished, by file: the journal's complete lines (a line
+    cut short by a kill is ignored; its shard is hashed again)."""
+    done = {}
+    try:
+        lines = (to / META / JOURNAL).read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        return done
+    for line in lines:
+        try:
+            entry = json.loads(line)
+            done[entry["file"]] = entry
+        except (ValueError, KeyError, TypeError):
+            continue
+    return done
+
+
+def _remove_strays(to: Path) -> None:
+    """Temporary files a killed export left under ``data/``."""
+    from ..files import is_temporary
+
+    for dirpath, _, files in os.walk(to / DATA):
+        for name in files:
+            if is_temporary(name):
+                os.unlink(os.path.join(dirpath, name))
+
+
+def _write_record(to: Path, record: dict) -> None:
+    write_atomic(to / META / RECORD, (json.dumps(record, indent=1) + "\n").encode("utf-8"))
+
+
+def _cannot(path: Path, exc: OSError) -> str:
+    from ..errors import cannot_write
+
+    return cannot_write(path, exc, "--to")
