@@ -83,7 +83,7 @@ def _apply_all(name: str, x: torch.Tensor, level, rngs: Sequence[np.random.Gener
     if fn is None:
         arrays = from_batch(x)
         c = numpy_engine.get(name)
-        return to_batch([numpy_engine._apply(c, a, level, rng) for a, rng in zip(arrays, rngs)], x.device)
+        return to_batch([numpy_engine._apply(c, a, level, rng, None) for a, rng in zip(arrays, rngs)], x.device)
     out = fn(x, level, rngs)
     if out.dtype != torch.uint8 or out.shape != x.shape:
         raise AssertionError(f"{name} returned {out.dtype} {tuple(out.shape)} for {tuple(x.shape)}")
