@@ -17,7 +17,8 @@ source images, or null for all), ``scheduler`` (a Dask scheduler address such as
 ``tcp://head:8786``: run the build on that cluster, ``jobs`` is then unused) or
 ``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
 layer's choice replaces an earlier layer's), ``png`` (``fast`` or ``compact``: how the PNGs
-are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``). A corruption or level the dataset does not
+are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``),
+``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame). A corruption or level the dataset does not
 have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
@@ -62,9 +63,14 @@ class BuildConfig:
     scheduler: str | None = None  # a Dask scheduler's address: build on that cluster
     scheduler_file: str | None = None  # or the scheduler file that holds it
     png: str | None = None  # "fast" or "compact"; None: the build's own, else fast
+    frames: tuple[int, ...] = ()  # neighbour offsets (--frames -1,1); () a single-frame build
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
+        if not self.frames:
+            del d["frames"]  # the record of a single-frame build is as it always was
+        else:
+            d["frames"] = list(self.frames)
         d["size"] = None if self.size is None else list(self.size)
         d["variants"] = list(self.variants)
         d["levels"] = list(self.levels)
@@ -232,6 +238,7 @@ class _Resolver:
         """The config keys dataset ``ds`` takes (no ``levels`` for one without levels)."""
         return (tuple(k for k in cls.KEYS if k != "levels" or ds.leveled)
                 + (ds.variant_key,) + (("compose", "train") if ds.leveled else ())
+                + (("frames",) if ds.leveled and ds.split_format == "eigen" else ())
                 + tuple(ds.options()) + cls.ONE_OF)
 
     def valid_keys(self) -> tuple[str, ...]:
@@ -336,6 +343,13 @@ class _Resolver:
                 raise ConfigError(f"{exc} (or 'auto' or -1: one worker per CPU)") from None
         if key == "limit":
             return None if v is None else _int(loc, v, 1)
+        if key == "frames":
+            from .neighbours import check_frames
+
+            try:
+                return () if v is None else check_frames(v)
+            except InvalidValueError as exc:
+                raise ConfigError(f"{loc}: {exc}") from None
         if key == "png":
             from ..imageio import PNG_METHODS
 
@@ -379,7 +393,7 @@ class _Resolver:
                            limit=self.values.get("limit"), extra=extra,
                            scheduler=self.values.get("scheduler"),
                            scheduler_file=self.values.get("scheduler_file"),
-                           png=self.values.get("png"))
+                           png=self.values.get("png"), frames=self.values.get("frames", ()))
 
 
 def resolve(preset: str, config_file: Path | None = None,

@@ -52,7 +52,8 @@ from .checks import BuildError
 from .config import BuildConfig
 from .executors import Executor, ExecutorError, LocalExecutor
 from .gather import check_root, gather_sources, orientation_record
-from .tasks import PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, run_task
+from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, run_task,
+                    with_anchor)
 
 MAX_ERRORS_SHOWN = 10
 
@@ -184,7 +185,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             # (KITTI-S computes its style statistics); a rerun with nothing to do skips it.
             getattr(renderer, "warm_up", lambda: None)()
         plans = buildchecks.merge_plans(previous, plan_entry(
-            cfg.variants, cfg.levels, [s.key for s in sources]))
+            cfg.variants, cfg.levels, [s.key for s in sources if not s.anchor], split.get("neighbours")))
         # The record describes the whole build in OUT, not only this request: a `--limit 2`
         # look into a finished build must not shrink what evaluation and ground truth see.
         keys = buildchecks.built_keys(plans)
@@ -274,7 +275,7 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
             same = (r is not None and not r.error
                     and ((r.source == src.rel and _same_source(r, src)) or bool(src.error))
                     and r.seed == cfg.seed and (r.height, r.width) == size
-                    and r.params == fingerprints[job.variant])
+                    and r.params == with_anchor(fingerprints[job.variant], src.anchor))
             expected.append(r.sha256 if same else None)
             if same:
                 hashes.add(r.source_sha256)

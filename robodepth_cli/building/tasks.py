@@ -45,6 +45,9 @@ class Source:
     # The image's EXIF orientation, applied when it is read (custom builds: photos are built
     # the way viewers show them); 1 = as stored, always for the benchmarks' own sources.
     orientation: int = 1
+    # A neighbour frame (``--frames``): the key of the test frame it is rendered for, whose
+    # scene draws it shares (see corruptions/frames.py); "" for a test frame.
+    anchor: str = ""
 
     @classmethod
     def find(cls, root: Path, entry: Entry) -> "Source":
@@ -102,7 +105,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
         return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
-                   fingerprint(ctx.renderer, job), src.size, src.mtime, source_sha)
+                   fingerprint(ctx.renderer, job, src.anchor), src.size, src.mtime, source_sha)
 
     results: list[tuple[JobState, Row]] = []
     todo: list[Job] = []
@@ -129,7 +132,8 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     # Lazily, so only one rendered image is alive at a time.
     rendered = itertools.chain(
         ((j, clean) for j in todo if j.variant == CLEAN),
-        ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN]))
+        ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN],
+                            **({"anchor": src.anchor} if src.anchor else {})))
     with Journal(out) as journal:
         for job, img in rendered:
             if isinstance(img, BaseException):
@@ -182,8 +186,19 @@ def _keep_freed_memory() -> None:
         pass
 
 
-def fingerprint(renderer: Renderer, job: Job) -> str:
-    return "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
+def fingerprint(renderer: Renderer, job: Job, anchor: str = "") -> str:
+    """The manifest's ``params`` of ``job``: what besides the seed and size decides its
+    pixels (:func:`with_anchor` of the renderer's fingerprint)."""
+    return with_anchor("" if job.variant == CLEAN else renderer.fingerprint(job.variant), anchor)
+
+
+def with_anchor(params: str, anchor: str) -> str:
+    """``params`` of an output of a neighbour frame: ``neighbour_of=<test frame key>`` first,
+    which lists the neighbour under its test frame in the manifest and redoes it when it is
+    rendered for another one; a test frame's are unchanged."""
+    if not anchor:
+        return params
+    return f"neighbour_of={anchor}" + (f";{params}" if params else "")
 
 
 def _load(src: Source, size: tuple[int, int]):

@@ -34,9 +34,14 @@ def now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def plan_entry(variants, levels, keys) -> dict[str, list]:
-    """One request made into an OUT: which variants at which levels for which source keys."""
-    return {"variants": list(variants), "levels": list(levels), "keys": list(keys)}
+def plan_entry(variants, levels, keys, neighbours: dict | None = None) -> dict[str, list]:
+    """One request made into an OUT: which variants at which levels for which source keys;
+    with ``--frames``, also ``neighbours``: each test key's neighbour keys in offset order
+    (None: not in the drive)."""
+    entry = {"variants": list(variants), "levels": list(levels), "keys": list(keys)}
+    if neighbours:
+        entry["neighbours"] = {k: list(v) for k, v in neighbours.items()}
+    return entry
 
 
 @dataclass

@@ -185,12 +185,14 @@ class CorruptionRenderer:
         self.dataset = dataset
         self.seed = seed
 
-    def render(self, clean, key, jobs):
+    def render(self, clean, key, jobs, anchor=None):
+        """``anchor``: the test frame's key when ``key`` is its neighbour (``--frames``)."""
         from ..corruptions import render
 
         for job in jobs:
             try:
-                yield job, render(clean, job.variant, job.level, seed=self.seed, dataset=self.dataset, key=key)
+                yield job, render(clean, job.variant, job.level, seed=self.seed,
+                                  dataset=self.dataset, key=key, anchor=anchor)
             except Exception as exc:  # one broken variant must not sink the other outputs
                 yield job, exc
 

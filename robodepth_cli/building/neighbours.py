@@ -1,0 +1,94 @@
+"""The neighbour frames of a KITTI build with ``--frames`` (e.g. ``-1,1``): for each test
+frame, the frames at those offsets in the same raw drive, camera and folder.
+
+A neighbour is written where a test frame would be, ``<variant>/<level>/<its key>``, so a
+multi-frame model's own KITTI loader (which reads frame ``n + offset`` beside frame ``n``)
+finds it. One path holds one image, so a frame is rendered once per variant: a frame that
+is itself a test frame keeps its test rendering (the benchmark's image), and a frame next to
+several test frames is rendered for the first of them in split order (its scene draws are
+that test frame's). A neighbour not in the drive (before frame 0, after the last frame) is
+not written and listed as missing (None); a loader then does what it does for a missing
+file (see docs/video.md).
+"""
+
+from __future__ import annotations
+
+from pathlib import PurePosixPath
+
+from ..errors import InvalidValueError
+from ..keys import PRESET_EXTS
+from ..sources.datasets import Entry
+from .tasks import Source
+
+MAX_OFFSET = 10
+
+
+def check_frames(value) -> tuple[int, ...]:
+    """``-1,1`` (text or a list of integers) as sorted distinct non-zero offsets within
+    ``±MAX_OFFSET``; :class:`InvalidValueError` otherwise. An empty value is no frames."""
+    items = [s.strip() for s in value.split(",")] if isinstance(value, str) else value
+    if not isinstance(items, (list, tuple)):
+        raise InvalidValueError(f"expected frame offsets such as -1,1, got {value!r}")
+    offsets = []
+    for item in items:
+        try:
+            o = int(item)
+            if isinstance(item, float) or str(item).strip() not in (str(o), f"+{o}"):
+                raise ValueError
+        except (TypeError, ValueError):
+            raise InvalidValueError(f"{item!r} is not an integer frame offset (e.g. -1,1)") from None
+        if o == 0 or abs(o) > MAX_OFFSET:
+            raise InvalidValueError(f"offset {o}: expected a non-zero integer within "
+                                    f"-{MAX_OFFSET}..{MAX_OFFSET} (0 is the test frame itself)")
+        offsets.append(o)
+    return tuple(sorted(set(offsets)))
+
+
+def neighbour_key(key: str, offset: int) -> str | None:
+    """The key of the frame ``offset`` away from the KITTI frame ``key``
+    (``.../data/0000000069.png``), None before frame 0."""
+    p = PurePosixPath(key)
+    n = int(p.stem) + offset
+    return None if n < 0 else str(p.with_name(f"{n:0{len(p.stem)}d}{p.suffix}"))
+
+
+def neighbour_sources(root, sources: list[Source], offsets) -> tuple[list[Source], dict]:
+    """The sources to render as neighbours of ``sources`` (the test frames, split order)
+    and the listing ``{test key: [neighbour key or None, ...]}`` in offset order."""
+    tests = {s.key for s in sources}
+    owned: dict[str, Source] = {}
+    listing: dict[str, list] = {}
+    for src in sources:
+        row = []
+        for o in offsets:
+            key = neighbour_key(src.key, o)
+            found = _find(root, src, key) if key else None
+            row.append(found.key if found else None)
+            if found and key not in tests and key not in owned:
+                owned[key] = found
+        listing[src.key] = row
+    return list(owned.values()), listing
+
+
+def _find(root, test: Source, key: str) -> Source | None:
+    """The neighbour ``key`` of ``test`` under ``root`` (its own extension tried first), or
+    None when the drive has no such frame."""
+    stem = PurePosixPath(test.rel or _rel(key)).parent / PurePosixPath(key).stem
+    first = PurePosixPath(test.rel).suffix if test.rel else ".png"
+    exts = (first,) + tuple(e for e in PRESET_EXTS if e != first)
+    src = Source.find(root, Entry(0, key, tuple(f"{stem}{e}" for e in exts)))
+    return None if src.error else Source(**{**src.__dict__, "anchor": test.key})
+
+
+def _rel(key: str) -> str:
+    return key.split("/", 1)[1]
+
+
+def planned_keys(entry: dict) -> set[str]:
+    """Every neighbour key a recorded plan entry lists (its outputs are planned too)."""
+    return {k for row in (entry.get("neighbours") or {}).values() for k in row if k}
+
+
+def check_dataset(name: str, split_format: str) -> None:
+    if split_format != "eigen":
+        raise InvalidValueError(f"{name} has no frame sequence (--frames needs KITTI raw drives)")

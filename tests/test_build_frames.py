@@ -1,0 +1,133 @@
+"""`build kitti-c --frames`: neighbour frames from the raw drive, their layout, manifest,
+resume and verify, and their corruption consistent with the test frame."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from robodepth_cli import corruptions, seeding
+from robodepth_cli.corruptions.frames import DRAWS, NO_DRAWS, PER_FRAME, SHARED
+
+from _trees import expected_paths, kitti_drive, kitti_key, random_image, tree
+
+SIZE = ("--size", "48x64")
+FLAGS = (*SIZE, "--corruptions", "fog,gaussian_noise,motion_blur", "--levels", "3", "--jobs", "1",
+         "--no-gt")
+
+
+@pytest.fixture
+def drive(tmp_path):
+    """Frames 0..5 of one drive; test frames 0, 2 and 5 (0 has no previous frame, 5 no next)."""
+    root = tmp_path / "raw"
+    return root, kitti_drive(root, range(6), [0, 2, 5])
+
+
+def rows_of(out):
+    with open(out / "manifest.csv", newline="") as fh:
+        return {r["output"]: r for r in csv.DictReader(fh)}
+
+
+def read(out, path):
+    return np.asarray(Image.open(out / path))
+
+
+def test_neighbours_written_listed_and_verified(drive, tmp_path, cli, build_kitti):
+    root, split = drive
+    out = tmp_path / "out"
+    res = build_kitti(root, split, out, *FLAGS, "--frames", "-1,1")
+    assert res.exit_code == 0, res.output
+    variants = ["fog", "gaussian_noise", "motion_blur"]
+    # Test frames 0, 2, 5 and their neighbours 1, 3, 4 (1 neighbours both 0 and 2): no frame
+    # -1 or 6 exists, so none is written for them.
+    assert set(tree(out)) == expected_paths([kitti_key(n) for n in range(6)], variants, [3])
+    rows = rows_of(out)
+    assert rows[f"fog/3/{kitti_key(2)}"]["params"] == ""
+    # A frame next to two test frames is rendered for the first in split order.
+    assert rows[f"fog/3/{kitti_key(1)}"]["params"] == f"neighbour_of={kitti_key(0)}"
+    assert rows[f"clean/{kitti_key(3)}"]["params"] == f"neighbour_of={kitti_key(2)}"
+    assert rows[f"gaussian_noise/3/{kitti_key(4)}"]["params"] == f"neighbour_of={kitti_key(5)}"
+    plan = json.loads((out / "build.json").read_text())["plans"][-1]
+    assert plan["keys"] == [kitti_key(0), kitti_key(2), kitti_key(5)]
+    assert plan["neighbours"] == {kitti_key(0): [None, kitti_key(1)],
+                                  kitti_key(2): [kitti_key(1), kitti_key(3)],
+                                  kitti_key(5): [kitti_key(4), None]}
+    assert cli("verify", out).exit_code == 0
+
+    # Resume: nothing to redo; a lost neighbour is reported by verify and made again.
+    again = build_kitti(root, split, out, *FLAGS, "--frames", "-1,1")
+    assert "0 written, 24 skipped" in again.output
+    lost = out / f"motion_blur/3/{kitti_key(3)}"
+    before = lost.read_bytes()
+    lost.unlink()
+    v = cli("verify", out)
+    assert v.exit_code == 1 and f"motion_blur/3/{kitti_key(3)}" in v.output
+    assert "1 written" in build_kitti(root, split, out, *FLAGS, "--frames", "-1,1").output
+    assert lost.read_bytes() == before
+
+
+def test_without_frames_the_test_frames_are_unchanged(drive, tmp_path, build_kitti):
+    root, split = drive
+    plain, framed = tmp_path / "plain", tmp_path / "framed"
+    assert build_kitti(root, split, plain, *FLAGS).exit_code == 0
+    assert build_kitti(root, split, framed, *FLAGS, "--frames", "-2,1").exit_code == 0
+    a, b = tree(plain), tree(framed)
+    assert set(a) < set(b) and all(b[p] == data for p, data in a.items())
+    ra, rb = rows_of(plain), rows_of(framed)
+    assert all({k: v for k, v in rb[p].items() if k != "source_mtime"}
+               == {k: v for k, v in r.items() if k != "source_mtime"} for p, r in ra.items())
+    record = json.loads((plain / "build.json").read_text())
+    assert "frames" not in record["config"] and "neighbours" not in record["plans"][0]
+    assert "frames" not in record["split"]
+
+
+def test_neighbours_share_the_scene_draws_and_not_the_noise(drive, tmp_path, build_kitti):
+    """In the build: each neighbour output is its clean image corrupted with the scene draws
+    of its test frame and noise of its own."""
+    root, split = drive
+    out = tmp_path / "out"
+    assert build_kitti(root, split, out, *FLAGS, "--frames", "-1,1").exit_code == 0
+    clean = read(out, f"clean/{kitti_key(3)}")
+    for name in ("fog", "gaussian_noise", "motion_blur"):
+        shared_key = kitti_key(2) if DRAWS[name][0] == SHARED else kitti_key(3)
+        expected = corruptions.corrupt(clean, name, 3, seeding.job_rng(0, "kitti-c", name, 3, shared_key))
+        assert np.array_equal(read(out, f"{name}/3/{kitti_key(3)}"), expected), name
+
+
+@pytest.mark.parametrize("name", list(DRAWS))
+def test_every_corruption_across_frames(name):
+    """The same image as test frame and as its neighbour: a scene/camera corruption gives the
+    same pixels, a noise the same amount of noise but independent of the test frame's."""
+    x = random_image(48, 64, seed=3)
+    test, neighbour = kitti_key(4), kitti_key(5)
+
+    def render(key, anchor=None):
+        return corruptions.render(x, name, 3, seed=1, dataset="kitti-c", key=key, anchor=anchor)
+
+    a, b = render(test), render(neighbour, anchor=test)
+    if DRAWS[name][0] in (SHARED, NO_DRAWS):
+        assert np.array_equal(a, b)
+        return
+    assert DRAWS[name][0] == PER_FRAME
+    ra, rb = a.astype(float) - x, b.astype(float) - x
+    assert 0.7 < rb.std() / ra.std() < 1.4  # the same level of noise
+    assert abs(np.corrcoef(ra.ravel(), rb.ravel())[0, 1]) < 0.1  # drawn anew
+
+
+@pytest.mark.parametrize("value, problem", [
+    ("0", "non-zero"), ("-1,x", "not an integer"), ("1.5", "not an integer"), ("11", "non-zero"),
+])
+def test_bad_frames_refused(drive, tmp_path, build_kitti, value, problem):
+    root, split = drive
+    res = build_kitti(root, split, tmp_path / "out", *FLAGS, "--frames", value)
+    assert res.exit_code == 2 and "--frames" in res.output and problem in res.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_frames_only_for_kitti(tmp_path, cli):
+    res = cli("build", "nyudepth2-c", "--root", tmp_path, "--out", tmp_path / "o", "--frames", "-1,1")
+    assert res.exit_code == 2 and "--frames does not apply to nyudepth2-c" in res.output
