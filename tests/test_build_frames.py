@@ -131,3 +131,63 @@ def test_bad_frames_refused(drive, tmp_path, build_kitti, value, problem):
 def test_frames_only_for_kitti(tmp_path, cli):
     res = cli("build", "nyudepth2-c", "--root", tmp_path, "--out", tmp_path / "o", "--frames", "-1,1")
     assert res.exit_code == 2 and "--frames does not apply to nyudepth2-c" in res.output
+
+
+OVER_TIME = ("--corruptions", "frame_lost,frame_freeze,h264_crf,bit_error", "--levels", "1,5")
+
+
+def test_corruptions_over_time_in_a_build(drive, tmp_path, cli, build_kitti):
+    """Each frame of a sequence is cut from the same corrupted sequence: the written frames
+    equal the sequence corruption of the written clean frames."""
+    from robodepth_cli.corruptions.temporal import corrupt_sequence
+
+    root, split = drive
+    out = tmp_path / "out"
+    res = build_kitti(root, split, out, *SIZE, *OVER_TIME, "--frames", "-1,1", "--jobs", "2", "--no-gt")
+    assert res.exit_code == 0, res.output
+    assert cli("verify", out).exit_code == 0
+    # frame_lost at level 5 (p = 1): both neighbours of test frame 2 black, the test frame clean.
+    assert not read(out, f"frame_lost/5/{kitti_key(3)}").any()
+    assert np.array_equal(read(out, f"frame_lost/5/{kitti_key(2)}"), read(out, f"clean/{kitti_key(2)}"))
+    # Frame 3 is written for test frame 2's sequence (1, 2, 3); frame 4 for 5's (4, 5, -).
+    for name, level in (("h264_crf", 5), ("bit_error", 5), ("frame_freeze", 1)):
+        seq = [read(out, f"clean/{kitti_key(n)}") for n in (1, 2, 3)]
+        rng = seeding.job_rng(0, "kitti-c", name, level, kitti_key(2))
+        expected = corrupt_sequence(name, seq, 1, level, rng)
+        assert np.array_equal(read(out, f"{name}/{level}/{kitti_key(2)}"), expected[1]), name
+        assert np.array_equal(read(out, f"{name}/{level}/{kitti_key(3)}"), expected[2]), name
+        seq = [read(out, f"clean/{kitti_key(n)}") for n in (4, 5)] + [None]
+        rng = seeding.job_rng(0, "kitti-c", name, level, kitti_key(5))
+        assert np.array_equal(read(out, f"{name}/{level}/{kitti_key(4)}"),
+                              corrupt_sequence(name, seq, 1, level, rng)[0]), name
+
+
+def test_corruptions_over_time_need_frames_and_are_not_in_all(drive, tmp_path, build_kitti):
+    root, split = drive
+    res = build_kitti(root, split, tmp_path / "o", *SIZE, "--corruptions", "fog,h265_crf")
+    assert res.exit_code == 2
+    assert "--corruptions: h265_crf is a corruption over time: it needs the neighbour frames" in res.output
+    res = build_kitti(root, split, tmp_path / "o", *SIZE, "--corruptions", "all", "--levels", "1",
+                      "--frames", "1", "--limit", "1", "--jobs", "1", "--no-gt")
+    assert res.exit_code == 0, res.output
+    assert not any(p.split("/")[0] in ("frame_lost", "h264_crf") for p in tree(tmp_path / "o"))
+
+
+@pytest.mark.parametrize("flags", [(), ("--frames", "-1,1")])
+def test_builds_without_corruptions_over_time_never_import_pyav(drive, tmp_path, flags):
+    import subprocess
+    import sys
+
+    root, split = drive
+    argv = ["build", "kitti-c", "--root", str(root), "--split", str(split), "--out", str(tmp_path / "o"),
+            *SIZE, "--corruptions", "fog,gaussian_noise", "--levels", "1", "--jobs", "1", "--no-progress",
+            "--no-gt", *flags]
+    code = ("import sys; from robodepth_cli.cli import main\n"
+            "try:\n"
+            f"    main({argv!r})\n"
+            "except SystemExit as e:\n"
+            "    assert not e.code, e.code\n"
+            "print('av' in sys.modules)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "False"

@@ -32,6 +32,7 @@ from typing import Any
 
 import yaml
 
+from ..benchmarks import TEMPORAL
 from ..files import data_dir
 from ..sources import splits
 from ..sources.datasets import get_dataset
@@ -322,8 +323,10 @@ class _Resolver:
         if key == "train":
             return check_train(loc, v, ds)
         if key == ds.variant_key:
-            return choose_names(loc, v, ds.variant_names(), ds.variant_noun, owner=ds.name,
-                                known=ds.known_variant_names())
+            # The corruptions over time are named, never part of 'all'; they need --frames.
+            over_time = TEMPORAL if "frames" in self.keys_of(ds) and v != ALL else ()
+            return choose_names(loc, v, ds.variant_names() + over_time, ds.variant_noun,
+                                owner=ds.name, known=ds.known_variant_names())
         if key == "levels":
             # A dataset without levels accepts the key and ignores it.
             return choose_levels(loc, v, ds.levels() if ds.leveled else None, owner=ds.name)
@@ -385,6 +388,10 @@ class _Resolver:
         if seen:
             raise ConfigError(f"{self.origin['train']}: train: {', '.join(sorted(seen))} also built for "
                               f"testing; a held-out protocol trains on other corruptions")
+        over_time = [v for v in variants if v in TEMPORAL]
+        if over_time and not self.values.get("frames"):
+            raise ConfigError(f"{self.origin[ds.variant_key]}: {over_time[0]} is a corruption over "
+                              f"time: it needs the neighbour frames (--frames, e.g. -1,1)")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),

@@ -107,7 +107,6 @@ def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
     if cfg.frames:  # the neighbours follow the test frames (their ``anchor`` names which)
         from .neighbours import neighbour_sources
 
-        more, split["neighbours"] = neighbour_sources(root, sources, cfg.frames)
+        sources, split["neighbours"] = neighbour_sources(root, sources, cfg.frames)
         split["frames"] = list(cfg.frames)
-        sources = sources + more
     return sources, split

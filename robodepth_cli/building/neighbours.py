@@ -13,6 +13,7 @@ file (see docs/video.md).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import PurePosixPath
 
 from ..errors import InvalidValueError
@@ -53,21 +54,25 @@ def neighbour_key(key: str, offset: int) -> str | None:
 
 
 def neighbour_sources(root, sources: list[Source], offsets) -> tuple[list[Source], dict]:
-    """The sources to render as neighbours of ``sources`` (the test frames, split order)
-    and the listing ``{test key: [neighbour key or None, ...]}`` in offset order."""
+    """``sources`` (the test frames, split order) followed by their neighbours to render,
+    each with its sequence, and the listing ``{test key: [neighbour key or None, ...]}``
+    in offset order."""
     tests = {s.key for s in sources}
     owned: dict[str, Source] = {}
     listing: dict[str, list] = {}
+    before = sum(1 for o in offsets if o < 0)
+    framed = []
     for src in sources:
-        row = []
-        for o in offsets:
-            key = neighbour_key(src.key, o)
-            found = _find(root, src, key) if key else None
-            row.append(found.key if found else None)
-            if found and key not in tests and key not in owned:
-                owned[key] = found
-        listing[src.key] = row
-    return list(owned.values()), listing
+        found = [(_find(root, src, key) if key else None)
+                 for key in (neighbour_key(src.key, o) for o in offsets)]
+        listing[src.key] = [f.key if f else None for f in found]
+        timeline = found[:before] + [src] + found[before:]
+        paths = tuple(f.path if f else None for f in timeline)
+        framed.append(replace(src, sequence=paths, position=before, center=before))
+        for i, f in enumerate(timeline):
+            if f is not None and f.key not in tests and f.key not in owned:
+                owned[f.key] = replace(f, sequence=paths, position=i, center=before)
+    return framed + list(owned.values()), listing
 
 
 def _find(root, test: Source, key: str) -> Source | None:

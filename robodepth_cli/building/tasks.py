@@ -48,6 +48,12 @@ class Source:
     # A neighbour frame (``--frames``): the key of the test frame it is rendered for, whose
     # scene draws it shares (see corruptions/frames.py); "" for a test frame.
     anchor: str = ""
+    # With ``--frames``: the image paths of the test frame's sequence in time order (None:
+    # not in the drive), this frame's index in it and the test frame's, for the corruptions
+    # over time; () otherwise.
+    sequence: tuple = ()
+    position: int = 0
+    center: int = 0
 
     @classmethod
     def find(cls, root: Path, entry: Entry) -> "Source":
@@ -133,7 +139,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     rendered = itertools.chain(
         ((j, clean) for j in todo if j.variant == CLEAN),
         ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN],
-                            **({"anchor": src.anchor} if src.anchor else {})))
+                            **_frames_of(src, clean, todo, ctx.size)))
     with Journal(out) as journal:
         for job, img in rendered:
             if isinstance(img, BaseException):
@@ -215,6 +221,22 @@ def _load(src: Source, size: tuple[int, int]):
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
         return None, f"{src.path}: {type(exc).__name__}: {exc}"
+
+
+def _frames_of(src: Source, clean, todo: list[Job], size) -> dict:
+    """What a renderer needs besides the image for a frame of a sequence: its test frame's
+    key (``anchor``) and, for a corruption over time, the clean frames of its sequence."""
+    if not src.sequence:
+        return {}
+    from ..benchmarks import TEMPORAL
+
+    kw = {"anchor": src.anchor or src.key}
+    if any(j.variant in TEMPORAL for j in todo):
+        # A frame that cannot be read is left out of the sequence, like one the drive lacks.
+        frames = [clean if i == src.position else None if path is None
+                  else _load(Source("", "", path), size)[0] for i, path in enumerate(src.sequence)]
+        kw["sequence"] = (frames, src.position, src.center)
+    return kw
 
 
 def _job_name(job: Job) -> str:

@@ -17,7 +17,7 @@ from typing import Iterator, Protocol, Sequence
 
 import numpy as np
 
-from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS
+from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, N_LEVELS, TEMPORAL
 from ..errors import InvalidValueError, os_reason
 from ..imageio import ImageError
 # SOURCE_EXTS: tried in this order when a split names no extension.
@@ -185,16 +185,29 @@ class CorruptionRenderer:
         self.dataset = dataset
         self.seed = seed
 
-    def render(self, clean, key, jobs, anchor=None):
-        """``anchor``: the test frame's key when ``key`` is its neighbour (``--frames``)."""
+    def render(self, clean, key, jobs, anchor=None, sequence=None):
+        """``anchor``: the key of the test frame whose sequence ``key`` is in (``--frames``);
+        ``sequence``: (its clean frames, this frame's index, the test frame's index), for
+        the corruptions over time."""
         from ..corruptions import render
 
         for job in jobs:
             try:
+                if sequence is not None and job.variant in TEMPORAL:
+                    yield job, self._over_time(job, anchor, *sequence)
+                    continue
                 yield job, render(clean, job.variant, job.level, seed=self.seed,
-                                  dataset=self.dataset, key=key, anchor=anchor)
+                                  dataset=self.dataset, key=key,
+                                  anchor=None if anchor == key else anchor)
             except Exception as exc:  # one broken variant must not sink the other outputs
                 yield job, exc
+
+    def _over_time(self, job, anchor, frames, position, center):
+        from ..corruptions.temporal import corrupt_sequence
+        from ..seeding import job_rng
+
+        rng = job_rng(self.seed, self.dataset, job.variant, job.level, anchor)
+        return corrupt_sequence(job.variant, frames, center, job.level, rng)[position]
 
     def fingerprint(self, variant: str) -> str:
         return ""  # a corruption's output depends only on the seed, the size and the source
