@@ -25,6 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .benchmarks import TEMPORAL
 from .errors import InvalidValueError, RobodepthError, cannot_write
 from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir
 from .output.record import BuildRecord
@@ -310,8 +311,10 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     built = {(r.variant, r.level) for r in rows.values()}
     from .corruptions.chains import looks_like_chain
 
-    # benchmark order, levels ascending, then the chains by name
-    order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
+    # benchmark order, levels ascending (then the corruptions over time of a build with
+    # --frames), then the chains by name
+    order = [CLEAN, *ds.variant_names(), *TEMPORAL,
+             *sorted({v for v, _ in built if looks_like_chain(v)})]
     variants = sorted((vl for vl in built if vl[0] in order),
                       key=lambda vl: (order.index(vl[0]), vl[1] or 0))
     dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants))

@@ -53,6 +53,7 @@ def test_neighbours_written_listed_and_verified(drive, tmp_path, cli, build_kitt
     assert rows[f"gaussian_noise/3/{kitti_key(4)}"]["params"] == f"neighbour_of={kitti_key(5)}"
     plan = json.loads((out / "build.json").read_text())["plans"][-1]
     assert plan["keys"] == [kitti_key(0), kitti_key(2), kitti_key(5)]
+    assert plan["frames"] == [-1, 1]
     assert plan["neighbours"] == {kitti_key(0): [None, kitti_key(1)],
                                   kitti_key(2): [kitti_key(1), kitti_key(3)],
                                   kitti_key(5): [kitti_key(4), None]}

@@ -17,7 +17,7 @@ from dataclasses import replace
 from pathlib import PurePosixPath
 
 from ..errors import InvalidValueError
-from ..keys import PRESET_EXTS
+from ..keys import PRESET_EXTS, neighbour_key
 from ..sources.datasets import Entry
 from .tasks import Source
 
@@ -43,14 +43,6 @@ def check_frames(value) -> tuple[int, ...]:
                                     f"-{MAX_OFFSET}..{MAX_OFFSET} (0 is the test frame itself)")
         offsets.append(o)
     return tuple(sorted(set(offsets)))
-
-
-def neighbour_key(key: str, offset: int) -> str | None:
-    """The key of the frame ``offset`` away from the KITTI frame ``key``
-    (``.../data/0000000069.png``), None before frame 0."""
-    p = PurePosixPath(key)
-    n = int(p.stem) + offset
-    return None if n < 0 else str(p.with_name(f"{n:0{len(p.stem)}d}{p.suffix}"))
 
 
 def neighbour_sources(root, sources: list[Source], offsets) -> tuple[list[Source], dict]:

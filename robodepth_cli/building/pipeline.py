@@ -184,8 +184,8 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             # Work to do: let the renderer get ready once here rather than in every worker
             # (KITTI-S computes its style statistics); a rerun with nothing to do skips it.
             getattr(renderer, "warm_up", lambda: None)()
-        plans = buildchecks.merge_plans(previous, plan_entry(
-            cfg.variants, cfg.levels, [s.key for s in sources if not s.anchor], split.get("neighbours")))
+        plans = buildchecks.merge_plans(previous, plan_entry(cfg.variants, cfg.levels, [
+            s.key for s in sources if not s.anchor], split.get("neighbours"), cfg.frames))
         # The record describes the whole build in OUT, not only this request: a `--limit 2`
         # look into a finished build must not shrink what evaluation and ground truth see.
         keys = buildchecks.built_keys(plans)

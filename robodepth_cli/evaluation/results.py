@@ -12,11 +12,10 @@ Results CSV
     lacks the halving).
 
     Rows beyond the benchmark are read too, and kept apart: a corruption at a decimal
-    level (``fog,2.5``) and a chain of corruptions (``fog:3+gaussian_noise:2.5``, level 0 or
-    empty), as ``robodepth evaluate`` writes them for such builds. mCE, mRR and mDEE stay
-    defined as the benchmark defines them, on its corruptions at its integer levels; the
-    extra rows are reported as severity curves (DEE against the level, integer and decimal
-    levels together) and chain DEE rows, in a section of their own.
+    level (``fog,2.5``) and a chain (``fog:3+gaussian_noise:2.5``, level 0 or empty), as
+    ``robodepth evaluate`` writes them; mCE, mRR and mDEE stay the benchmark's, on its
+    corruptions at its integer levels, the extra rows shown as severity curves and chain DEE
+    rows. Rows of the corruptions over time (``frame_lost``, ...) are skipped: no score.
 """
 
 from __future__ import annotations
@@ -28,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from ..benchmarks import BENCHMARKS, CATEGORY, CLEAN, Baseline, Benchmark
+from ..benchmarks import BENCHMARKS, CATEGORY, CLEAN, TEMPORAL, Baseline, Benchmark
 from ..errors import RobodepthError, os_reason
 
 
@@ -205,6 +204,8 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
         if name == CLEAN:
             if level != 0:
                 raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
+        elif name in TEMPORAL:  # a corruption over time (build --frames): in no score
+            continue
         elif name not in benchmark.corruptions:
             if name in CATEGORY:
                 raise ScoreError(f"{where}: {name} is not a corruption of {benchmark.name}")

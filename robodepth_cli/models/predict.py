@@ -235,6 +235,42 @@ def _read_images(paths: Sequence[Path]) -> list[np.ndarray]:
     return [np.asarray(read_rgb(p)) for p in paths]
 
 
+def _read_sequences(items: Sequence[tuple]) -> list[np.ndarray]:
+    """For a multi-frame model: per item (the frame's path, then its neighbours' or None),
+    an ``F x H x W x 3`` stack; a missing neighbour is black, as ManyDepth's loader makes it."""
+    out = []
+    for paths in items:
+        frame = _read_images([paths[0]])[0]
+        others = [_read_images([p])[0] if p is not None else np.zeros_like(frame) for p in paths[1:]]
+        out.append(np.stack([frame, *others]))
+    return out
+
+
+def _inputs(dataset: BuiltDataset, variant: Variant, frames: tuple[int, ...]) -> list:
+    """What the model reads per image: its path, or with ``frames`` the tuple of its path
+    and its neighbours' (None where the build has no such frame)."""
+    from ..keys import neighbour_key
+
+    paths = variant.images()
+    if not frames:
+        return paths
+    base = variant.root / variant.relpath
+    items = []
+    for key, path in zip(variant.keys, paths):
+        near = [neighbour_key(key, o) for o in frames]
+        items.append((path, *[base / k if k and (base / k).is_file() else None for k in near]))
+    return items
+
+
+def check_frames(dataset: BuiltDataset, model) -> None:
+    """A multi-frame model needs a build with those neighbours (``build --frames``)."""
+    lacking = sorted(set(model.frames) - dataset.record.frames)
+    if lacking:
+        raise ModelError(f"{model.spec} takes the neighbour frames {', '.join(map(str, model.frames))}; "
+                         f"{dataset.path} has no neighbours at {', '.join(map(str, lacking))} "
+                         f"(build it with --frames {','.join(map(str, model.frames))})")
+
+
 def _same_size_runs(images: list[np.ndarray]):
     """Consecutive images of one size, as ``N x H x W x 3`` batches."""
     start = 0
@@ -256,6 +292,10 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     if batch_size < 1:
         raise ModelError(f"--batch-size {batch_size}: must be at least 1")
     pred = Path(pred)
+    frames = tuple(getattr(model, "frames", ()))
+    if frames:
+        check_frames(dataset, model)
+    read = _read_sequences if frames else _read_images
     record = make_record(dataset, model)
     created = prepare_output(pred, record)
     recorded = read_record(pred) is not None
@@ -269,15 +309,15 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     try:
         with ThreadPoolExecutor(1) as reader:
             for v in todo:
-                paths = v.images()
+                paths = _inputs(dataset, v, frames)
                 chunks = [paths[i:i + batch_size] for i in range(0, len(paths), batch_size)]
                 out_writer = (ImageFilesWriter(pred, v) if dataset.size is None
                               else PredictionWriter(v.prediction_file(pred), len(paths)))
                 with out_writer as out:
-                    pending = reader.submit(_read_images, chunks[0]) if chunks else None
+                    pending = reader.submit(read, chunks[0]) if chunks else None
                     for k in range(len(chunks)):
                         images = pending.result()
-                        pending = (reader.submit(_read_images, chunks[k + 1])
+                        pending = (reader.submit(read, chunks[k + 1])
                                    if k + 1 < len(chunks) else None)
                         for batch in _same_size_runs(images):
                             maps = model.predict(batch)
