@@ -71,13 +71,17 @@ def test_measure_by_hand():
     assert got["flicker_abs_rel"] == pytest.approx(0.15)
 
 
-@pytest.mark.parametrize("drift", [1.05, 0.9])
-def test_a_model_drifting_in_scale_gives_that_drift(sequence_build, tmp_path, cli, drift):
+@pytest.mark.parametrize("drift, jobs", [(1.05, 1), (0.9, 2)])
+def test_a_model_drifting_in_scale_gives_that_drift(sequence_build, tmp_path, cli, drift, jobs,
+                                                   monkeypatch):
+    from robodepth_cli.evaluation import evaluate as E
+
+    monkeypatch.setattr(E, "MAPS_PER_WORKER", 1)  # two variants: --jobs 2 is a pool of two
     out, frames = sequence_build
     pred = tmp_path / "PRED"
     write_preds(pred, frames, drift)
     res = cli("evaluate", out, "--pred", pred, "--kind", "depth", "--flicker", "--out",
-              tmp_path / "r.csv", "--jobs", "1", "--no-progress")
+              tmp_path / "r.csv", "--jobs", jobs, "--no-progress")
     assert res.exit_code == 0, res.output
     got = rows(tmp_path / "r.csv")
     assert list(got[0])[-2:] == ["flicker_scale", "flicker_abs_rel"]

@@ -195,8 +195,8 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
             shared = truth.share(Path(tmp) / "ground_truth.bin")
             # The workers map the file: keeping the maps here too would hold them twice.
             del truth
-            result.results = _evaluate_in_workers(found, shared, setup, dataset.size, progress, jobs,
-                                                  pairs)
+            result.results = _evaluate_in_workers(found, shared, setup, dataset.size, progress,
+                                                  pairs, jobs)
         return result
     for v, p in found:
         try:
@@ -227,7 +227,7 @@ def _kind_read(setup: Setup, found: Sequence[tuple[Variant, Predictions]]) -> Se
 
 
 def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], shared, setup: Setup,
-                         image_size, progress, jobs: int, pairs=None) -> list[VariantResult]:
+                         image_size, progress, pairs, jobs: int) -> list[VariantResult]:
     """:func:`_evaluate_variant` of every variant in ``jobs`` worker processes that map the
     ground truth ``shared`` (:meth:`GroundTruth.share`); results in variant order."""
     from ..workers import in_order
