@@ -192,3 +192,16 @@ def test_builds_without_corruptions_over_time_never_import_pyav(drive, tmp_path,
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "False"
+
+
+def test_a_missing_test_frame_has_no_neighbours(drive, tmp_path, cli, build_kitti):
+    root, split = drive
+    (root / "2011_09_26/2011_09_26_drive_0001_sync/image_02/data/0000000005.png").unlink()
+    out = tmp_path / "out"
+    res = build_kitti(root, split, out, *FLAGS, "--frames", "-1,1")
+    assert res.exit_code == 1  # frame 5's outputs failed; the rest is built
+    assert not any(kitti_key(4) in p for p in tree(out))
+    plan = json.loads((out / "build.json").read_text())["plans"][-1]
+    assert plan["neighbours"][kitti_key(5)] == [None, None]
+    v = cli("verify", out)
+    assert "failed: 4" in v.output and "missing:" not in v.output and "incomplete" not in v.output

@@ -55,7 +55,9 @@ def neighbour_sources(root, sources: list[Source], offsets) -> tuple[list[Source
     before = sum(1 for o in offsets if o < 0)
     framed = []
     for src in sources:
-        found = [(_find(root, src, key) if key else None)
+        # A test frame that is not there has no sequence: its own outputs fail, and its
+        # neighbours are not made for it.
+        found = [(_find(root, src, key) if key and not src.error else None)
                  for key in (neighbour_key(src.key, o) for o in offsets)]
         listing[src.key] = [f.key if f else None for f in found]
         timeline = found[:before] + [src] + found[before:]
@@ -63,7 +65,7 @@ def neighbour_sources(root, sources: list[Source], offsets) -> tuple[list[Source
         framed.append(replace(src, sequence=paths, position=before, center=before))
         for i, f in enumerate(timeline):
             if f is not None and f.key not in tests and f.key not in owned:
-                owned[f.key] = replace(f, sequence=paths, position=i, center=before)
+                owned[f.key] = replace(f, anchor=src.key, sequence=paths, position=i, center=before)
     return framed + list(owned.values()), listing
 
 
@@ -74,7 +76,7 @@ def _find(root, test: Source, key: str) -> Source | None:
     first = PurePosixPath(test.rel).suffix if test.rel else ".png"
     exts = (first,) + tuple(e for e in PRESET_EXTS if e != first)
     src = Source.find(root, Entry(0, key, tuple(f"{stem}{e}" for e in exts)))
-    return None if src.error else Source(**{**src.__dict__, "anchor": test.key})
+    return None if src.error else src
 
 
 def _rel(key: str) -> str:
