@@ -205,3 +205,16 @@ def test_a_missing_test_frame_has_no_neighbours(drive, tmp_path, cli, build_kitt
     assert plan["neighbours"][kitti_key(5)] == [None, None]
     v = cli("verify", out)
     assert "failed: 4" in v.output and "missing:" not in v.output and "incomplete" not in v.output
+
+
+def test_codec_corruptions_need_pyav(drive, tmp_path, build_kitti, monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "av" else real(name, *a))
+    root, split = drive
+    res = build_kitti(root, split, tmp_path / "o", *SIZE, "--corruptions", "frame_lost,bit_error",
+                      "--frames", "-1")
+    assert res.exit_code == 2
+    assert "--corruptions: bit_error needs PyAV: pip install 'robodepth-cli[video]'" in res.output
+    assert not (tmp_path / "o").exists()

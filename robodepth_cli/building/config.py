@@ -24,6 +24,7 @@ have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 from dataclasses import asdict, dataclass, field
@@ -392,6 +393,10 @@ class _Resolver:
         if over_time and not self.values.get("frames"):
             raise ConfigError(f"{self.origin[ds.variant_key]}: {over_time[0]} is a corruption over "
                               f"time: it needs the neighbour frames (--frames, e.g. -1,1)")
+        coded = [v for v in over_time if v not in ("frame_lost", "frame_freeze")]
+        if coded and importlib.util.find_spec("av") is None:  # found, not imported
+            raise ConfigError(f"{self.origin[ds.variant_key]}: {coded[0]} needs PyAV: "
+                              f"pip install 'robodepth-cli[video]'")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),
