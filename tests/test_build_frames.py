@@ -137,14 +137,15 @@ def test_frames_only_for_kitti(tmp_path, cli):
 OVER_TIME = ("--corruptions", "frame_lost,frame_freeze,h264_crf,bit_error", "--levels", "1,5")
 
 
-def test_corruptions_over_time_in_a_build(drive, tmp_path, cli, build_kitti):
+@pytest.mark.parametrize("jobs", [1, 2])  # 1: the sequences a process keeps are reused
+def test_corruptions_over_time_in_a_build(drive, tmp_path, cli, build_kitti, jobs):
     """Each frame of a sequence is cut from the same corrupted sequence: the written frames
     equal the sequence corruption of the written clean frames."""
     from robodepth_cli.corruptions.temporal import corrupt_sequence
 
     root, split = drive
     out = tmp_path / "out"
-    res = build_kitti(root, split, out, *SIZE, *OVER_TIME, "--frames", "-1,1", "--jobs", "2", "--no-gt")
+    res = build_kitti(root, split, out, *SIZE, *OVER_TIME, "--frames", "-1,1", "--jobs", jobs, "--no-gt")
     assert res.exit_code == 0, res.output
     assert cli("verify", out).exit_code == 0
     # frame_lost at level 5 (p = 1): both neighbours of test frame 2 black, the test frame clean.

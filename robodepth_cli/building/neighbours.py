@@ -46,14 +46,14 @@ def check_frames(value) -> tuple[int, ...]:
 
 
 def neighbour_sources(root, sources: list[Source], offsets) -> tuple[list[Source], dict]:
-    """``sources`` (the test frames, split order) followed by their neighbours to render,
-    each with its sequence, and the listing ``{test key: [neighbour key or None, ...]}``
+    """``sources`` (the test frames, split order), each followed by the neighbours rendered
+    for it (so one worker often gets a whole sequence), each with its sequence, and the listing ``{test key: [neighbour key or None, ...]}``
     in offset order."""
     tests = {s.key for s in sources}
     owned: dict[str, Source] = {}
     listing: dict[str, list] = {}
     before = sum(1 for o in offsets if o < 0)
-    framed = []
+    ordered = []  # each test frame followed by the neighbours rendered for it
     for src in sources:
         # A test frame that is not there has no sequence: its own outputs fail, and its
         # neighbours are not made for it.
@@ -62,11 +62,12 @@ def neighbour_sources(root, sources: list[Source], offsets) -> tuple[list[Source
         listing[src.key] = [f.key if f else None for f in found]
         timeline = found[:before] + [src] + found[before:]
         paths = tuple(f.path if f else None for f in timeline)
-        framed.append(replace(src, sequence=paths, position=before, center=before))
+        ordered.append(replace(src, sequence=paths, position=before, center=before))
         for i, f in enumerate(timeline):
             if f is not None and f.key not in tests and f.key not in owned:
                 owned[f.key] = replace(f, anchor=src.key, sequence=paths, position=i, center=before)
-    return framed + list(owned.values()), listing
+                ordered.append(owned[f.key])
+    return ordered, listing
 
 
 def _find(root, test: Source, key: str) -> Source | None:

@@ -11,6 +11,7 @@ job's generator, so a PNG and a JPEG copy of a frame get the same noise.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Iterator, Protocol, Sequence
@@ -178,6 +179,12 @@ def locate(root: Path, entry: Entry) -> tuple[str, Path]:
     raise ImageError(f"{root / entry.candidates[0]}: no such file (tried {tried})")
 
 
+# The corrupted sequences of the last test frame rendered in this process (see
+# CorruptionRenderer._over_time): test frame key -> {key: frames}.
+_SEQUENCES: dict[str, dict] = {}
+_SEQUENCES_LOCK = threading.Lock()
+
+
 class CorruptionRenderer:
     """Applies the corruptions, each job with its own generator (see :mod:`.seeding`)."""
 
@@ -203,11 +210,28 @@ class CorruptionRenderer:
                 yield job, exc
 
     def _over_time(self, job, anchor, frames, position, center):
+        """Frame ``position`` of the sequence ``frames`` under a corruption over time. The
+        other frames of a sequence usually come next to the same worker, so the corrupted
+        sequences of the last test frame are kept (keyed by everything they depend on)."""
+        import hashlib
+
         from ..corruptions.temporal import corrupt_sequence
         from ..seeding import job_rng
 
-        rng = job_rng(self.seed, self.dataset, job.variant, job.level, anchor)
-        return corrupt_sequence(job.variant, frames, center, job.level, rng)[position]
+        digest = hashlib.sha256()
+        for f in frames:
+            digest.update(b"-" if f is None else f.tobytes() + str(f.shape).encode())
+        key = (self.seed, self.dataset, job.variant, job.level, anchor, center, digest.hexdigest())
+        with _SEQUENCES_LOCK:  # a Dask worker runs tasks in threads
+            for other in [a for a in _SEQUENCES if a != anchor]:
+                del _SEQUENCES[other]  # another test frame's sequence: the last one is done with
+            done = _SEQUENCES.setdefault(anchor, {}).get(key)
+        if done is None:
+            rng = job_rng(self.seed, self.dataset, job.variant, job.level, anchor)
+            done = corrupt_sequence(job.variant, frames, center, job.level, rng)
+            with _SEQUENCES_LOCK:
+                _SEQUENCES.setdefault(anchor, {})[key] = done
+        return done[position]
 
     def fingerprint(self, variant: str) -> str:
         return ""  # a corruption's output depends only on the seed, the size and the source
