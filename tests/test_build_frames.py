@@ -219,3 +219,26 @@ def test_codec_corruptions_need_pyav(drive, tmp_path, build_kitti, monkeypatch):
     assert res.exit_code == 2
     assert "--corruptions: bit_error needs PyAV: pip install 'robodepth-cli[video]'" in res.output
     assert not (tmp_path / "o").exists()
+
+
+def test_a_changed_neighbour_redoes_its_sequence(drive, tmp_path, build_kitti):
+    """A corruption over time of the test frame depends on its neighbours: when one of them
+    changes, the rerun makes the sequence again, and nothing else."""
+    root, split = drive
+    out = tmp_path / "out"
+    flags = (*SIZE, "--corruptions", "fog,h264_crf", "--levels", "1", "--frames", "-1,1", "--jobs", "1",
+             "--no-gt")
+    assert build_kitti(root, split, out, *flags).exit_code == 0
+    before = tree(out)
+    frame3 = root / "2011_09_26/2011_09_26_drive_0001_sync/image_02/data/0000000003.png"
+    Image.fromarray(255 - np.asarray(Image.open(frame3))).save(frame3)
+    res = build_kitti(root, split, out, *flags)
+    assert res.exit_code == 0, res.output
+    after = tree(out)
+    changed = {p for p in after if after[p] != before[p]}
+    # Frame 3's own outputs, and the h264 frames of its sequence (test frame 2, frames 1 and 3).
+    assert changed == {f"clean/{kitti_key(3)}", f"fog/1/{kitti_key(3)}",
+                       *(f"h264_crf/1/{kitti_key(n)}" for n in (2, 3))}
+    rows = rows_of(out)
+    assert rows[f"h264_crf/1/{kitti_key(2)}"]["params"].startswith("sequence=")
+    assert rows[f"h264_crf/1/{kitti_key(1)}"]["params"].startswith(f"neighbour_of={kitti_key(0)};sequence=")

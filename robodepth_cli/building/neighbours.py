@@ -61,13 +61,22 @@ def neighbour_sources(root, sources: list[Source], offsets) -> tuple[list[Source
                  for key in (neighbour_key(src.key, o) for o in offsets)]
         listing[src.key] = [f.key if f else None for f in found]
         timeline = found[:before] + [src] + found[before:]
-        paths = tuple(f.path if f else None for f in timeline)
-        ordered.append(replace(src, sequence=paths, position=before, center=before))
+        seq = {"sequence": tuple(f.path if f else None for f in timeline), "center": before,
+               "sequence_id": _identity(timeline)}
+        ordered.append(replace(src, position=before, **seq))
         for i, f in enumerate(timeline):
             if f is not None and f.key not in tests and f.key not in owned:
-                owned[f.key] = replace(f, anchor=src.key, sequence=paths, position=i, center=before)
+                owned[f.key] = replace(f, anchor=src.key, position=i, **seq)
                 ordered.append(owned[f.key])
     return ordered, listing
+
+
+def _identity(timeline: list) -> str:
+    """A short digest of the frames of a sequence as found: key, size and time of each."""
+    import hashlib
+
+    text = "|".join("-" if f is None else f"{f.key}:{f.size}:{f.mtime}" for f in timeline)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def _find(root, test: Source, key: str) -> Source | None:

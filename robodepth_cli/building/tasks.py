@@ -54,6 +54,9 @@ class Source:
     sequence: tuple = ()
     position: int = 0
     center: int = 0
+    # What identifies the sequence's files (their sizes and times): the outputs of the
+    # corruptions over time are made again when any frame of their sequence changed.
+    sequence_id: str = ""
 
     @classmethod
     def find(cls, root: Path, entry: Entry) -> "Source":
@@ -111,7 +114,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
         return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
-                   fingerprint(ctx.renderer, job, src.anchor), src.size, src.mtime, source_sha)
+                   fingerprint(ctx.renderer, job, src), src.size, src.mtime, source_sha)
 
     results: list[tuple[JobState, Row]] = []
     todo: list[Job] = []
@@ -192,19 +195,24 @@ def _keep_freed_memory() -> None:
         pass
 
 
-def fingerprint(renderer: Renderer, job: Job, anchor: str = "") -> str:
-    """The manifest's ``params`` of ``job``: what besides the seed and size decides its
-    pixels (:func:`with_anchor` of the renderer's fingerprint)."""
-    return with_anchor("" if job.variant == CLEAN else renderer.fingerprint(job.variant), anchor)
+def fingerprint(renderer: Renderer, job: Job, src: Source | None = None) -> str:
+    """The manifest's ``params`` of ``job`` (of the source ``src``): what besides the seed
+    and size decides its pixels (:func:`for_source` of the renderer's fingerprint)."""
+    params = "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
+    return params if src is None else for_source(params, src, job)
 
 
-def with_anchor(params: str, anchor: str) -> str:
-    """``params`` of an output of a neighbour frame: ``neighbour_of=<test frame key>`` first,
-    which lists the neighbour under its test frame in the manifest and redoes it when it is
-    rendered for another one; a test frame's are unchanged."""
-    if not anchor:
-        return params
-    return f"neighbour_of={anchor}" + (f";{params}" if params else "")
+def for_source(params: str, src: Source, job: Job) -> str:
+    """``params`` of ``job`` made from ``src``. A neighbour frame's begin with
+    ``neighbour_of=<test frame key>``, which lists it under its test frame in the manifest and
+    redoes it when it is rendered for another one; a corruption over time's end with
+    ``sequence=<id>`` (its sequence's files). A single-frame build's are unchanged."""
+    from ..benchmarks import TEMPORAL
+
+    parts = ([f"neighbour_of={src.anchor}"] if src.anchor else []) + ([params] if params else [])
+    if src.sequence_id and job.variant in TEMPORAL:
+        parts.append(f"sequence={src.sequence_id}")
+    return ";".join(parts)
 
 
 def _load(src: Source, size: tuple[int, int]):
