@@ -23,6 +23,7 @@ model on the same dataset's split, or it is refused (the files would mix two mod
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -235,31 +236,20 @@ def _read_images(paths: Sequence[Path]) -> list[np.ndarray]:
     return [np.asarray(read_rgb(p)) for p in paths]
 
 
-def _read_sequences(items: Sequence[tuple]) -> list[np.ndarray]:
-    """For a multi-frame model: per item (the frame's path, then its neighbours' or None),
-    an ``F x H x W x 3`` stack; a missing neighbour is black, as ManyDepth's loader makes it."""
-    out = []
-    for paths in items:
-        frame = _read_images([paths[0]])[0]
-        others = [_read_images([p])[0] if p is not None else np.zeros_like(frame) for p in paths[1:]]
-        out.append(np.stack([frame, *others]))
-    return out
-
-
-def _inputs(dataset: BuiltDataset, variant: Variant, frames: tuple[int, ...]) -> list:
-    """What the model reads per image: its path, or with ``frames`` the tuple of its path
-    and its neighbours' (None where the build has no such frame)."""
+def _read_sequences(paths: Sequence[Path], frames: tuple[int, ...]) -> list[np.ndarray]:
+    """For a multi-frame model: per image, an ``F x H x W x 3`` stack of it and its
+    neighbours at ``frames`` (the same variant's files of frame ``n + offset``, named as a
+    build with ``--frames`` writes them); a neighbour the build does not have is black, as
+    ManyDepth's loader makes a missing file."""
     from ..keys import neighbour_key
 
-    paths = variant.images()
-    if not frames:
-        return paths
-    base = variant.root / variant.relpath
-    items = []
-    for key, path in zip(variant.keys, paths):
-        near = [neighbour_key(key, o) for o in frames]
-        items.append((path, *[base / k if k and (base / k).is_file() else None for k in near]))
-    return items
+    out = []
+    for path in paths:
+        frame = _read_images([path])[0]
+        near = [neighbour_key(str(path), o) for o in frames]
+        out.append(np.stack([frame, *[_read_images([Path(n)])[0] if n and Path(n).is_file()
+                                      else np.zeros_like(frame) for n in near]]))
+    return out
 
 
 def check_frames(dataset: BuiltDataset, model) -> None:
@@ -291,11 +281,11 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     """
     if batch_size < 1:
         raise ModelError(f"--batch-size {batch_size}: must be at least 1")
-    pred = Path(pred)
-    frames = tuple(getattr(model, "frames", ()))
+    frames = tuple(getattr(model, "frames", ()))  # a multi-frame model's neighbours
     if frames:
         check_frames(dataset, model)
-    read = _read_sequences if frames else _read_images
+    read = functools.partial(_read_sequences, frames=frames) if frames else _read_images
+    pred = Path(pred)
     record = make_record(dataset, model)
     created = prepare_output(pred, record)
     recorded = read_record(pred) is not None
@@ -309,7 +299,7 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     try:
         with ThreadPoolExecutor(1) as reader:
             for v in todo:
-                paths = _inputs(dataset, v, frames)
+                paths = v.images()
                 chunks = [paths[i:i + batch_size] for i in range(0, len(paths), batch_size)]
                 out_writer = (ImageFilesWriter(pred, v) if dataset.size is None
                               else PredictionWriter(v.prediction_file(pred), len(paths)))

@@ -7,13 +7,6 @@ uint8 RGB numpy array (one size per batch), and returns ``N`` maps: an ``N x h x
 ``N x 1 x h x w``) floating-point numpy array or torch tensor, or a list of ``N`` maps of
 one size. What the maps hold is the user's to say: ``--kind disp|sigmoid|depth`` and
 ``--metric`` (metres) or ``--relative`` (the default: right up to a scale and shift).
-
-A multi-frame model declares the neighbour frames it takes with an attribute of the
-callable, ``fn.robodepth_frames = (-1, 1)`` (non-zero offsets, in the order it wants them):
-it is then called with ``N x F x H x W x 3`` (``F`` = 1 + the offsets), ``[:, 0]`` the frame
-itself and ``[:, 1 + k]`` its neighbour at offset ``k`` of that tuple, read from a build made
-with ``--frames``; a neighbour the drive does not have is a black image, as ManyDepth's
-loader gives for a missing file.
 """
 
 from __future__ import annotations
@@ -66,7 +59,13 @@ def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = 
 
 
 def _frames(value, spec: str) -> tuple[int, ...]:
-    """A callable's ``robodepth_frames``: distinct non-zero integer offsets."""
+    """A callable's ``robodepth_frames``: distinct non-zero integer offsets.
+
+    A multi-frame model declares the neighbour frames it takes so, ``fn.robodepth_frames =
+    (-1, 1)`` (in the order it wants them): it is then called with ``N x F x H x W x 3``
+    (``F`` = 1 + the offsets), ``[:, 0]`` the frame itself and ``[:, 1 + k]`` its neighbour
+    at the k-th offset, read from a build made with ``--frames``; a neighbour the drive does
+    not have is a black image, as ManyDepth's loader gives for a missing file."""
     offsets = tuple(value) if isinstance(value, (list, tuple)) else None
     if offsets is None or not all(isinstance(o, int) and not isinstance(o, bool) and o for o in offsets) \
             or len(set(offsets)) != len(offsets):
