@@ -242,3 +242,16 @@ def test_a_changed_neighbour_redoes_its_sequence(drive, tmp_path, build_kitti):
     rows = rows_of(out)
     assert rows[f"h264_crf/1/{kitti_key(2)}"]["params"].startswith("sequence=")
     assert rows[f"h264_crf/1/{kitti_key(1)}"]["params"].startswith(f"neighbour_of={kitti_key(0)};sequence=")
+
+
+@pytest.mark.parametrize("value, expected", [([1, -1], [-1, 1]), (-2, [-2]), ("+1, -1,1", [-1, 1])])
+def test_frames_in_a_config_file(drive, tmp_path, build_kitti, value, expected):
+    import yaml
+
+    root, split = drive
+    config = tmp_path / "mine.yaml"
+    config.write_text(yaml.safe_dump({"frames": value, "corruptions": ["brightness"], "levels": [1]}))
+    out = tmp_path / "out"
+    res = build_kitti(root, split, out, *SIZE, "--config", config, "--limit", "1", "--jobs", "1", "--no-gt")
+    assert res.exit_code == 0, res.output
+    assert json.loads((out / "build.json").read_text())["config"]["frames"] == expected

@@ -27,7 +27,8 @@ MAX_OFFSET = 10
 def check_frames(value) -> tuple[int, ...]:
     """``-1,1`` (text or a list of integers) as sorted distinct non-zero offsets within
     ``±MAX_OFFSET``; :class:`InvalidValueError` otherwise. An empty value is no frames."""
-    items = [s.strip() for s in value.split(",")] if isinstance(value, str) else value
+    items = ([s.strip() for s in value.split(",")] if isinstance(value, str)
+             else [value] if isinstance(value, int) else value)
     if not isinstance(items, (list, tuple)):
         raise InvalidValueError(f"expected frame offsets such as -1,1, got {value!r}")
     offsets = []
