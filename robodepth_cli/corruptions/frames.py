@@ -46,6 +46,8 @@ assert tuple(DRAWS) == CORRUPTIONS  # every corruption says what its draws are
 def draw_key(name: str, key: str, anchor: str | None) -> str:
     """The key that seeds corruption ``name`` on the frame ``key`` when it is a neighbour of
     the test frame ``anchor`` (None or "": ``key`` is a test frame)."""
-    if not anchor or DRAWS[name][0] == PER_FRAME:
+    # A corruption this table does not list yet is taken as the scene's (one draw for the
+    # sequence): a frame-to-frame jump in a fog or a blur would be the worse surprise.
+    if not anchor or DRAWS.get(name, (SHARED,))[0] == PER_FRAME:
         return key
     return anchor
