@@ -26,6 +26,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .benchmarks import TEMPORAL
 from .errors import InvalidValueError, RobodepthError, cannot_write
 from .export.layout import META as EXPORT_META, RECORD as EXPORT_RECORD
 from .export.reader import ExportStore
@@ -350,8 +351,9 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     built = {(r.variant, r.level) for r in rows.values()}
     from .corruptions.chains import looks_like_chain
 
-    # benchmark order, levels ascending, then the chains by name
-    order = [CLEAN, *ds.variant_names(), *ds.depth_variant_names(),
+    # benchmark order, levels ascending (then the corruptions over time of a build with
+    # --frames), then the chains by name
+    order = [CLEAN, *ds.variant_names(), *ds.depth_variant_names(), *TEMPORAL,
              *sorted({v for v, _ in built if looks_like_chain(v)})]
     variants = sorted((vl for vl in built if vl[0] in order),
                       key=lambda vl: (order.index(vl[0]), vl[1] or 0))

@@ -35,6 +35,9 @@ CATEGORY: dict[str, str] = {
 }
 CORRUPTIONS: tuple[str, ...] = tuple(CATEGORY)
 N_LEVELS = 5  # every corruption defines levels 1..5; a benchmark may use fewer
+# The corruptions over time (corruptions/temporal.py): they act on a test frame's sequence,
+# so a KITTI build makes them only with --frames. Not part of any benchmark's score.
+TEMPORAL: tuple[str, ...] = ("frame_lost", "frame_freeze", "h264_crf", "h265_crf", "bit_error")
 
 # Corruptions beyond the benchmarks, made from the scene's depth as well as its image
 # (docs/depth-aware-corruptions.md). No benchmark, score or baseline includes them, and

@@ -57,3 +57,12 @@ def seed_key(dataset: str, path: str) -> str:
         rel = _png(rel)
         return rel if rel.startswith(KITTI_PREFIX + "/") else f"{KITTI_PREFIX}/{rel}"
     return _png(rel)
+
+
+def neighbour_key(key: str, offset: int) -> str | None:
+    """The key of the frame ``offset`` away from the KITTI frame ``key``
+    (``.../data/0000000069.png`` and -1: ``.../data/0000000068.png``); None before frame 0.
+    The neighbours of ``build --frames`` are named so, and ``predict`` finds them so."""
+    p = PurePosixPath(key)
+    n = int(p.stem) + offset
+    return None if n < 0 else str(p.with_name(f"{n:0{len(p.stem)}d}{p.suffix}"))

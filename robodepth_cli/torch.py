@@ -58,10 +58,15 @@ class KittiC(torch.utils.data.Dataset):
     After a build that failed some images (it exited 1), ``missing="raise"`` (the default)
     raises :class:`TorchAPIError` naming them; ``missing="skip"`` serves the ones that exist
     (``len`` counts those; ``key`` says which each is).
+
+    ``frames=(-1, 1)`` (a build made with ``--frames``): the item also holds ``neighbours``,
+    the images of those neighbour frames in that order (the same variant, transformed
+    alike); a neighbour the drive does not have is black, as ManyDepth's loader gives it.
+    They are read from disk (not with ``on_the_fly``).
     """
 
     def __init__(self, root, corruption: str, level=None, on_the_fly: bool = False, transform=None,
-                 missing: str = "raise"):
+                 missing: str = "raise", frames=()):
         if missing not in ("raise", "skip"):
             raise TorchAPIError(f"missing={missing!r}: expected 'raise' or 'skip'")
         self.root = Path(root)
@@ -89,6 +94,14 @@ class KittiC(torch.utils.data.Dataset):
                                     f"for the {len(self.keys) - len(variant.missing)} that exist")
             self._index = [i for i, k in enumerate(self.keys) if k not in variant.missing]
             self.keys = [self.keys[i] for i in self._index]
+        self.frames = tuple(frames)
+        lacking = sorted(set(self.frames) - built.record.frames)
+        if lacking:
+            raise TorchAPIError(f"{self.root}: no neighbour frames at {', '.join(map(str, lacking))} "
+                                f"(build it with --frames {','.join(map(str, self.frames))})")
+        if self.frames and self.on_the_fly:
+            raise TorchAPIError("frames=: the neighbour frames are read from the build; "
+                                "on_the_fly=True makes only the test frames")
         first = self._path(0) if self.keys else None
         there = self._store.has if self._store is not None else lambda p: p.is_file()
         if first is not None and not there(first if self._store is None else self._output(0)):
@@ -138,11 +151,28 @@ class KittiC(torch.utils.data.Dataset):
         if self.on_the_fly:
             img = self.corruption._apply(img, self.keys[i])
         item = {"key": self.keys[i]}
-        item["image"] = self.transform(img) if self.transform else torch.from_numpy(img.copy()).permute(2, 0, 1)
+        item["image"] = self._tensor(img)
+        if self.frames:
+            item["neighbours"] = [self._tensor(n) for n in self._neighbours(i, img)]
         depth = self._depth(i)
         if depth is not None:
             item["depth"] = depth
         return item
+
+    def _tensor(self, img: np.ndarray):
+        return self.transform(img) if self.transform else torch.from_numpy(img.copy()).permute(2, 0, 1)
+
+    def _neighbours(self, i: int, img: np.ndarray) -> list[np.ndarray]:
+        from .imageio import read_rgb
+        from .keys import neighbour_key
+
+        out = []
+        for o in self.frames:
+            key = neighbour_key(self.keys[i], o)
+            path = self.root / self._relpath() / key if key else None
+            out.append(np.asarray(read_rgb(path)) if path is not None and path.is_file()
+                       else np.zeros_like(img))
+        return out
 
     def __getstate__(self):
         state = dict(self.__dict__)

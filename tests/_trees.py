@@ -53,6 +53,19 @@ def kitti_tree(root: Path, frames, size=(60, 200), copies_of=()) -> Path:
     return split
 
 
+def kitti_drive(root: Path, frames, tests, size=(48, 64), ext: str = ".png") -> Path:
+    """A KITTI-raw drive of consecutive left frames ``frames`` (e.g. ``range(6)``) whose
+    split lists only ``tests``, so the others are neighbours. Each frame is a smooth image
+    shifted a little from the one before, as a moving camera sees. Returns the split file."""
+    base = random_image(size[0], size[1] + 4 * max(frames), seed=7)
+    for n in frames:
+        save(root / KITTI_DRIVE / "image_02" / "data" / f"{n:010d}{ext}",
+             np.ascontiguousarray(base[:, 4 * n: 4 * n + size[1]]))
+    split = root.parent / f"{root.name}_split.txt"
+    split.write_text("".join(f"{KITTI_DRIVE} {n:010d} l\n" for n in tests))
+    return split
+
+
 def kitti_key(frame: int, side: str = "l") -> str:
     cam = {"l": "image_02", "r": "image_03"}[side]
     return f"kitti_data/{KITTI_DRIVE}/{cam}/data/{frame:010d}.png"

@@ -129,12 +129,13 @@ def planned_outputs(record: BuildRecord | None) -> set[str] | None:
     if not entries:
         return None
     from ..sources.datasets import get_dataset
+    from .neighbours import planned_keys
 
     ds = get_dataset(record.dataset)
     paths: set[str] = set()
     for p in entries:
         jobs = ds.jobs(p["variants"], p["levels"])
-        for key in p["keys"]:
+        for key in [*p["keys"], *planned_keys(p)]:
             paths.update(job.path(key) for job in jobs)
     return paths
 

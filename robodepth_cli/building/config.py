@@ -17,12 +17,14 @@ source images, or null for all), ``scheduler`` (a Dask scheduler address such as
 ``tcp://head:8786``: run the build on that cluster, ``jobs`` is then unused) or
 ``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
 layer's choice replaces an earlier layer's), ``png`` (``fast`` or ``compact``: how the PNGs
-are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``). A corruption or level the dataset does not
+are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``),
+``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame). A corruption or level the dataset does not
 have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 from dataclasses import asdict, dataclass, field
@@ -31,6 +33,7 @@ from typing import Any
 
 import yaml
 
+from ..benchmarks import TEMPORAL
 from ..files import data_dir
 from ..sources import splits
 from ..sources.datasets import get_dataset
@@ -62,9 +65,14 @@ class BuildConfig:
     scheduler: str | None = None  # a Dask scheduler's address: build on that cluster
     scheduler_file: str | None = None  # or the scheduler file that holds it
     png: str | None = None  # "fast" or "compact"; None: the build's own, else fast
+    frames: tuple[int, ...] = ()  # neighbour offsets (--frames -1,1); () a single-frame build
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
+        if not self.frames:
+            del d["frames"]  # the record of a single-frame build is as it always was
+        else:
+            d["frames"] = list(self.frames)
         d["size"] = None if self.size is None else list(self.size)
         d["variants"] = list(self.variants)
         d["levels"] = list(self.levels)
@@ -234,6 +242,7 @@ class _Resolver:
         """The config keys dataset ``ds`` takes (no ``levels`` for one without levels)."""
         return (tuple(k for k in cls.KEYS if k != "levels" or ds.leveled)
                 + (ds.variant_key,) + (("compose", "train") if ds.leveled else ())
+                + (("frames",) if ds.leveled and ds.split_format == "eigen" else ())
                 + tuple(ds.options()) + cls.ONE_OF)
 
     def valid_keys(self) -> tuple[str, ...]:
@@ -322,8 +331,11 @@ class _Resolver:
         if key == "train":
             return check_train(loc, v, ds)
         if key == ds.variant_key:
-            return choose_names(loc, v, ds.variant_names(), ds.variant_noun, owner=ds.name,
-                                known=ds.known_variant_names(), extra=ds.depth_variant_names())
+            # The corruptions over time are named, never part of 'all'; they need --frames.
+            over_time = TEMPORAL if "frames" in self.keys_of(ds) and v != ALL else ()
+            return choose_names(loc, v, ds.variant_names() + over_time, ds.variant_noun,
+                                owner=ds.name, known=ds.known_variant_names(),
+                                extra=ds.depth_variant_names())
         if key == "levels":
             # A dataset without levels accepts the key and ignores it.
             return choose_levels(loc, v, ds.levels() if ds.leveled else None, owner=ds.name)
@@ -343,6 +355,13 @@ class _Resolver:
                 raise ConfigError(f"{exc} (or 'auto' or -1: one worker per CPU)") from None
         if key == "limit":
             return None if v is None else _int(loc, v, 1)
+        if key == "frames":
+            from .neighbours import check_frames
+
+            try:
+                return () if v is None else check_frames(v)
+            except InvalidValueError as exc:
+                raise ConfigError(f"{loc}: {exc}") from None
         if key == "png":
             from ..imageio import PNG_METHODS
 
@@ -378,6 +397,14 @@ class _Resolver:
         if seen:
             raise ConfigError(f"{self.origin['train']}: train: {', '.join(sorted(seen))} also built for "
                               f"testing; a held-out protocol trains on other corruptions")
+        over_time = [v for v in variants if v in TEMPORAL]
+        if over_time and not self.values.get("frames"):
+            raise ConfigError(f"{self.origin[ds.variant_key]}: {over_time[0]} is a corruption over "
+                              f"time: it needs the neighbour frames (--frames, e.g. -1,1)")
+        coded = [v for v in over_time if v not in ("frame_lost", "frame_freeze")]
+        if coded and importlib.util.find_spec("av") is None:  # found, not imported
+            raise ConfigError(f"{self.origin[ds.variant_key]}: {coded[0]} needs PyAV: "
+                              f"pip install 'robodepth-cli[video]'")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
         if "engine" in ds.options():  # the corruption datasets: which engine, on which device
@@ -387,13 +414,16 @@ class _Resolver:
                 extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()})
             except InvalidValueError as exc:
                 raise ConfigError(str(exc)) from None
+            if extra["engine"] == "torch" and self.values.get("frames"):
+                raise ConfigError(f"{_loc(self.origin['engine'], 'engine')}: the torch engine does not "
+                                  f"render neighbour frames (--frames); use --engine numpy")
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),
                            size=self.values["size"], variants=tuple(variants), levels=tuple(levels),
                            seed=self.values["seed"], jobs=self.values["jobs"],
                            limit=self.values.get("limit"), extra=extra,
                            scheduler=self.values.get("scheduler"),
                            scheduler_file=self.values.get("scheduler_file"),
-                           png=self.values.get("png"))
+                           png=self.values.get("png"), frames=self.values.get("frames", ()))
 
 
 def resolve(preset: str, config_file: Path | None = None,

@@ -102,5 +102,11 @@ def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
         return sources, split
     split_path = splits.split_path(cfg.split)
     sources = find_sources(root, split_path, ds, cfg.limit, shown_root=shown_root)
-    return sources, {"path": os.path.abspath(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
-                     "images": len(sources), "keys": [s.key for s in sources]}
+    split = {"path": os.path.abspath(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
+             "images": len(sources), "keys": [s.key for s in sources]}
+    if cfg.frames:  # the neighbours follow the test frames (their ``anchor`` names which)
+        from .neighbours import neighbour_sources
+
+        sources, split["neighbours"] = neighbour_sources(root, sources, cfg.frames)
+        split["frames"] = list(cfg.frames)
+    return sources, split

@@ -183,8 +183,8 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
             # Work to do: let the renderer get ready once here rather than in every worker
             # (KITTI-S computes its style statistics); a rerun with nothing to do skips it.
             getattr(renderer, "warm_up", lambda: None)()
-        plans = buildchecks.merge_plans(previous, plan_entry(
-            cfg.variants, cfg.levels, [s.key for s in sources]))
+        plans = buildchecks.merge_plans(previous, plan_entry(cfg.variants, cfg.levels, [
+            s.key for s in sources if not s.anchor], split.get("neighbours"), cfg.frames))
         # The record describes the whole build in OUT, not only this request: a `--limit 2`
         # look into a finished build must not shrink what evaluation and ground truth see.
         keys = buildchecks.built_keys(plans)
@@ -258,7 +258,6 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
     ``reorient``: the rows were made without EXIF orientation, so nothing of a source with
     one counts as done."""
     jobs = tuple(ds.jobs(cfg.variants, cfg.levels))
-    fingerprints = {job.variant: fingerprint(renderer, job) for job in jobs}
     tasks = []
     for src in sources:
         size = cfg.size or native_size(src)
@@ -272,7 +271,7 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
             same = (r is not None and not r.error
                     and ((r.source == src.rel and _same_source(r, src)) or bool(src.error))
                     and r.seed == cfg.seed and (r.height, r.width) == size
-                    and r.params == fingerprints[job.variant])
+                    and r.params == fingerprint(renderer, job, src))
             expected.append(r.sha256 if same else None)
             if same:
                 hashes.add(r.source_sha256)

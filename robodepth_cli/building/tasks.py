@@ -45,6 +45,18 @@ class Source:
     # The image's EXIF orientation, applied when it is read (custom builds: photos are built
     # the way viewers show them); 1 = as stored, always for the benchmarks' own sources.
     orientation: int = 1
+    # A neighbour frame (``--frames``): the key of the test frame it is rendered for, whose
+    # scene draws it shares (see corruptions/frames.py); "" for a test frame.
+    anchor: str = ""
+    # With ``--frames``: the image paths of the test frame's sequence in time order (None:
+    # not in the drive), this frame's index in it and the test frame's, for the corruptions
+    # over time; () otherwise.
+    sequence: tuple = ()
+    position: int = 0
+    center: int = 0
+    # What identifies the sequence's files (their sizes and times): the outputs of the
+    # corruptions over time are made again when any frame of their sequence changed.
+    sequence_id: str = ""
 
     @classmethod
     def find(cls, root: Path, entry: Entry) -> "Source":
@@ -102,7 +114,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
         return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
-                   fingerprint(ctx.renderer, job), src.size, src.mtime, source_sha)
+                   fingerprint(ctx.renderer, job, src), src.size, src.mtime, source_sha)
 
     results: list[tuple[JobState, Row]] = []
     todo: list[Job] = []
@@ -129,7 +141,8 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     # Lazily, so only one rendered image is alive at a time.
     rendered = itertools.chain(
         ((j, clean) for j in todo if j.variant == CLEAN),
-        ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN]))
+        ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN],
+                            **_frames_of(src, clean, todo, ctx.size)))
     with Journal(out) as journal:
         for job, img in rendered:
             if isinstance(img, BaseException):
@@ -182,8 +195,24 @@ def _keep_freed_memory() -> None:
         pass
 
 
-def fingerprint(renderer: Renderer, job: Job) -> str:
-    return "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
+def fingerprint(renderer: Renderer, job: Job, src: Source | None = None) -> str:
+    """The manifest's ``params`` of ``job`` (of the source ``src``): what besides the seed
+    and size decides its pixels (:func:`for_source` of the renderer's fingerprint)."""
+    params = "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
+    return params if src is None else for_source(params, src, job)
+
+
+def for_source(params: str, src: Source, job: Job) -> str:
+    """``params`` of ``job`` made from ``src``. A neighbour frame's begin with
+    ``neighbour_of=<test frame key>``, which lists it under its test frame in the manifest and
+    redoes it when it is rendered for another one; a corruption over time's end with
+    ``sequence=<id>`` (its sequence's files). A single-frame build's are unchanged."""
+    from ..benchmarks import TEMPORAL
+
+    parts = ([f"neighbour_of={src.anchor}"] if src.anchor else []) + ([params] if params else [])
+    if src.sequence_id and job.variant in TEMPORAL:
+        parts.append(f"sequence={src.sequence_id}")
+    return ";".join(parts)
 
 
 def _load(src: Source, size: tuple[int, int]):
@@ -200,6 +229,22 @@ def _load(src: Source, size: tuple[int, int]):
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
         return None, f"{src.path}: {type(exc).__name__}: {exc}"
+
+
+def _frames_of(src: Source, clean, todo: list[Job], size) -> dict:
+    """What a renderer needs besides the image for a frame of a sequence: its test frame's
+    key (``anchor``) and, for a corruption over time, the clean frames of its sequence."""
+    if not src.sequence:
+        return {}
+    from ..benchmarks import TEMPORAL
+
+    kw = {"anchor": src.anchor or src.key}
+    if any(j.variant in TEMPORAL for j in todo):
+        # A frame that cannot be read is left out of the sequence, like one the drive lacks.
+        frames = [clean if i == src.position else None if path is None
+                  else _load(Source("", "", path), size)[0] for i, path in enumerate(src.sequence)]
+        kw["sequence"] = (frames, src.position, src.center)
+    return kw
 
 
 def _job_name(job: Job) -> str:

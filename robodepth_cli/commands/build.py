@@ -32,6 +32,8 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--jobs", "-j", metavar="N|auto", help="Worker processes (preset: 2); 'auto' or -1: one per CPU.")
 @click.option("--seed", metavar="S", help="Global seed (preset: 0).")
 @click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
+@click.option("--frames", metavar="-1,1", help="kitti-c: also write these neighbours of every test frame "
+              "from its raw drive (offsets), corrupted consistently with it; see docs/video.md.")
 @click.option("--pattern", metavar="GLOB,GLOB", help="custom: which files under ROOT (default: png, jpg, jpeg, bmp, tif, tiff, webp at any depth, any case), e.g. '**/*_leftImg8bit.png'.")
 @click.option("--list", metavar="FILE", help="custom: build exactly these images, in this order (one path relative to ROOT a line).")
 @click.option("--depth", metavar="DIR", help="custom: the depth maps of the images, paired by --depth-pattern "

@@ -57,6 +57,9 @@ DEFAULT_OUT = "results.csv"
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
 @click.option("--allow-partial", is_flag=True,
               help="Evaluate the variants that have predictions; the rest are listed as missing.")
+@click.option("--flicker", is_flag=True,
+              help="Also measure flicker over the split's consecutive frames: flicker_scale and "
+                   "flicker_abs_rel columns (see docs/video.md).")
 @click.option("--jobs", "-j", type=click.IntRange(min=1), metavar="N",
               help="Worker processes, each evaluating whole variants (default: one per CPU); "
                    "the numbers are the same for any N.")
@@ -64,7 +67,7 @@ DEFAULT_OUT = "results.csv"
               help="Progress bar on stderr (only on a terminal).")
 def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_space, crop,
                      min_depth, max_depth, png_scale, gt_path, out, force, with_score, as_json,
-                     allow_partial, jobs, progress):
+                     allow_partial, flicker, jobs, progress):
     """Evaluate a model's depth predictions on DATASET_DIR (made by robodepth build).
 
     Compares the predictions of every variant (clean, each corruption and level, or each
@@ -144,7 +147,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
 
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total,
-                            jobs=jobs or default_jobs())
+                            jobs=jobs or default_jobs(), flicker=flicker)
     text = result.csv_text()
     E.write_results(out, text)
     if result.setup.stereo and result.setup.kind == "depth":

@@ -31,7 +31,8 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 
     RESULTS is a CSV with a header row naming the columns corruption, level, abs_rel, a1
     (or dee instead of abs_rel and a1), one row per corruption and level, plus a row
-    `clean,0,...`. Prints DEE, CE and RR per corruption, category means, mCE, mRR, mDEE.
+    `clean,0,...`. Prints DEE, CE and RR per corruption, category means, mCE, mRR, mDEE,
+    and the flicker of each variant when the CSV has evaluate --flicker's columns.
 
     \b
     Example:
@@ -78,10 +79,16 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         fig = ce_figure([Model(results.stem, result)], bench.name)
         common.write_bytes(plot_file, render(fig, plot_file.suffix.lower().lstrip(".")))
         common.wrote(plot_file)
+    from ..evaluation.flicker import format_flicker, read_flicker
+
+    flicker = read_flicker(results)  # evaluate --flicker's columns, when the CSV has them
     if as_json:
-        click.echo(json.dumps(result.to_json(), indent=2, allow_nan=False))
+        click.echo(json.dumps({**result.to_json(), **({"flicker": flicker} if flicker else {})},
+                              indent=2, allow_nan=False))
     else:
         click.echo(S.format_table(result), nl=False)
+        if flicker:
+            click.echo(format_flicker(flicker), nl=False)
 
 
 def _unpublished(name: str, res):

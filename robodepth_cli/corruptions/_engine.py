@@ -87,19 +87,28 @@ def corrupt_chain(image: np.ndarray, chain: Chain | str, rngs: Sequence[np.rando
 
 
 def render(clean: np.ndarray, variant: str, level, *, seed: int, dataset: str, key: str,
-           depth=None) -> np.ndarray:
+           depth=None, anchor: str | None = None) -> np.ndarray:
     """The image of one job: corruption ``variant`` at ``level``, or, when ``variant`` is a
     chain (its text; ``level`` is then unused), that chain; every draw from the job's own
     generators (:func:`~robodepth_cli.seeding.job_rng`,
     :func:`~robodepth_cli.seeding.chain_rngs`). The one rule by which ``corrupt``,
     ``preview``, a build and the torch transforms turn a job into pixels. ``depth`` as
-    :func:`corrupt` takes it."""
+    :func:`corrupt` takes it.
+
+    ``anchor``: the key of the test frame whose neighbour ``key`` is; each corruption's
+    scene draws are then seeded from ``anchor`` and its noise from ``key``
+    (:func:`~.frames.draw_key`)."""
     from .. import seeding
+    from .frames import draw_key
 
     if looks_like_chain(variant):
         chain = parse_chain(variant)
-        return corrupt_chain(clean, chain, seeding.chain_rngs(seed, dataset, chain, key), depth)
-    return corrupt(clean, variant, level, seeding.job_rng(seed, dataset, variant, level, key), depth)
+        rngs = [seeding.chain_rngs(seed, dataset, chain, draw_key(step.name, key, anchor))[k]
+                for k, step in enumerate(chain.steps)]
+        return corrupt_chain(clean, chain, rngs, depth)
+    return corrupt(clean, variant, level,
+                   seeding.job_rng(seed, dataset, variant, level, draw_key(get(variant).name, key, anchor)),
+                   depth)
 
 
 def needs_depth(variant: str) -> bool:

@@ -34,6 +34,7 @@ class VariantResult:
     variant: Variant
     metrics: dict[str, float]  # mean over the images
     ratios: np.ndarray | None = None  # median-scaling ratio per image (mono kitti only)
+    flicker: dict[str, float] | None = None  # with --flicker: flicker.COLUMNS
 
     @property
     def csv_key(self) -> tuple[str, int]:
@@ -57,23 +58,32 @@ class Evaluation:
     images: int  # per variant
     results: list[VariantResult] = field(default_factory=list)
     missing: list[Variant] = field(default_factory=list)  # no predictions (--allow-partial)
+    pairs: int = 0  # consecutive frame pairs the flicker is measured on (0: not measured)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The metrics, then (``--flicker``) the flicker measures."""
+        from .flicker import COLUMNS
+
+        return self.setup.metrics + (COLUMNS if self.pairs else ())
 
     def csv_text(self) -> str:
-        """The results CSV: ``corruption,level`` then the metrics, one row per variant,
-        full float precision (``repr``)."""
+        """The results CSV: ``corruption,level`` then the metrics (and the flicker
+        measures), one row per variant, full float precision (``repr``)."""
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
-        w.writerow(("corruption", "level") + self.setup.metrics)
+        w.writerow(("corruption", "level") + self.columns)
         for r in self.results:
             name, level = r.csv_key
-            w.writerow([name, level] + [repr(r.metrics[m]) for m in self.setup.metrics])
+            values = {**r.metrics, **(r.flicker or {})}
+            w.writerow([name, level] + [repr(values[m]) for m in self.columns])
         return buf.getvalue()
 
     def to_json(self) -> dict:
         rows = []
         for r in self.results:
             name, level = r.csv_key
-            row = {"corruption": name, "level": level, **r.metrics}
+            row = {"corruption": name, "level": level, **r.metrics, **(r.flicker or {})}
             summary = r.ratio_summary()
             if summary:
                 row["scaling_ratio"] = {"median": summary[0], "std": summary[1]}
@@ -86,12 +96,13 @@ class Evaluation:
                 "predictions": self.predictions,
                 "ground_truth": self.ground_truth, "images": self.images, "results": rows,
                 "partial": bool(self.missing),
+                **({"flicker_pairs": self.pairs} if self.pairs else {}),
                 "missing": [{"corruption": v.name, "level": v.level or 0} for v in self.missing]}
 
     def summary(self) -> str:
         """A table of the metrics per variant (3 decimals) and, with median scaling, the
         ratios' median and spread per variant as monodepth2 prints them."""
-        metrics = self.setup.metrics
+        metrics = self.columns
         width = max([len("variant")] + [len(r.variant.label) for r in self.results]) + 2
         head = f"{'variant':<{width}}" + "".join(f"{m:>10}" for m in metrics)
         if self.setup.median_scaling:
@@ -99,11 +110,14 @@ class Evaluation:
         lines = [f"{self.dataset}: {len(self.results)} variants x {self.images} images, "
                  f"{self.setup.describe()}", head]
         for r in self.results:
-            line = f"{r.variant.label:<{width}}" + "".join(f"{r.metrics[m]:>10.3f}" for m in metrics)
+            values = {**r.metrics, **(r.flicker or {})}
+            line = f"{r.variant.label:<{width}}" + "".join(f"{values[m]:>10.3f}" for m in metrics)
             summary = r.ratio_summary()
             if summary:
                 line += f"{summary[0]:>11.3f}{summary[1]:>7.3f}"
             lines.append(line)
+        if self.pairs:
+            lines.append(f"flicker over {self.pairs} pairs of consecutive frames")
         if self.missing:
             lines.append(f"partial: no predictions for {len(self.missing)} variants: "
                          f"{_list(self.missing)}")
@@ -120,7 +134,8 @@ def _list(variants: Sequence[Variant], most: int = 12) -> str:
 def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None = None,
              allow_partial: bool = False, require_clean: bool = False,
              progress: Callable[[int], None] | None = None,
-             on_total: Callable[[int], None] | None = None, jobs: int = 1) -> Evaluation:
+             on_total: Callable[[int], None] | None = None, jobs: int = 1,
+             flicker: bool = False) -> Evaluation:
     """Evaluate the predictions under ``pred`` for every variant of ``dataset``.
 
     Everything that can be checked without reading the data is checked first: the
@@ -128,7 +143,8 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     one map per split image). Missing variants are an error unless ``allow_partial``.
     ``progress(n)`` is called as images are done; ``on_total(n)`` once with their number.
     ``jobs``: worker processes (1: all in this process; see the module docstring), never
-    more than the variants nor one per :data:`MAPS_PER_WORKER` maps.
+    more than the variants nor one per :data:`MAPS_PER_WORKER` maps. ``flicker``: also
+    the flicker measures over the consecutive frames of the split (:mod:`.flicker`).
     Raises :class:`EvaluationError` for any bad input (with several jobs, the one of the
     first variant in order that has one, as with one job); nothing is written here.
     """
@@ -154,6 +170,11 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
         raise EvaluationError(f"{pred}: no predictions for the clean images; the scores need "
                               "them (resilience rates divide by the clean DEE)")
     setup = _kind_read(setup, found)
+    pairs = None
+    if flicker:
+        from .flicker import check_pairs
+
+        pairs = check_pairs(dataset.keys, setup.protocol)
     gt_path = gt if gt is not None else dataset.ground_truth()
     if gt_path is None:
         raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
@@ -165,7 +186,8 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     n = len(dataset.keys)
     if on_total:
         on_total(n * len(found))
-    result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing)
+    result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing,
+                        pairs=len(pairs or ()))
     jobs = min(jobs, len(found), -(-n * len(found) // MAPS_PER_WORKER))
     if jobs > 1:
         import tempfile
@@ -174,11 +196,13 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
             shared = truth.share(Path(tmp) / "ground_truth.bin")
             # The workers map the file: keeping the maps here too would hold them twice.
             del truth
-            result.results = _evaluate_in_workers(found, shared, setup, dataset.size, progress, jobs)
+            result.results = _evaluate_in_workers(found, shared, setup, dataset.size, progress,
+                                                  pairs, jobs)
         return result
     for v, p in found:
         try:
-            result.results.append(_evaluate_variant(v, p, truth, setup, dataset.size, progress))
+            result.results.append(_evaluate_variant(v, p, truth, setup, dataset.size, progress,
+                                                    pairs))
         finally:
             p.close()
     return result
@@ -204,13 +228,13 @@ def _kind_read(setup: Setup, found: Sequence[tuple[Variant, Predictions]]) -> Se
 
 
 def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], shared, setup: Setup,
-                         image_size, progress, jobs: int) -> list[VariantResult]:
+                         image_size, progress, pairs, jobs: int) -> list[VariantResult]:
     """:func:`_evaluate_variant` of every variant in ``jobs`` worker processes that map the
     ground truth ``shared`` (:meth:`GroundTruth.share`); results in variant order."""
     from ..workers import in_order
 
     results = []
-    tasks = [(v, p, setup, image_size) for v, p in found]
+    tasks = [(v, p, setup, image_size, pairs) for v, p in found]
     for (v, _), r in zip(found, in_order(_worker_variant, tasks, jobs, _start_worker, (shared,))):
         results.append(r)
         if progress:
@@ -229,17 +253,20 @@ def _start_worker(shared) -> None:
     _WORKER_TRUTH = shared.open()
 
 
-def _worker_variant(variant: Variant, preds: Predictions, setup: Setup, image_size) -> VariantResult:
+def _worker_variant(variant: Variant, preds: Predictions, setup: Setup, image_size,
+                    pairs=None) -> VariantResult:
     try:
-        return _evaluate_variant(variant, preds, _WORKER_TRUTH, setup, image_size, None)
+        return _evaluate_variant(variant, preds, _WORKER_TRUTH, setup, image_size, None, pairs)
     finally:
         preds.close()
 
 
 def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, setup: Setup,
-                      image_size, progress) -> VariantResult:
+                      image_size, progress, pairs=None) -> VariantResult:
+    """The metrics of one variant; with ``pairs`` (consecutive frames), its flicker too."""
     errors = []
     ratios = []
+    scales = []
     for i in range(len(variant)):
         m, where, is_png = preds.read(i)
         if m.dtype not in (np.float32, np.float64):
@@ -267,11 +294,24 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
         if not np.all(np.isfinite(np.asarray(errs, dtype=np.float64))):
             raise EvaluationError(f"{where}: the metrics of this map are not finite numbers")
         errors.append(errs)
+        if pairs:
+            from .flicker import frame_scale
+
+            scales.append(frame_scale(m, setup.kind, shape, index, gt))
         if progress:
             progress(1)
     means = np.array(errors, dtype=np.float64).mean(0)
+    flicker = None
+    if pairs:
+        from .flicker import measure
+
+        try:
+            flicker = measure(scales, [e[0] for e in errors], pairs)
+        except EvaluationError as exc:
+            raise EvaluationError(f"{preds.source}: {exc}") from None
     return VariantResult(variant, {k: float(v) for k, v in zip(setup.metrics, means)},
-                         np.array(ratios, dtype=np.float64) if setup.median_scaling else None)
+                         np.array(ratios, dtype=np.float64) if setup.median_scaling else None,
+                         flicker)
 
 
 def write_results(path: Path, text: str) -> None:

@@ -38,6 +38,9 @@ class Model:
     run: Callable[[np.ndarray], object] = field(repr=False)
     device: str = "cpu"
     options: dict = field(default_factory=dict)
+    # A multi-frame model: the neighbour offsets it takes besides the frame (e.g. (-1, 1));
+    # its batches are then N x F x H x W x 3, the frame first (see models/pycall.py).
+    frames: tuple[int, ...] = ()
 
     def predict(self, images: np.ndarray) -> np.ndarray:
         return check_maps(self.run(images), len(images), self.spec)
@@ -48,7 +51,7 @@ class Model:
                 "output": "depth" if self.kind == "depth" else "disparity",
                 "scale": "metric" if self.metric else "relative",
                 "input_size": self.input_size, "options": self.options,
-                "identity": self.identity,
+                "identity": self.identity, **({"frames": list(self.frames)} if self.frames else {}),
                 "evaluate": {"kind": self.kind, "align": self.align,
                              "align_space": self.align_space}}
 

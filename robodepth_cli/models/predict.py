@@ -30,6 +30,7 @@ whole variant, and its activations, at once (:func:`batch_limit`).
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -137,13 +138,14 @@ def batch_limit(requested: int, image_size, input_size=None) -> int:
     return max(1, min(requested, BATCH_PIXELS // pixels))
 
 
-def _chunks(variant: Variant, batch_size: int, image_size, input_size) -> list[range]:
-    """The positions of ``variant``'s images in batches of at most ``batch_size`` images and
-    :data:`BATCH_PIXELS` pixels; a build without one size reads each image's size from its
+def _chunks(variant: Variant, batch_size: int, image_size, input_size, per_item: int = 1) -> list[range]:
+    """The positions of ``variant``'s images in batches of at most ``batch_size`` items and
+    :data:`BATCH_PIXELS` pixels, an item holding ``per_item`` images (a multi-frame model's
+    frame and neighbours); a build without one size reads each image's size from its
     header (a build's file or an export's bytes: :meth:`Variant.open`)."""
     n = len(variant)
     if image_size is not None:
-        step = batch_limit(batch_size, image_size, input_size)
+        step = max(1, batch_limit(batch_size, image_size, input_size) // per_item)
         return [range(i, min(i + step, n)) for i in range(0, n, step)]
     from PIL import Image
 
@@ -151,7 +153,7 @@ def _chunks(variant: Variant, batch_size: int, image_size, input_size) -> list[r
     chunks, start, held = [], 0, 0
     for i in range(n):
         with variant.open(i) as fh, Image.open(fh) as im:
-            pixels = max(im.width * im.height, per_input)
+            pixels = max(im.width * im.height, per_input) * per_item
         if i > start and (i - start == batch_size or held + pixels > BATCH_PIXELS):
             chunks.append(range(start, i))
             start, held = i, 0
@@ -303,6 +305,34 @@ def _read_images(variant: Variant, indices: range) -> list[np.ndarray]:
     return [variant.read(i) for i in indices]
 
 
+def _read_sequences(variant: Variant, indices: range, frames: tuple[int, ...]) -> list[np.ndarray]:
+    """For a multi-frame model: per image, an ``F x H x W x 3`` stack of it and its
+    neighbours at ``frames`` (the same variant's files of frame ``n + offset``, named as a
+    build with ``--frames`` writes them); a neighbour the build does not have is black, as
+    ManyDepth's loader makes a missing file. The neighbours are read beside the build's
+    files (:meth:`Variant.images`, which refuses an export)."""
+    from ..imageio import read_rgb
+    from ..keys import neighbour_key
+
+    paths = variant.images()
+    out = []
+    for i in indices:
+        frame = variant.read(i)
+        near = [neighbour_key(str(paths[i]), o) for o in frames]
+        out.append(np.stack([frame, *[np.asarray(read_rgb(Path(n))) if n and Path(n).is_file()
+                                      else np.zeros_like(frame) for n in near]]))
+    return out
+
+
+def check_frames(dataset: BuiltDataset, model) -> None:
+    """A multi-frame model needs a build with those neighbours (``build --frames``)."""
+    lacking = sorted(set(model.frames) - dataset.record.frames)
+    if lacking:
+        raise ModelError(f"{model.spec} takes the neighbour frames {', '.join(map(str, model.frames))}; "
+                         f"{dataset.path} has no neighbours at {', '.join(map(str, lacking))} "
+                         f"(build it with --frames {','.join(map(str, model.frames))})")
+
+
 def _same_size_runs(images: list[np.ndarray]):
     """Consecutive images of one size, as ``N x H x W x 3`` batches."""
     start = 0
@@ -323,6 +353,10 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     """
     if batch_size < 1:
         raise ModelError(f"--batch-size {batch_size}: must be at least 1")
+    frames = tuple(getattr(model, "frames", ()))  # a multi-frame model's neighbours
+    if frames:
+        check_frames(dataset, model)
+    read = functools.partial(_read_sequences, frames=frames) if frames else _read_images
     pred = Path(pred)
     check_outside(dataset, pred)
     record = make_record(dataset, model)
@@ -341,14 +375,14 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
                 if v.missing:
                     v.images()  # refuses, naming the images the build did not make
                 n = len(v)
-                chunks = _chunks(v, batch_size, dataset.size, model.input_size)
+                chunks = _chunks(v, batch_size, dataset.size, model.input_size, 1 + len(frames))
                 out_writer = (ImageFilesWriter(pred, v) if dataset.size is None
                               else PredictionWriter(v.prediction_file(pred), n))
                 with out_writer as out:
-                    pending = reader.submit(_read_images, v, chunks[0]) if chunks else None
+                    pending = reader.submit(read, v, chunks[0]) if chunks else None
                     for k in range(len(chunks)):
                         images = pending.result()
-                        pending = (reader.submit(_read_images, v, chunks[k + 1])
+                        pending = (reader.submit(read, v, chunks[k + 1])
                                    if k + 1 < len(chunks) else None)
                         for batch in _same_size_runs(images):
                             maps = model.predict(batch)

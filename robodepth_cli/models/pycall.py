@@ -53,6 +53,7 @@ def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = 
             raise ModelError(f"{spec}: raised {type(exc).__name__}: "
                              f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''}") from None
 
+    frames = _frames(getattr(fn, "robodepth_frames", ()), spec)
     metric = bool(metric)
     align, space = default_alignment(metric)
     path = getattr(module, "__file__", None)
@@ -60,7 +61,23 @@ def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = 
                 "sha256": _file_hash(path, spec)}
     return Model(spec=spec, adapter="python", kind=kind, metric=metric, align=align,
                  align_space=space, input_size=None, identity=identity, run=run,
-                 device="the function's own device")
+                 device="the function's own device", frames=frames)
+
+
+def _frames(value, spec: str) -> tuple[int, ...]:
+    """A callable's ``robodepth_frames``: distinct non-zero integer offsets.
+
+    A multi-frame model declares the neighbour frames it takes so, ``fn.robodepth_frames =
+    (-1, 1)`` (in the order it wants them): it is then called with ``N x F x H x W x 3``
+    (``F`` = 1 + the offsets), ``[:, 0]`` the frame itself and ``[:, 1 + k]`` its neighbour
+    at the k-th offset, read from a build made with ``--frames``; a neighbour the drive does
+    not have is a black image, as ManyDepth's loader gives for a missing file."""
+    offsets = tuple(value) if isinstance(value, (list, tuple)) else None
+    if offsets is None or not all(isinstance(o, int) and not isinstance(o, bool) and o for o in offsets) \
+            or len(set(offsets)) != len(offsets):
+        raise ModelError(f"{spec}: robodepth_frames {value!r}: expected distinct non-zero integer "
+                         f"frame offsets such as (-1, 1)")
+    return offsets
 
 
 def _file_hash(path: str | None, spec: str) -> str | None:

@@ -34,9 +34,15 @@ def now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def plan_entry(variants, levels, keys) -> dict[str, list]:
-    """One request made into an OUT: which variants at which levels for which source keys."""
-    return {"variants": list(variants), "levels": list(levels), "keys": list(keys)}
+def plan_entry(variants, levels, keys, neighbours: dict | None = None, frames=()) -> dict[str, list]:
+    """One request made into an OUT: which variants at which levels for which source keys;
+    with ``--frames``, also the ``frames`` offsets and ``neighbours``: each test key's
+    neighbour keys in offset order (None: not in the drive)."""
+    entry = {"variants": list(variants), "levels": list(levels), "keys": list(keys)}
+    if frames:
+        entry["frames"] = list(frames)
+        entry["neighbours"] = {k: list(v) for k, v in (neighbours or {}).items()}
+    return entry
 
 
 @dataclass
@@ -97,6 +103,11 @@ class BuildRecord:
         """The output size (H, W), or None: each image at its own size (custom)."""
         size = self.config.get("size")
         return tuple(size) if size else None
+
+    @property
+    def frames(self) -> set[int]:
+        """The neighbour offsets any request into this OUT built (``--frames``)."""
+        return {o for p in self.requests() for o in p.get("frames", ())}
 
     @property
     def limit(self) -> int | None:

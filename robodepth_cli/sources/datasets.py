@@ -11,13 +11,14 @@ job's generator, so a PNG and a JPEG copy of a frame get the same noise.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Iterator, Protocol, Sequence
 
 import numpy as np
 
-from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, DEPTH_AWARE, N_LEVELS
+from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, DEPTH_AWARE, N_LEVELS, TEMPORAL
 from ..errors import InvalidValueError, os_reason
 from ..imageio import ImageError
 # SOURCE_EXTS: tried in this order when a split names no extension.
@@ -178,6 +179,12 @@ def locate(root: Path, entry: Entry) -> tuple[str, Path]:
     raise ImageError(f"{root / entry.candidates[0]}: no such file (tried {tried})")
 
 
+# The corrupted sequences of the last test frame rendered in this process (see
+# CorruptionRenderer._over_time): test frame key -> {key: frames}.
+_SEQUENCES: dict[str, dict] = {}
+_SEQUENCES_LOCK = threading.Lock()
+
+
 class CorruptionRenderer:
     """Applies the corruptions, each job with its own generator (see :mod:`.seeding`);
     the depth-aware ones get the source's depth from ``depth`` (a
@@ -188,18 +195,48 @@ class CorruptionRenderer:
         self.seed = seed
         self.depth = depth
 
-    def render(self, clean, key, jobs):
+    def render(self, clean, key, jobs, anchor=None, sequence=None):
+        """``anchor``: the key of the test frame whose sequence ``key`` is in (``--frames``);
+        ``sequence``: (its clean frames, this frame's index, the test frame's index), for
+        the corruptions over time."""
         from ..corruptions import needs_depth, render
 
         depth: object = None
         for job in jobs:
             try:
+                if sequence is not None and job.variant in TEMPORAL:
+                    yield job, self._over_time(job, anchor, *sequence)
+                    continue
                 if depth is None and self.depth is not None and needs_depth(job.variant):
                     depth = self.depth.depth(key, clean.shape[:2])
                 yield job, render(clean, job.variant, job.level, seed=self.seed, dataset=self.dataset,
-                                  key=key, depth=depth)
+                                  key=key, depth=depth, anchor=None if anchor == key else anchor)
             except Exception as exc:  # one broken variant must not sink the other outputs
                 yield job, exc
+
+    def _over_time(self, job, anchor, frames, position, center):
+        """Frame ``position`` of the sequence ``frames`` under a corruption over time. The
+        other frames of a sequence usually come next to the same worker, so the corrupted
+        sequences of the last test frame are kept (keyed by everything they depend on)."""
+        import hashlib
+
+        from ..corruptions.temporal import corrupt_sequence
+        from ..seeding import job_rng
+
+        digest = hashlib.sha256()
+        for f in frames:
+            digest.update(b"-" if f is None else f.tobytes() + str(f.shape).encode())
+        key = (self.seed, self.dataset, job.variant, job.level, anchor, center, digest.hexdigest())
+        with _SEQUENCES_LOCK:  # a Dask worker runs tasks in threads
+            for other in [a for a in _SEQUENCES if a != anchor]:
+                del _SEQUENCES[other]  # another test frame's sequence: the last one is done with
+            done = _SEQUENCES.setdefault(anchor, {}).get(key)
+        if done is None:
+            rng = job_rng(self.seed, self.dataset, job.variant, job.level, anchor)
+            done = corrupt_sequence(job.variant, frames, center, job.level, rng)
+            with _SEQUENCES_LOCK:
+                _SEQUENCES.setdefault(anchor, {})[key] = done
+        return done[position]
 
     def fingerprint(self, variant: str) -> str:
         # A corruption's output depends only on the seed, the size and the source, and a

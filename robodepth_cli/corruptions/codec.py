@@ -1,0 +1,122 @@
+"""A sequence of frames through a real video codec (PyAV's bundled FFmpeg: libx264 for
+H.264, libx265 for H.265/HEVC), and bit errors in the encoded stream, decoded as a player
+would. PyAV (the ``video`` extra) is imported here only, when a sequence is encoded.
+
+Encoding: RGB frames -> yuv420p (FFmpeg's default BT.601 conversion, as a camera's encoder
+stores video) at 10 frames per second (KITTI's rate), constant rate factor ``crf``, preset
+``medium``, one thread (the same bytes on every machine with the same library versions).
+Odd sizes are padded by repeating the last row/column and cropped back after decoding.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+from ..errors import RobodepthError
+
+CODECS = {"h264": ("libx264", "h264"), "h265": ("libx265", "hevc")}
+FPS = 10
+
+
+def _av():
+    try:
+        import av
+    except ImportError:
+        raise RobodepthError("the video corruptions need PyAV: pip install 'robodepth-cli[video]'") from None
+    return av
+
+
+def encode(frames: list[np.ndarray], codec: str, crf: int) -> bytes:
+    """``frames`` (uint8 H x W x 3, same size) as an Annex B elementary stream."""
+    av = _av()
+    encoder, fmt = CODECS[codec]
+    h, w = frames[0].shape[:2]
+    buf = io.BytesIO()
+    with av.open(buf, "w", format=fmt) as container:
+        stream = container.add_stream(encoder, rate=FPS)
+        stream.width, stream.height = w + w % 2, h + h % 2
+        stream.pix_fmt = "yuv420p"
+        quiet = {"x265-params": "log-level=none:pools=1:frame-threads=1"} if codec == "h265" else {}
+        stream.options = {"crf": str(int(crf)), "preset": "medium", "threads": "1", **quiet}
+        for img in frames:
+            img = np.pad(img, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+            for packet in stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="rgb24")):
+                container.mux(packet)
+        for packet in stream.encode():
+            container.mux(packet)
+    return buf.getvalue()
+
+
+def decode(data: bytes, codec: str, n: int, size: tuple[int, int]) -> list[np.ndarray]:
+    """``n`` frames of ``size`` (H, W) from the stream ``data``, as a player shows them: a
+    picture the decoder cannot make is replaced by the last one shown (black before the
+    first); FFmpeg's own error concealment repairs what it can inside a damaged picture."""
+    av = _av()
+    ctx = av.CodecContext.create(CODECS[codec][1], "r")
+    ctx.thread_count = 1
+    pictures: list[np.ndarray] = []
+
+    def take(packet):
+        try:
+            pictures.extend(f.to_ndarray(format="rgb24") for f in ctx.decode(packet))
+        except (av.error.FFmpegError, ValueError):
+            pass  # a packet the decoder refuses: its picture is not shown
+
+    try:
+        packets = ctx.parse(data) + ctx.parse(None)  # None: the parser's last picture too
+    except av.error.FFmpegError:
+        packets = []
+    for packet in packets:
+        take(packet)
+    take(None)
+    h, w = size
+    shown, last = [], np.zeros((h, w, 3), np.uint8)
+    for i in range(n):
+        if i < len(pictures) and pictures[i].shape[0] >= h and pictures[i].shape[1] >= w:
+            last = np.ascontiguousarray(pictures[i][:h, :w])
+        shown.append(last)
+    return shown
+
+
+def slice_spans(data: bytes, codec: str) -> list[tuple[int, int]]:
+    """The byte spans of the coded picture data in an Annex B stream: each coded slice's
+    NAL unit without its NAL header (the parameter sets and SEI are left out: a link that
+    loses those loses the whole stream, which is not a bit error)."""
+    starts = []
+    i = data.find(b"\x00\x00\x01")
+    while i >= 0:
+        starts.append(i + 3)
+        i = data.find(b"\x00\x00\x01", i + 3)
+    spans = []
+    for k, s in enumerate(starts):
+        end = (starts[k + 1] - 3) if k + 1 < len(starts) else len(data)
+        if s >= len(data):
+            continue
+        if codec == "h264":
+            slice_nal, header = (data[s] & 0x1F) in (1, 5), 1
+        else:
+            slice_nal, header = ((data[s] >> 1) & 0x3F) <= 21, 2
+        if slice_nal and end > s + header:
+            spans.append((s + header, end))
+    return spans
+
+
+def flip_bits(data: bytes, codec: str, rate: float, rng: np.random.Generator) -> bytes:
+    """``data`` with each bit of the coded picture data flipped with probability ``rate``:
+    the number of flips drawn binomially, then their positions without repeats."""
+    spans = slice_spans(data, codec)
+    sizes = np.array([e - s for s, e in spans], dtype=np.int64)
+    total = int(sizes.sum()) * 8
+    if total == 0:
+        return data
+    k = int(rng.binomial(total, rate))
+    bits = rng.choice(total, size=k, replace=False) if k else np.empty(0, np.int64)
+    offsets = np.concatenate([[0], np.cumsum(sizes)]) * 8
+    buf = bytearray(data)
+    for b in np.sort(bits):
+        span = int(np.searchsorted(offsets, b, side="right")) - 1
+        byte = spans[span][0] + int(b - offsets[span]) // 8
+        buf[byte] ^= 0x80 >> int((b - offsets[span]) % 8)
+    return bytes(buf)

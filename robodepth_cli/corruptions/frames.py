@@ -1,0 +1,53 @@
+"""Which draws of a corruption belong to the scene or the camera and which to the sensor, so
+that the neighbour frames of a test frame (``build kitti-c --frames -1,1``) are corrupted
+consistently with it.
+
+A corruption function takes one generator. On a neighbour frame that generator is seeded
+from the *test frame's* key when every draw of the corruption describes the scene or the
+camera (the same fog field, frost crop, snow layer, blur angle or lens distortion in every
+frame of the sequence), and from the *neighbour's own* key when its draws are sensor noise
+(drawn anew for every frame). A corruption without draws is the same function on every
+frame. No corruption mixes the two kinds of draw, so the rule is one choice per corruption;
+on the test frame itself both keys are its own, so its output is the single-frame build's.
+"""
+
+from __future__ import annotations
+
+from ..benchmarks import CORRUPTIONS
+
+# What each corruption's draws stand for across frames (docs/video.md shows this table).
+SHARED = "scene/camera: same draws in every frame"
+PER_FRAME = "sensor noise: drawn anew per frame"
+NO_DRAWS = "no draws: the same function on every frame"
+
+DRAWS: dict[str, tuple[str, str]] = {
+    "brightness": (NO_DRAWS, ""),
+    "dark": (NO_DRAWS, ""),
+    "fog": (SHARED, "the fog field"),
+    "frost": (SHARED, "the frost texture and its crop"),
+    "snow": (SHARED, "the snow layer and its fall angle"),
+    "contrast": (NO_DRAWS, ""),
+    "defocus_blur": (NO_DRAWS, ""),
+    "glass_blur": (SHARED, "the pixel shuffle of the glass in front of the lens"),
+    "motion_blur": (SHARED, "the blur angle (the camera's motion)"),
+    "zoom_blur": (NO_DRAWS, ""),
+    "elastic_transform": (SHARED, "the displacement field (the lens)"),
+    "color_quant": (NO_DRAWS, ""),
+    "gaussian_noise": (PER_FRAME, "the noise"),
+    "impulse_noise": (PER_FRAME, "the salt-and-pepper pixels"),
+    "shot_noise": (PER_FRAME, "the photon noise"),
+    "iso_noise": (PER_FRAME, "the photon and read noise"),
+    "pixelate": (NO_DRAWS, ""),
+    "jpeg_compression": (NO_DRAWS, ""),
+}
+assert tuple(DRAWS) == CORRUPTIONS  # every corruption says what its draws are
+
+
+def draw_key(name: str, key: str, anchor: str | None) -> str:
+    """The key that seeds corruption ``name`` on the frame ``key`` when it is a neighbour of
+    the test frame ``anchor`` (None or "": ``key`` is a test frame)."""
+    # A corruption this table does not list yet is taken as the scene's (one draw for the
+    # sequence): a frame-to-frame jump in a fog or a blur would be the worse surprise.
+    if not anchor or DRAWS.get(name, (SHARED,))[0] == PER_FRAME:
+        return key
+    return anchor
