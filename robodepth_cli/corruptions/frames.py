@@ -13,7 +13,7 @@ on the test frame itself both keys are its own, so its output is the single-fram
 
 from __future__ import annotations
 
-from ..benchmarks import CORRUPTIONS
+from ..benchmarks import CORRUPTIONS, DEPTH_AWARE
 
 # What each corruption's draws stand for across frames (docs/video.md shows this table).
 SHARED = "scene/camera: same draws in every frame"
@@ -39,8 +39,10 @@ DRAWS: dict[str, tuple[str, str]] = {
     "iso_noise": (PER_FRAME, "the photon and read noise"),
     "pixelate": (NO_DRAWS, ""),
     "jpeg_compression": (NO_DRAWS, ""),
+    # The depth-aware ones draw nothing: each frame's own depth makes its fog, focus or motion.
+    **{name: (NO_DRAWS, "") for name in DEPTH_AWARE},
 }
-assert tuple(DRAWS) == CORRUPTIONS  # every corruption says what its draws are
+assert tuple(DRAWS) == CORRUPTIONS + tuple(DEPTH_AWARE)  # every corruption says what its draws are
 
 
 def draw_key(name: str, key: str, anchor: str | None) -> str:
