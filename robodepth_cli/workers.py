@@ -6,11 +6,21 @@ in task order, so the caller combines them exactly as one process would, and an 
 the one of the first task in order that has one. Spawned rather than forked: the caller
 may hold threads (a progress bar's, OpenCV's) that a fork would copy in the middle of
 their work.
+
+This process owns the workers' lives, so that Ctrl-C and SIGTERM stop a command at once:
+the workers start with SIGINT blocked (a terminal's Ctrl-C reaches the whole process
+group; a worker must not print its own traceback), and when the caller stops for any
+reason (an interrupt, an error, closing the iterator) they are killed and reaped before
+the exception goes on. Each worker gets one task at a time over its own pipe, read by
+this thread: no queue feeder thread is left writing to a pipe that no worker reads (what
+made ``concurrent.futures`` hang at interpreter exit after a SIGTERM).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 from typing import Any, Callable, Iterator, Sequence
 
 
@@ -22,20 +32,134 @@ def default_jobs() -> int:
         return os.cpu_count() or 1
 
 
+class WorkerDied(RuntimeError):
+    """A worker process ended without returning its task's result (killed, out of memory)."""
+
+
+class RemoteTraceback(Exception):
+    """The traceback of an exception raised in a worker, shown as its cause."""
+
+    def __str__(self):
+        return self.args[0]
+
+
 def in_order(fn: Callable[..., Any], tasks: Sequence[tuple], jobs: int,
              initializer: Callable[..., None] | None = None, initargs: tuple = ()) -> Iterator[Any]:
     """``fn(*task)`` for every task in ``jobs`` spawned processes (each started with
-    ``initializer(*initargs)``), yielded in task order. Leaving early (an error, closing
-    the iterator) cancels the tasks not started."""
+    ``initializer(*initargs)``), yielded in task order. Leaving early (an error, an
+    interrupt, closing the iterator) kills the workers; the tasks not started never run."""
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing.connection import wait
 
-    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"),
-                             initializer=initializer, initargs=initargs) as pool:
-        futures = [pool.submit(fn, *task) for task in tasks]
+    context = multiprocessing.get_context("spawn")
+    workers: list = []
+    pipes: dict = {}  # this side of each worker's pipe -> its process
+    finished = False
+    try:
+        for _ in range(min(jobs, len(tasks))):
+            here, there = context.Pipe()
+            process = context.Process(target=_serve, args=(there, fn, initializer, initargs),
+                                      daemon=True)
+            _start_without_sigint(process)
+            there.close()
+            workers.append(process)
+            pipes[here] = process
+        todo = iter(enumerate(tasks))
+        busy: dict = {}  # pipe -> the index of the task it runs
+        done: dict = {}  # index -> (ok, value), until its turn comes
+
+        def hand_out(pipe) -> None:
+            task = next(todo, None)
+            if task is not None:
+                pipe.send(task)
+                busy[pipe] = task[0]
+
+        for pipe in pipes:
+            hand_out(pipe)
+        for turn in range(len(tasks)):
+            while turn not in done:
+                for pipe in wait(list(busy)):
+                    try:
+                        index, ok, value = pipe.recv()
+                    except (EOFError, OSError):
+                        _died(pipes[pipe])
+                    del busy[pipe]
+                    done[index] = (ok, value)
+                    hand_out(pipe)
+            ok, value = done.pop(turn)
+            if not ok:
+                exc, text = value
+                raise exc from RemoteTraceback(text)
+            yield value
+        finished = True
+    finally:
+        for pipe, process in pipes.items():
+            if finished:
+                with contextlib.suppress(OSError):
+                    pipe.send(None)  # every task is done: let it end by itself
+            elif process.is_alive():
+                process.kill()  # nothing a worker holds needs cleaning up: it writes nothing
+            pipe.close()
+        for process in workers:
+            process.join()
+
+
+def _died(process) -> None:
+    """Raise for a worker that ended in the middle of a task. Killed by SIGINT or SIGTERM
+    (sent to the whole process group), the command is being stopped: an interrupt, which
+    this process may not have seen yet."""
+    process.join()
+    if process.exitcode in (-signal.SIGINT, -signal.SIGTERM):
+        raise KeyboardInterrupt
+    raise WorkerDied(f"a worker process ended unexpectedly (exit status {process.exitcode}); "
+                     "if it ran out of memory, use fewer --jobs")
+
+
+def _start_without_sigint(process) -> None:
+    """Start ``process`` with SIGINT blocked: it inherits the mask, and a Ctrl-C during
+    its start (importing numpy...) would otherwise print a traceback from the worker. Here
+    the signal is only held back while the process starts, then delivered."""
+    if not hasattr(signal, "pthread_sigmask"):  # not POSIX
+        process.start()
+        return
+    from multiprocessing import resource_tracker
+
+    # Starting the resource tracker (on a first start) unblocks SIGINT: have it run first.
+    resource_tracker.ensure_running()
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        process.start()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _serve(pipe, fn, initializer, initargs) -> None:
+    """A worker: run ``initializer``, then each task received until told to stop (None)
+    or the parent goes away; send back ``(index, ok, result or exception)``."""
+    import pickle
+    import traceback
+    from multiprocessing.reduction import ForkingPickler
+
+    if initializer is not None:
+        initializer(*initargs)
+    while True:
         try:
-            for future in futures:
-                yield future.result()
-        finally:
-            for future in futures:
-                future.cancel()
+            task = pipe.recv()
+        except (EOFError, OSError):
+            return  # the parent is gone
+        if task is None:
+            return
+        index, args = task
+        try:
+            reply = ForkingPickler.dumps((index, True, fn(*args)))
+        except Exception as exc:  # noqa: BLE001 - the parent decides what it means
+            text = "".join(traceback.format_exception(exc))
+            try:
+                pickle.loads(pickle.dumps(exc))  # an exception the parent can rebuild
+            except Exception:  # noqa: BLE001
+                exc = RuntimeError(f"{type(exc).__name__}: {exc}")
+            reply = ForkingPickler.dumps((index, False, (exc, text)))
+        try:
+            pipe.send_bytes(reply)
+        except (EOFError, OSError):
+            return
