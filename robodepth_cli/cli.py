@@ -8,8 +8,8 @@ prints it as ``robodepth: error: <message>`` and exits with status 2, with no tr
 Interrupts are handled here too, the same way for every command: Ctrl-C (SIGINT) and
 SIGTERM (a batch scheduler's end of time) stop the command with one line,
 ``robodepth: interrupted; <what was kept>``, and exit status 130. Outputs are written
-atomically, so nothing is left half-written; a command that keeps finished outputs says so
-(:func:`robodepth_cli.commands.common.on_interrupt`).
+atomically, so nothing is left half-written; the line says which outputs are there
+(:func:`robodepth_cli.commands.common.interrupt_note`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import click
 
 from . import __version__
 from .commands import COMMANDS
-from .commands.common import ARGV, KEPT, NOTHING_KEPT
+from .commands.common import ARGV, interrupt_note
 from .errors import RobodepthError
 
 INTERRUPTED = 130  # the shell's status for a SIGINT death; used for SIGTERM too
@@ -48,7 +48,7 @@ class _Group(click.Group):
         except RobodepthError as exc:
             raise UserError(str(exc)) from None
         except (KeyboardInterrupt, click.Abort):
-            click.echo(f"robodepth: interrupted; {ctx.meta.get(KEPT, NOTHING_KEPT)}", err=True)
+            click.echo(f"robodepth: interrupted; {interrupt_note(ctx.meta)}", err=True)
             raise click.exceptions.Exit(INTERRUPTED) from None
         finally:
             if previous is not None:

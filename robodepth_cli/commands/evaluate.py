@@ -103,6 +103,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
             raise RobodepthError(f"{out} exists (the default --out); give --out FILE, or --force "
                                  "to replace it")
     check_writable(out, "--out")
+    common.will_write(out)
     replacing = out.exists()
     dataset = open_dataset(dataset_dir, warn=False)
     if dataset.failed:

@@ -83,6 +83,7 @@ def gt_kitti_command(root, split, out, jobs, progress):
         raise RobodepthError(f"--out {out}: the ground truth is an .npz file (a numpy zip); "
                              "end it in .npz, e.g. gt_depths.npz")
     check_writable(out, "--out")
+    common.will_write(out)
     split_path = _split(split, "eigen", "KITTI ground truth")
     frames = gt_kitti.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
@@ -125,6 +126,7 @@ def gt_nyu_command(root, split, out, progress):
         raise RobodepthError(f"--out {out}: exists and is not empty; give a new folder (it is "
                              "written whole, at the end)")
     check_writable(out, "--out")
+    common.will_write(out)
     split_path = _split(split, "nyu", "NYU ground truth")
     frames = gt_nyu.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
