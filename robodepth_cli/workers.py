@@ -32,6 +32,21 @@ def default_jobs() -> int:
         return os.cpu_count() or 1
 
 
+def parse_jobs(value) -> int:
+    """``--jobs`` (and a build config's ``jobs``) as every command reads it: an integer
+    >= 1, or 'auto' or -1 for one worker per CPU (:func:`default_jobs`)."""
+    from .errors import InvalidValueError
+    from .values import int_from_text, is_int
+
+    number = int_from_text(value)
+    if number == -1 and is_int(number) or isinstance(value, str) and value.strip() == "auto":
+        return default_jobs()
+    if not is_int(number) or number < 1:
+        raise InvalidValueError(f"expected an integer >= 1, got {number!r} (or 'auto' or -1: one "
+                                "worker per CPU)")
+    return number
+
+
 class WorkerDied(RuntimeError):
     """A worker process ended without returning its task's result (killed, out of memory)."""
 

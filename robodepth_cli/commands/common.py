@@ -62,6 +62,21 @@ def interrupt_note(meta: dict) -> str:
     return f"{', '.join(done[:-1])} and {done[-1]} were written (complete) before the interrupt"
 
 
+class Jobs(click.ParamType):
+    """``--jobs N|auto``: worker processes, by the rule of every command
+    (:func:`robodepth_cli.workers.parse_jobs`); 'auto' or -1: one per CPU."""
+
+    name = "N|auto"
+
+    def convert(self, value, param, ctx):
+        from ..workers import parse_jobs
+
+        try:
+            return parse_jobs(value)
+        except RobodepthError as exc:
+            self.fail(str(exc), param, ctx)
+
+
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     """The corruptions ``value`` selects ('all', a name or a comma list), in order."""
     from ..benchmarks import CORRUPTIONS

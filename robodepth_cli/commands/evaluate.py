@@ -56,9 +56,9 @@ DEFAULT_OUT = "results.csv"
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
 @click.option("--allow-partial", is_flag=True,
               help="Evaluate the variants that have predictions; the rest are listed as missing.")
-@click.option("--jobs", "-j", type=click.IntRange(min=1), metavar="N",
-              help="Worker processes, each evaluating whole variants (default: one per CPU); "
-                   "the numbers are the same for any N.")
+@click.option("--jobs", "-j", type=common.Jobs(), metavar="N|auto",
+              help="Worker processes, each evaluating whole variants (default, 'auto' or -1: "
+                   "one per CPU); the numbers are the same for any N.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_space, crop,

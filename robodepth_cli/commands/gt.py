@@ -58,8 +58,9 @@ def _bar(total: int, progress: bool):
               help="Standard split name or a split file in the Eigen format (DATE/DRIVE FRAME SIDE).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output file, e.g. gt_depths.npz.")
-@click.option("--jobs", "-j", type=click.IntRange(min=1), default=1, show_default=True, metavar="N",
-              help="Worker processes making the maps; the file is the same for any N. Writing "
+@click.option("--jobs", "-j", type=common.Jobs(), default=1, show_default=True, metavar="N|auto",
+              help="Worker processes making the maps ('auto' or -1: one per CPU); the file is "
+                   "the same for any N. Writing "
                    "the compressed file is serial and the workers' start costs more than they "
                    "save on 2 cores: worth it only with many cores.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
