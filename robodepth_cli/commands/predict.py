@@ -62,6 +62,9 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     if batch_size < 1:
         raise click.BadParameter("must be at least 1", param_hint="--batch-size")
     model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
+    if model.device in ("cpu", "cuda"):  # chosen here (a python: callable chooses its own)
+        # Said before the run, not after: a long CPU run where a GPU was expected shows at once.
+        click.echo(f"robodepth: {model.spec} runs on {model.device} (--device {device})", err=True)
     common.on_interrupt(f"the variants finished so far are kept under {pred}, each complete; "
                         "rerun the same command to continue")
     with progress_bar("img", progress=progress) as bar:
