@@ -8,10 +8,10 @@ may hold threads (a progress bar's, OpenCV's) that a fork would copy in the midd
 their work.
 
 This process owns the workers' lives, so that Ctrl-C and SIGTERM stop a command at once:
-the workers start with SIGINT blocked (a terminal's Ctrl-C reaches the whole process
-group; a worker must not print its own traceback), and when the caller stops for any
-reason (an interrupt, an error, closing the iterator) they are killed and reaped before
-the exception goes on. Each worker gets one task at a time over its own pipe, read by
+the workers start with both signals blocked (:func:`signals_held`; a terminal's Ctrl-C
+reaches the whole process group, and a worker must not print its own traceback), and
+when the caller stops for any reason (an interrupt, an error, closing the iterator) they
+are killed and reaped before the exception goes on. Each worker gets one task at a time over its own pipe, read by
 this thread: no queue feeder thread is left writing to a pipe that no worker reads (what
 made ``concurrent.futures`` hang at interpreter exit after a SIGTERM).
 """
@@ -75,7 +75,7 @@ def in_order(fn: Callable[..., Any], tasks: Sequence[tuple], jobs: int,
             here, there = context.Pipe()
             process = context.Process(target=_serve, args=(there, fn, initializer, initargs),
                                       daemon=True)
-            _start_without_sigint(process)
+            _start_held(process)
             there.close()
             workers.append(process)
             pipes[here] = process
@@ -130,30 +130,57 @@ def _died(process) -> None:
                      "if it ran out of memory, use fewer --jobs")
 
 
-def _start_without_sigint(process) -> None:
-    """Start ``process`` with SIGINT blocked: it inherits the mask, and a Ctrl-C during
-    its start (importing numpy...) would otherwise print a traceback from the worker. Here
-    the signal is only held back while the process starts, then delivered."""
-    if not hasattr(signal, "pthread_sigmask"):  # not POSIX
+def _start_held(process) -> None:
+    """Start ``process`` with SIGINT and SIGTERM blocked (:func:`signals_held`)."""
+    with signals_held():
         process.start()
-        return
-    from multiprocessing import resource_tracker
 
-    # Starting the resource tracker (on a first start) unblocks SIGINT: have it run first.
-    resource_tracker.ensure_running()
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+
+@contextlib.contextmanager
+def signals_held():
+    """Ctrl-C and SIGTERM held back while worker processes start, and delivered when the
+    block ends. Processes (and threads) started meanwhile inherit a mask blocking both, so
+    they never act on the signals that a terminal's Ctrl-C or a scheduler sends the whole
+    process group: this process stops them (killing them, as it does when signalled
+    alone). Else a Ctrl-C while a worker starts (importing numpy...) prints the worker's
+    traceback, and a pool whose workers die of SIGTERM under it fails with tracebacks of
+    its own threads. In the main thread, this process's own handlers wait too: a pool
+    interrupted half-started (joblib's) fails the same way."""
+    import threading
+
+    main = threading.current_thread() is threading.main_thread()
+    caught: list[int] = []
+    handlers = {}
+    if main:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            handlers[signum] = signal.signal(signum, lambda signum, frame: caught.append(signum))
+    masked = hasattr(signal, "pthread_sigmask")
+    if masked:
+        from multiprocessing import resource_tracker
+
+        # Starting multiprocessing's resource tracker (which pools do on their first start)
+        # unblocks both signals in this thread: have it run first.
+        resource_tracker.ensure_running()
+    held = {signal.SIGINT, signal.SIGTERM}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held) if masked else None
     try:
-        process.start()
+        yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        if masked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
+        for signum in dict.fromkeys(caught):
+            signal.raise_signal(signum)  # now, to the handler it was meant for
 
 
 def _serve(pipe, fn, initializer, initargs) -> None:
     """A worker: run ``initializer``, then each task received until told to stop (None)
     or the parent goes away; send back ``(index, ok, result or exception)``."""
-    import pickle
     import traceback
     from multiprocessing.reduction import ForkingPickler
+
+    from .errors import RobodepthError
 
     if initializer is not None:
         initializer(*initargs)
@@ -169,9 +196,7 @@ def _serve(pipe, fn, initializer, initargs) -> None:
             reply = ForkingPickler.dumps((index, True, fn(*args)))
         except Exception as exc:  # noqa: BLE001 - the parent decides what it means
             text = "".join(traceback.format_exception(exc))
-            try:
-                pickle.loads(pickle.dumps(exc))  # an exception the parent can rebuild
-            except Exception:  # noqa: BLE001
+            if not isinstance(exc, RobodepthError):  # a bug: its traceback tells the rest
                 exc = RuntimeError(f"{type(exc).__name__}: {exc}")
             reply = ForkingPickler.dumps((index, False, (exc, text)))
         try:

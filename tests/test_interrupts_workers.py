@@ -1,6 +1,6 @@
 """Ctrl-C and SIGTERM stop the commands that run worker processes (`evaluate --jobs`,
-`gt kitti --jobs`) at once: one line, exit status 130, no worker's traceback, no process
-left behind (issue 26). `build --jobs` is covered by test_reliability.py.
+`gt kitti --jobs`, `build --jobs`) at once: one line, exit status 130, no worker's
+traceback, no process left behind (issue 26). test_reliability.py stops builds mid-way.
 
 The inputs are large enough that the commands really start workers (more than 500 maps for
 evaluate; several runs of frames for gt), and each task sent to a worker is larger than a
@@ -46,8 +46,6 @@ def watch(jobs):
     ready()
 
 def stopping(fn, tasks, jobs, *args, **kwargs):
-    if at == "start":  # once the workers are started (still importing, say)
-        threading.Thread(target=watch, args=(jobs,), daemon=True).start()
     results = real(fn, tasks, jobs, *args, **kwargs)
     try:
         yield next(results)
@@ -58,6 +56,8 @@ def stopping(fn, tasks, jobs, *args, **kwargs):
     finally:
         results.close()
 
+if at == "start":  # once two workers are started (still importing, say)
+    threading.Thread(target=watch, args=(2,), daemon=True).start()
 workers.in_order = stopping
 from robodepth_cli.cli import main
 sys.argv = ["robodepth", *sys.argv[2:]]
@@ -167,3 +167,15 @@ def test_gt_kitti_with_workers_stops_at_once(kitti_raw, tmp_path, at, sig):
                         "--no-progress"], at, sig, True, tmp_path)
     assert (status, err) == (130, NOTHING)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_build_stops_at_once_while_its_workers_start(fixtures_dir, tmp_path, sig):
+    out = tmp_path / "KITTI_C"
+    status, err = stop(["build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
+                        fixtures_dir / "kitti_split.txt", "--out", out, "--size", "32x96",
+                        "--corruptions", "brightness", "--levels", "1", "--jobs", "2", "--no-gt",
+                        "--no-progress"], "start", sig, True, tmp_path)
+    assert status == 130, err
+    assert err.splitlines()[-1] == "robodepth: interrupted; rerun the same command to resume", err
+    assert "Traceback" not in err and "Process" not in err, err
