@@ -121,8 +121,8 @@ def in_order(fn: Callable[..., Any], tasks: Sequence[tuple], jobs: int,
 
 def _died(process) -> None:
     """Raise for a worker that ended in the middle of a task. Killed by SIGINT or SIGTERM
-    (sent to the whole process group), the command is being stopped: an interrupt, which
-    this process may not have seen yet."""
+    (where they cannot be blocked: not POSIX), the command is being stopped: an interrupt,
+    which this process may not have seen yet."""
     process.join()
     if process.exitcode in (-signal.SIGINT, -signal.SIGTERM):
         raise KeyboardInterrupt

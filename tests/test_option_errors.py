@@ -111,8 +111,8 @@ def test_a_bare_group_still_shows_its_help():
 
 @pytest.mark.parametrize("value", ["-1", "auto", " auto "])
 def test_jobs_minus_one_and_auto_mean_one_per_cpu_everywhere(cli, monkeypatch, tmp_path, value):
-    from robodepth_cli.evaluation import evaluate as E
     from robodepth_cli.errors import RobodepthError
+    from robodepth_cli.evaluation import evaluate as E
     from robodepth_cli.sources import kitti_raw
 
     monkeypatch.setattr(workers, "default_jobs", lambda: 7)

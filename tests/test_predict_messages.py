@@ -32,7 +32,6 @@ def stopped_before_the_images(monkeypatch):
 
 def test_the_device_auto_chose_is_said_first(dataset, tmp_path, cli, stopped_before_the_images):
     import torch
-
     from test_predict import random_monodepth2
 
     random_monodepth2(tmp_path / "m", 18)
