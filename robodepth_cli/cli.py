@@ -8,8 +8,8 @@ prints it as ``robodepth: error: <message>`` and exits with status 2, with no tr
 Interrupts are handled here too, the same way for every command: Ctrl-C (SIGINT) and
 SIGTERM (a batch scheduler's end of time) stop the command with one line,
 ``robodepth: interrupted; <what was kept>``, and exit status 130. Outputs are written
-atomically, so nothing is left half-written; a command that keeps finished outputs says so
-(:func:`robodepth_cli.commands.common.on_interrupt`).
+atomically, so nothing is left half-written; the line says which outputs are there
+(:func:`robodepth_cli.commands.common.interrupt_note`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import click
 
 from . import __version__
 from .commands import COMMANDS
-from .commands.common import ARGV, KEPT, NOTHING_KEPT
+from .commands.common import ARGV, interrupt_note
 from .errors import RobodepthError
 
 INTERRUPTED = 130  # the shell's status for a SIGINT death; used for SIGTERM too
@@ -39,7 +39,10 @@ class UserError(click.ClickException):
 class _Group(click.Group):
     def parse_args(self, ctx, args):
         ctx.meta[ARGV] = list(args)  # the command as typed, for messages that repeat it
-        return super().parse_args(ctx, args)
+        try:
+            return super().parse_args(ctx, args)
+        except click.UsageError as exc:
+            raise _usage_error(exc, ctx) from None
 
     def invoke(self, ctx):
         previous = _stop_on_sigterm()
@@ -47,12 +50,69 @@ class _Group(click.Group):
             return super().invoke(ctx)
         except RobodepthError as exc:
             raise UserError(str(exc)) from None
+        except click.UsageError as exc:  # a subcommand's options, as click parses them
+            raise _usage_error(exc, ctx) from None
         except (KeyboardInterrupt, click.Abort):
-            click.echo(f"robodepth: interrupted; {ctx.meta.get(KEPT, NOTHING_KEPT)}", err=True)
+            click.echo(f"robodepth: interrupted; {interrupt_note(ctx.meta)}", err=True)
             raise click.exceptions.Exit(INTERRUPTED) from None
         finally:
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)
+
+
+def _usage_error(exc: click.UsageError, group_ctx) -> click.ClickException:
+    """click's refusal of the command line (a bad option value, a missing or unknown option)
+    as every other refusal: ``robodepth: error: --flag: problem``, one line, exit 2, where
+    click would print its usage block and ``Error: Invalid value for ...``."""
+    if getattr(click.exceptions, "NoArgsIsHelpError", ()) and \
+            isinstance(exc, click.exceptions.NoArgsIsHelpError):
+        return exc  # a group called bare: its help, as click shows it
+    command = " ".join(["robodepth", *_command_names(exc.ctx, group_ctx)])
+    if isinstance(exc, click.MissingParameter):
+        return UserError(f"{_param_name(exc)}: required; see {command} --help")
+    if isinstance(exc, click.BadParameter):
+        name = _param_name(exc)
+        return UserError(f"{name}: {_sentence(exc.message)}" if name else _sentence(exc.message))
+    return UserError(f"{_sentence(exc.format_message())}; see {command} --help")
+
+
+def _command_names(ctx, group_ctx) -> list[str]:
+    """The subcommands (``["gt", "kitti"]``) of the error's context, else (click's parser
+    gives some errors none) of the command line as typed."""
+    names: list[str] = []
+    if ctx is not None and ctx.parent is not None:
+        while ctx.parent is not None:
+            names.insert(0, ctx.info_name)
+            ctx = ctx.parent
+        return names
+    command = group_ctx.command
+    for arg in group_ctx.meta.get(ARGV, []):
+        if not isinstance(command, click.Group) or arg not in command.commands:
+            break
+        names.append(arg)
+        command = command.commands[arg]
+    return names
+
+
+def _param_name(exc: click.BadParameter) -> str:
+    """The flag as the user knows it (``--jobs``, not ``'--jobs' / '-j'``), or an
+    argument's metavar (``DATASET_DIR``)."""
+    param = exc.param
+    if param is None:
+        hint = exc.param_hint
+        return hint if isinstance(hint, str) or hint is None else hint[0]
+    if isinstance(param, click.Option):
+        return next((o for o in param.opts if o.startswith("--")), param.opts[0])
+    return param.human_readable_name
+
+
+def _sentence(text: str) -> str:
+    """click's message as a clause of ours: no final period, lower case first word
+    ("Directory '/x' is a file." -> "directory '/x' is a file")."""
+    text = text.strip().rstrip(".").replace(". (Did you mean", " (did you mean")
+    if len(text) > 1 and text[0].isupper() and text[1].islower():
+        text = text[0].lower() + text[1:]
+    return text
 
 
 def _stop_on_sigterm():

@@ -264,7 +264,10 @@ def test_manifest_of_an_older_build_still_reads_and_gains_the_source_columns(kit
 # --- defect 9: limits ------------------------------------------------------------------------
 
 def test_jobs_auto_means_one_per_cpu(monkeypatch):
-    monkeypatch.setattr(os, "cpu_count", lambda: 3)
+    from robodepth_cli import workers
+
+    # The CPUs this process may use: the one rule of every command's --jobs auto.
+    monkeypatch.setattr(workers, "default_jobs", lambda: 3)
     assert resolve("kitti-c", flags={"jobs": "auto"}).jobs == 3
     assert resolve("kitti-c", flags={"jobs": "-1"}).jobs == 3
     with pytest.raises(ConfigError, match=r"--jobs: expected an integer >= 1, got -2 \(or 'auto' or -1"):

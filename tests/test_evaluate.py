@@ -627,7 +627,7 @@ def test_alignment_refusals(kitti_c, kitti_pred, tmp_path, cli):
     for flags, message in (
             (("--stereo", "--align", "scale"), "--stereo scales by 5.4 and aligns nothing"),
             (("--min-depth", "10", "--max-depth", "5"), "need 0 < min-depth < max-depth"),
-            (("--align", "fit"), "Invalid value for '--align'")):
+            (("--align", "fit"), "robodepth: error: --align: 'fit' is not one of")):
         res = cli("evaluate", out, "--pred", kitti_pred, "--out", tmp_path / "r.csv", *flags)
         assert res.exit_code == 2 and message in res.stderr, res.stderr
     # a zero disparity has no depth: least squares in depth space has no number to give

@@ -169,3 +169,31 @@ def test_interrupts_are_documented(cli):
     assert "Ctrl-C" in text and "130" in text
     doc = (REPO / "docs" / "evaluation.md").read_text()
     assert "SIGTERM" in doc and "130" in doc
+
+
+# Stopped just after the output is in place (where the command says "wrote ..."): the line
+# says the output is there, complete, never "nothing was written" (issue 26).
+WRITTEN = [
+    ("evaluate", lambda i: ["evaluate", i["dataset"], "--pred", i["pred"], "--out", "{OUT}/r.csv",
+                            "--no-progress"], "r.csv"),
+    ("gt kitti", lambda i: ["gt", "kitti", "--root", i["kitti_raw"], "--split", i["kitti_split"],
+                            "--out", "{OUT}/gt_depths.npz", "--no-progress"], "gt_depths.npz"),
+    ("gt nyu", lambda i: ["gt", "nyu", "--root", i["mat"], "--split", i["nyu_split"], "--out",
+                          "{OUT}/NYU_TEST", "--no-progress"], "NYU_TEST"),
+    ("score", lambda i: ["score", i["results"], "-b", "kitti-c", "--allow-partial", "--plot",
+                         "{OUT}/ce.png"], "ce.png"),
+    ("preview", lambda i: ["preview", i["frame"], "-c", "brightness", "--size", "32x96", "--out",
+                           "{OUT}/sheet.png"], "sheet.png"),
+]
+
+
+@pytest.mark.parametrize("name, args, output", WRITTEN, ids=[c[0] for c in WRITTEN])
+def test_an_interrupt_after_the_output_is_written_says_so(inputs, tmp_path, name, args, output):
+    out = tmp_path / "out"
+    out.mkdir()
+    argv = [str(a).replace("{OUT}", str(out)) for a in args(inputs)]
+    status, err = run_until("robodepth_cli.commands.common:wrote", 1, argv, signal.SIGTERM, tmp_path)
+    assert status == 130, err
+    assert err.strip().splitlines()[-1] == \
+        f"robodepth: interrupted; {out / output} was written (complete) before the interrupt", err
+    assert (out / output).exists() and not no_temporaries(out)

@@ -25,7 +25,6 @@ have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set
 from __future__ import annotations
 
 import importlib.util
-import os
 import re
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -347,12 +346,12 @@ class _Resolver:
             except RobodepthError as exc:
                 raise ConfigError(str(exc)) from None
         if key == "jobs":
-            if v in ("auto", -1, "-1"):
-                return os.cpu_count() or 1  # one worker per CPU
+            from ..workers import parse_jobs
+
             try:
-                return _int(loc, v, 1)
-            except ConfigError as exc:
-                raise ConfigError(f"{exc} (or 'auto' or -1: one worker per CPU)") from None
+                return parse_jobs(v)  # the rule of every command's --jobs
+            except RobodepthError as exc:
+                raise ConfigError(f"{loc}: {exc}") from None
         if key == "limit":
             return None if v is None else _int(loc, v, 1)
         if key == "frames":

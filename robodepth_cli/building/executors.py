@@ -13,6 +13,8 @@ it is imported (with dask) only when a build asks for a scheduler.
 
 from __future__ import annotations
 
+import contextlib
+import threading
 import warnings
 from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol, Sequence
@@ -57,12 +59,32 @@ class LocalExecutor:
             return
         from joblib import Parallel, delayed
 
-        with Parallel(n_jobs=self.workers, return_as="generator_unordered") as pool, \
-                warnings.catch_warnings():
+        from ..workers import signals_held
+
+        stopping = False
+        previous_hook = threading.excepthook
+
+        def hook(args):
+            # A pool stopped as it starts: loky's manager thread can trip over the work
+            # cancelled under it (KeyError); only noise after the interrupt's own line.
+            if not (stopping and args.thread is not None and args.thread.name == "ExecutorManagerThread"):
+                previous_hook(args)
+
+        with warnings.catch_warnings(), contextlib.ExitStack() as stack:
             # Stopping early on a write error cancels the queued tasks on purpose; joblib's
             # warning about it would only bury the real message.
             warnings.filterwarnings("ignore", r".*tasks which were still being processed", UserWarning)
-            yield from pool(delayed(fn)(t) for t in tasks)
+            stack.callback(setattr, threading, "excepthook", previous_hook)  # once the pool is shut
+            threading.excepthook = hook
+            try:
+                with signals_held():  # the workers, started by the first tasks sent, ignore Ctrl-C
+                    pool = stack.enter_context(Parallel(n_jobs=self.workers, return_as="generator_unordered"))
+                    results = pool(delayed(fn)(t) for t in tasks)
+                    stack.callback(results.close)  # its cancelling now, under the filter above
+                yield from results
+            except BaseException:
+                stopping = True
+                raise
 
     def describe(self) -> dict:
         return {"backend": "local", "workers": self.workers}

@@ -178,7 +178,8 @@ def verify_command(out, progress):
 
             report = verify_export(out, progress=bar.update)
         else:
-            report = verify(out, progress=bar.update)
+            # The total is known once the manifest is read; reset() also restarts the clock.
+            report = verify(out, progress=bar.update, on_total=lambda n: bar.reset(total=n))
     if report.incomplete():
         click.echo(report.incomplete())
     for kind in ("missing", "changed", "extra"):

@@ -13,6 +13,7 @@ from ..errors import RobodepthError, cannot_write
 
 ARGV = "robodepth.argv"  # ctx.meta: the arguments as typed (set by the group)
 KEPT = "robodepth.kept"  # ctx.meta: what an interrupt leaves behind (see on_interrupt)
+OUTPUTS = "robodepth.outputs"  # ctx.meta: {path: its state before the work} (see will_write)
 NOTHING_KEPT = "nothing was written"
 
 
@@ -27,6 +28,53 @@ def on_interrupt(kept: str) -> None:
     """What this command keeps if Ctrl-C or SIGTERM stops it now (the group prints
     ``robodepth: interrupted; <kept>``); by default, nothing was written."""
     click.get_current_context().meta[KEPT] = kept
+
+
+def will_write(path) -> None:
+    """Note that this command writes ``path`` (whole, atomically), so that an interrupt
+    says whether it was written: the signal can come after the file is in place (see
+    :func:`interrupt_note`)."""
+    click.get_current_context().meta.setdefault(OUTPUTS, {})[Path(path)] = _state(Path(path))
+
+
+def _state(path: Path):
+    """What tells a file (or folder) written now from the one there before: an atomic write
+    replaces it (a new inode) or creates it."""
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return st.st_ino, st.st_mtime_ns, st.st_size
+
+
+def interrupt_note(meta: dict) -> str:
+    """What an interrupt kept, as ``robodepth: interrupted; <this>`` says it: the command's
+    own words (:func:`on_interrupt`), else which of its outputs (:func:`will_write`) are
+    already written, else that nothing was."""
+    if KEPT in meta:
+        return meta[KEPT]
+    done = [str(p) for p, before in meta.get(OUTPUTS, {}).items()
+            if _state(p) is not None and _state(p) != before]
+    if not done:
+        return NOTHING_KEPT
+    if len(done) == 1:
+        return f"{done[0]} was written (complete) before the interrupt"
+    return f"{', '.join(done[:-1])} and {done[-1]} were written (complete) before the interrupt"
+
+
+class Jobs(click.ParamType):
+    """``--jobs N|auto``: worker processes, by the rule of every command
+    (:func:`robodepth_cli.workers.parse_jobs`); 'auto' or -1: one per CPU."""
+
+    name = "N|auto"
+
+    def convert(self, value, param, ctx):
+        from ..workers import parse_jobs
+
+        try:
+            return parse_jobs(value)
+        except RobodepthError as exc:
+            self.fail(str(exc), param, ctx)
 
 
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
@@ -114,11 +162,13 @@ def png_output(out: str, default_name: str, flag: str = "--out") -> Path:
     when it means a directory (:func:`means_directory`). Any other name must end in
     ``.png``: writing PNG bytes under another extension would mislabel the file."""
     if means_directory(out):
-        return Path(out) / default_name
-    path = Path(out)
-    if path.suffix.lower() != ".png":
-        raise RobodepthError(f"{flag} {out}: the output is written as PNG; give a .png file "
-                             f"name, or a directory (end it with /)")
+        path = Path(out) / default_name
+    else:
+        path = Path(out)
+        if path.suffix.lower() != ".png":
+            raise RobodepthError(f"{flag} {out}: the output is written as PNG; give a .png file "
+                                 f"name, or a directory (end it with /)")
+    will_write(path)
     return path
 
 
@@ -154,6 +204,7 @@ def figure_output(out: str, default_name: str, flag: str) -> Path:
     if path.is_dir():
         raise RobodepthError(cannot_write(path, "it is a directory", flag))
     check_writable(path, flag)
+    will_write(path)
     return path
 
 

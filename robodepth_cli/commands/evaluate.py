@@ -60,9 +60,9 @@ DEFAULT_OUT = "results.csv"
 @click.option("--flicker", is_flag=True,
               help="Also measure flicker over the split's consecutive frames: flicker_scale and "
                    "flicker_abs_rel columns (see docs/video.md).")
-@click.option("--jobs", "-j", type=click.IntRange(min=1), metavar="N",
-              help="Worker processes, each evaluating whole variants (default: one per CPU); "
-                   "the numbers are the same for any N.")
+@click.option("--jobs", "-j", type=common.Jobs(), metavar="N|auto",
+              help="Worker processes, each evaluating whole variants (default, 'auto' or -1: "
+                   "one per CPU); the numbers are the same for any N.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_space, crop,
@@ -108,6 +108,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
             raise RobodepthError(f"{out} exists (the default --out); give --out FILE, or --force "
                                  "to replace it")
     check_writable(out, "--out")
+    common.will_write(out)
     replacing = out.exists()
     dataset = open_dataset(dataset_dir, warn=False)
     if dataset.failed:

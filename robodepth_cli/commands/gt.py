@@ -58,8 +58,9 @@ def _bar(total: int, progress: bool):
               help="Standard split name or a split file in the Eigen format (DATE/DRIVE FRAME SIDE).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output file, e.g. gt_depths.npz.")
-@click.option("--jobs", "-j", type=click.IntRange(min=1), default=1, show_default=True, metavar="N",
-              help="Worker processes making the maps; the file is the same for any N. Writing "
+@click.option("--jobs", "-j", type=common.Jobs(), default=1, show_default=True, metavar="N|auto",
+              help="Worker processes making the maps ('auto' or -1: one per CPU); the file is "
+                   "the same for any N. Writing "
                    "the compressed file is serial and the workers' start costs more than they "
                    "save on 2 cores: worth it only with many cores.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
@@ -83,6 +84,7 @@ def gt_kitti_command(root, split, out, jobs, progress):
         raise RobodepthError(f"--out {out}: the ground truth is an .npz file (a numpy zip); "
                              "end it in .npz, e.g. gt_depths.npz")
     check_writable(out, "--out")
+    common.will_write(out)
     split_path = _split(split, "eigen", "KITTI ground truth")
     frames = gt_kitti.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
@@ -125,6 +127,7 @@ def gt_nyu_command(root, split, out, progress):
         raise RobodepthError(f"--out {out}: exists and is not empty; give a new folder (it is "
                              "written whole, at the end)")
     check_writable(out, "--out")
+    common.will_write(out)
     split_path = _split(split, "nyu", "NYU ground truth")
     frames = gt_nyu.read_frames(split_path)
     with _bar(len(frames), progress) as bar:

@@ -67,6 +67,9 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     if fits < batch_size:
         click.echo(f"robodepth: --batch-size {batch_size}: {fits} images per batch (a batch "
                    f"holds at most {P.BATCH_PIXELS:,} pixels)", err=True)
+    if model.device in ("cpu", "cuda"):  # chosen here (a python: callable chooses its own)
+        # Said before the run, not after: a long CPU run where a GPU was expected shows at once.
+        click.echo(f"robodepth: {model.spec} runs on {model.device} (--device {device})", err=True)
     common.on_interrupt(f"the variants finished so far are kept under {pred}, each complete; "
                         "rerun the same command to continue")
     with progress_bar("img", progress=progress) as bar:

@@ -59,9 +59,9 @@ def tree_files(out: Path) -> set[str]:
     return found
 
 
-def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
-    """Re-hash every file of ``out`` against its manifest. ``progress(n)`` is called as
-    files are checked."""
+def verify(out: Path, *, threads: int = 4, progress=None, on_total=None) -> VerifyReport:
+    """Re-hash every file of ``out`` against its manifest. ``on_total(n)`` is called once
+    with the number of files to hash, then ``progress(n)`` as files are checked."""
     from concurrent.futures import ThreadPoolExecutor
 
     from ..building.checks import planned_outputs
@@ -91,6 +91,8 @@ def verify(out: Path, *, threads: int = 4, progress=None) -> VerifyReport:
         return sha256_file(out / p) == listed[p].sha256
 
     changed = []
+    if on_total:
+        on_total(len(present))
     with ThreadPoolExecutor(threads) as pool:  # hashlib and file reads release the GIL
         for p, same in zip(present, pool.map(check, present)):
             if not same:
