@@ -105,9 +105,12 @@ def test_every_corruption_across_frames(name):
     same pixels, a noise the same amount of noise but independent of the test frame's."""
     x = random_image(48, 64, seed=3)
     test, neighbour = kitti_key(4), kitti_key(5)
+    # The depth-aware corruptions take the scene's depth: a slanted plane, 5 to 50 m.
+    depth = np.linspace(5.0, 50.0, 48)[:, None].repeat(64, axis=1) if corruptions.needs_depth(name) else None
 
     def render(key, anchor=None):
-        return corruptions.render(x, name, 3, seed=1, dataset="kitti-c", key=key, anchor=anchor)
+        return corruptions.render(x, name, 3, seed=1, dataset="kitti-c", key=key, anchor=anchor,
+                                  depth=depth)
 
     a, b = render(test), render(neighbour, anchor=test)
     if DRAWS[name][0] in (SHARED, NO_DRAWS):
