@@ -71,11 +71,13 @@ def inline_svg(svg: str, prefix: str, label: str = "") -> str:
 
 
 def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures: Sequence[PageFigure],
-           dataset: dict | None, context: str, note: str = "") -> str:
+           dataset: dict | None, context: str, note: str = "",
+           sections: Sequence[tuple[str, Sequence[Table]]] = ()) -> str:
     """The page: title, the models and their files, the summary table, the figures, the
-    per-corruption tables, notes on the scores and the paper to cite."""
+    per-corruption tables, then each of ``sections`` (a heading and its tables: other
+    datasets, synthetic against real), notes on the scores and the paper to cite."""
     e = html.escape
-    bname = bench_name(benchmark)
+    bname = bench_name(benchmark) if tables else "several datasets"
     names = ", ".join(m.name for m in models)
     parts = ["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
              '<meta name="viewport" content="width=device-width, initial-scale=1">',
@@ -97,11 +99,12 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
                      f'({e(str(dataset["name"]))}, {dataset["images"]} images, seed '
                      f'{e(str(dataset["seed"]))}), fingerprint <code>{e(dataset["fingerprint"][:16])}</code>.</p>')
     tables = list(tables)
-    parts += ["<h2>Scores</h2>", to_html(tables[0])]
-    if note:
-        parts.append(f'<p class="note">{e(note[0].upper() + note[1:])}.</p>')
-    elif context != "all":
-        parts.append(f'<p class="note">Published rows shown: {e(context)} (--published).</p>')
+    if tables:
+        parts += ["<h2>Scores</h2>", to_html(tables[0])]
+        if note:
+            parts.append(f'<p class="note">{e(note[0].upper() + note[1:])}.</p>')
+        elif context != "all":
+            parts.append(f'<p class="note">Published rows shown: {e(context)} (--published).</p>')
     if figures:
         parts.append("<h2>Figures</h2>")
     for f in figures:
@@ -115,6 +118,9 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
         parts.append("<h2>Per corruption</h2>" if benchmark != "kitti-s" else "<h2>Per style</h2>")
         for t in tables[1:]:
             parts.append(to_html(t))
+    for title, more in sections:
+        parts.append(f"<h2>{e(title)}</h2>")
+        parts += [to_html(t) for t in more]
     parts += ["<h2>How the scores are computed</h2>", f'<p class="note">{NOTES}</p>',
               f'<p class="note">Published rows are scored from the paper\'s per-corruption DEE '
               "and clean DEE by the same code as <code>robodepth score</code>; where the paper "

@@ -39,9 +39,10 @@ class Table:
     rows: list[Row]
     values: list[dict[str, float | None]]  # per row, column key -> value
     marks: dict[tuple[int, str], str] = field(default_factory=dict)  # (row, key) -> best/second
+    ranked: bool = True  # False: rows that are no rivals (pairs of conditions), nothing marked
 
     def __post_init__(self):
-        for col in self.columns:
+        for col in self.columns if self.ranked else ():
             printed = sorted({round(v[col.key], col.decimals) for v in self.values
                               if v.get(col.key) is not None}, reverse=col.better == HIGH)
             for i, v in enumerate(self.values):
