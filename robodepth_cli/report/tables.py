@@ -225,7 +225,9 @@ def _arrow_html(c: Column) -> str:
 # --------------------------------------------------------------------------- LaTeX
 
 _TEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-        "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+        "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+        # The Greek of the headers (rank correlations, delta1): pdflatex has no Unicode maths.
+        "ρ": r"$\rho$", "τ": r"$\tau$", "δ": r"$\delta$"}
 
 
 def tex_escape(text: str) -> str:
