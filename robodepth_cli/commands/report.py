@@ -62,10 +62,12 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     PNG), LaTeX and Markdown tables and a versioned scores.json.
 
     RESULTS are results CSVs as robodepth evaluate writes them (or robodepth score reads
-    them), all on the same benchmark, each complete. The page and tables show your models
-    and the RoboDepth paper's published models as context; figures: DEE per corruption
-    (radar), CE per corruption, DEE against level, mCE and mRR against clean DEE (KITTI-S:
-    DEE per style and the mDEE ranking).
+    them), each complete. The page and tables show your models and the RoboDepth paper's
+    published models as context; figures: DEE per corruption (radar), CE per corruption,
+    DEE against level, mCE and mRR against clean DEE (KITTI-S: DEE per style and the mDEE
+    ranking). Results on other datasets (--on) add a table per dataset, one across them
+    and, where a synthetic corruption and a real condition of the pairs table both have
+    results, the rank correlation of the models between them with a scatter.
 
     \b
     Examples:
