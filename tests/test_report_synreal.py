@@ -228,4 +228,12 @@ def test_refusals(tmp_path, cli):
     g = tmp_path / "g.csv"
     g.write_text("corruption,level,dee\nfog,1,0.2\n")
     _one_line_error(cli("report", g, "--on", "x", "--out", out), "no clean row")
+    g.write_text("corruption,level,dee\nclean,0,0.1\nfog,0,0.2\n")
+    _one_line_error(cli("report", g, "--on", "x", "--out", out), "corruption levels start at 1")
+    g.write_text("corruption,level,dee\nclean,0,0.1\nfog,1,0.2\n")
+    _one_line_error(cli("report", g, f, "--name", "g", "--name", "f", "--on", "x", "--baseline", "f",
+                        "--out", out), "--baseline f: has no results with corruption rows on x")
+    missing = cli("report", tmp_path / "nope.csv", "--out", out)
+    _one_line_error(missing, "cannot read")
+    assert "--on" not in missing.output
     assert not out.exists()

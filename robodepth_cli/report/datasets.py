@@ -71,6 +71,7 @@ def keys_of(paths: Sequence[Path], on: Sequence[str], benchmark: str | None) -> 
         return keys
     out = []
     for p in paths:
+        R.read_text(p)  # an unreadable file says so, without the hint below
         try:
             out.append((I.infer([p], benchmark), ""))
         except ScoreError as exc:
@@ -112,9 +113,17 @@ def load(paths: Sequence[Path], names: Sequence[str], keys: Sequence[tuple[str, 
         raise I.ReportError(f"--baseline {baseline!r}: no results file has that model name "
                             f"(the names: {', '.join(dict.fromkeys(chosen))})")
     for e in entries:
-        if e.model is None and any(v["corruption"] != B.CLEAN for v in e.variants):
-            e.scores = _score(e, next((b for b in entries if b.name == baseline and b.key == e.key), None))
+        if e.model is None and _corrupted(e):
+            base = next((b for b in entries if b.name == baseline and b.key == e.key), None)
+            if baseline is not None and (base is None or not _corrupted(base)):
+                raise I.ReportError(f"--baseline {baseline}: has no results with corruption rows "
+                                    f"on {X.key_text(e.key)}, which {e.path} has")
+            e.scores = _score(e, base)
     return entries
+
+
+def _corrupted(e: Entry) -> bool:
+    return any(v["corruption"] != B.CLEAN and isinstance(v["level"], int) for v in e.variants)
 
 
 def _check(text: str, source: str) -> None:
@@ -127,6 +136,10 @@ def _check(text: str, source: str) -> None:
             raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
                              f"valid: clean, {', '.join(B.CORRUPTIONS)}")
         level = parse_level(cells["level"], where)
+        if name == B.CLEAN and level != 0:
+            raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
+        if name != B.CLEAN and not level >= 1:
+            raise ScoreError(f"{where}: level {level} of {name}: corruption levels start at 1")
         if (name, level) in seen:
             raise ScoreError(f"{where}: duplicate row for {name} level {level} "
                              f"(first on line {seen[name, level]})")
