@@ -68,6 +68,15 @@ def test_pairs_tables(tmp_path):
         X.read_pairs([bad])
 
 
+def page_text(path: Path, table: str) -> str:
+    """The text of the page's table ``table`` (headers included)."""
+    import re
+
+    html = path.read_text(encoding="utf-8")
+    body = re.search(rf'<table id="{table}".*?</table>', html, flags=re.S).group(0)
+    return re.sub(r"<[^>]+>", " ", body).replace("&uarr;", "↑").replace("&darr;", "↓")
+
+
 def _clean(path: Path, dee: float, a1: float = 0.9) -> Path:
     path.write_text(f"corruption,level,abs_rel,a1\nclean,0,{2 * dee - 1 + a1!r},{a1}\n")
     return path
@@ -133,7 +142,8 @@ def test_synthetic_against_real_in_the_report(synreal_report):
     # The Markdown and LaTeX carry the agreement table too.
     assert "Synthetic against real" in (out / "table.md").read_text()
     tex = (out / "table.tex").read_text()
-    assert r"\label{tab:robodepth-synthetic-real}" in tex and r"$\rho$ $\uparrow$" in tex
+    assert r"\label{tab:robodepth-synthetic-real}" in tex and r"$\rho$ & 95\% low" in tex
+    assert "↑" not in page_text(out / "index.html", "synthetic-real")  # pairs are no rivals
 
 
 def test_synreal_figure_is_legible():

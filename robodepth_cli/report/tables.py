@@ -186,11 +186,11 @@ def to_html(t: Table) -> str:
         out.append('<tr><th rowspan="2" class="model">Model</th>'
                    + "".join(f'<th colspan="{n}" class="group">{e(g)}</th>' if g
                              else f'<th colspan="{n}" class="nogroup"></th>' for g, n in groups) + "</tr>")
-        out.append("<tr>" + "".join(f'<th title="{e(c.key)}">{_arrow_html(c)}</th>'
+        out.append("<tr>" + "".join(f'<th title="{e(c.key)}">{_arrow_html(c, t.ranked)}</th>'
                                     for c in t.columns) + "</tr>")
     else:
         out.append('<tr><th class="model">Model</th>'
-                   + "".join(f"<th>{_arrow_html(c)}</th>" for c in t.columns) + "</tr>")
+                   + "".join(f"<th>{_arrow_html(c, t.ranked)}</th>" for c in t.columns) + "</tr>")
     out.append("</thead>")
     section = None
     for i, r in enumerate(t.rows):
@@ -218,8 +218,10 @@ def to_html(t: Table) -> str:
     return "\n".join(out)
 
 
-def _arrow_html(c: Column) -> str:
-    return html.escape(c.header) + ("&nbsp;&darr;" if c.better == LOW else "&nbsp;&uarr;")
+def _arrow_html(c: Column, ranked: bool = True) -> str:
+    """The header with the arrow saying which way is better (none in an unranked table)."""
+    arrow = ("&nbsp;&darr;" if c.better == LOW else "&nbsp;&uarr;") if ranked else ""
+    return html.escape(c.header) + arrow
 
 
 # --------------------------------------------------------------------------- LaTeX
@@ -255,7 +257,7 @@ def to_latex(t: Table) -> str:
         lines.append(" & " + " & ".join(heads) + r" \\")
         lines.append(" ".join(rules))
     lines.append("Model & " + " & ".join(
-        f"{tex_escape(c.header)} $\\{'downarrow' if c.better == LOW else 'uparrow'}$"
+        tex_escape(c.header) + (f" $\\{'downarrow' if c.better == LOW else 'uparrow'}$" if t.ranked else "")
         for c in t.columns) + r" \\")
     lines.append(r"\midrule")
     section = None
@@ -286,7 +288,7 @@ def md_escape(text: str) -> str:
 
 def to_markdown(t: Table) -> str:
     """A pipe table (GitHub Markdown); spanning headers go into the column names."""
-    head = ["Model"] + [f"{c.group} {c.header}".strip() + (" ↓" if c.better == LOW else " ↑")
+    head = ["Model"] + [f"{c.group} {c.header}".strip() + ((" ↓" if c.better == LOW else " ↑") if t.ranked else "")
                         for c in t.columns]
     lines = [f"**{t.title}.** {md_escape(t.caption)} (Markdown has no underline: second is "
              "in italics.)", "", "| " + " | ".join(md_escape(h) for h in head) + " |",

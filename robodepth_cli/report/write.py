@@ -391,13 +391,14 @@ def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> l
     kinds = {r.kind for r in report.rows}
     if "published" not in kinds:
         context = "baseline" if "baseline" in kinds else "none"
-    extra = [(sec.title, sec.tables) for sec in report.sections]
+    extra = [(sec.title, sec.tables, [(e.name, str(e.path)) for e in report.entries if e.key == sec.key])
+             for sec in report.sections]
     if report.across is not None:
-        extra.append(("Across datasets", [report.across]))
+        extra.append(("Across datasets", [report.across], []))
     if report.synreal:
         from .synreal import tables as synreal_tables
 
-        extra.append(("Synthetic against real", synreal_tables(report.synreal)))
+        extra.append(("Synthetic against real", synreal_tables(report.synreal), []))
     page = render_page(benchmark=report.benchmark, models=report.models, tables=report.tables,
                        figures=page_figs, dataset=report.dataset, context=context, note=report.note,
                        sections=extra)
@@ -407,7 +408,7 @@ def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> l
             + (f"% {report.note[0].upper()}{report.note[1:]}.\n" if report.note else "") + "\n")
     # LaTeX: the paper's Table 1 and its per-corruption DEE table; Markdown adds CE and RR.
     # The per-level table (90 columns on KITTI-C) stays on the page and in scores.json.
-    more = [t for _, ts in extra for t in ts]
+    more = [t for _, ts, _ in extra for t in ts]
     files = {"index.html": page,
              "table.tex": head + "\n".join(T.to_latex(t) for t in report.tables[:2] + more),
              "table.md": f"# RoboDepth report: {T.bench_name(report.benchmark)}\n\n"
