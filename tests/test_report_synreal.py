@@ -128,6 +128,12 @@ def test_synthetic_against_real_in_the_report(synreal_report):
     on = [b for a, b in zip(args, args[1:]) if a == "--on"]
     again = W.to_json(W.assemble(files, names, None, "all", on=on, n_boot=300))
     assert json.loads(json.dumps(again))["synthetic_vs_real"] == doc["synthetic_vs_real"]
+    # By AbsRel: the files have abs_rel = 2 DEE - 1 + a1 (a1 0.85 on KITTI-C, 0.9 on foggy).
+    by_abs = W.assemble(files, names, None, "all", on=on, metric="abs_rel", n_boot=100).synreal
+    (fog_abs,) = [c for c in by_abs if c.pair.corruption == "fog"]
+    assert fog_abs.synthetic == pytest.approx([2 * d - 0.15 for d in FOG])
+    assert fog_abs.real == pytest.approx([2 * d - 0.1 for d in FOGGY])
+    assert fog_abs.spearman == pytest.approx(RHO) and fog_abs.metric == "abs_rel"
     page = page_tables(out / "index.html")
     row = page.tables["synthetic-real"]["fog (kitti-c) : drivingstereo-c:foggy"]
     assert row["spearman"] == "0.50" and row["kendall"] == "0.40" and row["n"] == "5"
