@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from robodepth_cli.evaluation import ranking as K
 from robodepth_cli.report import synreal as X
 from test_report import _no_overlap, _one_line_error, _texts, evaluate_csv, page_tables
 
@@ -27,27 +28,27 @@ TAU = 0.4
 
 
 def test_rank_correlations_by_hand_and_against_scipy():
-    assert X.spearman(FOG, FOGGY) == pytest.approx(RHO)
-    assert X.kendall(FOG, FOGGY) == pytest.approx(TAU)
-    assert X.spearman([1, 2, 3], [30, 20, 10]) == pytest.approx(-1.0)
+    assert K.spearman(FOG, FOGGY) == pytest.approx(RHO)
+    assert K.kendall(FOG, FOGGY) == pytest.approx(TAU)
+    assert K.spearman([1, 2, 3], [30, 20, 10]) == pytest.approx(-1.0)
     # Ties share their mean rank: x ranks 1.5 1.5 3 against 1 2 3 -> 1.5 / sqrt(1.5 * 2)
-    assert X.spearman([5, 5, 7], [1, 2, 3]) == pytest.approx(1.5 / 3 ** 0.5)
-    assert np.isnan(X.spearman([1, 1, 1], [1, 2, 3])) and np.isnan(X.kendall([1, 1, 1], [1, 2, 3]))
+    assert K.spearman([5, 5, 7], [1, 2, 3]) == pytest.approx(1.5 / 3 ** 0.5)
+    assert np.isnan(K.spearman([1, 1, 1], [1, 2, 3])) and np.isnan(K.kendall([1, 1, 1], [1, 2, 3]))
     rng = np.random.default_rng(5)
     for n in (4, 7, 12):
         x, y = rng.integers(0, 5, n).astype(float), rng.integers(0, 5, n).astype(float)  # ties
-        assert X.spearman(x, y) == pytest.approx(stats.spearmanr(x, y).statistic)
-        assert X.kendall(x, y) == pytest.approx(stats.kendalltau(x, y).statistic)  # tau-b
+        assert K.spearman(x, y) == pytest.approx(stats.spearmanr(x, y).statistic)
+        assert K.kendall(x, y) == pytest.approx(stats.kendalltau(x, y).statistic)  # tau-b
 
 
 def test_bootstrap_is_seeded_and_holds_the_estimate():
-    ci = X.bootstrap(FOG, FOGGY, n=500, seed=3)
-    assert ci == X.bootstrap(FOG, FOGGY, n=500, seed=3)
-    assert ci != X.bootstrap(FOG, FOGGY, n=500, seed=4)
+    ci = K.bootstrap(FOG, FOGGY, n=500, seed=3)
+    assert ci == K.bootstrap(FOG, FOGGY, n=500, seed=3)
+    assert ci != K.bootstrap(FOG, FOGGY, n=500, seed=4)
     assert -1 <= ci["spearman"][0] <= RHO <= ci["spearman"][1] <= 1
     assert -1 <= ci["kendall"][0] <= TAU <= ci["kendall"][1] <= 1
     # Any resample of a perfect agreement agrees perfectly.
-    assert X.bootstrap(FOG, FOG, n=200) == {"spearman": (1.0, 1.0), "kendall": (1.0, 1.0)}
+    assert K.bootstrap(FOG, FOG, n=200) == {"spearman": (1.0, 1.0), "kendall": (1.0, 1.0)}
 
 
 def test_pairs_tables(tmp_path):

@@ -27,14 +27,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-import numpy as np
-
 from ..benchmarks import CORRUPTIONS
 from ..errors import RobodepthError, os_reason
+from ..evaluation.ranking import LEVEL, bootstrap, kendall, spearman
 
 PAIRS = Path(__file__).resolve().parent / "pairs.csv"
 MIN_MODELS = 3  # two models have one pair to order: no ranking to speak of
-LEVEL = 0.95
 METRICS = {"dee": "DEE", "abs_rel": "AbsRel"}
 
 
@@ -96,60 +94,6 @@ def read_pairs(paths: Sequence[Path]) -> list[Pair]:
         if header is None:
             raise PairsError(f"--pairs {path}: no header row (synthetic,corruption,real)")
     return list(pairs)
-
-
-# --------------------------------------------------------------------------- statistics
-
-def ranks(values) -> np.ndarray:
-    """1-based ranks; tied values share the mean of the ranks they span."""
-    x = np.asarray(values, dtype=np.float64)
-    order = np.argsort(x, kind="stable")
-    out = np.empty(len(x))
-    out[order] = np.arange(1, len(x) + 1)
-    for v in np.unique(x):
-        tied = x == v
-        out[tied] = out[tied].mean()
-    return out
-
-
-def spearman(x, y) -> float:
-    """Spearman's rho; NaN when one side has every value tied (no ranking)."""
-    rx, ry = ranks(x), ranks(y)
-    dx, dy = rx - rx.mean(), ry - ry.mean()
-    denom = math.sqrt(float(dx @ dx) * float(dy @ dy))
-    return float(dx @ dy) / denom if denom > 0 else math.nan
-
-
-def kendall(x, y) -> float:
-    """Kendall's tau-b; NaN when one side has every value tied."""
-    x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    i, j = np.triu_indices(len(x), k=1)
-    sx, sy = np.sign(x[i] - x[j]), np.sign(y[i] - y[j])
-    denom = math.sqrt(float(np.count_nonzero(sx)) * float(np.count_nonzero(sy)))
-    return float(np.sum(sx * sy)) / denom if denom > 0 else math.nan
-
-
-def bootstrap(x, y, n: int = 2000, seed: int = 0, level: float = LEVEL) -> dict[str, tuple[float, float] | None]:
-    """Percentile intervals of Spearman's rho and Kendall's tau from the same ``n``
-    resamples of the models (module docstring); None for a statistic when fewer than ``n``
-    resamples with a ranking on both sides turn up in ``50 n`` draws."""
-    x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    rng = np.random.default_rng(seed)
-    rhos, taus = [], []
-    for _ in range(50 * n):
-        pick = rng.integers(0, len(x), len(x))
-        rho = spearman(x[pick], y[pick])
-        if math.isnan(rho):
-            continue
-        rhos.append(rho)
-        taus.append(kendall(x[pick], y[pick]))
-        if len(rhos) == n:
-            break
-    if len(rhos) < n:
-        return {"spearman": None, "kendall": None}
-    q = [(1 - level) / 2, (1 + level) / 2]
-    return {"spearman": tuple(float(v) for v in np.quantile(rhos, q)),
-            "kendall": tuple(float(v) for v in np.quantile(taus, q))}
 
 
 # --------------------------------------------------------------------------- comparisons
