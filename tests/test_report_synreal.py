@@ -250,6 +250,11 @@ def test_refusals(tmp_path, cli):
     g.write_text("corruption,level,dee\nclean,0,0.1\nfog,1,0.2\n")
     _one_line_error(cli("report", g, f, "--name", "g", "--name", "f", "--on", "x", "--baseline", "f",
                         "--out", out), "--baseline f: has no results with corruption rows on x")
+    _one_line_error(cli("report", k, f, "--on", "kitti-c", "--on", "x:foggy", "--dataset", tmp_path,
+                        "--pred", tmp_path, "--pred", tmp_path, "--out", out),
+                    "--pred given 2 times for 1 results files on kitti-c")
+    _one_line_error(cli("report", f, "--on", "x:foggy", "--pred", tmp_path, "--out", out),
+                    "--pred needs --dataset")
     missing = cli("report", tmp_path / "nope.csv", "--out", out)
     _one_line_error(missing, "cannot read")
     assert "--on" not in missing.output

@@ -93,10 +93,9 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     _mpl()  # refuse before anything is created when matplotlib is missing
     W.check_writable(out)
     report = W.assemble(list(results), list(names), benchmark, context, dataset, on=on,
-                        pairs=pairs, baseline=baseline, metric=metric, n_boot=n_boot, seed=seed)
-    if preds and not report.models:
-        raise RobodepthError("--pred: the report has no results on kitti-c, nyudepth2-c or "
-                             "kitti-s for its qualitative figure")
+                        pairs=pairs, baseline=baseline, metric=metric, n_boot=n_boot, seed=seed,
+                        n_pred=len(preds))
+
     say = (lambda what: click.echo(f"  {what}", err=True)) if sys.stderr.isatty() else (lambda _: None)
     W.draw(report)
     if preds:

@@ -66,7 +66,7 @@ def check_writable(out: Path) -> None:
 def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None, context: str,
              dataset: Path | None = None, *, on: Sequence[str] = (), pairs: Sequence[Path] = (),
              baseline: str | None = None, metric: str = "dee", n_boot: int = 2000,
-             seed: int = 0) -> Report:
+             seed: int = 0, n_pred: int = 0) -> Report:
     """Read, check and score everything (no figure yet). Results of one of the paper's
     benchmarks make the report as before; results of several datasets add a section per
     dataset beyond the first of the paper's (or per dataset, with none of them), a table
@@ -87,6 +87,12 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
     entries = D.load(paths, names, keys, baseline)
     by_key = D.groups(entries)
     main = next((k for k in by_key if k[0] in D.PUBLISHED and not k[1]), None)
+    if n_pred and main is None:
+        raise I.ReportError("--pred: the report has no results on kitti-c, nyudepth2-c or "
+                            "kitti-s for its qualitative figure")
+    if main is not None and n_pred > len(by_key[main]):
+        raise I.ReportError(f"--pred given {n_pred} times for {len(by_key[main])} results files on "
+                            f"{main[0]}; give it at most once per file on it, in the same order")
     if main is not None:
         report = _main(main[0], [e.model for e in by_key[main]], context,
                        I.dataset_info(dataset, main[0]) if dataset is not None else None)
