@@ -209,8 +209,10 @@ def test_datasets_side_by_side(tmp_path, cli):
     args = [*files, "--name", "A", "--name", "B", "--on", "drivingstereo-c:sunny"]
     res = cli("report", *args, "--out", tmp_path / "ds")
     assert res.exit_code == 0, res.output
-    table = page_tables(tmp_path / "ds" / "index.html").tables["dataset-drivingstereo-c-sunny"]
-    assert "mCE" not in table["B"]  # no baseline: DEE and RR
+    tables = page_tables(tmp_path / "ds" / "index.html").tables
+    assert "across" not in tables  # one dataset
+    table = tables["dataset-drivingstereo-c-sunny"]
+    assert "mCE" not in table["B"] and "abs_rel" not in table["B"]  # no baseline; DEE alone
     # B: fog mean 0.33, dark 0.36 -> mDEE 0.345; RR fog (1-.30 + 1-.36)/2/(1-.12), dark likewise
     assert table["B"]["mDEE"] == "0.345"
     rr = (R.resilience_rate([0.30, 0.36], 0.12) + R.resilience_rate([0.33, 0.39], 0.12)) / 2

@@ -214,8 +214,11 @@ def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Sec
             sec.tables += [_relabel(T.summary_table(rows, key[0]), label),
                            _relabel(T.corruption_table(rows, key[0], "dee"), label + "-dee")]
         return sec
-    cols = [Column("abs_rel", "AbsRel", "Clean", LOW, 3), Column("a1", "δ1", "Clean", HIGH, 3),
-            Column("clean", "DEE", "Clean", LOW, 3)]
+    cols = [Column("abs_rel", "AbsRel", "Clean", LOW, 3), Column("a1", "δ1", "Clean", HIGH, 3)]
+    metrics = any("abs_rel" in e.variants[0] for e in entries)
+    if not metrics:
+        cols = []  # results of DEE alone
+    cols.append(Column("clean", "DEE", "Clean", LOW, 3))
     scored = [e.scores for e in entries if e.scores is not None]
     with_ce = any(s.baseline.name for s in scored)
     if scored:
@@ -233,7 +236,8 @@ def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Sec
     what = (f"; mCE against {base} = 100 (--baseline)" if base else
             "; mCE needs --baseline (no published baseline)" if scored else "")
     sec.tables.append(Table(f"Results on {sec.title}", label,
-                            f"The clean images' AbsRel, δ1 and DEE on {sec.title}"
+                            f"The clean images' {'AbsRel, δ1 and ' if metrics else ''}DEE "
+                            f"on {sec.title}"
                             + ("; over its corruptions, mDEE and mRR" if scored else "") + what
                             + ". Bold: best; underlined: second.",
                             cols, [I.Row(e.name, "yours", e.value(None, "dee"), source=str(e.path))

@@ -103,7 +103,7 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
         report = Report(keys[0][0], [], [], [])
     report.sections = [D.section(k, es, context) for k, es in by_key.items() if k != main]
     report.entries = entries
-    report.across = D.across(entries)
+    report.across = D.across(entries) if len(by_key) > 1 else None
     models = list(dict.fromkeys(e.name for e in entries))
     found = {(e.name, e.key): e for e in entries}
 
