@@ -365,7 +365,7 @@ def test_refusals(tmp_path, cli):
     k = evaluate_csv(tmp_path / "k.csv", "kitti-c", "MonoViT")
     n = evaluate_csv(tmp_path / "n.csv", "nyudepth2-c", "BTS R50")
     out = tmp_path / "out"
-    _one_line_error(cli("report", k, n, "--out", out), "different benchmarks")
+    # (k and n together: a report of two datasets, test_report_synreal.py)
     _one_line_error(cli("report", k, k, "--out", out), "model name 'k' is also the name of")
     _one_line_error(cli("report", k, n, "--name", "x", "--out", out), "--name given 1 times for 2")
     _one_line_error(cli("report", tmp_path / "nope.csv", "--out", out), "cannot read")

@@ -40,21 +40,44 @@ from . import common
               help="With --pred: what the predictions hold (as for robodepth evaluate), once per "
                    "--pred in order or once for all; default: what each PRED/predictions.json "
                    "records, else disp for KITTI and depth for NYU.")
-def report_command(results, out, names, benchmark, context, dataset, preds, frame, kinds):
+@click.option("--on", "on", multiple=True, metavar="DATASET[:SPLIT]",
+              help="The dataset (and split) of each RESULTS file, once per file in order or once "
+                   "for all (drivingstereo-c:foggy, diode-c, custom:night); default: inferred "
+                   "from the rows (kitti-c, nyudepth2-c, kitti-s). Each dataset gets its table.")
+@click.option("--baseline", "baseline", metavar="NAME",
+              help="The model (a --name) whose results are the baseline of mCE on datasets "
+                   "without a published one; without it they show DEE and RR.")
+@click.option("--pairs", "pairs", multiple=True, type=click.Path(dir_okay=False, path_type=Path),
+              metavar="FILE", help="More pairs of a synthetic corruption and a real condition "
+                                   "(CSV synthetic,corruption,real), beside the shipped table.")
+@click.option("--metric", type=click.Choice(["dee", "abs_rel"]), default="dee", show_default=True,
+              help="The error synthetic against real ranks the models by.")
+@click.option("--bootstrap", "n_boot", default=2000, show_default=True, type=click.IntRange(min=100),
+              help="Resamples of the models for the intervals of synthetic against real.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of those resamples (the same seed gives the same intervals).")
+def report_command(results, out, names, benchmark, context, dataset, preds, frame, kinds, on,
+                   baseline, pairs, metric, n_boot, seed):
     """A report of one or more models: a self-contained HTML page, the figures (SVG, PDF,
     PNG), LaTeX and Markdown tables and a versioned scores.json.
 
     RESULTS are results CSVs as robodepth evaluate writes them (or robodepth score reads
-    them), all on the same benchmark, each complete. The page and tables show your models
-    and the RoboDepth paper's published models as context; figures: DEE per corruption
-    (radar), CE per corruption, DEE against level, mCE and mRR against clean DEE (KITTI-S:
-    DEE per style and the mDEE ranking).
+    them), each complete. The page and tables show your models and the RoboDepth paper's
+    published models as context; figures: DEE per corruption (radar), CE per corruption,
+    DEE against level, mCE and mRR against clean DEE (KITTI-S: DEE per style and the mDEE
+    ranking). Results on other datasets (--on) add a table per dataset, one across them
+    and, where a synthetic corruption and a real condition of the pairs table both have
+    results, the rank correlation of the models between them with a scatter.
 
     \b
     Examples:
       robodepth report monodepth2.csv monovit.csv --out report/
       robodepth report a.csv b.csv --name "Ours" --name "Ours + aug" --out report/
       robodepth report ours.csv --dataset KITTI_C --pred PRED --out report/
+      robodepth report a.csv b.csv c.csv a_fog.csv b_fog.csv c_fog.csv --name A --name B
+          --name C --name A --name B --name C --on kitti-c --on kitti-c --on kitti-c
+          --on drivingstereo-c:foggy --on drivingstereo-c:foggy --on drivingstereo-c:foggy
+          --out report/
     """
     from ..report import write as W
 
@@ -69,7 +92,10 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     check_kinds(kinds, preds)
     _mpl()  # refuse before anything is created when matplotlib is missing
     W.check_writable(out)
-    report = W.assemble(list(results), list(names), benchmark, context, dataset)
+    report = W.assemble(list(results), list(names), benchmark, context, dataset, on=on,
+                        pairs=pairs, baseline=baseline, metric=metric, n_boot=n_boot, seed=seed,
+                        n_pred=len(preds))
+
     say = (lambda what: click.echo(f"  {what}", err=True)) if sys.stderr.isatty() else (lambda _: None)
     W.draw(report)
     if preds:
@@ -83,10 +109,15 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
                        err=True)
     written = W.write(report, out, progress=say,
                       published=lambda: common.on_interrupt(f"the report was written to {out}"))
-    models = ", ".join(m.name for m in report.models)
+    models = ", ".join(dict.fromkeys(m.name for m in report.entries or report.models))
+    where = report.benchmark
+    if report.entries:
+        from ..report.synreal import key_text
+
+        where = ", ".join(dict.fromkeys(key_text(e.key) for e in report.entries))
     removed = ""
     if written.removed:
         removed = (f"; removed {len(written.removed)} figure files of the earlier report there: "
                    + ", ".join(str(p.relative_to(out)) for p in written.removed))
-    click.echo(f"wrote {out / 'index.html'} ({report.benchmark}: {models}; "
+    click.echo(f"wrote {out / 'index.html'} ({where}: {models}; "
                f"{len(written.files)} files under {out}{removed})", err=True)

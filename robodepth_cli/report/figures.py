@@ -352,3 +352,60 @@ def _wrap(text: str, width_in: float, fontsize: float = 9.0) -> str:
 
     per_line = max(8, int(width_in * 72 / (0.7 * fontsize)))
     return "\n".join(textwrap.wrap(text, per_line, break_long_words=True)) or text
+
+
+# --------------------------------------------------------------------------- synthetic against real
+
+def synreal_figure(comparisons: Sequence, metric: str = "DEE"):
+    """One scatter per pair of a synthetic corruption and a real condition: each model's
+    error on the corruption (x) against its error under the real condition (y), named at
+    its point; the rank correlations and their intervals above each panel. A model keeps
+    its colour and marker in every panel."""
+    from matplotlib.ticker import MaxNLocator
+
+    models = list(dict.fromkeys(m for c in comparisons for m in c.models))
+    ncols = min(len(comparisons), 3)
+    nrows = math.ceil(len(comparisons) / ncols)
+    fig = _figure(4.3 * ncols + 0.4, 4.0 * nrows + 0.9)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    for k in range(len(comparisons), nrows * ncols):
+        axes[k // ncols][k % ncols].set_visible(False)
+    for k, c in enumerate(comparisons):
+        ax = axes[k // ncols][k % ncols]
+        for m, x, y in zip(c.models, c.synthetic, c.real):
+            st = style(models.index(m))
+            ax.scatter([x], [y], s=50, color=st["color"], marker=st["marker"], edgecolor="white",
+                       linewidth=0.6, zorder=3)
+        xs, ys = c.synthetic, c.real
+        for lim, vals in ((ax.set_xlim, xs), (ax.set_ylim, ys)):
+            pad = (max(vals) - min(vals)) * 0.35 + 0.01
+            lim(min(vals) - pad, max(vals) + pad)
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_locator(MaxNLocator(nbins=5, prune="lower"))
+        ax.set_xlabel(f"{metric}, {pretty(c.pair.corruption)} on {_key_title(c.pair.synthetic)}",
+                      fontsize=9)
+        ax.set_ylabel(f"{metric}, real: {_key_title(c.pair.real)}", fontsize=9)
+        if c.spearman is None:
+            stats = f"no correlation: {c.note}"
+        else:
+            lo = f" [{c.spearman_ci[0]:.2f}, {c.spearman_ci[1]:.2f}]" if c.spearman_ci else ""
+            stats = f"Spearman ρ {c.spearman:.2f}{lo}   Kendall τ {c.kendall:.2f}"
+        ax.set_title(f"{pretty(c.pair.corruption)} against {_key_title(c.pair.real)}\n{stats}",
+                     fontsize=9, color=INK)
+        ax.grid(color="#ececec", linewidth=0.7)
+        ax.set_axisbelow(True)
+        ax.tick_params(labelsize=8)
+    _title(fig, "Synthetic against real: does the corruption rank the models as the real "
+                "condition does?", f"{metric}, lower is better; one point per model; ρ and τ: "
+                "rank correlations, 95% bootstrap interval over the models")
+    renderer = _freeze_layout(fig)
+    for k, c in enumerate(comparisons):
+        ax = axes[k // ncols][k % ncols]
+        place_labels(ax, [(x, y, m, {"fontsize": 8.5, "color": style(models.index(m))["color"],
+                                     "fontweight": "bold"}, True)
+                          for m, x, y in zip(c.models, c.synthetic, c.real)], renderer=renderer)
+    return fig
+
+
+def _key_title(key: tuple[str, str]) -> str:
+    return bench_title(key[0]) + (f" {key[1]}" if key[1] else "")

@@ -71,12 +71,17 @@ def inline_svg(svg: str, prefix: str, label: str = "") -> str:
 
 
 def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures: Sequence[PageFigure],
-           dataset: dict | None, context: str, note: str = "") -> str:
+           dataset: dict | None, context: str, note: str = "",
+           sections: Sequence[tuple[str, Sequence[Table], Sequence[tuple[str, str]]]] = ()) -> str:
     """The page: title, the models and their files, the summary table, the figures, the
-    per-corruption tables, notes on the scores and the paper to cite."""
+    per-corruption tables, then each of ``sections`` (a heading, its tables and the
+    (model, results file) pairs they come from: other datasets, synthetic against real),
+    notes on the scores and the paper to cite."""
     e = html.escape
-    bname = bench_name(benchmark)
-    names = ", ".join(m.name for m in models)
+    bname = bench_name(benchmark) if tables else "several datasets"
+    names = ", ".join(dict.fromkeys([m.name for m in models]
+                                    + [n for *_, files in sections for n, _ in files]))
+    n_files = len(models) + sum(len(files) for *_, files in sections)
     parts = ["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
              '<meta name="viewport" content="width=device-width, initial-scale=1">',
              # No request may leave the page: not even the browser's favicon probe.
@@ -84,8 +89,8 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
              f"<title>RoboDepth report: {e(names)} on {e(bname)}</title>",
              f"<style>{CSS}</style>", "</head>", "<body>", "<main>",
              f"<h1>RoboDepth robustness report: {e(bname)}</h1>",
-             f'<p class="meta">Made by robodepth {e(__version__)} from {len(models)} results '
-             f"file{'s' if len(models) != 1 else ''}. Your models are shaded; grey rows are the "
+             f'<p class="meta">Made by robodepth {e(__version__)} from {n_files} results '
+             f"file{'s' if n_files != 1 else ''}. Your models are shaded; grey rows are the "
              "RoboDepth paper's published models, for context.</p>",
              '<ul class="models">']
     for m in models:
@@ -97,11 +102,12 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
                      f'({e(str(dataset["name"]))}, {dataset["images"]} images, seed '
                      f'{e(str(dataset["seed"]))}), fingerprint <code>{e(dataset["fingerprint"][:16])}</code>.</p>')
     tables = list(tables)
-    parts += ["<h2>Scores</h2>", to_html(tables[0])]
-    if note:
-        parts.append(f'<p class="note">{e(note[0].upper() + note[1:])}.</p>')
-    elif context != "all":
-        parts.append(f'<p class="note">Published rows shown: {e(context)} (--published).</p>')
+    if tables:
+        parts += ["<h2>Scores</h2>", to_html(tables[0])]
+        if note:
+            parts.append(f'<p class="note">{e(note[0].upper() + note[1:])}.</p>')
+        elif context != "all":
+            parts.append(f'<p class="note">Published rows shown: {e(context)} (--published).</p>')
     if figures:
         parts.append("<h2>Figures</h2>")
     for f in figures:
@@ -115,6 +121,12 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
         parts.append("<h2>Per corruption</h2>" if benchmark != "kitti-s" else "<h2>Per style</h2>")
         for t in tables[1:]:
             parts.append(to_html(t))
+    for title, more, files in sections:
+        parts.append(f"<h2>{e(title)}</h2>")
+        if files:
+            parts.append('<ul class="models">' + "".join(
+                f"<li><strong>{e(n)}</strong>: <code>{e(p)}</code></li>" for n, p in files) + "</ul>")
+        parts += [to_html(t) for t in more]
     parts += ["<h2>How the scores are computed</h2>", f'<p class="note">{NOTES}</p>',
               f'<p class="note">Published rows are scored from the paper\'s per-corruption DEE '
               "and clean DEE by the same code as <code>robodepth score</code>; where the paper "

@@ -39,9 +39,10 @@ class Table:
     rows: list[Row]
     values: list[dict[str, float | None]]  # per row, column key -> value
     marks: dict[tuple[int, str], str] = field(default_factory=dict)  # (row, key) -> best/second
+    ranked: bool = True  # False: rows that are no rivals (pairs of conditions), nothing marked
 
     def __post_init__(self):
-        for col in self.columns:
+        for col in self.columns if self.ranked else ():
             printed = sorted({round(v[col.key], col.decimals) for v in self.values
                               if v.get(col.key) is not None}, reverse=col.better == HIGH)
             for i, v in enumerate(self.values):
@@ -185,11 +186,11 @@ def to_html(t: Table) -> str:
         out.append('<tr><th rowspan="2" class="model">Model</th>'
                    + "".join(f'<th colspan="{n}" class="group">{e(g)}</th>' if g
                              else f'<th colspan="{n}" class="nogroup"></th>' for g, n in groups) + "</tr>")
-        out.append("<tr>" + "".join(f'<th title="{e(c.key)}">{_arrow_html(c)}</th>'
+        out.append("<tr>" + "".join(f'<th title="{e(c.key)}">{_arrow_html(c, t.ranked)}</th>'
                                     for c in t.columns) + "</tr>")
     else:
         out.append('<tr><th class="model">Model</th>'
-                   + "".join(f"<th>{_arrow_html(c)}</th>" for c in t.columns) + "</tr>")
+                   + "".join(f"<th>{_arrow_html(c, t.ranked)}</th>" for c in t.columns) + "</tr>")
     out.append("</thead>")
     section = None
     for i, r in enumerate(t.rows):
@@ -217,14 +218,18 @@ def to_html(t: Table) -> str:
     return "\n".join(out)
 
 
-def _arrow_html(c: Column) -> str:
-    return html.escape(c.header) + ("&nbsp;&darr;" if c.better == LOW else "&nbsp;&uarr;")
+def _arrow_html(c: Column, ranked: bool = True) -> str:
+    """The header with the arrow saying which way is better (none in an unranked table)."""
+    arrow = ("&nbsp;&darr;" if c.better == LOW else "&nbsp;&uarr;") if ranked else ""
+    return html.escape(c.header) + arrow
 
 
 # --------------------------------------------------------------------------- LaTeX
 
 _TEX = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-        "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}"}
+        "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
+        # The Greek of the headers (rank correlations, delta1): pdflatex has no Unicode maths.
+        "ρ": r"$\rho$", "τ": r"$\tau$", "δ": r"$\delta$"}
 
 
 def tex_escape(text: str) -> str:
@@ -252,7 +257,7 @@ def to_latex(t: Table) -> str:
         lines.append(" & " + " & ".join(heads) + r" \\")
         lines.append(" ".join(rules))
     lines.append("Model & " + " & ".join(
-        f"{tex_escape(c.header)} $\\{'downarrow' if c.better == LOW else 'uparrow'}$"
+        tex_escape(c.header) + (f" $\\{'downarrow' if c.better == LOW else 'uparrow'}$" if t.ranked else "")
         for c in t.columns) + r" \\")
     lines.append(r"\midrule")
     section = None
@@ -283,7 +288,7 @@ def md_escape(text: str) -> str:
 
 def to_markdown(t: Table) -> str:
     """A pipe table (GitHub Markdown); spanning headers go into the column names."""
-    head = ["Model"] + [f"{c.group} {c.header}".strip() + (" ↓" if c.better == LOW else " ↑")
+    head = ["Model"] + [f"{c.group} {c.header}".strip() + ((" ↓" if c.better == LOW else " ↑") if t.ranked else "")
                         for c in t.columns]
     lines = [f"**{t.title}.** {md_escape(t.caption)} (Markdown has no underline: second is "
              "in italics.)", "", "| " + " | ".join(md_escape(h) for h in head) + " |",

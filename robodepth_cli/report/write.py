@@ -38,6 +38,13 @@ class Report:
     figures: list[tuple[str, str, str, object]] = field(default_factory=list)  # stem, title, caption, Figure
     dataset: dict | None = None
     note: str = ""  # why there is no mCE, mRR or mDEE (results beyond the benchmark only)
+    # Results of several datasets: a section per dataset beyond the main benchmark, the
+    # table across them, and synthetic against real where the pairs table resolves.
+    sections: list = field(default_factory=list)
+    entries: list = field(default_factory=list)
+    across: T.Table | None = None
+    synreal: list = field(default_factory=list)
+    synreal_setup: dict = field(default_factory=dict)
 
 
 FIGURES = "figures"
@@ -57,13 +64,61 @@ def check_writable(out: Path) -> None:
 
 
 def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None, context: str,
-             dataset: Path | None = None) -> Report:
-    """Read, check and score everything (no figure yet)."""
-    I.model_names(paths, names)  # flag mistakes first: they need no file read
-    bench = I.infer(paths, benchmark)
-    models = I.load(paths, names, bench)
+             dataset: Path | None = None, *, on: Sequence[str] = (), pairs: Sequence[Path] = (),
+             baseline: str | None = None, metric: str = "dee", n_boot: int = 2000,
+             seed: int = 0, n_pred: int = 0) -> Report:
+    """Read, check and score everything (no figure yet). Results of one of the paper's
+    benchmarks make the report as before; results of several datasets add a section per
+    dataset beyond the first of the paper's (or per dataset, with none of them), a table
+    across the datasets and, where the pairs table resolves, synthetic against real."""
+    from . import datasets as D
+    from . import synreal as X
+
+    keys = D.keys_of(paths, on, benchmark)
+    if len(set(keys)) == 1 and keys[0][0] in D.PUBLISHED and not keys[0][1]:
+        I.model_names(paths, names)  # flag mistakes first: they need no file read
+        bench = keys[0][0]
+        report = _main(bench, I.load(paths, names, bench), context,
+                       I.dataset_info(dataset, bench) if dataset is not None else None)
+        if baseline is not None:
+            raise I.ReportError(f"--baseline: {bench} has a published baseline; --baseline names "
+                                "the model to score datasets without one against")
+        return report
+    entries = D.load(paths, names, keys, baseline)
+    by_key = D.groups(entries)
+    main = next((k for k in by_key if k[0] in D.PUBLISHED and not k[1]), None)
+    if n_pred and main is None:
+        raise I.ReportError("--pred: the report has no results on kitti-c, nyudepth2-c or "
+                            "kitti-s for its qualitative figure")
+    if main is not None and n_pred > len(by_key[main]):
+        raise I.ReportError(f"--pred given {n_pred} times for {len(by_key[main])} results files on "
+                            f"{main[0]}; give it at most once per file on it, in the same order")
+    if main is not None:
+        report = _main(main[0], [e.model for e in by_key[main]], context,
+                       I.dataset_info(dataset, main[0]) if dataset is not None else None)
+    else:
+        if dataset is not None:
+            raise I.ReportError("--dataset: the report has no results on kitti-c, nyudepth2-c "
+                                "or kitti-s to record it with")
+        report = Report(keys[0][0], [], [], [])
+    report.sections = [D.section(k, es, context) for k, es in by_key.items() if k != main]
+    report.entries = entries
+    report.across = D.across(entries) if len(by_key) > 1 else None
+    models = list(dict.fromkeys(e.name for e in entries))
+    found = {(e.name, e.key): e for e in entries}
+
+    def value(model, key, corruption):
+        e = found.get((model, key))
+        return None if e is None else e.value(corruption, metric)
+
+    report.synreal = X.compare(models, X.read_pairs([X.PAIRS, *pairs]), value, metric, n_boot, seed)
+    report.synreal_setup = {"metric": metric, "resamples": n_boot, "seed": seed}
+    return report
+
+
+def _main(bench: str, models: list[I.Model], context: str, info: dict | None) -> Report:
+    """The report of one of the paper's benchmarks: its tables (figures: :func:`draw`)."""
     rows = [m.row for m in models] + I.context(bench, context)
-    info = I.dataset_info(dataset, bench) if dataset is not None else None
     note = I.beyond_only(models)
     if note:  # no benchmark score: the clean DEE and the rows beyond it, yours only
         return Report(bench, models, [m.row for m in models],
@@ -81,7 +136,24 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
 
 
 def draw(report: Report) -> None:
-    """Add the figures (matplotlib is imported here, not before)."""
+    """Add the figures (matplotlib is imported here, not before): the main benchmark's,
+    then synthetic against real."""
+    from . import figures as F
+    from .synreal import METRICS
+
+    if report.models:
+        _draw_main(report)
+    if report.synreal:
+        metric = METRICS[report.synreal_setup["metric"]]
+        report.figures.append((
+            "synthetic-real", "Synthetic against real",
+            f"Each model's {metric} on a synthetic corruption (mean over its levels) against its "
+            f"{metric} on the real condition's clean images, one panel per pair of the pairs "
+            "table; Spearman's ρ and Kendall's τ of the two rankings, ρ with its 95% bootstrap "
+            "interval over the models.", F.synreal_figure(report.synreal, metric)))
+
+
+def _draw_main(report: Report) -> None:
     from ..evaluation import plot
     from . import figures as F
 
@@ -144,10 +216,11 @@ def to_json(report: Report) -> dict:
     """The versioned leaderboard entry (schema ``robodepth-report`` version 1, in
     docs/report.md): one object per model of the user's, nothing of the published ones."""
     doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "robodepth": __version__,
-           "benchmark": report.benchmark, "dataset": report.dataset, "models": []}
+           "benchmark": report.benchmark if report.models else None, "dataset": report.dataset,
+           "models": []}
     if report.note:
         doc["note"] = report.note
-    if report.benchmark != I.KITTI_S and not report.note:
+    if report.benchmark != I.KITTI_S and not report.note and report.models:
         b = report.models[0].row.scores.baseline
         doc["baseline"] = {"name": b.name, "clean_dee": b.clean, "dee": dict(b.dee)}
     for m in report.models:
@@ -173,8 +246,33 @@ def to_json(report: Report) -> dict:
             entry["styles"] = {k: {"dee": v} for k, v in r.styles.items()}
         entry["variants"] = m.variants
         doc["models"].append(entry)
+    if report.sections:
+        doc["datasets"] = [_section_json(sec, report) for sec in report.sections]
+    if report.synreal:
+        setup = report.synreal_setup
+        doc["synthetic_vs_real"] = [c.to_json(setup["resamples"], setup["seed"]) for c in report.synreal]
     doc["citation"] = {"text": P.CITATION, "url": P.CITATION_URL}
     return doc
+
+
+def _section_json(sec, report: Report) -> dict:
+    """A dataset beyond the main benchmark: each model's clean errors, its scores where the
+    dataset has corruptions, and its rows as written."""
+    from ..benchmarks import CLEAN
+
+    models = []
+    for e in (e for e in report.entries if e.key == sec.key):
+        clean = next(v for v in e.variants if v["corruption"] == CLEAN and v["level"] == 0)
+        scores = e.scores or (e.model.row.scores if e.model is not None else None)
+        models.append({
+            "model": e.name, "results": str(e.path), "results_sha256": e.sha256,
+            "clean": {"dee": e.value(None, "dee"), "abs_rel": clean.get("abs_rel"), "a1": clean.get("a1")},
+            "scores": None if scores is None or scores.note else {
+                "mce": scores.overall.ce if scores.baseline.name else None,
+                "mrr": scores.overall.rr, "mdee": scores.overall.dee,
+                "baseline": scores.baseline.name or None},
+            "variants": e.variants})
+    return {"dataset": sec.key[0], "split": sec.key[1] or None, "models": models}
 
 
 @dataclass
@@ -299,19 +397,29 @@ def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> l
     kinds = {r.kind for r in report.rows}
     if "published" not in kinds:
         context = "baseline" if "baseline" in kinds else "none"
+    extra = [(sec.title, sec.tables, [(e.name, str(e.path)) for e in report.entries if e.key == sec.key])
+             for sec in report.sections]
+    if report.across is not None:
+        extra.append(("Across datasets", [report.across], []))
+    if report.synreal:
+        from .synreal import tables as synreal_tables
+
+        extra.append(("Synthetic against real", synreal_tables(report.synreal), []))
     page = render_page(benchmark=report.benchmark, models=report.models, tables=report.tables,
-                       figures=page_figs, dataset=report.dataset, context=context, note=report.note)
+                       figures=page_figs, dataset=report.dataset, context=context, note=report.note,
+                       sections=extra)
     head = (f"% RoboDepth report on {T.bench_name(report.benchmark)}, made by robodepth {__version__}.\n"
             "% Needs \\usepackage{booktabs} and \\usepackage{graphicx} (for \\resizebox).\n"
             f"% Published rows: {P.CITATION}.\n"
             + (f"% {report.note[0].upper()}{report.note[1:]}.\n" if report.note else "") + "\n")
     # LaTeX: the paper's Table 1 and its per-corruption DEE table; Markdown adds CE and RR.
     # The per-level table (90 columns on KITTI-C) stays on the page and in scores.json.
+    more = [t for _, ts, _ in extra for t in ts]
     files = {"index.html": page,
-             "table.tex": head + "\n".join(T.to_latex(t) for t in report.tables[:2]),
+             "table.tex": head + "\n".join(T.to_latex(t) for t in report.tables[:2] + more),
              "table.md": f"# RoboDepth report: {T.bench_name(report.benchmark)}\n\n"
                          + (f"{report.note[0].upper()}{report.note[1:]}.\n\n" if report.note else "")
-                         + "\n".join(T.to_markdown(t) for t in report.tables[:4]),
+                         + "\n".join(T.to_markdown(t) for t in report.tables[:4] + more),
              "scores.json": json.dumps(to_json(report), indent=2, allow_nan=False) + "\n"}
     for name, text in files.items():
         progress(name)

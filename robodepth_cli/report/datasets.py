@@ -1,0 +1,280 @@
+"""Results of several datasets in one report: which dataset (and split) each results file is
+on, the files of a dataset without a published baseline read and scored, one table per
+such dataset and a summary across all of them.
+
+A results CSV does not say which dataset it came from: the rows of KITTI-C, NYUDepth2-C and
+KITTI-S tell them apart (as ``score`` infers them), and ``report --on DATASET[:SPLIT]`` names
+any other (``drivingstereo-c:foggy``, ``diode-c``, ``custom:night``). A dataset without a
+published baseline is scored against the results of the model ``--baseline`` names on the
+same dataset, so its mCE means what it means on KITTI-C; without one, DEE and RR only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+from .. import benchmarks as B
+from ..evaluation import results as R, scores as S
+from ..evaluation.csvrows import ScoreError, data_rows, level as parse_level, normalise_name
+from . import inputs as I
+from . import synreal as X
+from . import tables as T
+from .tables import HIGH, LOW, Column, Table
+
+PUBLISHED = I.BENCHMARK_CHOICES  # datasets with the paper's tables: the full report
+
+
+@dataclass
+class Entry:
+    """One results file: whose (``name``), on which dataset and split (``key``)."""
+
+    name: str
+    path: Path
+    key: tuple[str, str]
+    variants: list[dict]  # the CSV's rows, numbers as floats
+    sha256: str
+    model: I.Model | None = None  # scored as its benchmark (kitti-c, nyudepth2-c, kitti-s)
+    scores: S.Scores | None = None  # other datasets with corruption rows
+
+    def value(self, corruption: str | None, metric: str) -> float | None:
+        """The clean row's error (``corruption`` None), or the corruption's mean over its
+        integer levels; None where the file has no such row."""
+        rows = [v for v in self.variants
+                if v.get("corruption") == (corruption or B.CLEAN) and isinstance(v.get("level"), int)
+                and (corruption is None) == (v["level"] == 0)]
+        if not rows:
+            return None
+        if metric == "abs_rel" and "abs_rel" not in rows[0]:
+            raise I.ReportError(f"{self.path}: has no abs_rel column (--metric abs_rel)")
+        return R.mean(_error(v, metric) for v in rows)
+
+
+def _error(row: dict, metric: str) -> float:
+    if metric == "dee" and "dee" in row:
+        return row["dee"]
+    return R.dee(row["abs_rel"], row["a1"]) if metric == "dee" else row["abs_rel"]
+
+
+def keys_of(paths: Sequence[Path], on: Sequence[str], benchmark: str | None) -> list[tuple[str, str]]:
+    """Each file's (dataset, split): from ``--on`` (once per file, or once for all), else
+    its benchmark as inferred from its rows."""
+    if on and len(on) not in (1, len(paths)):
+        raise I.ReportError(f"--on given {len(on)} times for {len(paths)} results files; give it "
+                            "once per file, in the same order, or once for all")
+    if on:
+        keys = [X.parse_key(t) for t in (on * len(paths) if len(on) == 1 else on)]
+        for text, key in zip(on, keys):
+            if not key[0]:
+                raise I.ReportError(f"--on {text!r}: expected DATASET or DATASET:SPLIT")
+        return keys
+    out = []
+    for p in paths:
+        R.read_text(p)  # an unreadable file says so, without the hint below
+        try:
+            out.append((I.infer([p], benchmark), ""))
+        except ScoreError as exc:
+            raise I.ReportError(f"{exc} (results on another dataset: name it with --on "
+                                "DATASET[:SPLIT])") from None
+    return out
+
+
+def load(paths: Sequence[Path], names: Sequence[str], keys: Sequence[tuple[str, str]],
+         baseline: str | None) -> list[Entry]:
+    """Read every file (a model's name may repeat across datasets, never within one) and
+    score it: a published benchmark as ``robodepth score`` does, another dataset's
+    corruption rows against ``baseline``'s results on the same dataset, if given."""
+    from ..files import sha256_bytes
+
+    chosen = list(names) if names else [p.stem for p in paths]
+    if names and len(names) != len(paths):
+        raise I.ReportError(f"--name given {len(names)} times for {len(paths)} results files; "
+                            "give it once per file, in the same order, or not at all")
+    seen: dict[tuple, Path] = {}
+    for n, p, k in zip(chosen, paths, keys):
+        if not n.strip():
+            raise I.ReportError("--name: a model name cannot be empty")
+        if (n, k) in seen:
+            hint = "" if names else " (use --name to tell them apart)"
+            raise I.ReportError(f"{p}: model name {n!r} on {X.key_text(k)} is also the name of "
+                                f"{seen[n, k]}{hint}")
+        seen[n, k] = p
+    entries = []
+    for n, p, k in zip(chosen, paths, keys):
+        if k[0] in PUBLISHED:
+            (model,) = I.load([p], [n], k[0])
+            entries.append(Entry(n, p, k, model.variants, model.sha256, model=model))
+        else:
+            text = R.read_text(p)
+            _check(text, str(p))
+            entries.append(Entry(n, p, k, I._variant_rows(text), sha256_bytes(text.encode())))
+    if baseline is not None and baseline not in chosen:
+        raise I.ReportError(f"--baseline {baseline!r}: no results file has that model name "
+                            f"(the names: {', '.join(dict.fromkeys(chosen))})")
+    for e in entries:
+        if e.model is None and _corrupted(e):
+            base = next((b for b in entries if b.name == baseline and b.key == e.key), None)
+            if baseline is not None and (base is None or not _corrupted(base)):
+                raise I.ReportError(f"--baseline {baseline}: has no results with corruption rows "
+                                    f"on {X.key_text(e.key)}, which {e.path} has")
+            e.scores = _score(e, base)
+    return entries
+
+
+def _corrupted(e: Entry) -> bool:
+    return any(v["corruption"] != B.CLEAN and isinstance(v["level"], int) for v in e.variants)
+
+
+def _check(text: str, source: str) -> None:
+    """Every number checked (as ``score`` checks them), corruptions known, one row per
+    variant, a clean row."""
+    seen: dict[tuple, int] = {}
+    for line, where, cells, use_dee in data_rows(text, source):
+        name = normalise_name(cells["corruption"])
+        if name != B.CLEAN and name not in B.CORRUPTIONS:
+            raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
+                             f"valid: clean, {', '.join(B.CORRUPTIONS)}")
+        level = parse_level(cells["level"], where)
+        if name == B.CLEAN and level != 0:
+            raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
+        if name != B.CLEAN and not level >= 1:
+            raise ScoreError(f"{where}: level {level} of {name}: corruption levels start at 1")
+        if (name, level) in seen:
+            raise ScoreError(f"{where}: duplicate row for {name} level {level} "
+                             f"(first on line {seen[name, level]})")
+        seen[name, level] = line
+        R.row_dee(cells, use_dee, where)
+    if (B.CLEAN, 0) not in seen:
+        raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); the report "
+                         "needs the clean error")
+
+
+def _results(e: Entry) -> tuple[R.Results, B.Benchmark]:
+    table: dict[str, dict[int, float]] = {}
+    for v in e.variants:
+        if v["corruption"] != B.CLEAN and isinstance(v["level"], int):
+            table.setdefault(v["corruption"], {})[v["level"]] = _error(v, "dee")
+    names = tuple(n for n in B.CORRUPTIONS if n in table)
+    top = max(lv for levels in table.values() for lv in levels)
+    # Without a baseline, CE is not shown: a unit baseline lets the one scoring function
+    # give DEE and RR.
+    unit = B.Baseline("", 0.0, dict.fromkeys(names, 1.0))
+    return (R.Results(str(e.path), e.value(None, "dee"), {n: dict(sorted(table[n].items())) for n in names}),
+            B.Benchmark(e.key[0], names, top, unit))
+
+
+def _score(e: Entry, base: Entry | None) -> S.Scores:
+    res, bench = _results(e)
+    baseline = None
+    if base is not None:
+        bres, bbench = _results(base)
+        if bbench.corruptions != bench.corruptions or bbench.n_levels != bench.n_levels:
+            raise I.ReportError(f"--baseline: {base.path} and {e.path} on {X.key_text(e.key)} do "
+                                "not have the same corruptions and levels")
+        baseline = R.baseline_from_results(bres, bbench)
+        baseline = B.Baseline(base.name, baseline.clean, baseline.dee)
+    return S.score(res, bench, baseline, allow_partial=True)
+
+
+# --------------------------------------------------------------------------- tables
+
+@dataclass
+class Section:
+    """A dataset of the report beyond its main benchmark: a heading and its tables."""
+
+    key: tuple[str, str]
+    tables: list[Table] = field(default_factory=list)
+
+    @property
+    def title(self) -> str:
+        return T.bench_name(self.key[0]) + (f", {self.key[1]}" if self.key[1] else "")
+
+
+def groups(entries: Sequence[Entry]) -> dict[tuple[str, str], list[Entry]]:
+    out: dict[tuple[str, str], list[Entry]] = {}
+    for e in entries:
+        out.setdefault(e.key, []).append(e)
+    return out
+
+
+def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Section:
+    """One dataset's tables: a published benchmark's summary and DEE per corruption (the
+    paper's rows as context), or the clean errors and, with corruption rows, mDEE, mRR and
+    (with a baseline) mCE."""
+    sec = Section(key)
+    label = "dataset-" + "-".join(p for p in key if p)
+    if key[0] in PUBLISHED:
+        rows = [e.model.row for e in entries]
+        if key[0] == I.KITTI_S:
+            t = T.styles_table(rows + I.context(key[0], context))
+            sec.tables.append(_relabel(t, label))
+        else:
+            rows += I.context(key[0], context)
+            sec.tables += [_relabel(T.summary_table(rows, key[0]), label),
+                           _relabel(T.corruption_table(rows, key[0], "dee"), label + "-dee")]
+        return sec
+    cols = [Column("abs_rel", "AbsRel", "Clean", LOW, 3), Column("a1", "δ1", "Clean", HIGH, 3)]
+    metrics = any("abs_rel" in e.variants[0] for e in entries)
+    if not metrics:
+        cols = []  # results of DEE alone
+    cols.append(Column("clean", "DEE", "Clean", LOW, 3))
+    scored = [e.scores for e in entries if e.scores is not None]
+    with_ce = any(s.baseline.name for s in scored)
+    if scored:
+        cols += [Column("mDEE", "mDEE", "Corruptions", LOW, 3), Column("mRR", "mRR", "Corruptions", HIGH, 2)]
+        cols += [Column("mCE", "mCE", "Corruptions", LOW, 2)] if with_ce else []
+    values = []
+    for e in entries:
+        clean = next(v for v in e.variants if v["corruption"] == B.CLEAN)
+        v = {"abs_rel": clean.get("abs_rel"), "a1": clean.get("a1"), "clean": e.value(None, "dee")}
+        if e.scores is not None:
+            v.update({"mDEE": e.scores.overall.dee, "mRR": e.scores.overall.rr,
+                      "mCE": e.scores.overall.ce if with_ce else None})
+        values.append(v)
+    base = next((s.baseline.name for s in scored if s.baseline.name), "")
+    what = (f"; mCE against {base} = 100 (--baseline)" if base else
+            "; mCE needs --baseline (no published baseline)" if scored else "")
+    sec.tables.append(Table(f"Results on {sec.title}", label,
+                            f"The clean images' {'AbsRel, δ1 and ' if metrics else ''}DEE "
+                            f"on {sec.title}"
+                            + ("; over its corruptions, mDEE and mRR" if scored else "") + what
+                            + ". Bold: best; underlined: second.",
+                            cols, [I.Row(e.name, "yours", e.value(None, "dee"), source=str(e.path))
+                                   for e in entries], values))
+    return sec
+
+
+def _relabel(t: Table, label: str) -> Table:
+    t.label = label  # ids stay unique on a page of several datasets
+    return t
+
+
+def across(entries: Sequence[Entry]) -> Table:
+    """Every model on every dataset: the clean DEE and, where there are corruptions, mDEE."""
+    by_key = groups(entries)
+    cols = []
+    for key, es in by_key.items():
+        title = T.bench_name(key[0]) + (f" {key[1]}" if key[1] else "")
+        cols.append(Column(f"{X.key_text(key)} clean", "clean DEE", title, LOW, 3))
+        if any(_mdee(e) is not None for e in es):
+            cols.append(Column(f"{X.key_text(key)} mDEE", "mDEE", title, LOW, 3))
+    models = list(dict.fromkeys(e.name for e in entries))
+    values = []
+    for m in models:
+        v: dict = {}
+        for e in entries:
+            if e.name == m:
+                v[f"{X.key_text(e.key)} clean"] = e.value(None, "dee")
+                v[f"{X.key_text(e.key)} mDEE"] = _mdee(e)
+        values.append(v)
+    return Table("Across datasets", "across", "Each model's clean DEE on every dataset and, "
+                 "where the dataset has corruptions, its mDEE (lower is better; n/a: no results "
+                 "there). Bold: best; underlined: second.", cols,
+                 [I.Row(m, "yours", None) for m in models], values)
+
+
+def _mdee(e: Entry) -> float | None:
+    if e.model is not None:
+        return e.model.row.mdee if not (e.model.row.scores and e.model.row.scores.note) else None
+    return e.scores.overall.dee if e.scores is not None else None
