@@ -18,8 +18,7 @@ from .predict import predict_command
 from .report import report_command
 from .score import score_command
 from .stylize import stylize_command
-from .transfer import transfer_command
 
 COMMANDS = (list_command, corrupt_command, preview_command, build_command, verify_command,
             stylize_command, score_command, predict_command, evaluate_command, gt_command,
-            report_command, transfer_command, export_command)
+            report_command, export_command)
