@@ -100,5 +100,8 @@ def test_build_kitti_s_device(tmp_path, fixtures_dir, ckpt, cli, no_cuda):
 
     r = cli(*_kitti_s(fixtures_dir, ckpt, tmp_path / "bad", "--device", "gpu"))
     assert r.exit_code == 2 and "--device: expected one of auto, cpu, cuda, got 'gpu'" in r.output
-    r = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--out", tmp_path / "c", "--device", "cpu")
-    assert r.exit_code == 2 and "--device does not apply to kitti-c" in r.output
+    # kitti-c takes --device for its torch engine; the numpy engine has no GPU path.
+    r = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split", fixtures_dir / "kitti_split.txt",
+            "--out", tmp_path / "c", "--device", "cuda")
+    assert r.exit_code == 2 and "--device: cuda needs --engine torch" in r.output, r.output
+    assert not (tmp_path / "c").exists()

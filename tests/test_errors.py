@@ -61,7 +61,7 @@ def test_a_bug_in_a_renderer_stays_a_traceback(tmp_path, fixtures_dir, cli, monk
     """Before, the builder turned any ValueError of a renderer into 'robodepth: error: ...'."""
     from robodepth_cli.sources.datasets import Dataset
 
-    def broken(self, config):
+    def broken(self, config, depth=None):
         raise ValueError("a bug, not the user's doing")
 
     monkeypatch.setattr(Dataset, "renderer", broken)
