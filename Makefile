@@ -24,6 +24,7 @@ install:
 	fi
 
 test:
+	$(PYTHON) -m ruff check .
 	$(PYTHON) -m pytest -q
 
 bench:

@@ -104,10 +104,11 @@ def test_same_bytes_for_any_thread_count_and_chunk(checkpoints, images):
     content = smooth_image(np.random.default_rng(4), 96, 160)
     before = torch.get_num_threads()
     try:
-        outs = []
+        outs, feats = [], None
         for threads, chunk in ((2, 2), (1, 1), (1, 3)):
             st = adain.Stylizer.from_files(vgg_path, dec_path, threads=threads, chunk=chunk)
-            feats = [st.style_features(s) for s in styles] if not outs else feats
+            if feats is None:  # the first stylizer's style features serve all three
+                feats = [st.style_features(s) for s in styles]
             outs.append(np.stack(st.stylize(content, feats)))
     finally:
         torch.set_num_threads(before)

@@ -13,7 +13,7 @@ from PIL import Image
 
 from robodepth_cli import corruptions, files, seeding
 
-from robodepth_cli.building import pipeline as builder, tasks
+from robodepth_cli.building import tasks
 
 from robodepth_cli.sources import datasets
 from robodepth_cli.corruptions import NAMES

@@ -13,7 +13,6 @@ from PIL import Image
 
 from _trees import KITTI_DRIVE, kitti_key, kitti_tree, nyu_tree, random_image, save, tree
 from robodepth_cli.building import pipeline as builder
-from robodepth_cli.output import manifest
 from robodepth_cli.building.config import ConfigError, resolve
 from robodepth_cli.output.layout import LOCK
 from robodepth_cli.output.manifest import BuildLock

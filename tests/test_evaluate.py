@@ -190,7 +190,7 @@ def test_kitti_matches_monodepth2_rules(kitti_c, kitti_pred, tmp_path, flags, ki
     res = cli("evaluate", out, "--pred", pred, "--out", tmp_path / "r.csv", *flags)
     assert res.exit_code == 0, res.stderr
     expected = {}
-    for k, v in enumerate(KITTI_VARIANTS):
+    for v in KITTI_VARIANTS:
         arr = np.load(pred / f"{v}.npy")
         expected[v] = ref_kitti(gts, list(arr), kind, stereo)[0]
     rows = read_csv(tmp_path / "r.csv")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import shutil
 import subprocess
+import sys
 
 import pytest
 
@@ -104,3 +105,24 @@ def test_ci_runs_exactly_the_readme_set_up():
     readme = (REPO / "README.md").read_text()
     block = readme[readme.index("## Set-up"):].split("```sh\n")[1].split("```")[0]
     assert [ln.split("#")[0].strip() for ln in block.splitlines()] == ["make install", "make test"]
+
+
+def test_make_test_lints_first_with_the_installed_ruff():
+    """`make test` runs the linter before the suite, with the rule set pyproject.toml states,
+    and `make install` brings the linter (the test extra)."""
+    if shutil.which("make") is None:
+        pytest.skip("make is not installed on this machine")
+    lines = subprocess.run(["make", "-n", "-C", str(REPO), "test"], capture_output=True, text=True,
+                           check=True).stdout.splitlines()
+    lines = [ln for ln in lines if not ln.startswith("make")]  # make's "Entering directory"
+    assert [ln.split()[1:4] for ln in lines] == [["-m", "ruff", "check"], ["-m", "pytest", "-q"]]
+    text = (REPO / "pyproject.toml").read_text()
+    lint = text[text.index("[tool.ruff.lint]"):]
+    assert re.search(r'^select = \["E9", "F"', lint, re.M)  # a stated rule set, not ruff's default
+    assert re.search(r'^test = \[[^\]]*"ruff', text, re.M)
+    (editable,) = [ln for ln in make_n() if " -e " in ln]
+    assert "test" in re.search(r"\[([\w,]+)\]", editable).group(1).split(",")
+    # The tree as committed passes it.
+    res = subprocess.run([sys.executable, "-m", "ruff", "check", str(REPO)], capture_output=True,
+                         text=True, cwd=REPO)
+    assert res.returncode == 0, res.stdout + res.stderr

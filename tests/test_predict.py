@@ -589,6 +589,7 @@ def test_custom_build_of_mixed_sizes_gets_one_file_per_image(tmp_path, cli, user
     for key, (h, w) in sizes.items():
         img = np.asarray(Image.open(out / "clean" / key).convert("RGB"))
         got = np.load(pred / "clean" / key.replace(".png", ".npy"))
+        assert got.shape == (h, w)  # each image at its own size
         np.testing.assert_array_equal(got, (0.02 + img.mean(axis=2) / 2550).astype(np.float32))
     (pred / "contrast").mkdir()
     (pred / "contrast" / ".2.abc.part").mkdir()  # a killed run's temporary folder

@@ -29,7 +29,7 @@ from PIL import Image
 
 from robodepth_cli import imageio
 
-from robodepth_cli.building import gather, pipeline as builder
+from robodepth_cli.building import gather
 
 from robodepth_cli.output import manifest, record as build_record
 

@@ -439,7 +439,7 @@ def test_no_text_overlaps_in_any_figure(tmp_path, cli):
     report = W.assemble(files, ["a long model name for the legend", "b", "c", "d"], None, "all")
     W.draw(report)
     assert [f[0] for f in report.figures] == ["radar", "ce", "levels", "summary"]
-    for stem, _, _, fig in report.figures:
+    for _, _, _, fig in report.figures:
         _no_overlap(fig)
     # Every one of the user's models is named next to its point in both summary panels.
     summary = report.figures[-1][3]

@@ -411,7 +411,7 @@ def _write_record(pred: Path, record: dict) -> None:
 
 
 def _remove_empty(pred: Path) -> None:
-    for root, dirs, files in os.walk(pred, topdown=False):
+    for root, _, files in os.walk(pred, topdown=False):
         if files:
             return
         try:

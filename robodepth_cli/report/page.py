@@ -128,7 +128,7 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
                 f"<li><strong>{e(n)}</strong>: <code>{e(p)}</code></li>" for n, p in files) + "</ul>")
         parts += [to_html(t) for t in more]
     parts += ["<h2>How the scores are computed</h2>", f'<p class="note">{NOTES}</p>',
-              f'<p class="note">Published rows are scored from the paper\'s per-corruption DEE '
+              '<p class="note">Published rows are scored from the paper\'s per-corruption DEE '
               "and clean DEE by the same code as <code>robodepth score</code>; where the paper "
               "is inconsistent (see the package's published/README.md) they can differ from its "
               "printed summary.</p>",
