@@ -11,7 +11,7 @@ CHROMIUM ?= chromium
 
 install:
 	$(PIP) install $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX) )torch==2.13.0
-	$(PIP) install -e '.[test,dask,models,figures,exr,export]'
+	$(PIP) install -e '.[test,dask,models,figures,exr,export,video]'
 	# Frost textures only: the package's own dependencies (opencv-python, ...) are not wanted.
 	$(PIP) install --no-deps imagecorruptions-imaug==1.1.5
 	# Headless Chromium for the browser test, where this system lets us install it (Debian
