@@ -20,6 +20,19 @@ LEVELS = (
 )
 
 
+def snow_noise(shape: tuple[int, int], mu: float, sigma: float, z: float,
+               rng: np.random.Generator) -> np.ndarray:
+    """The ``Normal(mu, sigma)`` float32 noise of the snow layer, only the centre block of
+    ``ceil(H / z)`` x ``ceil(W / z)`` that the clipped zoom reads (see :func:`snow_layer`):
+    the first draw of snow on ``rng``, shared by both engines."""
+    _, ch, _ = zoom_axis(shape[0], z)
+    _, cw, _ = zoom_axis(shape[1], z)
+    noise = rng.standard_normal((ch, cw), dtype=np.float32)
+    noise *= np.float32(sigma)
+    noise += np.float32(mu)
+    return noise
+
+
 def snow_layer(shape: tuple[int, int], mu: float, sigma: float, z: float, tau: float,
                radius: int, s: float, rng: np.random.Generator) -> np.ndarray:
     """The snow layer ``S`` of an H x W image before its rounding: float32, at least
@@ -33,13 +46,7 @@ def snow_layer(shape: tuple[int, int], mu: float, sigma: float, z: float, tau: f
     noise, so only that block is drawn: the layer has the same distribution as when the
     whole H x W is drawn, at a fraction of the cost.
     """
-    h, w = shape
-    _, ch, _ = zoom_axis(h, z)
-    _, cw, _ = zoom_axis(w, z)
-    noise = rng.standard_normal((ch, cw), dtype=np.float32)
-    noise *= np.float32(sigma)
-    noise += np.float32(mu)
-    layer = linear_zoom(noise, z)
+    layer = linear_zoom(snow_noise(shape, mu, sigma, z, rng), z)
     layer[layer < tau] = 0
     np.clip(layer, 0, 1, out=layer)
     angle = rng.uniform(-135, -45)

@@ -8,7 +8,6 @@ import torch
 from .. import fog as _fog
 from .. import snow as _snow
 from ..severity import interpolate
-from ..zoom_blur import zoom_axis
 from ._tops import drawn, f32, register, shift_blur, truncate, zoomed
 
 
@@ -32,12 +31,7 @@ def fog(x, level, rngs):
 def _layer(shape, mu, sigma, z, tau, radius, s, rng, device) -> torch.Tensor:
     """The numpy engine's ``snow_layer``: the noise and the angle drawn on the CPU in its
     order, the zoom, threshold and motion blur on the device in float32."""
-    h, w = shape
-    _, ch, _ = zoom_axis(h, z)
-    _, cw, _ = zoom_axis(w, z)
-    noise = rng.standard_normal((ch, cw), dtype=np.float32)
-    noise *= np.float32(sigma)
-    noise += np.float32(mu)
+    noise = _snow.snow_noise(shape, mu, sigma, z, rng)
     layer = zoomed(torch.from_numpy(noise).to(device), z, crop=False)
     layer = torch.where(layer < tau, 0.0, layer).clamp_(0.0, 1.0)
     return shift_blur(layer, radius, s, rng.uniform(-135, -45))
