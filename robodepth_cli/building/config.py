@@ -380,6 +380,15 @@ class _Resolver:
                               f"testing; a held-out protocol trains on other corruptions")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
+        if ds.leveled and not ds.has_depth(extra):
+            from ..sources.scenedepth import depth_aware
+
+            aware = depth_aware(ds, variants)
+            if aware:
+                key = ds.variant_key if aware[0] in self.values[ds.variant_key] else "compose"
+                raise ConfigError(f"{_loc(self.origin[key], key)}: {aware[0]} needs the scene's depth and this "
+                                  f"{ds.name} build has none: give --depth DIR (a depth map per image) or "
+                                  "--scene-depth PRED (robodepth predict's output for the clean images)")
         if "engine" in ds.options():  # the corruption datasets: which engine, on which device
             from ..sources.engines import settle
 

@@ -145,7 +145,9 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs())
-    text = result.csv_text()
+    from ..evaluation.owndepth import csv_lines
+
+    text = csv_lines(dataset.record.depth, _record(pred)) + result.csv_text()
     E.write_results(out, text)
     if result.setup.stereo and result.setup.kind == "depth":
         click.echo(f"robodepth: warning: --stereo multiplied every depth by {STEREO_SCALE}: right "
@@ -193,10 +195,15 @@ def _implausible_clean(result) -> str:
     return ""
 
 
+def _record(pred: Path) -> dict | None:
+    """``PRED/predictions.json`` when robodepth predict wrote PRED; None otherwise."""
+    from ..models.predict import read_record
+
+    return read_record(pred) if pred.is_dir() else None
+
+
 def _recorded(pred: Path) -> dict:
     """The ``evaluate`` defaults (kind, align, align_space) that ``PRED/predictions.json``
     records when robodepth predict wrote PRED; {} otherwise."""
-    from ..models.predict import read_record
-
-    record = read_record(pred) if pred.is_dir() else None
+    record = _record(pred)
     return record["evaluate"] if record else {}
