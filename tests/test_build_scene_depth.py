@@ -192,3 +192,25 @@ def test_relative_predictions_median_scaled_or_refused(tmp_path, cli):
     res = cli("build", "custom", "--root", img, "--out", tmp_path / "n", "--corruptions", "fog_3d",
               "--scene-depth", tmp_path / "img")
     assert res.exit_code == 2 and "no predictions.json" in res.output, res.output
+
+
+def test_depth_turned_with_its_exif_oriented_image(tmp_path, cli):
+    """A photo stored sideways (EXIF orientation 6: turn 90 degrees clockwise to view) is
+    built upright; its depth map, stored as the photo is, turns with it."""
+    (tmp_path / "img").mkdir()
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(random_image(H, W, seed=5)).save(tmp_path / "img" / "a.jpg", exif=exif)
+    d = np.full((H, W), 50.0, np.float32)
+    d[:, : W // 4] = 3.0  # the stored left quarter is near: after the turn, the top rows
+    (tmp_path / "depth").mkdir()
+    np.save(tmp_path / "depth" / "a.npy", d)
+    out = tmp_path / "out"
+    res = cli("build", "custom", "--root", tmp_path / "img", "--depth", tmp_path / "depth", "--out", out,
+              "--corruptions", "fog_3d", "--levels", "5", "--jobs", 1, "--no-gt")
+    assert res.exit_code == 0, res.output
+    clean = clean_of(out, "a.png")
+    assert clean.shape[:2] == (W, H)
+    want = fog_by_hand(clean, np.rot90(d, -1), 20.0)
+    assert np.rot90(d, -1)[0, 0] == 3.0 and np.rot90(d, -1)[-1, 0] == 50.0
+    np.testing.assert_array_equal(np.asarray(Image.open(out / "fog_3d" / "5" / "a.png")), want)
