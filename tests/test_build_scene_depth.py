@@ -11,6 +11,7 @@ import math
 import struct
 
 import numpy as np
+import pytest
 from _trees import random_image, save
 from PIL import Image
 from scipy.ndimage import distance_transform_edt
@@ -128,6 +129,7 @@ def test_scene_depth_from_metric_predictions_and_the_own_depth_warning(tmp_path,
     assert cli("build", "custom", "--root", img, "--depth", depth, "--out", first, "--corruptions",
                "none", "--jobs", 1).exit_code == 0
     _predict(cli, tmp_path, first, tmp_path / "P", "metric", "--kind", "depth", "--metric")
+    assert (tmp_path / "P" / "clean" / "a.npy").is_file()  # each image its own size: one file each
     res = cli("build", "custom", "--root", img, "--depth", depth, "--out", second, "--corruptions",
               "fog_3d,brightness", "--levels", "3", "--jobs", 1, "--scene-depth", tmp_path / "P")
     assert res.exit_code == 0, res.output
@@ -168,9 +170,10 @@ def test_relative_predictions_median_scaled_or_refused(tmp_path, cli):
     img, depth = folder(tmp_path, {"a": np.full((H, W), 12.0, np.float32)})
     first = tmp_path / "first"
     assert cli("build", "custom", "--root", img, "--depth", depth, "--out", first, "--corruptions",
-               "none", "--jobs", 1).exit_code == 0
+               "none", "--jobs", 1, "--size", f"{H}x{W}").exit_code == 0
     pred = tmp_path / "P"
     _predict(cli, tmp_path, first, pred, "relative", "--kind", "disp", "--relative")
+    assert (pred / "clean.npy").is_file()  # one size: the array form (the metric test: per image)
     args = ("build", "custom", "--root", img, "--depth", depth, "--out", tmp_path / "o",
             "--corruptions", "fog_3d", "--levels", "5", "--jobs", 1, "--scene-depth", pred)
     res = cli(*args)  # a relative disparity up to a scale and a shift: no metres
@@ -214,3 +217,14 @@ def test_depth_turned_with_its_exif_oriented_image(tmp_path, cli):
     want = fog_by_hand(clean, np.rot90(d, -1), 20.0)
     assert np.rot90(d, -1)[0, 0] == 3.0 and np.rot90(d, -1)[-1, 0] == 50.0
     np.testing.assert_array_equal(np.asarray(Image.open(out / "fog_3d" / "5" / "a.png")), want)
+
+
+def test_score_of_depth_aware_rows_alone(tmp_path, cli):
+    """A custom build's results with no benchmark corruption: DEE of clean and the severity
+    curve of fog_3d, no traceback."""
+    path = tmp_path / "r.csv"
+    path.write_text("corruption,level,abs_rel,a1\nclean,0,0.1,0.9\nfog_3d,3,0.2,0.8\n")
+    res = cli("score", path, "--benchmark", "custom", "--json")
+    assert res.exit_code == 0, res.output
+    curve = json.loads(res.output)["beyond_benchmark"]["severity_curves"]["fog_3d"]
+    assert list(curve) == ["3"] and curve["3"] == pytest.approx((0.2 + (1 - 0.8)) / 2)  # DEE
