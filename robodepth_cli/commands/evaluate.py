@@ -145,10 +145,8 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs())
-    from ..evaluation.owndepth import csv_lines
-
-    text = csv_lines(dataset.record.depth, _record(pred)) + result.csv_text()
-    E.write_results(out, text)
+    text = result.csv_text()
+    E.write_results(out, _own_depth_lines(dataset, pred) + text)
     if result.setup.stereo and result.setup.kind == "depth":
         click.echo(f"robodepth: warning: --stereo multiplied every depth by {STEREO_SCALE}: right "
                    "for a stereo model's depths in monodepth2's units (1 / its disparity), wrong "
@@ -193,6 +191,14 @@ def _implausible_clean(result) -> str:
                         f"{result.setup.describe()}); check --kind, --stereo and --png-scale; "
                         "the metrics above are written, not scored")
     return ""
+
+
+def _own_depth_lines(dataset, pred: Path) -> str:
+    """The results CSV's comment lines naming the scene depth's model and this one, for a
+    build whose depth-aware corruptions took a model's depth (evaluation/owndepth.py)."""
+    from ..evaluation.owndepth import csv_lines
+
+    return csv_lines(dataset.record.depth, _record(pred))
 
 
 def _record(pred: Path) -> dict | None:

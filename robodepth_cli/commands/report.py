@@ -70,11 +70,11 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     _mpl()  # refuse before anything is created when matplotlib is missing
     W.check_writable(out)
     report = W.assemble(list(results), list(names), benchmark, context, dataset)
-    for m in report.models:
-        if m.own_depth:
-            click.echo(f"robodepth: warning: {m.own_depth}", err=True)
     say = (lambda what: click.echo(f"  {what}", err=True)) if sys.stderr.isatty() else (lambda _: None)
     W.draw(report)
+    for m in report.models:  # judged on corruptions made from its own depth predictions
+        if m.own_depth:
+            click.echo(f"robodepth: warning: {m.own_depth}", err=True)
     if preds:
         from ..report.qualitative import qualitative
 
