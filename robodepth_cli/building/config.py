@@ -34,6 +34,7 @@ import yaml
 from ..files import data_dir
 from ..sources import splits
 from ..sources.datasets import get_dataset
+from ..sources.scenedepth import missing_depth
 from ..imageio import parse_size
 from ..errors import InvalidValueError, RobodepthError
 from ..values import int_from_text, is_int
@@ -380,15 +381,9 @@ class _Resolver:
                               f"testing; a held-out protocol trains on other corruptions")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
-        if ds.leveled and not ds.has_depth(extra):
-            from ..sources.scenedepth import depth_aware
-
-            aware = depth_aware(ds, variants)
-            if aware:
-                key = ds.variant_key if aware[0] in self.values[ds.variant_key] else "compose"
-                raise ConfigError(f"{_loc(self.origin[key], key)}: {aware[0]} needs the scene's depth and this "
-                                  f"{ds.name} build has none: give --depth DIR (a depth map per image) or "
-                                  "--scene-depth PRED (robodepth predict's output for the clean images)")
+        lacking = missing_depth(ds, self.values, extra)  # (key, why): a depth-aware variant without depth
+        if lacking:
+            raise ConfigError(f"{_loc(self.origin[lacking[0]], lacking[0])}: {lacking[1]}")
         if "engine" in ds.options():  # the corruption datasets: which engine, on which device
             from ..sources.engines import settle
 

@@ -328,6 +328,21 @@ def depth_aware(ds, variants) -> list[str]:
     return list(dict.fromkeys(n for n in names if n in aware))
 
 
+def missing_depth(ds, values: dict, extra: dict) -> tuple[str, str] | None:
+    """``(config key, reason)`` when the variants of a configuration (``values``: its
+    variant key and ``compose``) need depth that a build of ``ds`` with options ``extra``
+    lacks; None otherwise."""
+    if not ds.leveled or ds.has_depth(extra):
+        return None
+    for key in (ds.variant_key, "compose"):
+        aware = depth_aware(ds, values.get(key, ()))
+        if aware:
+            return key, (f"{aware[0]} needs the scene's depth and this {ds.name} build has none: give "
+                         "--depth DIR (a depth map per image) or --scene-depth PRED (robodepth "
+                         "predict's output for the clean images)")
+    return None
+
+
 def own_depth(ds, cfg, root: Path, split_path: str | None, sources) -> DepthSource | None:
     """The dataset's own depth (its ground truth, or a custom build's depth folder); None for
     a custom build without one."""
