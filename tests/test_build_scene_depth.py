@@ -141,6 +141,9 @@ def test_scene_depth_from_metric_predictions_and_the_own_depth_warning(tmp_path,
     assert depth_entry["identity"].startswith("python:")
     assert rows(second)["fog_3d/3/a.png"]["params"] == f"depth=predictions:{depth_entry['identity']}"
     assert cli("verify", second).exit_code == 0
+    again = cli("build", "custom", "--root", img, "--depth", depth, "--out", second, "--corruptions",
+                "fog_3d,brightness", "--levels", "3", "--jobs", 1, "--scene-depth", tmp_path / "P")
+    assert again.exit_code == 0 and "0 written" in again.output, again.output  # resumed: nothing to redo
 
     # the same model evaluated on it: score and report warn; another model: no warning
     _predict(cli, tmp_path, second, tmp_path / "P2", "metric", "--kind", "depth", "--metric")
