@@ -197,7 +197,7 @@ class PredictedDepth(DepthSource):
             + "; at the output size by nearest neighbour after filling holes")
 
     @classmethod
-    def open(cls, pred: Path, own: DepthSource | None) -> "PredictedDepth":
+    def open(cls, pred: Path, own: DepthSource | None) -> PredictedDepth:
         """The depth of ``PRED``, checked before any work; ``own``: the dataset's own depth,
         which relative maps are scaled to. :class:`RobodepthError` naming ``--scene-depth``."""
         from . import predicted as P
