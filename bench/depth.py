@@ -1,7 +1,7 @@
 """Benchmark: the depth-aware corruptions against the 2D corruption each extends, one core.
 
 fog_3d against fog, near_focus and far_focus against defocus_blur, motion_3d against
-motion_blur, zoom_3d against zoom_blur: median wall time per call (after a warm-up call
+motion_blur, zoom_3d against zoom_blur, rain_3d against snow: median wall time per call (after a warm-up call
 that absorbs numba compilation) at every level, on a 192 x 640 KITTI-like frame with a
 street's depth (a road plane seen from 1.65 m, a car-sized box at 7 m, the rest 300 m) and
 a 480 x 640 NYU frame with a room's (a floor seen from 1.4 m, a back wall at 4 m, a box at
@@ -31,7 +31,7 @@ from robodepth_cli.corruptions import DEPTH_NAMES, corrupt  # noqa: E402
 from robodepth_cli.imageio import load_clean  # noqa: E402
 
 EXTENDS = {"fog_3d": "fog", "near_focus": "defocus_blur", "far_focus": "defocus_blur",
-           "motion_3d": "motion_blur", "zoom_3d": "zoom_blur"}
+           "motion_3d": "motion_blur", "zoom_3d": "zoom_blur", "rain_3d": "snow"}
 KITTI = FIXTURES / "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
 NYU = FIXTURES / "nyu/bedroom/rgb_00119.jpg"
 

@@ -44,7 +44,7 @@ TEMPORAL: tuple[str, ...] = ("frame_lost", "frame_freeze", "h264_crf", "h265_crf
 # 'all' never selects them: they need a depth map that not every input has.
 DEPTH_AWARE: dict[str, str] = {
     "fog_3d": WEATHER, "near_focus": SENSOR, "far_focus": SENSOR, "motion_3d": SENSOR,
-    "zoom_3d": SENSOR,
+    "zoom_3d": SENSOR, "rain_3d": WEATHER,
 }
 ALL_CATEGORY: dict[str, str] = {**CATEGORY, **DEPTH_AWARE}
 """Every corruption robodepth makes, the benchmarks' 18 first, with its category."""

@@ -105,7 +105,7 @@ def test_a_missing_scan_fails_only_the_depth_aware_outputs(tmp_path, cli):
 
 def test_datasets_without_depth_refuse_depth_aware_corruptions(tmp_path, cli):
     res = cli("build", "custom", "--root", FIXTURES / "nyu", "--out", tmp_path / "c", "--corruptions", "fog_3d")
-    assert res.exit_code == 2 and "custom has no corruption 'fog_3d'" in res.output
+    assert res.exit_code == 2 and "fog_3d needs the scene's depth" in res.output
     assert not (tmp_path / "c").exists()
 
 

@@ -34,7 +34,8 @@ def test_list_shows_every_corruption_in_spec_order(cli):
     lines = res.output.splitlines()[1:]
     assert [ln.split()[1] for ln in lines] == list(REGISTRY)
     assert len(NAMES) == 18 and list(REGISTRY)[:18] == list(NAMES)
-    assert list(REGISTRY)[18:] == ["fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d"]
+    assert list(REGISTRY)[18:] == ["fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d",
+                                    "rain_3d"]
     assert "weather & lighting" in lines[0] and "0.1" in lines[0]
     assert "needs depth" in lines[18] and "needs depth" not in lines[17]
 

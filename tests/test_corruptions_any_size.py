@@ -53,11 +53,17 @@ def assert_close(ours: np.ndarray, ref: np.ndarray, what: str) -> None:
     assert within >= 0.99, f"{what}: {within:.4%} of values within one level (max diff {diff.max()})"
 
 
+# rain_3d is faint by its physics (moderate rain's drops lighten a bright photo by about a
+# quarter of a grey level on average at level 1), yet changes thousands of pixels.
+FAINT = {"rain_3d": 0.1}
+
+
 def assert_sane(out: np.ndarray, clean: np.ndarray, name: str) -> None:
     assert out.dtype == np.uint8 and out.shape == clean.shape, name
     # A corruption that silently returned its input (or a blank image) would pass a range
     # check: it must change the image and keep some of its structure.
-    assert np.abs(out.astype(np.int16) - clean).mean() > 0.5, f"{name}: output equals input"
+    assert np.abs(out.astype(np.int16) - clean).mean() > FAINT.get(name.split()[0], 0.5), \
+        f"{name}: output equals input"
     assert out.std() > 1.0, f"{name}: constant output"
 
 
@@ -270,9 +276,10 @@ def test_every_corruption_every_level(name, size):
 @pytest.mark.parametrize("name", [n for n, c in REGISTRY.items() if not c.deterministic])
 def test_random_corruptions_at_cityscapes_size(name):
     clean = photo(LARGE)
-    out = corrupt(clean, name, 3, np.random.default_rng(3))
+    depth = scene_depth(name, LARGE)
+    out = corrupt(clean, name, 3, np.random.default_rng(3), depth=depth)
     assert_sane(out, clean, name)
-    again = corrupt(clean, name, 3, np.random.default_rng(3))
+    again = corrupt(clean, name, 3, np.random.default_rng(3), depth=depth)
     np.testing.assert_array_equal(out, again)
 
 

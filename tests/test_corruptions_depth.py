@@ -216,7 +216,7 @@ def test_chains_pass_the_depth_to_their_depth_aware_steps():
 
 
 def test_registered_as_depth_aware_with_five_levels():
-    assert DEPTH_NAMES == ("fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d")
+    assert DEPTH_NAMES == ("fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d", "rain_3d")
     for name in DEPTH_NAMES:
         c = REGISTRY[name]
         assert c.needs_depth and c.n_levels == 5

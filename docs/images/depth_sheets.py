@@ -21,7 +21,7 @@ from robodepth_cli.preview import contact_sheet
 
 HERE = Path(__file__).resolve().parent
 FIXTURES = HERE.parents[1] / "tests" / "data" / "fixtures"
-NAMES = ("fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d")
+NAMES = ("fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d", "rain_3d")
 
 
 def polygon_mask(shape, points) -> np.ndarray:

@@ -36,6 +36,7 @@ from ..benchmarks import TEMPORAL
 from ..files import data_dir
 from ..sources import splits
 from ..sources.datasets import get_dataset
+from ..sources.scenedepth import missing_depth
 from ..imageio import parse_size
 from ..errors import InvalidValueError, RobodepthError
 from ..values import int_from_text, is_int
@@ -406,6 +407,9 @@ class _Resolver:
                               f"pip install 'robodepth-cli[video]'")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
+        lacking = missing_depth(ds, self.values, extra)  # (key, why): a depth-aware variant without depth
+        if lacking:
+            raise ConfigError(f"{_loc(self.origin[lacking[0]], lacking[0])}: {lacking[1]}")
         if "engine" in ds.options():  # the corruption datasets: which engine, on which device
             from ..sources.engines import settle
 

@@ -165,7 +165,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
     png = buildchecks.png_method(out, cfg.png, previous)
     check_png(png)
-    renderer = make_renderer(ds, cfg, root, split.get("path"))
+    renderer = make_renderer(ds, cfg, root, split.get("path"), sources)
     out = prepare_out(out)
     with manifest.BuildLock(out):
         claim_out(out)
@@ -215,11 +215,11 @@ def _warn_above_cpus(workers: int, jobs: int) -> None:
               f"(--jobs auto: one per CPU)", file=sys.stderr)
 
 
-def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None) -> Renderer:
+def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None, sources=()) -> Renderer:
     """The renderer, with the depth source a variant needs; it may refuse files (KITTI-S's), so before OUT."""
     from ..sources.scenedepth import depth_for
 
-    return ds.renderer(cfg, depth_for(ds, cfg.variants, root, split_path))
+    return ds.renderer(cfg, depth_for(ds, cfg, root, split_path, sources))
 
 
 def prepare_out(out: Path) -> Path:

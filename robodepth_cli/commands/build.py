@@ -50,6 +50,9 @@ _LISTED = 20  # paths shown per kind of problem by verify
               help="custom/zero-shot: read every depth file in this form (default: by its extension).")
 @click.option("--depth-size", type=click.Choice(["match", "any"]), help="custom/zero-shot: match (default): "
               "a depth map must have its image's size; any: any size.")
+@click.option("--scene-depth", metavar="PRED", help="The depth of the depth-aware corruptions (fog_3d, ...) "
+              "from a model's predictions for the clean images (robodepth predict's --out) instead of the "
+              "dataset's own; relative maps are median-scaled to the dataset's depth.")
 @click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
 @click.option("--only-styles", metavar="A,B|all", help="kitti-s: comma-separated style names, or 'all'.")
 @click.option("--vgg", metavar="FILE", help="kitti-s: AdaIN encoder checkpoint (vgg_normalised.pth).")

@@ -150,7 +150,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs(), flicker=flicker)
     text = result.csv_text()
-    E.write_results(out, text)
+    E.write_results(out, _own_depth_lines(dataset, pred) + text)
     if result.setup.stereo and result.setup.kind == "depth":
         click.echo(f"robodepth: warning: --stereo multiplied every depth by {STEREO_SCALE}: right "
                    "for a stereo model's depths in monodepth2's units (1 / its disparity), wrong "
@@ -197,10 +197,23 @@ def _implausible_clean(result) -> str:
     return ""
 
 
+def _own_depth_lines(dataset, pred: Path) -> str:
+    """The results CSV's comment lines naming the scene depth's model and this one, for a
+    build whose depth-aware corruptions took a model's depth (evaluation/owndepth.py)."""
+    from ..evaluation.owndepth import csv_lines
+
+    return csv_lines(dataset.record.depth, _record(pred))
+
+
+def _record(pred: Path) -> dict | None:
+    """``PRED/predictions.json`` when robodepth predict wrote PRED; None otherwise."""
+    from ..models.predict import read_record
+
+    return read_record(pred) if pred.is_dir() else None
+
+
 def _recorded(pred: Path) -> dict:
     """The ``evaluate`` defaults (kind, align, align_space) that ``PRED/predictions.json``
     records when robodepth predict wrote PRED; {} otherwise."""
-    from ..models.predict import read_record
-
-    record = read_record(pred) if pred.is_dir() else None
+    record = _record(pred)
     return record["evaluate"] if record else {}

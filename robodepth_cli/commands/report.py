@@ -98,6 +98,9 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
 
     say = (lambda what: click.echo(f"  {what}", err=True)) if sys.stderr.isatty() else (lambda _: None)
     W.draw(report)
+    for m in report.models:  # judged on corruptions made from its own depth predictions
+        if m.own_depth:
+            click.echo(f"robodepth: warning: {m.own_depth}", err=True)
     if preds:
         from ..report.qualitative import qualitative
 

@@ -62,6 +62,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     else:
         bench = B.get_benchmark(benchmark)
     res = R.read_results(results, bench)
+    _warn_own_depth(results)
     base = None
     if baseline_file is not None:
         base = R.baseline_from_results(R.read_results(baseline_file, bench), bench)
@@ -96,5 +97,15 @@ def _unpublished(name: str, res):
     it has rows of, levels 1 to the highest level among them."""
     from .. import benchmarks as B
 
-    top = max(lv for levels in res.dee.values() for lv in levels)
+    top = max((lv for levels in res.dee.values() for lv in levels), default=B.N_LEVELS)
     return B.unpublished(name, tuple(res.dee), top)
+
+
+def _warn_own_depth(path: Path) -> None:
+    """One line on stderr when RESULTS judge a model on corruptions made from its own depth."""
+    from ..evaluation import results as R
+    from ..evaluation.owndepth import warning
+
+    text = warning(R.read_text(path), str(path))
+    if text:
+        click.echo(f"robodepth: warning: {text}", err=True)

@@ -42,22 +42,37 @@ def scene_depth(depth, shape: tuple[int, int]) -> np.ndarray:
     dh, dw = d.shape
     if abs(dh * w - dw * h) > 0.02 * dh * w:
         raise DepthError(f"depth: {dh}x{dw} (HxW) does not have the image's aspect ratio ({h}x{w})")
-    d = d.astype(np.float64)
-    missing = ~np.isfinite(d) | (d <= 0)
-    if missing.all():
-        d = np.full(d.shape, FAR)
-    elif missing.any():
-        from scipy.ndimage import distance_transform_edt
-
-        idx = distance_transform_edt(missing, return_distances=False, return_indices=True)
-        d = d[idx[0], idx[1]]
-    if d.shape != (h, w):
-        rows = np.minimum((np.arange(h) + 0.5) * dh / h, dh - 1).astype(np.intp)
-        cols = np.minimum((np.arange(w) + 0.5) * dw / w, dw - 1).astype(np.intp)
-        d = d[rows[:, None], cols[None, :]]
+    d = nearest_resize(fill_missing(d), shape)
     out = np.clip(d, NEAR, FAR).astype(np.float32)
     out.flags.writeable = False
     return out
+
+
+def fill_missing(depth: np.ndarray) -> np.ndarray:
+    """``depth`` as float64 with every missing value (not finite, or not above 0) replaced
+    by the nearest valid pixel's, :data:`FAR` everywhere when none is valid."""
+    d = np.asarray(depth, dtype=np.float64)
+    missing = ~np.isfinite(d) | (d <= 0)
+    if missing.all():
+        return np.full(d.shape, FAR)
+    if missing.any():
+        from scipy.ndimage import distance_transform_edt
+
+        idx = distance_transform_edt(missing, return_distances=False, return_indices=True)
+        return d[idx[0], idx[1]]
+    return d
+
+
+def nearest_resize(d: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``d`` at ``shape`` (H, W) by nearest neighbour: each output pixel the input pixel
+    under its centre (any aspect ratio; no depth between two surfaces is invented)."""
+    h, w = shape
+    dh, dw = d.shape
+    if (dh, dw) == (h, w):
+        return d
+    rows = np.minimum((np.arange(h) + 0.5) * dh / h, dh - 1).astype(np.intp)
+    cols = np.minimum((np.arange(w) + 0.5) * dw / w, dw - 1).astype(np.intp)
+    return d[rows[:, None], cols[None, :]]
 
 
 def round_to_uint8(v: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ from . import (  # noqa: F401  (imported for registration)
     brightness, dark, fog, frost, snow, contrast,
     defocus_blur, glass_blur, motion_blur, zoom_blur, elastic_transform, color_quant,
     gaussian_noise, impulse_noise, shot_noise, iso_noise, pixelate, jpeg_compression,
-    fog_3d, near_focus, far_focus, motion_3d, zoom_3d,
+    fog_3d, near_focus, far_focus, motion_3d, zoom_3d, rain_3d,
 )
 
 REGISTRY: dict[str, Corruption] = registry()

@@ -64,6 +64,7 @@ class Model:
     row: Row
     variants: list[dict] = field(default_factory=list)  # the CSV's rows, numbers as floats
     sha256: str = ""
+    own_depth: str = ""  # a warning: judged on corruptions made from its own depth predictions
 
 
 def model_names(paths: Sequence[Path], names: Sequence[str]) -> list[str]:
@@ -143,7 +144,10 @@ def load(paths: Sequence[Path], names: Sequence[str], benchmark: str) -> list[Mo
             if missing:
                 raise ReportError(missing)
             row = Row(name, "yours", res.clean, scores=S.score(res, bench), source=str(path))
-        out.append(Model(name, path, row, _variant_rows(text), sha256_bytes(text.encode())))
+        from ..evaluation.owndepth import warning
+
+        out.append(Model(name, path, row, _variant_rows(text), sha256_bytes(text.encode()),
+                         warning(text, str(path))))
     return out
 
 

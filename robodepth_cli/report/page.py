@@ -96,6 +96,8 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
     for m in models:
         clean = "" if m.row.clean is None else f", clean DEE {m.row.clean:.3f}"
         parts.append(f"<li><strong>{e(m.name)}</strong>: <code>{e(str(m.path))}</code>{clean}</li>")
+        if getattr(m, "own_depth", ""):
+            parts.append(f'<li class="note">Warning: {e(m.own_depth)}.</li>')
     parts.append("</ul>")
     if dataset:
         parts.append(f'<p class="meta">Dataset build: <code>{e(dataset["path"])}</code> '

@@ -274,9 +274,14 @@ class Dataset:
         return CORRUPTIONS + tuple(DEPTH_AWARE)
 
     def depth_variant_names(self) -> tuple[str, ...]:
-        """The depth-aware corruptions this dataset can make (it has a depth source); never
-        part of ``all``."""
-        return tuple(DEPTH_AWARE) if self.leveled and not self.discovers_sources else ()
+        """The depth-aware corruptions this dataset can make given a depth source (its own
+        ground truth, a custom build's ``depth``, or ``scene_depth``); never part of ``all``."""
+        return tuple(DEPTH_AWARE) if self.leveled else ()
+
+    def has_depth(self, extra: dict) -> bool:
+        """Whether a build with options ``extra`` has a depth for the depth-aware corruptions."""
+        return bool(not self.discovers_sources or self.depth_in_root or extra.get("depth")
+                    or extra.get("scene_depth"))
 
     def levels(self) -> tuple[int, ...]:
         """The levels this dataset has (none for a dataset without levels)."""
@@ -297,13 +302,17 @@ class Dataset:
         """Config keys of this dataset beyond the common ones: the engine and its device."""
         from .engines import OPTIONS
 
-        return OPTIONS
+        return OPTIONS + ("scene_depth",)
 
     def check_option(self, key: str, value, base: Path):
         """The checked value of option ``key``; :class:`InvalidValueError` saying what is wrong.
         ``base`` is the directory relative paths are resolved against."""
         from . import engines
 
+        if key == "scene_depth":
+            from .predicted import check_option
+
+            return check_option(value, base)
         if key in engines.OPTIONS:
             return engines.check_option(key, value)
         raise InvalidValueError(f"{self.name} has no option {key!r}")

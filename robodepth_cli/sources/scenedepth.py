@@ -5,9 +5,7 @@ missing, at the build's output size or at its own with the same aspect ratio (th
 corruption engine fills and resizes it: :mod:`robodepth_cli.corruptions._depth`). It is
 small and picklable (the renderer carries it to the workers) and reads its files lazily.
 The renderer asks it for a source's depth only when a job needs it; :func:`depth_for`
-chooses it for a build. A custom build's depth folder (``build custom --depth DIR``) plugs
-in as one more :class:`DepthSource` chosen there (and the dataset's
-``depth_variant_names`` then lists the depth-aware corruptions).
+chooses it for a build.
 
 - :class:`NyuDepth`: NYU Depth V2's own dense ground truth: the split line's
   ``sync_depth`` PNG (millimetres, 0 missing) under a BTS test folder, or the labeled
@@ -17,15 +15,23 @@ in as one more :class:`DepthSource` chosen there (and the dataset's
   each output pixel takes the nearest return (smallest depth) among the projected points
   falling in it, and every pixel without one takes the depth of the nearest pixel with one
   (Euclidean distance, the engine's fill rule), so the sky continues the highest returns.
+- :class:`FolderDepth`: a custom build's ``--depth DIR`` or a zero-shot preset's ground
+  truth, paired and read as its ground truth is (:mod:`.depth_pairs`), turned upright with
+  its image (EXIF orientation), then brought to the output size by :func:`at_size`.
+- :class:`PredictedDepth` (``--scene-depth PRED``): a model's predictions for
+  the clean images, in metres by the rule of :mod:`.predicted`.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+import hashlib
+import json
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from ..errors import RobodepthError
+from ..errors import InvalidValueError, RobodepthError, os_reason
+from .depth_io import DepthError
 
 _VERSION = "1"  # bump when a source gives other depths for the same files
 
@@ -106,6 +112,186 @@ class KittiLidarDepth(DepthSource):
         return densify_grid(sparse, shape)
 
 
+class FolderDepth(DepthSource):
+    method = ("the depth map paired with each image (the ground truth's pairing rule and reader), "
+              "turned with the image by its EXIF orientation; at another size than the output, "
+              "holes filled by the nearest valid pixel, then each output pixel the depth under "
+              "its centre (nearest neighbour)")
+
+    def __init__(self, kind: str, extra: dict, root: Path, in_root: bool,
+                 sources: dict[str, tuple[str, int]]):
+        from .depth_pairs import rule_of
+
+        self.kind = kind
+        self.rule = rule_of(extra, Path(root), in_root)
+        self.root = str(root)
+        self.sources = sources  # key -> (path relative to the root, EXIF orientation)
+
+    def describe(self):
+        return {**super().describe(), "directory": self.rule.directory}
+
+    def depth(self, key, shape):
+        from PIL import Image
+
+        from .depth_io import DepthError
+        from .depth_pairs import pair, read_pair
+
+        rel, orientation = self.sources[key]
+        found = pair(self.rule, rel)
+        try:
+            with Image.open(Path(self.root) / rel) as im:
+                stored = im.height, im.width
+        except Exception:  # noqa: BLE001 (the image's own failure is reported with it)
+            stored = None
+        d = read_pair(self.rule, found, stored)
+        where = Path(self.rule.directory) / found.depth
+        if self.rule.same_size and stored is not None and d.shape != stored:
+            raise DepthError(f"{where}: depth map of {d.shape[0]} x {d.shape[1]}, its image {rel} "
+                             f"is {stored[0]} x {stored[1]} (--depth-size any allows it)")
+        if not (np.isfinite(d) & (d > 0)).any():
+            raise DepthError(f"{where}: no valid depth (every pixel 0 or invalid)")
+        return at_size(upright(d, orientation), shape)
+
+
+# The EXIF orientations as numpy operations on a stored array: what ImageOps.exif_transpose
+# does to the image, so that depth and pixels stay aligned.
+_UPRIGHT = {2: lambda a: a[:, ::-1], 3: lambda a: a[::-1, ::-1], 4: lambda a: a[::-1],
+            5: lambda a: a.T, 6: lambda a: np.rot90(a, -1), 7: lambda a: a[::-1, ::-1].T,
+            8: lambda a: np.rot90(a, 1)}
+
+
+def upright(d: np.ndarray, orientation: int) -> np.ndarray:
+    """The stored map ``d`` turned as EXIF ``orientation`` turns its image (1: as stored)."""
+    turn = _UPRIGHT.get(orientation)
+    return d if turn is None else np.ascontiguousarray(turn(d))
+
+
+def at_size(d: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """A depth map (NaN where missing) for an output of ``shape`` (H, W): as it is when it
+    already has that size; else holes filled by the nearest valid pixel (the corruptions'
+    own rule), then each output pixel the depth under its centre, whatever the aspect ratio."""
+    if d.shape == tuple(shape):
+        return d
+    from ..corruptions._depth import fill_missing, nearest_resize
+
+    return nearest_resize(fill_missing(d), shape)
+
+
+class PredictedDepth(DepthSource):
+    kind = "predictions"
+
+    def __init__(self, pred: Path, record: dict, keys: dict[str, int], own: DepthSource | None):
+        from . import predicted as P
+
+        self.pred = str(pred)
+        self.model = str(record.get("model"))
+        self.identity = P.model_identity(record)
+        self.disparity = record["evaluate"]["kind"] == "disp"
+        self.rule = P.conversion(record, pred)
+        self.keys = keys  # key -> index in the predicting build's split order
+        self.own = own
+        self._array = None
+        self.method = ("a model's predictions for the clean images: " + (
+            "metric, as metres" if self.rule == "metric" else
+            f"relative, median-scaled per image to the dataset's own depth ({own and own.kind})")
+            + "; at the output size by nearest neighbour after filling holes")
+
+    @classmethod
+    def open(cls, pred: Path, own: DepthSource | None) -> PredictedDepth:
+        """The depth of ``PRED``, checked before any work; ``own``: the dataset's own depth,
+        which relative maps are scaled to. :class:`RobodepthError` naming ``--scene-depth``."""
+        from . import predicted as P
+
+        try:
+            record = P.read_record(pred)
+            rule = P.conversion(record, pred)
+        except InvalidValueError as exc:
+            raise RobodepthError(f"--scene-depth: {exc}") from None
+        if rule == "median" and own is None:
+            raise RobodepthError(f"--scene-depth: {pred}: the maps of {record.get('model')} are relative "
+                                 "(median-scaled to the dataset's own depth) and this build has no depth "
+                                 "of its own: give --depth DIR too, or a metric model's predictions")
+        built = Path(str(record.get("dataset_path")))
+        try:
+            keys = json.loads((built / "build.json").read_text(encoding="utf-8"))["split"]["keys"]
+        except (OSError, ValueError, KeyError, TypeError):
+            raise RobodepthError(f"--scene-depth: {pred}: the build its {P.RECORD} names ({built}) has no "
+                                 "readable build.json listing its images (moved or deleted?)") from None
+        digest = hashlib.sha256("\n".join(keys).encode("utf-8")).hexdigest()
+        if digest != record.get("split_sha256"):
+            raise RobodepthError(f"--scene-depth: {pred}: {built} holds other images than when the "
+                                 "predictions were made; predict again")
+        src = cls(pred, record, {k: i for i, k in enumerate(keys)}, own)
+        if src._source() is None:
+            raise RobodepthError(f"--scene-depth: {pred}: no predictions of the clean images "
+                                 "(clean.npy, clean.npz or clean/); run robodepth predict with "
+                                 "--variants clean")
+        return src
+
+    def __getstate__(self):
+        return {**self.__dict__, "_array": None}
+
+    @property
+    def fingerprint(self):
+        return f"depth=predictions:{self.identity}"
+
+    def describe(self):
+        return {**super().describe(), "model": self.model, "identity": self.identity,
+                "predictions": self.pred, "rule": self.rule}
+
+    def _source(self) -> Path | None:
+        base = Path(self.pred)
+        for p in (base / "clean.npy", base / "clean.npz", base / "clean"):
+            if p.exists():
+                return p
+        return None
+
+    def _read(self, key: str) -> np.ndarray:
+        if key not in self.keys:
+            raise DepthError(f"{self.pred}: no prediction for {key} (the predictions are of another "
+                             "build's images)")
+        i, src = self.keys[key], self._source()
+        if src is not None and src.is_dir():
+            path = src / str(PurePosixPath(key).with_suffix(".npy"))
+            try:
+                return np.load(path, allow_pickle=False)
+            except (OSError, ValueError, EOFError) as exc:
+                reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+                raise DepthError(f"{path}: cannot read the prediction ({reason})") from None
+        try:
+            if self._array is None:
+                if src.suffix == ".npz":
+                    with np.load(src, allow_pickle=False) as z:
+                        self._array = z[z.files[0]]
+                else:
+                    self._array = np.load(src, mmap_mode="r", allow_pickle=False)
+            return np.array(self._array[i])
+        except (OSError, ValueError, EOFError, IndexError) as exc:
+            reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+            raise DepthError(f"{src}: cannot read prediction {i} ({reason})") from None
+
+    def depth(self, key, shape):
+        from ..corruptions._depth import FAR, nearest_resize
+
+        m = self._read(key)
+        if m.ndim != 2 or m.dtype.kind not in "fiu" or not np.isfinite(m).all():
+            raise DepthError(f"{self.pred}: the prediction for {key} is not a finite 2-D map")
+        m = m.astype(np.float64)
+        with np.errstate(divide="ignore"):
+            d = np.where(m > 0, 1.0 / np.where(m > 0, m, 1.0), FAR) if self.disparity \
+                else np.where(m > 0, m, np.nan)
+        d = at_size(d, shape)
+        if self.rule == "median":
+            own = nearest_resize(np.asarray(self.own.depth(key, shape), dtype=np.float64), shape)
+            valid = np.isfinite(own) & (own > 0) & np.isfinite(d) & (d < FAR)
+            if not valid.any():
+                raise DepthError(f"{key}: no pixel where both the prediction and the dataset's own "
+                                 "depth are valid, so no median scaling")
+            s = np.median(own[valid]) / np.median(d[valid])
+            d = np.where(d < FAR, d * s, FAR)
+        return d
+
+
 def densify_grid(sparse: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """A sparse depth map (0 where empty) at the output size ``shape``: each output pixel
     the smallest depth among the input pixels that fall in it (NaN where none)."""
@@ -119,19 +305,56 @@ def densify_grid(sparse: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return out.reshape(h, w)
 
 
-def depth_for(ds, variants, root: Path, split_path: str | None) -> DepthSource | None:
-    """Where the depth-aware corruptions among ``variants`` (names or chains) of a build of
-    dataset ``ds`` get each source's depth; None when no variant needs depth. The
-    configuration has already refused them for a dataset without depth
-    (:meth:`~.datasets.Dataset.depth_variant_names` is empty)."""
+def depth_for(ds, cfg, root: Path, split_path: str | None, sources=()) -> DepthSource | None:
+    """Where the depth-aware corruptions among ``cfg.variants`` (names or chains) of a build
+    of dataset ``ds`` get each source's depth; None when no variant needs depth. ``sources``:
+    the build's sources (``key``, ``rel``, ``orientation``), which a custom build's depth
+    folder pairs by path. The configuration has already refused depth-aware variants for a
+    build without a depth source."""
+    if not depth_aware(ds, cfg.variants):
+        return None
+    own = own_depth(ds, cfg, root, split_path, sources)
+    if cfg.extra.get("scene_depth"):
+        return PredictedDepth.open(Path(cfg.extra["scene_depth"]), own)
+    return own
+
+
+def depth_aware(ds, variants) -> list[str]:
+    """The depth-aware corruptions named in ``variants`` (names or chains) of dataset ``ds``."""
     from ..corruptions.chains import looks_like_chain, parse_chain
 
-    names = {n for v in variants for n in (parse_chain(v).names if looks_like_chain(v) else (v,))}
-    if not names & set(ds.depth_variant_names()):
+    aware = set(ds.depth_variant_names())
+    names = (n for v in variants for n in (parse_chain(v).names if looks_like_chain(v) else (v,)))
+    return list(dict.fromkeys(n for n in names if n in aware))
+
+
+def missing_depth(ds, values: dict, extra: dict) -> tuple[str, str] | None:
+    """``(config key, reason)`` when the variants of a configuration (``values``: its
+    variant key and ``compose``) need depth that a build of ``ds`` with options ``extra``
+    lacks; None otherwise."""
+    if not ds.leveled or ds.has_depth(extra):
         return None
+    for key in (ds.variant_key, "compose"):
+        aware = depth_aware(ds, values.get(key, ()))
+        if aware:
+            return key, (f"{aware[0]} needs the scene's depth and this {ds.name} build has none: give "
+                         "--depth DIR (a depth map per image) or --scene-depth PRED (robodepth "
+                         "predict's output for the clean images)")
+    return None
+
+
+def own_depth(ds, cfg, root: Path, split_path: str | None, sources) -> DepthSource | None:
+    """The dataset's own depth (its ground truth, or a custom build's depth folder); None for
+    a custom build without one."""
     if ds.split_format == "eigen":
         return KittiLidarDepth(Path(root))
-    from .datasets import read_split
+    if ds.split_format == "nyu":
+        from .datasets import read_split
 
-    entries = read_split(Path(split_path or ""), "nyu")
-    return NyuDepth(Path(root), {e.key: (e.fields[0], e.fields[1]) for e in entries})
+        entries = read_split(Path(split_path or ""), "nyu")
+        return NyuDepth(Path(root), {e.key: (e.fields[0], e.fields[1]) for e in entries})
+    if not (cfg.extra.get("depth") or ds.depth_in_root):
+        return None
+    kind = f"{ds.name}-ground-truth" if ds.depth_in_root else "depth-folder"
+    return FolderDepth(kind, cfg.extra, Path(root), ds.depth_in_root,
+                       {s.key: (s.rel, s.orientation) for s in sources if s.rel})
