@@ -39,8 +39,10 @@ DRAWS: dict[str, tuple[str, str]] = {
     "iso_noise": (PER_FRAME, "the photon and read noise"),
     "pixelate": (NO_DRAWS, ""),
     "jpeg_compression": (NO_DRAWS, ""),
-    # The depth-aware ones draw nothing: each frame's own depth makes its fog, focus or motion.
-    **{name: (NO_DRAWS, "") for name in DEPTH_AWARE},
+    # The depth-aware ones but rain draw nothing: each frame's own depth makes its fog,
+    # focus or motion. Rain's drops fall about half a metre between two 10 Hz frames.
+    **{name: (NO_DRAWS, "") if name != "rain_3d" else (PER_FRAME, "the rain drops (they fall between frames)")
+       for name in DEPTH_AWARE},
 }
 assert tuple(DRAWS) == CORRUPTIONS + tuple(DEPTH_AWARE)  # every corruption says what its draws are
 
