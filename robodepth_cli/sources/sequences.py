@@ -73,7 +73,7 @@ def lines(name: str, root: Path) -> list[str]:
         if start is not None:
             out += [f"{drive} {n:010d} l" for n in range(start, start + seq.frames)]
     if not out:
-        raise SequenceError(f"--root {root}: none of the drives of the {name} split has "
+        raise SequenceError(f"{root}: none of the drives of the {name} split has "
                             f"{seq.frames} consecutive left images (image_02/data) there: "
                             f"{', '.join(seq.drives)}; or give a split file (--split FILE)")
     return out
