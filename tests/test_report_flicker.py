@@ -116,3 +116,24 @@ def test_without_flicker_the_report_is_unchanged(tmp_path, cli, two_models):
     assert cli("report", two_models[0], "--name", "plain", "--out", out2).exit_code == 0
     md, md2 = (out / "table.md").read_text(), (out2 / "table.md").read_text()
     assert md2.startswith(md)
+
+
+def test_a_model_without_flicker_beside_one_with_it(tmp_path, two_models):
+    """Only the model whose results have the columns is in the flicker tables and figure,
+    drawn in its own colour (the one it has in every other figure)."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.colors import to_hex
+
+    from robodepth_cli.evaluation.plot import style
+    from robodepth_cli.report import write as W
+
+    plain = evaluate_csv(tmp_path / "plain.csv", "kitti-c", "CADepth")
+    report = W.assemble([plain, two_models[0]], ["plain", "A"], None, "all")
+    W.draw(report)
+    assert [f.model for f in report.flicker] == ["A"]
+    assert report.flicker[0].row.name == "A"
+    fig = report.figures[-1][3]
+    colours = {to_hex(p.get_facecolor()) for p in fig.axes[0].patches}
+    assert colours == {style(1)["color"].lower()}
+    doc = W.to_json(report)
+    assert "flicker" not in doc["models"][0] and doc["models"][1]["flicker"]["clean"]["flicker_scale"] == 0.02

@@ -26,6 +26,7 @@ class Flicker:
     level's values (``levels``: level -> {column: value})."""
 
     model: str
+    index: int  # the model's place among the report's models: its colour in every figure
     row: object  # the model's inputs.Row (the tables' rows)
     clean: dict[str, float] | None
     corruptions: dict[str, dict] = field(default_factory=dict)
@@ -47,7 +48,7 @@ def collect(models: Sequence) -> list[Flicker]:
     """The flicker of every model (inputs.Model) whose results have the columns; [] when
     none has them."""
     out = []
-    for m in models:
+    for index, m in enumerate(models):
         rows = [v for v in m.variants if all(c in v for c in COLUMNS)]
         if not rows:
             continue
@@ -60,7 +61,7 @@ def collect(models: Sequence) -> list[Flicker]:
                 levels.setdefault(v["corruption"], {})[lv] = {c: v[c] for c in COLUMNS}
         corruptions = {n: {**{c: mean(x[c] for x in per.values()) for c in COLUMNS},
                            "levels": dict(sorted(per.items()))} for n, per in levels.items()}
-        out.append(Flicker(m.name, m.row, clean, corruptions))
+        out.append(Flicker(m.name, index, m.row, clean, corruptions))
     return out
 
 
@@ -111,7 +112,7 @@ def figure(flicker: Sequence[Flicker], benchmark: str):
     for ax, col in zip(axes, COLUMNS):
         top = 0.0
         for i, f in enumerate(flicker):
-            colour = style(i)["color"]
+            colour = style(f.index)["color"]
             ys, ws = [], []
             for k, n in enumerate(names):
                 v = f.value(n, col)
