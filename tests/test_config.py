@@ -52,7 +52,7 @@ def test_user_file_over_preset_and_flags_over_file(tmp_path):
     ("corruptions: brightness\nlevels: [1, 6]\n", ": levels: level 6 is out of range for kitti-c; valid levels: 1..5"),
     ("size: 192\n", ": size: expected HxW such as 192x640, or [H, W], got 192"),
     ("size: 16x640\n", ": size: size '16x640': both sides must be at least 32"),
-    ("split: nyu_test\n", ": split: 'nyu_test' is not a split of kitti-c; valid: eigen_test or a split file"),
+    ("split: nyu_test\n", ": split: 'nyu_test' is not a split of kitti-c; valid: eigen_test, kitti_sequences or a split file"),
     ("split: 3\n", ": split: expected a standard split name or a file, got 3"),
     ("dataset: nyudepth2-c\n", ": dataset: 'nyudepth2-c' does not match 'kitti-c'"),
     ("dataset: kitti-x\n", ": dataset: unknown dataset 'kitti-x'; valid: kitti-c, nyudepth2-c"),

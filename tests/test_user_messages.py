@@ -93,7 +93,7 @@ def test_unknown_split_name_lists_the_standard_ones(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     res = cli("build", "kitti-c", "--root", tmp_path, "--split", "eigen", "--out", tmp_path / "out")
     one_line_error(res, "--split: no standard split named 'eigen'",
-                   "standard splits of kitti-c: eigen_test; or give a split file")
+                   "standard splits of kitti-c: eigen_test, kitti_sequences; or give a split file")
     res = cli("build", "nyudepth2-c", "--root", tmp_path, "--split", "nyu", "--out", tmp_path / "out")
     one_line_error(res, "standard splits of nyudepth2-c: nyu_test")
 

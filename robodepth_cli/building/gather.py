@@ -100,7 +100,7 @@ def gather_sources(ds: Dataset, cfg: BuildConfig, root: Path, out: Path,
             raise BuildError(f"{shown_root or root}: none of the {len(sources)} images of {split['path'] or 'the root'} is usable; "
                              f"wrong --root? (first: {sources[0].error})")
         return sources, split
-    split_path = splits.split_path(cfg.split)
+    split_path = splits.split_path(cfg.split, root)
     sources = find_sources(root, split_path, ds, cfg.limit, shown_root=shown_root)
     split = {"path": os.path.abspath(split_path), "sha256": sha256_bytes(split_path.read_bytes()),
              "images": len(sources), "keys": [s.key for s in sources]}

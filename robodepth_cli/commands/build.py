@@ -23,7 +23,7 @@ _LISTED = 20  # paths shown per kind of problem by verify
               help="Output directory; rerunning into it resumes.")
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
               help="Your own YAML config, applied over the DATASET preset.")
-@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test; drivingstereo-c: sunny, cloudy, foggy, rainy, all) or a split file.")
+@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, kitti_sequences, nyu_test; drivingstereo-c: sunny, cloudy, foggy, rainy, all) or a split file.")
 @click.option("--corruptions", metavar="A,B|all|none", help="Comma-separated corruption names, 'all', or 'none' (only --compose chains).")
 @click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3 or 1,2.5,4: decimals allowed), or 'all'.")
 @click.option("--compose", metavar="CHAIN,CHAIN", help="Also build these chains of corruptions, e.g. "

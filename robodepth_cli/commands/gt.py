@@ -24,13 +24,14 @@ def gt_command():
     """
 
 
-def _split(value: str, split_format: str, owner: str) -> Path:
+def _split(value: str, split_format: str, owner: str, root: Path | None = None) -> Path:
     """The split file ``value`` names, chosen by the same rule as a build's ``--split``: a
-    standard split of the right format (downloaded and checked on first use) or a file."""
+    standard split of the right format (downloaded and checked on first use, or made from
+    the tree under ``root`` for a split of consecutive frames) or a file."""
     from ..sources import splits
 
     try:
-        path = splits.split_path(splits.check_choice(value, split_format, Path.cwd(), owner))
+        path = splits.split_path(splits.check_choice(value, split_format, Path.cwd(), owner), root)
     except RobodepthError as exc:  # a bad name, or a standard split that cannot be had
         raise RobodepthError(f"--split: {exc}") from None
     if not path.is_file():
@@ -55,7 +56,8 @@ def _bar(total: int, progress: bool):
 @click.option("--root", required=True, type=click.Path(path_type=Path),
               help="KITTI raw root: DATE/calib_*.txt and DATE/DRIVE/velodyne_points/data/*.bin.")
 @click.option("--split", metavar="NAME|FILE", default="eigen_test", show_default=True,
-              help="Standard split name or a split file in the Eigen format (DATE/DRIVE FRAME SIDE).")
+              help="Standard split name (eigen_test, or kitti_sequences: consecutive frames made "
+                   "from the tree) or a split file in the Eigen format (DATE/DRIVE FRAME SIDE).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output file, e.g. gt_depths.npz.")
 @click.option("--jobs", "-j", type=common.Jobs(), default=1, show_default=True, metavar="N|auto",
@@ -85,7 +87,7 @@ def gt_kitti_command(root, split, out, jobs, progress):
                              "end it in .npz, e.g. gt_depths.npz")
     check_writable(out, "--out")
     common.will_write(out)
-    split_path = _split(split, "eigen", "KITTI ground truth")
+    split_path = _split(split, "eigen", "KITTI ground truth", root)
     frames = gt_kitti.read_frames(split_path)
     with _bar(len(frames), progress) as bar:
         gt_kitti.export(root, frames, out, split_name=str(split_path), progress=bar.update,

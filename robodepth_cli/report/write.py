@@ -21,6 +21,7 @@ from typing import Callable, Sequence
 from .. import __version__
 from . import inputs as I
 from . import published as P
+from . import flicker as FL
 from . import tables as T
 from .page import PageFigure
 from .page import render as render_page
@@ -45,6 +46,7 @@ class Report:
     across: T.Table | None = None
     synreal: list = field(default_factory=list)
     synreal_setup: dict = field(default_factory=dict)
+    flicker: list = field(default_factory=list)  # flicker.Flicker per model with the columns
 
 
 FIGURES = "figures"
@@ -117,7 +119,14 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
 
 
 def _main(bench: str, models: list[I.Model], context: str, info: dict | None) -> Report:
-    """The report of one of the paper's benchmarks: its tables (figures: :func:`draw`)."""
+    """The report of one of the paper's benchmarks: its tables (figures: :func:`draw`),
+    and the flicker of the models whose results have it."""
+    report = _main_tables(bench, models, context, info)
+    report.flicker = FL.collect(models)
+    return report
+
+
+def _main_tables(bench: str, models: list[I.Model], context: str, info: dict | None) -> Report:
     rows = [m.row for m in models] + I.context(bench, context)
     note = I.beyond_only(models)
     if note:  # no benchmark score: the clean DEE and the rows beyond it, yours only
@@ -143,6 +152,8 @@ def draw(report: Report) -> None:
 
     if report.models:
         _draw_main(report)
+    if report.flicker:
+        report.figures.append(FL.figure_entry(report.flicker, report.benchmark))
     if report.synreal:
         metric = METRICS[report.synreal_setup["metric"]]
         report.figures.append((
@@ -245,6 +256,9 @@ def to_json(report: Report) -> dict:
             entry["scores"] = {"mdee": r.mdee}
             entry["styles"] = {k: {"dee": v} for k, v in r.styles.items()}
         entry["variants"] = m.variants
+        fl = next((f for f in report.flicker if f.model == m.name), None)
+        if fl is not None:
+            entry["flicker"] = fl.to_json()
         doc["models"].append(entry)
     if report.sections:
         doc["datasets"] = [_section_json(sec, report) for sec in report.sections]
@@ -399,6 +413,8 @@ def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> l
         context = "baseline" if "baseline" in kinds else "none"
     extra = [(sec.title, sec.tables, [(e.name, str(e.path)) for e in report.entries if e.key == sec.key])
              for sec in report.sections]
+    if report.flicker:
+        extra.append(("Flicker", FL.tables(report.flicker, report.benchmark), []))
     if report.across is not None:
         extra.append(("Across datasets", [report.across], []))
     if report.synreal:

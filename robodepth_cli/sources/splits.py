@@ -70,29 +70,37 @@ def check_choice(value, split_format: str, base: Path, owner: str = "this datase
     wrote. :class:`InvalidValueError` for anything else, including a bare word that is neither a
     standard name nor a file (the message lists the standard names); the file itself is
     read later."""
+    from .sequences import FORMAT, SPLITS
+
     if not isinstance(value, str) or not value:
         raise InvalidValueError(f"expected a standard split name or a file, got {value!r}")
-    recs = records()
-    if value in recs:
-        if recs[value].format != split_format:
-            fits = [r.name for r in recs.values() if r.format == split_format]
+    formats = {**{r.name: r.format for r in records().values()}, **dict.fromkeys(SPLITS, FORMAT)}
+    fits = [n for n, f in formats.items() if f == split_format]
+    if value in formats:
+        if formats[value] != split_format:
             raise InvalidValueError(f"{value!r} is not a split of {owner}; valid: "
                              f"{', '.join(fits)} or a split file")
         return value
     path = Path(base) / Path(value).expanduser()
     if not path.exists() and "/" not in value and os.sep not in value and not Path(value).suffix:
         # A bare word such as 'eigen' was meant as a standard split name.
-        fits = [r.name for r in recs.values() if r.format == split_format]
         raise InvalidValueError(f"no standard split named {value!r} (and no such file); standard splits "
                          f"of {owner}: {', '.join(fits)}; or give a split file")
     return str(path)
 
 
-def split_path(choice: str) -> Path:
+def split_path(choice: str, root: Path | None = None) -> Path:
     """The file of a split :func:`check_choice` accepted: the checked, cached copy of a
-    standard split (downloaded on first use) or the user's file."""
+    standard split (downloaded on first use), a split of consecutive frames made from the
+    tree under ``root`` (:mod:`.sequences`), or the user's file."""
+    from .sequences import SPLITS, generate
+
     if choice in records():
         return standard_split(choice)
+    if choice in SPLITS:
+        if root is None:  # a caller without a tree: a bug, not a user's mistake
+            raise TypeError(f"the {choice} split is made from a raw tree: give its root")
+        return generate(choice, Path(root), cache_dir())
     return Path(choice)
 
 
