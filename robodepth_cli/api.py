@@ -307,13 +307,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
         raise DatasetError(str(exc)) from None
     if not rows:
         raise DatasetError(f"{path}: no {MANIFEST} (or an empty one); was the build run to the end?")
-    built = {(r.variant, r.level) for r in rows.values()}
-    from .corruptions.chains import looks_like_chain
-
-    # benchmark order, levels ascending, then the chains by name
-    order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
-    variants = sorted((vl for vl in built if vl[0] in order),
-                      key=lambda vl: (order.index(vl[0]), vl[1] or 0))
+    variants = variant_order(ds, {(r.variant, r.level) for r in rows.values()})
     dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants))
     if dataset.failed and warn:
         import warnings
@@ -323,6 +317,17 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
                                       "missing='skip') gives the ones that exist, dataset.failed "
                                       "lists them"), stacklevel=2)
     return dataset
+
+
+def variant_order(ds, built) -> list[tuple[str, int | float | None]]:
+    """The ``(variant, level)`` pairs of ``built`` that are variants of dataset ``ds``, in
+    the order of its results: clean, the benchmark's corruptions (or styles) with levels
+    ascending, then the chains by name."""
+    from .corruptions.chains import looks_like_chain
+
+    order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
+    return sorted((vl for vl in built if vl[0] in order),
+                  key=lambda vl: (order.index(vl[0]), vl[1] or 0))
 
 
 class IncompleteBuild(UserWarning):

@@ -118,7 +118,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
         (out / job.path(src.key)).unlink(missing_ok=True)
         results.append((JobState.FAILED, row(job, error=message)))
 
-    clean, message = _load(src, ctx.size)
+    clean, message = load_source(src, ctx.size)
     if clean is None:
         for job in todo:
             fail(job, message)
@@ -186,8 +186,10 @@ def fingerprint(renderer: Renderer, job: Job) -> str:
     return "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
 
 
-def _load(src: Source, size: tuple[int, int]):
-    """(clean image, "") or (None, why the source cannot be used)."""
+def load_source(src: Source, size: tuple[int, int] | None):
+    """(clean image, "") or (None, why the source cannot be used): the source decoded, turned
+    upright if it must be, and resized to ``size`` (None: its own), as every build's outputs
+    start."""
     if src.error:
         return None, src.error
     try:
