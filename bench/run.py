@@ -17,7 +17,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 SCRIPTS = ("corruptions.py", "png.py", "build.py", "stylize.py", "cluster.py", "gt.py", "evaluate.py",
-           "source_hash.py", "large.py", "severity.py", "predict.py")
+           "source_hash.py", "large.py", "severity.py", "predict.py", "run_cmd.py")
 
 
 def main() -> int:
