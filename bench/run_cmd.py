@@ -11,7 +11,7 @@ predictions and the CSV, against the CSV alone.
 The machine's load average is printed before and after: on a shared machine the times
 move with it.
 
-    python -m bench.run_cmd [--sources 4] [--corruptions all] [--levels all]
+    python -m bench.run_cmd [--sources 2] [--corruptions all] [--levels all]
 """
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def timed(args: list) -> float:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sources", type=int, default=4)
+    ap.add_argument("--sources", type=int, default=2)
     ap.add_argument("--corruptions", default="all")
     ap.add_argument("--levels", default="all")
     args = ap.parse_args()

@@ -107,6 +107,29 @@ def test_nyu_run_writes_the_csv_of_build_predict_evaluate(tmp_path, cli, py_mode
     assert sorted(p.name for p in tmp_path.iterdir()) == ["B", "P", "e.csv", "r.csv"]
 
 
+def test_nyu_run_from_the_labeled_file(tmp_path, cli, py_model):
+    from _gt_trees import write_labeled, write_split
+
+    mat = tmp_path / "nyu_depth_v2_labeled.mat"
+    write_labeled(mat)
+    split = write_split(tmp_path / "split.txt", [0, 3])
+    flags = ("--split", split, "--size", "48x64", "--corruptions", "contrast", "--levels", "3")
+    model = (py_model, "--kind", "depth", "--metric")
+    res = cli("build", "nyudepth2-c", "--root", mat, "--out", tmp_path / "B", *flags, "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    res = cli("predict", tmp_path / "B", "-m", *model, "--out", tmp_path / "P", "--no-progress")
+    assert res.exit_code == 0, res.output
+    res = cli("evaluate", tmp_path / "B", "--pred", tmp_path / "P", "--out", tmp_path / "e.csv",
+              "--no-progress")
+    assert res.exit_code == 0, res.output
+    res = cli("run", "nyudepth2-c", "--root", mat, "-m", *model, "--out", tmp_path / "r.csv",
+              *flags, "--no-progress")
+    # The file's depths are noise, so no model scores: the CSV is written, then the one-line
+    # refusal of evaluate --score.
+    assert res.exit_code == 2 and "robodepth: error: clean DEE" in res.output, res.output
+    assert (tmp_path / "r.csv").read_bytes() == (tmp_path / "e.csv").read_bytes()
+
+
 def test_a_run_killed_after_one_variant_resumes(tmp_path, cli, py_model):
     split = FIXTURES / "nyu_split.txt"
     args = ["run", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", split, "-m", py_model,

@@ -86,6 +86,7 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
     from ..evaluation import evaluate as E
     from ..files import check_writable
     from ..models import load_model
+    from ..models.predict import BATCH_PIXELS, batch_limit
     from ..progress import bar as progress_bar
     from ..running import inputs as I, loop
     from ..running.state import RunState
@@ -101,7 +102,10 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
     setup = evaluation_setup(cfg.dataset, model.record()["evaluate"], None, None, kind, stereo,
                              None, align, align_space, crop, min_depth, max_depth)
     renderer = I.renderer(inputs)
-    step = loop.P.batch_limit(batch_size, cfg.size, model.input_size)
+    step = batch_limit(batch_size, cfg.size, model.input_size)
+    if step < batch_size:
+        click.echo(f"robodepth: --batch-size {batch_size}: {step} images per batch (a batch "
+                   f"holds at most {BATCH_PIXELS:,} pixels)", err=True)
     state = RunState.open(out, loop.settings(inputs, model, setup, step, engine))
     state.check_writable()
     if state.note:

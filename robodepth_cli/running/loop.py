@@ -3,14 +3,16 @@ predicted, and each map judged at once; only the metric rows are kept.
 
 Variant by variant in the order of the results CSV, each in split order and in the batches
 ``robodepth predict`` makes (:func:`~robodepth_cli.models.predict.batch_limit`), so the
-model sees the same batches and every number equals build -> predict -> evaluate's. The
-next batch is rendered in a second thread while the model runs on this one. A finished
+model sees the same batches and every number equals build -> predict -> evaluate's. A
+model on a GPU gets the next batch rendered in a second thread while it runs on this one; a
+model on the CPU gets them one after the other, since its threads already use every core
+(on the 2-core development machine the overlap only added contention). A finished
 variant's row goes into the state (:mod:`.state`) before the next one starts.
 """
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Callable, Sequence
@@ -80,7 +82,7 @@ def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, 
         P.remove_leftovers(keep, todo)
     if on_total:
         on_total(n * len(todo))
-    with ThreadPoolExecutor(1) as painter:
+    with (_Inline() if model.device == "cpu" else ThreadPoolExecutor(1)) as painter:
         for variant, job in inputs.variants:
             if variant not in todo:
                 metrics, ratios = state.get(variant.relpath)
@@ -100,6 +102,21 @@ def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, 
             state.add(variant.relpath, r.metrics, r.ratios)
             result.results.append(r)
     return result, earlier
+
+
+class _Inline:
+    """The executor interface of one worker thread, running each call at once, here."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args) -> Future:
+        done = Future()
+        done.set_result(fn(*args))
+        return done
 
 
 def _judge(variant: Variant, bounds, painter, paint, model, truth, setup, size, writer,
