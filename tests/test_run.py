@@ -176,8 +176,8 @@ def test_run_refusals(tmp_path, cli, kitti_root, py_model, monkeypatch):
     monkeypatch.setattr(inputs, "TORCH_ENGINE", "robodepth_cli.no_such_engine")
     res = cli(*base, "--out", tmp_path / "r.csv", "--engine", "torch")
     assert res.exit_code == 2 and res.output.strip().splitlines() == [
-        "robodepth: error: --engine torch: this version of robodepth has no torch engine for "
-        "the corruptions; use --engine numpy"]
+        ("robodepth: error: --engine torch: this version of robodepth has no torch engine for "
+         "the corruptions; use --engine numpy")]
     res = cli("run", "custom", "--root", kitti_root, "-m", py_model, "--kind", "depth",
               "--out", tmp_path / "r.csv", "--no-progress")
     assert res.exit_code == 2 and "run judges a model on the corruption benchmarks" in res.output

@@ -12,6 +12,7 @@ variant's row goes into the state (:mod:`.state`) before the next one starts.
 
 from __future__ import annotations
 
+import functools
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from types import SimpleNamespace
@@ -89,11 +90,8 @@ def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, 
                 result.results.append(VariantResult(variant, metrics, ratios))
                 continue
             bounds = [(i, min(i + step, n)) for i in range(0, n, step)]
-
-            def paint(k: int):
-                a, b = bounds[k]
-                return render_batch(renderer, cleans[a:b], keys[a:b], paths[a:b], job)
-
+            paint = [functools.partial(render_batch, renderer, cleans[a:b], keys[a:b], paths[a:b], job)
+                     for a, b in bounds]
             writer = (PredictionWriter(variant.prediction_file(keep), n) if keep is not None
                       else None)
             r = _judge(variant, bounds, painter, paint, model, truth, setup, inputs.cfg.size,
@@ -125,11 +123,11 @@ def _judge(variant: Variant, bounds, painter, paint, model, truth, setup, size, 
 
     errors, ratios = [], []
     with writer if writer is not None else nullcontext() as out:
-        pending = painter.submit(paint, 0)
+        pending = painter.submit(paint[0])
         for k, (a, _) in enumerate(bounds):
             images = pending.result()
             if k + 1 < len(bounds):
-                pending = painter.submit(paint, k + 1)
+                pending = painter.submit(paint[k + 1])
             i = a
             for batch in P.same_size_runs(images):
                 maps = model.predict(batch)
