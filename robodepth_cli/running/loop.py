@@ -73,7 +73,7 @@ def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, 
         record = P.make_record(SimpleNamespace(name=inputs.ds.name, path=inputs.root, keys=keys), model)
         P.prepare_output(keep, record)
     todo, earlier = [], 0
-    for variant, job in inputs.variants:
+    for variant, _ in inputs.variants:
         done = state.get(variant.relpath)
         if done is not None and (keep is None or P.finished(keep, variant)):
             earlier += 1
