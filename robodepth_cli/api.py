@@ -26,7 +26,8 @@ from typing import Sequence
 import numpy as np
 
 from .errors import InvalidValueError, RobodepthError, cannot_write
-from .output.layout import CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir
+from .output.layout import (CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir,
+                            variant_order)
 from .output.record import BuildRecord
 
 
@@ -317,17 +318,6 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
                                       "missing='skip') gives the ones that exist, dataset.failed "
                                       "lists them"), stacklevel=2)
     return dataset
-
-
-def variant_order(ds, built) -> list[tuple[str, int | float | None]]:
-    """The ``(variant, level)`` pairs of ``built`` that are variants of dataset ``ds``, in
-    the order of its results: clean, the benchmark's corruptions (or styles) with levels
-    ascending, then the chains by name."""
-    from .corruptions.chains import looks_like_chain
-
-    order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
-    return sorted((vl for vl in built if vl[0] in order),
-                  key=lambda vl: (order.index(vl[0]), vl[1] or 0))
 
 
 class IncompleteBuild(UserWarning):

@@ -118,7 +118,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
         (out / job.path(src.key)).unlink(missing_ok=True)
         results.append((JobState.FAILED, row(job, error=message)))
 
-    clean, message = load_source(src, ctx.size)
+    clean, message = _load(src, ctx.size)
     if clean is None:
         for job in todo:
             fail(job, message)
@@ -189,7 +189,12 @@ def fingerprint(renderer: Renderer, job: Job) -> str:
 def load_source(src: Source, size: tuple[int, int] | None):
     """(clean image, "") or (None, why the source cannot be used): the source decoded, turned
     upright if it must be, and resized to ``size`` (None: its own), as every build's outputs
-    start."""
+    start (``robodepth run`` starts from it too)."""
+    return _load(src, size)
+
+
+def _load(src: Source, size: tuple[int, int]):
+    """(clean image, "") or (None, why the source cannot be used)."""
     if src.error:
         return None, src.error
     try:

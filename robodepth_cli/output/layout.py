@@ -34,7 +34,7 @@ GT_FILE = "gt_depths.npz"
 GT_DIR = "gt"
 
 __all__ = ["MANIFEST", "RECORD", "LOCK", "JOURNAL", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
-           "variant_dir", "output_path"]
+           "variant_dir", "output_path", "variant_order"]
 
 
 def variant_dir(variant: str, level: float | None) -> str:
@@ -54,3 +54,13 @@ def output_path(variant: str, level: float | None, key: str) -> str:
     """The path of one output relative to OUT: ``<variant dir>/<key>``."""
     return f"{variant_dir(variant, level)}/{key}"
 
+
+def variant_order(ds, built) -> list[tuple[str, int | float | None]]:
+    """The ``(variant, level)`` pairs of ``built`` that are variants of dataset ``ds``, in
+    the order of its results: clean, the benchmark's corruptions (or styles) with levels
+    ascending, then the chains by name."""
+    from ..corruptions.chains import looks_like_chain
+
+    order = [CLEAN, *ds.variant_names(), *sorted({v for v, _ in built if looks_like_chain(v)})]
+    return sorted((vl for vl in built if vl[0] in order),
+                  key=lambda vl: (order.index(vl[0]), vl[1] or 0))

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..api import Variant, variant_order
+from ..api import Variant
+from ..output.layout import variant_order
 from ..building.config import BuildConfig
 from ..building.gather import check_root, gather_sources
 from ..building.tasks import Source, load_source
