@@ -52,8 +52,7 @@ FORBIDDEN = {
     "api": {"building", "commands", "cli", "torch", "running"},
     # `robodepth run` joins the build's inputs, the models and the evaluation; only the
     # commands use it.
-    "running": {"commands", "cli", "torch", "building.pipeline", "building.executors",
-                "building.cluster", "building.groundtruth"},
+    "running": {"commands", "cli", "torch", "building.executors", "building.cluster"},
     # The transforms may read a held-out protocol file as a build checks it (building/config.py);
     # they never run a build.
     "torch": {"building.pipeline", "building.checks", "building.executors", "building.cluster",

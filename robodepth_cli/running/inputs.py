@@ -104,7 +104,10 @@ def decode(inputs: RunInputs, progress=None) -> list[np.ndarray]:
 
 
 def renderer(inputs: RunInputs) -> Renderer:
-    return inputs.ds.renderer(inputs.cfg)
+    """The build's renderer for this configuration (the engine :func:`engine_flags` chose)."""
+    from ..building.pipeline import make_renderer
+
+    return make_renderer(inputs.ds, inputs.cfg)
 
 
 def ground_truth(inputs: RunInputs, setup):
