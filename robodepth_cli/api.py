@@ -26,7 +26,7 @@ from typing import Sequence
 import numpy as np
 
 from .errors import InvalidValueError, RobodepthError, cannot_write
-from .output.layout import (CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir,
+from .output.layout import (GT_DIR, GT_FILE, MANIFEST, RECORD, output_path, variant_dir,
                             variant_order)
 from .output.record import BuildRecord
 

@@ -19,7 +19,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..api import CLEAN, BuiltDataset, Variant
+from ..api import BuiltDataset, Variant
+from ..benchmarks import CLEAN
 from ..errors import cannot_write
 from .groundtruth import GroundTruth, load_ground_truth
 from .predictions import Predictions, check_values, find_predictions

@@ -20,7 +20,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..api import CLEAN, PredictionWriter, Variant
+from ..api import PredictionWriter, Variant
+from ..benchmarks import CLEAN
 from ..evaluation.evaluate import Evaluation, VariantResult, image_errors, variant_result
 from ..models import predict as P
 from ..sources.datasets import Job, Renderer
