@@ -26,12 +26,11 @@ from typing import Sequence
 
 import numpy as np
 
-from .benchmarks import TEMPORAL
 from .errors import InvalidValueError, RobodepthError, cannot_write
 from .export.layout import META as EXPORT_META, RECORD as EXPORT_RECORD
 from .export.reader import ExportStore
-from .output.layout import (CLEAN, GT_DIR, GT_FILE, MANIFEST, RECORD, depth_gt_name, output_path,
-                            variant_dir)
+from .output.layout import (GT_DIR, GT_FILE, MANIFEST, RECORD, depth_gt_name, output_path,
+                            variant_dir, variant_order)
 from .output.record import BuildRecord
 
 
@@ -348,15 +347,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
         raise DatasetError(str(exc)) from None
     if not rows:
         raise DatasetError(f"{path}: no {MANIFEST} (or an empty one); was the build run to the end?")
-    built = {(r.variant, r.level) for r in rows.values()}
-    from .corruptions.chains import looks_like_chain
-
-    # benchmark order, levels ascending (then the corruptions over time of a build with
-    # --frames), then the chains by name
-    order = [CLEAN, *ds.variant_names(), *ds.depth_variant_names(), *TEMPORAL,
-             *sorted({v for v, _ in built if looks_like_chain(v)})]
-    variants = sorted((vl for vl in built if vl[0] in order),
-                      key=lambda vl: (order.index(vl[0]), vl[1] or 0))
+    variants = variant_order(ds, {(r.variant, r.level) for r in rows.values()})
     store = ExportStore(path, keys, rows) if export else None
     dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants), store)
     if dataset.failed and warn:

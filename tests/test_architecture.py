@@ -42,19 +42,22 @@ FORBIDDEN = {
     # (the engine's check of an input image) -- see test_corruptions_stand_alone.
     # (sources/ may ask output/layout.py for the output-path rule: it owns every output name.)
     "sources": {"building", "evaluation", "commands", "output.manifest", "output.record",
-                "output.verify", "api", "torch", "cli", "models"},
-    "output": {"building", "commands", "evaluation", "api", "torch", "cli"},
-    "evaluation": {"building", "commands", "cli", "torch"},
-    "styles": {"building", "commands", "evaluation", "output", "sources", "api", "torch", "cli"},
-    "building": {"commands", "cli", "evaluation", "torch", "models"},
-    "models": {"building", "commands", "cli", "evaluation", "torch"},
-    "api": {"building", "commands", "cli", "torch"},
-    # An export reads a finished build (api, output) and never runs, evaluates or judges one.
-    "export": {"building", "commands", "cli", "torch", "evaluation", "models", "styles"},
+                "output.verify", "api", "torch", "cli", "models", "running"},
+    "output": {"building", "commands", "evaluation", "api", "torch", "cli", "running"},
+    "evaluation": {"building", "commands", "cli", "torch", "running"},
+    "styles": {"building", "commands", "evaluation", "output", "sources", "api", "torch", "cli",
+               "running"},
+    "building": {"commands", "cli", "evaluation", "torch", "models", "running"},
+    "models": {"building", "commands", "cli", "evaluation", "torch", "running"},
+    "api": {"building", "commands", "cli", "torch", "running"},
+    # `robodepth run` joins the build's inputs, the models and the evaluation; only the
+    # commands use it.
+    "running": {"commands", "cli", "torch", "building.executors", "building.cluster"},
+    "export": {"building", "commands", "cli", "torch", "evaluation", "models", "styles", "running"},
     # The transforms may read a held-out protocol file as a build checks it (building/config.py);
     # they never run a build.
     "torch": {"building.pipeline", "building.checks", "building.executors", "building.cluster",
-              "building.groundtruth", "commands", "cli"},
+              "building.groundtruth", "commands", "cli", "running"},
 }
 CORRUPTIONS_MAY_IMPORT = {"corruptions", "errors", "seeding", "benchmarks", "imageio"}
 

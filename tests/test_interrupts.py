@@ -129,11 +129,18 @@ CASES = [
      NOTHING, ["s.png"]),
     ("verify", "robodepth_cli.output.verify:verify", 1,
      lambda i: ["verify", i["dataset"], "--no-progress"], NOTHING, []),
-    ("predict", "robodepth_cli.models.predict:_same_size_runs", 2,
+    ("predict", "robodepth_cli.models.predict:same_size_runs", 2,
      lambda i: ["predict", i["dataset"], "-m", f"python:{i['model']}:brightness", "--kind", "disp",
                 "--out", "{OUT}/PRED", "--no-progress"],
      "the variants finished so far are kept under {OUT}/PRED, each complete; rerun the same "
      "command to continue", ["PRED/brightness/1.npy"]),
+    ("run", "robodepth_cli.running.loop:_judge", 2,
+     lambda i: ["run", "nyudepth2-c", "--root", i["mat"], "--split", i["nyu_split"], "-m",
+                f"python:{i['model']}:brightness", "--kind", "depth", "--size", "32x48",
+                "--corruptions", "brightness", "--levels", "1", "--out", "{OUT}/r.csv",
+                "--no-progress"],
+     "the finished variants are kept in {OUT}/r.csv.state.json; rerun the same command to "
+     "continue", ["r.csv"]),
     ("build", "robodepth_cli.building.pipeline:run_tasks", 1,
      lambda i: ["build", "kitti-c", "--root", i["fixtures"] / "kitti_raw", "--split",
                 i["fixtures"] / "kitti_split.txt", "--out", "{OUT}/KITTI_C", "--size", "32x96",
@@ -162,6 +169,8 @@ def test_every_command_stops_cleanly(inputs, tmp_path, sig, name, where, nth, ar
         assert list(out.iterdir()) == []
     if name == "predict":  # the first variant (clean) was finished before the signal
         assert (out / "PRED" / "clean.npy").is_file()
+    if name == "run":  # likewise, kept as its row
+        assert '"clean"' in (out / "r.csv.state.json").read_text()
 
 
 def test_interrupts_are_documented(cli):

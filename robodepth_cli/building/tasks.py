@@ -215,6 +215,13 @@ def for_source(params: str, src: Source, job: Job) -> str:
     return ";".join(parts)
 
 
+def load_source(src: Source, size: tuple[int, int] | None):
+    """(clean image, "") or (None, why the source cannot be used): the source decoded, turned
+    upright if it must be, and resized to ``size`` (None: its own), as every build's outputs
+    start (``robodepth run`` starts from it too)."""
+    return _load(src, size)
+
+
 def _load(src: Source, size: tuple[int, int]):
     """(clean image, "") or (None, why the source cannot be used)."""
     if src.error:

@@ -19,7 +19,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..api import CLEAN, BuiltDataset, Variant
+from ..api import BuiltDataset, Variant
+from ..benchmarks import CLEAN
 from ..errors import cannot_write
 from .groundtruth import GroundTruth, load_ground_truth
 from .predictions import Predictions, check_values, find_predictions
@@ -269,38 +270,18 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
     scales = []
     for i in range(len(variant)):
         m, where, is_png = preds.read(i)
-        if m.dtype not in (np.float32, np.float64):
-            m = m.astype(np.float32)  # OpenCV and the reference code work in float32
-        check_values(m, where, setup.kind, allow_negative=setup.alignment == "scale-shift")
-        shape, index, gt = truth.get(i)
-        if is_png and shape != m.shape and tuple(m.shape) != tuple(image_size or ()):
-            raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}; a PNG prediction must "
-                                  f"have the ground truth's size {shape[0]} x {shape[1]} or the "
-                                  "image's")
-        if setup.protocol == "nyu" and (m.shape[0] > shape[0] or m.shape[1] > shape[1]):
-            raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}, larger than its "
-                                  f"ground truth ({shape[0]} x {shape[1]})")
-        # 0 is a valid value (see ZERO_AND_INF); what it leads to is checked below instead.
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            try:
-                if setup.protocol == "kitti":
-                    errs, ratio = kitti_image(m, setup.kind, setup.stereo, shape, index, gt, setup)
-                else:
-                    errs, ratio = nyu_image(m, shape, index, gt, setup), None
-            except EvaluationError as exc:  # raised by the alignment, which knows no file
-                raise EvaluationError(f"{where}: {exc}") from None
+        errs, ratio = image_errors(m, where, truth.get(i), setup, image_size, is_png)
         if ratio is not None:
             ratios.append(ratio)
-        if not np.all(np.isfinite(np.asarray(errs, dtype=np.float64))):
-            raise EvaluationError(f"{where}: the metrics of this map are not finite numbers")
         errors.append(errs)
         if pairs:
             from .flicker import frame_scale
 
+            shape, index, gt = truth.get(i)
+            m = m if m.dtype in (np.float32, np.float64) else m.astype(np.float32)
             scales.append(frame_scale(m, setup.kind, shape, index, gt))
         if progress:
             progress(1)
-    means = np.array(errors, dtype=np.float64).mean(0)
     flicker = None
     if pairs:
         from .flicker import measure
@@ -309,6 +290,44 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
             flicker = measure(scales, [e[0] for e in errors], pairs)
         except EvaluationError as exc:
             raise EvaluationError(f"{preds.source}: {exc}") from None
+    return variant_result(variant, errors, ratios, setup, flicker)
+
+
+def image_errors(m: np.ndarray, where: str, truth: tuple, setup: Setup, image_size,
+                 is_png: bool = False) -> tuple:
+    """The metrics of one prediction ``m`` (read from ``where``, which messages name) against
+    ``truth`` (:meth:`GroundTruth.get` of its image), and its median-scaling ratio (None
+    unless the protocol has one); :class:`EvaluationError` for a map that cannot be judged.
+    ``robodepth run`` calls this on maps it never writes, so its numbers are these."""
+    if m.dtype not in (np.float32, np.float64):
+        m = m.astype(np.float32)  # OpenCV and the reference code work in float32
+    check_values(m, where, setup.kind, allow_negative=setup.alignment == "scale-shift")
+    shape, index, gt = truth
+    if is_png and shape != m.shape and tuple(m.shape) != tuple(image_size or ()):
+        raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}; a PNG prediction must "
+                              f"have the ground truth's size {shape[0]} x {shape[1]} or the "
+                              "image's")
+    if setup.protocol == "nyu" and (m.shape[0] > shape[0] or m.shape[1] > shape[1]):
+        raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}, larger than its "
+                              f"ground truth ({shape[0]} x {shape[1]})")
+    # 0 is a valid value (see ZERO_AND_INF); what it leads to is checked below instead.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        try:
+            if setup.protocol == "kitti":
+                errs, ratio = kitti_image(m, setup.kind, setup.stereo, shape, index, gt, setup)
+            else:
+                errs, ratio = nyu_image(m, shape, index, gt, setup), None
+        except EvaluationError as exc:  # raised by the alignment, which knows no file
+            raise EvaluationError(f"{where}: {exc}") from None
+    if not np.all(np.isfinite(np.asarray(errs, dtype=np.float64))):
+        raise EvaluationError(f"{where}: the metrics of this map are not finite numbers")
+    return errs, ratio
+
+
+def variant_result(variant: Variant, errors: Sequence, ratios: Sequence, setup: Setup,
+                   flicker=None) -> VariantResult:
+    """A variant's row from its images' metrics (:func:`image_errors`), in split order."""
+    means = np.array(errors, dtype=np.float64).mean(0)
     return VariantResult(variant, {k: float(v) for k, v in zip(setup.metrics, means)},
                          np.array(ratios, dtype=np.float64) if setup.median_scaling else None,
                          flicker)

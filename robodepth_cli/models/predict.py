@@ -228,7 +228,7 @@ def finished(pred: Path, variant: Variant) -> bool:
     return len(shape) == 3 and shape[0] == len(variant)
 
 
-def _remove_leftovers(pred: Path, variants: Sequence[Variant]) -> None:
+def remove_leftovers(pred: Path, variants: Sequence[Variant]) -> None:
     """Delete the temporary files (and folders) a killed run left beside the variants'."""
     import shutil
 
@@ -333,7 +333,7 @@ def check_frames(dataset: BuiltDataset, model) -> None:
                          f"(build it with --frames {','.join(map(str, model.frames))})")
 
 
-def _same_size_runs(images: list[np.ndarray]):
+def same_size_runs(images: list[np.ndarray]):
     """Consecutive images of one size, as ``N x H x W x 3`` batches."""
     start = 0
     for i in range(1, len(images) + 1):
@@ -366,7 +366,7 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     todo = []
     for v in variants:
         (run.skipped if finished(pred, v) else todo).append(v)
-    _remove_leftovers(pred, todo)
+    remove_leftovers(pred, todo)
     if on_total:
         on_total(sum(len(v) for v in todo))
     try:
@@ -384,10 +384,10 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
                         images = pending.result()
                         pending = (reader.submit(read, v, chunks[k + 1])
                                    if k + 1 < len(chunks) else None)
-                        for batch in _same_size_runs(images):
+                        for batch in same_size_runs(images):
                             maps = model.predict(batch)
                             if not recorded:
-                                _write_record(pred, record)
+                                write_record(pred, record)
                                 recorded = True
                             for m in maps:
                                 out.write(m)
@@ -401,7 +401,7 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     return run
 
 
-def _write_record(pred: Path, record: dict) -> None:
+def write_record(pred: Path, record: dict) -> None:
     from ..files import write_atomic
 
     try:

@@ -36,7 +36,8 @@ GT_FILE = "gt_depths.npz"
 GT_DIR = "gt"
 
 __all__ = ["MANIFEST", "RECORD", "LOCK", "JOURNAL", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
-           "variant_dir", "output_path", "depth_gt_name"]
+           "variant_dir", "output_path", "depth_gt_name",
+           "variant_order"]
 
 
 def variant_dir(variant: str, level: float | None) -> str:
@@ -62,3 +63,17 @@ def depth_gt_name(key: str) -> str:
     """Where a build with depth keeps the ground truth of the image with ``key``, relative
     to :data:`GT_DIR`: the key with ``.npy`` for its ``.png``."""
     return key[: -len(".png")] + ".npy" if key.endswith(".png") else key + ".npy"
+
+
+def variant_order(ds, built) -> list[tuple[str, int | float | None]]:
+    """The ``(variant, level)`` pairs of ``built`` that are variants of dataset ``ds``, in
+    the order of its results: clean, the benchmark's corruptions (or styles) with levels
+    ascending, the depth-aware ones, the corruptions over time of a build with --frames,
+    then the chains by name."""
+    from ..benchmarks import TEMPORAL
+    from ..corruptions.chains import looks_like_chain
+
+    order = [CLEAN, *ds.variant_names(), *ds.depth_variant_names(), *TEMPORAL,
+             *sorted({v for v, _ in built if looks_like_chain(v)})]
+    return sorted((vl for vl in built if vl[0] in order),
+                  key=lambda vl: (order.index(vl[0]), vl[1] or 0))

@@ -1,0 +1,133 @@
+"""``robodepth run``: a model's robustness on a benchmark, without writing the dataset."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from . import common
+
+
+@click.command("run")
+@click.argument("dataset", metavar="DATASET")
+@click.option("--root", required=True, type=click.Path(path_type=Path),
+              help="KITTI raw root (with the velodyne scans), or the NYU Depth V2 test root or "
+                   "labeled .mat, as for build.")
+@click.option("--model", "-m", "spec", required=True, metavar="SPEC",
+              help="The model, as for predict: monodepth2:DIR, hf:PATH_OR_NAME or "
+                   "python:MODULE:CALLABLE.")
+@click.option("--out", "-o", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="The results CSV to write (replaced if it exists), as evaluate writes it.")
+@click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="Your own YAML config, applied over the DATASET preset (as for build).")
+@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test) or a split file.")
+@click.option("--corruptions", metavar="A,B|all|none", help="Comma-separated corruption names, 'all', or 'none' (only --compose chains).")
+@click.option("--levels", metavar="1,3|all", help="Comma-separated levels (decimals allowed), or 'all'.")
+@click.option("--compose", metavar="CHAIN,CHAIN", help="Also judge these chains of corruptions, e.g. fog:3+gaussian_noise:2.5.")
+@click.option("--size", metavar="HxW", help="Image size HxW (preset: the benchmark's).")
+@click.option("--seed", metavar="S", help="Global seed (preset: 0).")
+@click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
+@click.option("--engine", type=click.Choice(["numpy", "torch"]), default="numpy", show_default=True,
+              help="The corruption engine (numpy: the published builds' bytes).")
+@click.option("--batch-size", "-b", default=8, show_default=True, type=click.IntRange(min=1),
+              help="Images per forward pass, as for predict (at most 4.2 million pixels).")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
+              show_default=True, help="Where monodepth2 and hf models run (auto: cuda if "
+              "torch sees a GPU).")
+@click.option("--post-process", is_flag=True,
+              help="monodepth2: average with the mirror image's prediction (twice the work).")
+@click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
+              help="What the maps hold: required for python:, overrides an hf model's own.")
+@click.option("--metric/--relative", default=None,
+              help="The maps are in metres or relative, as for predict.")
+@click.option("--stereo", is_flag=True,
+              help="kitti: a stereo-trained model: depth x 5.4, no median scaling.")
+@click.option("--align", type=click.Choice(["none", "median", "scale", "scale-shift"]),
+              help="Per-image alignment, as for evaluate (default: the model's, else the protocol's).")
+@click.option("--align-space", type=click.Choice(["depth", "disparity"]),
+              help="Align the depth or the disparity, as for evaluate.")
+@click.option("--crop", type=click.Choice(["garg", "eigen", "none"]),
+              help="The evaluation crop (default: garg for kitti, eigen for nyu).")
+@click.option("--min-depth", type=float, metavar="M", help="Valid ground truth above M metres (default 0.001).")
+@click.option("--max-depth", type=float, metavar="M",
+              help="Valid ground truth below M metres (default 80 kitti, 10 nyu).")
+@click.option("--keep-predictions", type=click.Path(file_okay=False, path_type=Path), metavar="DIR",
+              help="Also write the predictions to DIR, in predict's layout (DIR/clean.npy, "
+                   "DIR/<corruption>/<level>.npy, DIR/predictions.json).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (only on a terminal).")
+def run_command(dataset, root, spec, out, config_file, engine, batch_size, device, post_process,
+                kind, metric, stereo, align, align_space, crop, min_depth, max_depth,
+                keep_predictions, as_json, progress, **flags):
+    """Judge a model on DATASET (kitti-c, kitti-c-hr, nyudepth2-c) built in memory from ROOT:
+    the results CSV of build -> predict -> evaluate, without writing the images.
+
+    Each source image is decoded once; every variant's images are made from it in memory
+    with the build's renderers and seeds (the bytes a build would write), predicted by the
+    model in predict's batches and evaluated against the ground truth read from ROOT (KITTI:
+    the velodyne scans, as build and gt make gt_depths.npz; NYU: the depth PNGs or the
+    labeled file). The results CSV is the one evaluate writes; the scores follow, as
+    evaluate --score prints them.
+
+    The finished variants' rows are kept in OUT.state.json (written whole after each
+    variant): a run stopped by Ctrl-C, a kill or a crash, started again with the same
+    settings, skips them. The state is removed once OUT is written.
+
+    \b
+    Examples:
+      robodepth run kitti-c --root KITTI_RAW --model monodepth2:models/mono_640x192 --out r.csv
+      robodepth run nyudepth2-c --root NYU_TEST -m python:m.py:predict --kind depth --metric -o n.csv
+      robodepth run kitti-c --root KITTI_RAW -m monodepth2:M --corruptions fog --levels 3 \\
+          --limit 50 --keep-predictions PRED --out fog.csv
+    """
+    from ..building.config import resolve
+    from ..evaluation import evaluate as E
+    from ..files import check_writable
+    from ..models import load_model
+    from ..models.predict import BATCH_PIXELS, batch_limit
+    from ..progress import bar as progress_bar
+    from ..running import inputs as I, loop
+    from ..running.state import RunState
+    from .evaluate import evaluation_setup, scored_benchmark, show_results
+
+    check_writable(out, "--out")
+    if keep_predictions is not None:
+        check_writable(keep_predictions / "predictions.json", "--keep-predictions")
+    cfg = resolve(dataset, config_file, {**flags, **I.engine_flags(engine, device)})
+    inputs = I.gather(cfg, root, out)
+    bench = scored_benchmark(cfg.dataset, [v for v, _ in inputs.variants])
+    model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
+    setup = evaluation_setup(cfg.dataset, model.record()["evaluate"], None, None, kind, stereo,
+                             None, align, align_space, crop, min_depth, max_depth)
+    renderer = I.renderer(inputs)
+    step = batch_limit(batch_size, cfg.size, model.input_size)
+    if step < batch_size:
+        click.echo(f"robodepth: --batch-size {batch_size}: {step} images per batch (a batch "
+                   f"holds at most {BATCH_PIXELS:,} pixels)", err=True)
+    state = RunState.open(out, loop.settings(inputs, model, setup, step, engine))
+    state.check_writable()
+    if state.note:
+        click.echo(f"robodepth: {state.note}", err=True)
+    with progress_bar("img", len(inputs.sources), progress=progress, desc="decoding") as bar:
+        cleans = I.decode(inputs, bar.update)
+    truth = I.ground_truth(inputs, setup)
+    common.on_interrupt(f"the finished variants are kept in {state.path}; rerun the same "
+                        "command to continue")
+    with progress_bar("img", progress=progress, desc="run") as bar:
+        def set_total(n):
+            bar.reset(total=n)
+
+        result, earlier = loop.run(inputs, cleans, renderer, model, truth, setup, state,
+                                   batch_size=batch_size, keep=keep_predictions,
+                                   progress=bar.update, on_total=set_total)
+    if earlier:
+        click.echo(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
+                   f"{state.path} (finished by an earlier run)", err=True)
+    replacing = out.exists()
+    text = result.csv_text()
+    E.write_results(out, text)
+    state.remove()
+    show_results(result, text, out, bench, as_json, replacing)
+

@@ -1,0 +1,149 @@
+"""The loop of ``robodepth run``: per variant, its images rendered in memory batch by batch,
+predicted, and each map judged at once; only the metric rows are kept.
+
+Variant by variant in the order of the results CSV, each in split order and in the batches
+``robodepth predict`` makes (:func:`~robodepth_cli.models.predict.batch_limit`), so the
+model sees the same batches and every number equals build -> predict -> evaluate's. A
+model on a GPU gets the next batch rendered in a second thread while it runs on this one; a
+model on the CPU gets them one after the other, since its threads already use every core
+(on the 2-core development machine the overlap only added contention). A finished
+variant's row goes into the state (:mod:`.state`) before the next one starts.
+"""
+
+from __future__ import annotations
+
+import functools
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..api import PredictionWriter, Variant
+from ..benchmarks import CLEAN
+from ..evaluation.evaluate import Evaluation, VariantResult, image_errors, variant_result
+from ..models import predict as P
+from ..sources.datasets import Job, Renderer
+from .inputs import RunError, RunInputs
+from .state import RunState
+
+
+def settings(inputs: RunInputs, model, setup, batch: int, engine: str) -> dict:
+    """What decides the numbers of a variant besides the variant (see :mod:`.state`)."""
+    from dataclasses import asdict
+
+    record = model.record()
+    cfg = inputs.cfg
+    return {"dataset": inputs.ds.name, "root": str(inputs.root), "split": inputs.split["sha256"],
+            "keys": P.split_digest(inputs.keys), "size": list(cfg.size) if cfg.size else None,
+            "seed": cfg.seed, "engine": engine, "batch": batch,
+            "model": {k: record[k] for k in ("model", "adapter", "identity", "options", "evaluate")},
+            "setup": asdict(setup)}
+
+
+def render_batch(renderer: Renderer, cleans: Sequence[np.ndarray], keys: Sequence[str],
+                 paths: Sequence[str], job: Job) -> list[np.ndarray]:
+    """The images of ``job`` for one batch of sources, as a build renders them."""
+    if job.variant == CLEAN:
+        return list(cleans)
+    out = []
+    for clean, key, path in zip(cleans, keys, paths):
+        ((_, img),) = renderer.render(clean, key, [job])
+        if isinstance(img, BaseException):
+            level = "" if job.level is None else f" level {job.level}"
+            raise RunError(f"{path}: {job.variant}{level}: {type(img).__name__}: {img}")
+        out.append(img)
+    return out
+
+
+def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, truth, setup,
+        state: RunState, *, batch_size: int = 8, keep: Path | None = None,
+        progress: Callable[[int], None] | None = None,
+        on_total: Callable[[int], None] | None = None) -> tuple[Evaluation, int]:
+    """Judge ``model`` on every variant of ``inputs``; the evaluation (as
+    ``robodepth evaluate`` makes it) and how many variants an earlier run had finished.
+    ``keep``: also write the predictions there, in ``robodepth predict``'s layout."""
+    n = len(cleans)
+    keys = inputs.keys
+    paths = [s.path or s.rel for s in inputs.sources]
+    step = P.batch_limit(batch_size, inputs.cfg.size, model.input_size)
+    result = Evaluation(inputs.ds.name, setup, str(keep) if keep else model.spec, truth.source, n)
+    record = None
+    if keep is not None:
+        record = P.make_record(SimpleNamespace(name=inputs.ds.name, path=inputs.root, keys=keys), model)
+        P.prepare_output(keep, record)
+    todo, earlier = [], 0
+    for variant, _ in inputs.variants:
+        done = state.get(variant.relpath)
+        if done is not None and (keep is None or P.finished(keep, variant)):
+            earlier += 1
+        else:
+            todo.append(variant)
+    if keep is not None:
+        P.remove_leftovers(keep, todo)
+    if on_total:
+        on_total(n * len(todo))
+    with (_Inline() if model.device == "cpu" else ThreadPoolExecutor(1)) as painter:
+        for variant, job in inputs.variants:
+            if variant not in todo:
+                metrics, ratios = state.get(variant.relpath)
+                result.results.append(VariantResult(variant, metrics, ratios))
+                continue
+            bounds = [(i, min(i + step, n)) for i in range(0, n, step)]
+            paint = [functools.partial(render_batch, renderer, cleans[a:b], keys[a:b], paths[a:b], job)
+                     for a, b in bounds]
+            writer = (PredictionWriter(variant.prediction_file(keep), n) if keep is not None
+                      else None)
+            r = _judge(variant, bounds, painter, paint, model, truth, setup, inputs.cfg.size,
+                       writer, progress, keep, record)
+            record = None  # written with the first batch
+            state.add(variant.relpath, r.metrics, r.ratios)
+            result.results.append(r)
+    return result, earlier
+
+
+class _Inline:
+    """The executor interface of one worker thread, running each call at once, here."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args) -> Future:
+        done = Future()
+        done.set_result(fn(*args))
+        return done
+
+
+def _judge(variant: Variant, bounds, painter, paint, model, truth, setup, size, writer,
+           progress, keep, record) -> VariantResult:
+    from contextlib import nullcontext
+
+    errors, ratios = [], []
+    with writer if writer is not None else nullcontext() as out:
+        pending = painter.submit(paint[0])
+        for k, (a, _) in enumerate(bounds):
+            images = pending.result()
+            if k + 1 < len(bounds):
+                pending = painter.submit(paint[k + 1])
+            i = a
+            for batch in P.same_size_runs(images):
+                maps = model.predict(batch)
+                if record is not None:  # once the model has given a valid batch, as predict
+                    P.write_record(keep, record)
+                    record = None
+                for m in maps:
+                    errs, ratio = image_errors(m, f"{model.spec}: {variant.label}: {variant.keys[i]}",
+                                               truth.get(i), setup, size)
+                    errors.append(errs)
+                    if ratio is not None:
+                        ratios.append(ratio)
+                    if out is not None:
+                        out.write(m)
+                    i += 1
+                if progress:
+                    progress(len(batch))
+    return variant_result(variant, errors, ratios, setup)
