@@ -32,7 +32,7 @@ def test_kitti_all_means_18_corruptions_and_5_levels():
     assert cfg.levels == (1, 2, 3, 4, 5)
 
 
-DEPTH_AWARE_5 = ["fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d"]
+DEPTH_AWARE_6 = ["fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d", "rain_3d"]
 
 
 @pytest.mark.parametrize("flags,message", [
@@ -40,9 +40,9 @@ DEPTH_AWARE_5 = ["fog_3d", "near_focus", "far_focus", "motion_3d", "zoom_3d"]
     ({"levels": "2,5"}, "--levels: level 5 is out of range for nyudepth2-c; valid levels: 1..4"),
     # NYU has depth, so the depth-aware corruptions are valid there after the benchmark's 15.
     ({"corruptions": "fog"}, "--corruptions: nyudepth2-c has no corruption 'fog'; valid: "
-                             + ", ".join(NYU_15 + DEPTH_AWARE_5)),
+                             + ", ".join(NYU_15 + DEPTH_AWARE_6)),
     ({"corruptions": "dark,snow"}, "--corruptions: nyudepth2-c has no corruption 'snow'; valid: "
-                                   + ", ".join(NYU_15 + DEPTH_AWARE_5)),
+                                   + ", ".join(NYU_15 + DEPTH_AWARE_6)),
 ])
 def test_nyu_refuses_what_it_does_not_have(flags, message):
     with pytest.raises(ConfigError) as err:
