@@ -1,0 +1,74 @@
+"""Fused numba passes that replace numpy expressions must give the same bits: the
+uint8 truncation every blur and fog ends with, and fog's diamond-square steps (float32
+arithmetic in a stated order, so any reordering would show here)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robodepth_cli.corruptions._ops import truncate_to_uint8
+from robodepth_cli.corruptions.fog import plasma_fractal
+
+
+def numpy_truncate(v, scale):
+    out = np.multiply(v, scale)
+    np.clip(out, 0.0, 255.0, out=out)
+    return out.astype(np.uint8)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("scale", [255.0, 1.0, np.float32(0.7), np.float32(1 / 3), np.float64(0.3)])
+def test_truncate_matches_the_numpy_passes(dtype, scale):
+    rng = np.random.default_rng(7)
+    v = (rng.standard_normal((24, 40, 3)) * 300 + 100).astype(dtype)
+    v.flat[:6] = [np.inf, -np.inf, -0.0, 254.99999, 255.0, 1e30]
+    with_nan = v.copy()
+    with_nan.flat[9] = np.nan
+    for a in (v, v / 255, with_nan, v[3:20, 5:30], v[..., 0], v[0, :, 1], v.transpose(1, 0, 2)):
+        with np.errstate(invalid="ignore"):
+            want = numpy_truncate(a, scale)
+            got = truncate_to_uint8(a, scale)
+        assert got.dtype == np.uint8 and got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
+
+
+def numpy_plasma(n, decay, rng, shape):
+    """The diamond-square rule on the dense grid of each step with numpy float32 arrays: each
+    new value ``(((a + b) + c) + d) * 0.25 + (u * 2w^2 - w^2)`` in that order, uniforms per
+    step for the centres, then (i s, h + j s), then (h + i s, j s), in C order."""
+    grid = np.zeros((1, 1), np.float32)
+    wibble, step = 100.0, n
+    while True:
+        k = grid.shape[0]
+        u = [rng.random((k, k), dtype=np.float32) for _ in range(3)]
+        sc, sh, q = np.float32(2.0 * wibble * wibble), np.float32(-wibble * wibble), np.float32(0.25)
+        down, right = np.roll(grid, -1, 0), np.roll(grid, -1, 1)
+        centres = ((grid + down) + right) + np.roll(down, -1, 1)
+        centres = centres * q + (u[0] * sc + sh)
+        top = ((grid + right) + centres) + np.roll(centres, 1, 0)
+        top = top * q + (u[1] * sc + sh)
+        left = ((grid + down) + centres) + np.roll(centres, 1, 1)
+        left = left * q + (u[2] * sc + sh)
+        finer = np.empty((2 * k, 2 * k), np.float32)
+        finer[0::2, 0::2], finer[0::2, 1::2] = grid, top
+        finer[1::2, 0::2], finer[1::2, 1::2] = left, centres
+        grid = finer
+        if step == 2:
+            break
+        step //= 2
+        wibble /= decay
+    lo, hi = np.float32(grid.min()), np.float32(grid.max())
+    out = grid[:shape[0], :shape[1]] - lo
+    return out / (hi - lo)
+
+
+@pytest.mark.parametrize("n,decay,shape", [(2, 2.0, (2, 2)), (8, 1.4, (5, 3)), (64, 1.7, (37, 53)),
+                                           (256, 1.5, (48, 256))])
+def test_plasma_matches_the_numpy_float32_steps_bit_for_bit(n, decay, shape):
+    ours_rng, ref_rng = np.random.default_rng(n), np.random.default_rng(n)
+    ours = plasma_fractal(n, decay, ours_rng, shape)
+    ref = numpy_plasma(n, decay, ref_rng, shape)
+    assert ours.dtype == np.float32 and ours.shape == shape
+    np.testing.assert_array_equal(ours.view(np.uint32), ref.view(np.uint32))
+    assert ours_rng.random() == ref_rng.random()  # the same number of draws
