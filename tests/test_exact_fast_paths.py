@@ -72,3 +72,29 @@ def test_plasma_matches_the_numpy_float32_steps_bit_for_bit(n, decay, shape):
     assert ours.dtype == np.float32 and ours.shape == shape
     np.testing.assert_array_equal(ours.view(np.uint32), ref.view(np.uint32))
     assert ours_rng.random() == ref_rng.random()  # the same number of draws
+
+
+def test_defocus_direct_kernel_changes_no_byte():
+    """Level 1's kernel has subnormal taps; the kernel filtered with instead raises them to
+    the least normal float32. Every output float holding a normal term is the same, the rest
+    are below 1e-30, so the truncated bytes are the same."""
+    import cv2
+
+    from robodepth_cli.corruptions.defocus_blur import direct_kernel, disk_kernel
+
+    k, fast = disk_kernel(3, 0.1), direct_kernel(3, 0.1)
+    tiny = np.finfo(np.float32).tiny
+    assert ((k > 0) & (k < tiny)).any() and not ((fast > 0) & (fast < tiny)).any()
+    assert np.array_equal(k != 0, fast != 0)  # the same taps, so OpenCV sums in the same order
+    rng = np.random.default_rng(3)
+    images = [rng.integers(0, 256, (48, 64, 3), dtype=np.uint8),
+              (rng.random((40, 52, 3)) < 0.03).astype(np.uint8) * rng.integers(1, 256, (40, 52, 3), dtype=np.uint8),
+              np.zeros((33, 35, 3), np.uint8)]
+    for x in images:
+        f = x.astype(np.float32)
+        want = cv2.filter2D(f, -1, k, borderType=cv2.BORDER_REFLECT_101)
+        got = cv2.filter2D(f, -1, fast, borderType=cv2.BORDER_REFLECT_101)
+        differ = want != got
+        assert not differ.any() or max(want[differ].max(), got[differ].max()) < 1e-30
+        np.testing.assert_array_equal(numpy_truncate(got, 1.0), numpy_truncate(want, 1.0))
+    assert direct_kernel(4, 0.5) is disk_kernel(4, 0.5)  # no subnormal taps: used as it is
