@@ -98,3 +98,18 @@ def test_defocus_direct_kernel_changes_no_byte():
         assert not differ.any() or max(want[differ].max(), got[differ].max()) < 1e-30
         np.testing.assert_array_equal(numpy_truncate(got, 1.0), numpy_truncate(want, 1.0))
     assert direct_kernel(4, 0.5) is disk_kernel(4, 0.5)  # no subnormal taps: used as it is
+
+
+@pytest.mark.parametrize("level", [1, 2.5, 5])
+def test_fog_matches_the_numpy_float32_expression(level):
+    """fog's last pass, fused, against ``uint8(clip((P * 255t + x) * m / (m + t)))`` in
+    numpy float32 with the same map."""
+    from robodepth_cli.corruptions.fog import LEVELS, fog, next_power_of_two
+    from robodepth_cli.corruptions.severity import interpolate
+
+    x = np.random.default_rng(5).integers(0, 250, (37, 70, 3), dtype=np.uint8)
+    t, d = interpolate(LEVELS, level)
+    plasma = plasma_fractal(next_power_of_two(70), d, np.random.default_rng(11), (37, 70))
+    m = float(x.max()) / 255.0
+    want = numpy_truncate(plasma[:, :, None] * np.float32(255.0 * t) + x, np.float32(m / (m + t)))
+    np.testing.assert_array_equal(fog(x, level, np.random.default_rng(11)), want)

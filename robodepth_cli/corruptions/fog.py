@@ -132,6 +132,24 @@ def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     plasma = plasma_fractal(next_power_of_two(max(height, width)), d, rng, (height, width))
     m = float(x.max()) / 255.0
     scale = np.float32(m / (m + t))
-    g = plasma[:, :, None] * np.float32(255.0 * t)
-    g = g + x  # float32: the uint8 image is promoted
-    return truncate_to_uint8(g, scale)
+    thick = np.float32(255.0 * t)
+    out = np.empty_like(x)
+    if _add_fog(plasma, x, thick, scale, out):  # NaN only from a flat map: numpy's cast then
+        out = truncate_to_uint8(plasma[:, :, None] * thick + x, scale)
+    return out
+
+
+@njit
+def _add_fog(plasma, x, thick, scale, out):
+    """``out = uint8(clip((plasma * thick + x) * scale, 0, 255))`` per pixel and channel, in
+    float32 and in that order (the bits of the numpy expression); True if a value was NaN
+    (``out`` is then not to be used)."""
+    nan = False
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            p = plasma[i, j] * thick
+            for c in range(x.shape[2]):
+                v = (p + np.float32(x[i, j, c])) * scale
+                nan |= np.isnan(v)
+                out[i, j, c] = np.uint8(min(max(v, np.float32(0.0)), np.float32(255.0)))
+    return nan
