@@ -113,3 +113,33 @@ def test_fog_matches_the_numpy_float32_expression(level):
     m = float(x.max()) / 255.0
     want = numpy_truncate(plasma[:, :, None] * np.float32(255.0 * t) + x, np.float32(m / (m + t)))
     np.testing.assert_array_equal(fog(x, level, np.random.default_rng(11)), want)
+
+
+class _Uniforms:
+    """Stands in for a generator whose float32 uniforms are given."""
+
+    def __init__(self, u):
+        self.u = u
+
+    def random(self, shape, dtype):
+        assert dtype == np.float32
+        return self.u.reshape(shape)
+
+
+@pytest.mark.parametrize("level", [1, 3, 4.2, 5])
+def test_impulse_noise_matches_the_numpy_selects(level):
+    """The fused select against numpy's ``where(u < a, where(u < a / 2, 0, 255), x)``,
+    float32 uniforms compared with the Python thresholds as numpy does, on uniforms right
+    at and beside those thresholds."""
+    from robodepth_cli.corruptions.impulse_noise import LEVELS, impulse_noise
+    from robodepth_cli.corruptions.severity import interpolate
+
+    amount = interpolate(LEVELS, level)
+    edges = [np.nextafter(np.float32(t), np.float32(d)) for t in (amount * 0.5, amount)
+             for d in (0, t, 1)]
+    rng = np.random.default_rng(2)
+    x = rng.integers(0, 256, (24, 40, 3), dtype=np.uint8)
+    u = rng.random(x.shape, dtype=np.float32)
+    u.flat[:len(edges) * 40] = np.repeat(np.array(edges, np.float32), 40)
+    want = np.where(u < amount, np.where(u < amount * 0.5, np.uint8(0), np.uint8(255)), x)
+    np.testing.assert_array_equal(impulse_noise(x, level, _Uniforms(u.copy())), want)
