@@ -121,8 +121,8 @@ class _Uniforms:
     def __init__(self, u):
         self.u = u
 
-    def random(self, shape, dtype):
-        assert dtype == np.float32
+    def random(self, shape, dtype=np.float64):
+        assert self.u.dtype == dtype
         return self.u.reshape(shape)
 
 
@@ -143,3 +143,21 @@ def test_impulse_noise_matches_the_numpy_selects(level):
     u.flat[:len(edges) * 40] = np.repeat(np.array(edges, np.float32), 40)
     want = np.where(u < amount, np.where(u < amount * 0.5, np.uint8(0), np.uint8(255)), x)
     np.testing.assert_array_equal(impulse_noise(x, level, _Uniforms(u.copy())), want)
+
+
+@pytest.mark.parametrize("law", ["gaussian_noise", "shot_noise", "iso_noise", "dark"])
+def test_noise_sampler_is_the_inverse_transform(law):
+    """Each element is the first ``j`` with ``u < cdf[k, j]`` (searchsorted on its row),
+    whatever guide the search starts from; uniforms at table values and bucket edges too."""
+    import importlib
+
+    module = importlib.import_module(f"robodepth_cli.corruptions.{law}")
+    table = module.output_law(2, 0, 255) if law == "dark" else module.output_law(2)
+    rng = np.random.default_rng(4)
+    k = np.repeat(np.arange(256, dtype=np.uint8), 64)
+    u = rng.random(k.size)
+    u[0::4] = np.minimum(table.cdf[k[0::4], rng.integers(0, 255, k[0::4].size)], 1 - 2.0 ** -53)
+    u[1::4] = rng.integers(0, 1024, k[1::4].size) / 1024
+    want = np.array([np.searchsorted(table.cdf[a], b, side="right") for a, b in zip(k, u)])
+    got = table.sample(k.reshape(128, 128), _Uniforms(u.copy()))
+    np.testing.assert_array_equal(got.reshape(-1), want)
