@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._jit import njit
 from ._ops import truncate_to_uint8
 from .registry import register
 from .severity import interpolate
@@ -17,31 +18,54 @@ def next_power_of_two(n: int) -> int:
     return 1 << (int(n) - 1).bit_length()
 
 
-def _wibbled_mean(total: np.ndarray, wibble: float, rng: np.random.Generator) -> np.ndarray:
-    """``total / 4 + w * U(-w, w)`` elementwise, float32, one uniform per element in C order."""
-    u = rng.random(total.shape, dtype=np.float32)
-    u *= np.float32(2.0 * wibble * wibble)
-    u += np.float32(-wibble * wibble)
-    total *= np.float32(0.25)
-    total += u
-    return total
+@njit
+def _step(grid, u_centres, u_top, u_left, scale, shift, rows, cols):
+    """One diamond-square step on the k x k torus ``grid``: the next finer grid's top-left
+    ``2 rows`` x ``2 cols`` (``G'[2i, 2j]`` the corners, ``G'[2i, 2j + 1]`` the points
+    ``(i s, h + j s)``, ``G'[2i + 1, 2j]`` the points ``(h + i s, j s)``, ``G'[2i + 1,
+    2j + 1]`` the square centres), and the least and greatest value of the whole finer grid.
 
-
-def _wrapped(grid: np.ndarray, before: bool) -> np.ndarray:
-    """``grid`` with one wrapped-around row and column added after it (``before=False``:
-    the first row/column repeated at the end) or before it (the last ones repeated first),
-    so torus neighbours become plain slices."""
-    k0, k1 = grid.shape
-    out = np.empty((k0 + 1, k1 + 1), dtype=grid.dtype)
-    if before:
-        out[1:, 1:] = grid
-        out[0, 1:] = grid[-1]
-        out[:, 0] = out[:, -1]
-    else:
-        out[:-1, :-1] = grid
-        out[-1, :-1] = grid[0]
-        out[:, -1] = out[:, 0]
-    return out
+    Each new value is ``((a + b) + c) + d) * 0.25 + (u * scale + shift)`` in float32, in
+    that order, ``u`` the point's uniform (``scale = 2 w^2``, ``shift = -w^2``): the
+    arithmetic, and so the bits, of the numpy formulation this replaces."""
+    k = grid.shape[0]
+    quarter = np.float32(0.25)
+    centres = np.empty((k, k), np.float32)
+    lo = grid[0, 0]
+    hi = grid[0, 0]
+    for i in range(k):
+        i1 = i + 1 if i + 1 < k else 0
+        for j in range(k):
+            j1 = j + 1 if j + 1 < k else 0
+            g = grid[i, j]
+            lo = min(lo, g)
+            hi = max(hi, g)
+            t = ((g + grid[i1, j]) + grid[i, j1]) + grid[i1, j1]
+            v = t * quarter + (u_centres[i, j] * scale + shift)
+            centres[i, j] = v
+            lo = min(lo, v)
+            hi = max(hi, v)
+    out = np.empty((2 * rows, 2 * cols), np.float32)
+    for i in range(k):
+        i1 = i + 1 if i + 1 < k else 0
+        i0 = i - 1 if i > 0 else k - 1
+        for j in range(k):
+            j1 = j + 1 if j + 1 < k else 0
+            j0 = j - 1 if j > 0 else k - 1
+            g = grid[i, j]
+            c = centres[i, j]
+            top = ((g + grid[i, j1]) + c) + centres[i0, j]
+            top = top * quarter + (u_top[i, j] * scale + shift)
+            left = ((g + grid[i1, j]) + c) + centres[i, j0]
+            left = left * quarter + (u_left[i, j] * scale + shift)
+            lo = min(lo, min(top, left))
+            hi = max(hi, max(top, left))
+            if i < rows and j < cols:
+                out[2 * i, 2 * j] = g
+                out[2 * i, 2 * j + 1] = top
+                out[2 * i + 1, 2 * j] = left
+                out[2 * i + 1, 2 * j + 1] = c
+    return out, lo, hi
 
 
 def plasma_fractal(n: int, decay: float, rng: np.random.Generator, shape=None) -> np.ndarray:
@@ -69,47 +93,21 @@ def plasma_fractal(n: int, decay: float, rng: np.random.Generator, shape=None) -
     grid = np.zeros((1, 1), dtype=np.float32)
     step, wibble = n, 100.0
     while True:
-        c = _wrapped(grid, before=False)
-        centres = c[:-1, :-1] + c[1:, :-1]
-        centres += c[:-1, 1:]
-        centres += c[1:, 1:]
-        centres = _wibbled_mean(centres, wibble, rng)
-        m = _wrapped(centres, before=True)  # m[i + 1, j + 1] = centre (i, j)
-        # (i s, h + j s): corners left and right, centres below and above
-        top = c[:-1, :-1] + c[:-1, 1:]
-        top += m[1:, 1:]
-        top += m[:-1, 1:]
-        top = _wibbled_mean(top, wibble, rng)
-        # (h + i s, j s): corners above and below, centres right and left
-        left = c[:-1, :-1] + c[1:, :-1]
-        left += m[1:, 1:]
-        left += m[1:, :-1]
-        left = _wibbled_mean(left, wibble, rng)
-        parts = (grid, top, left, centres)
-        if step == 2:
+        k = grid.shape[0]
+        # Per step: the square centres' uniforms, then those of (i s, h + j s), then those
+        # of (h + i s, j s), each in C order.
+        u = [rng.random((k, k), dtype=np.float32) for _ in range(3)]
+        scale, shift = np.float32(2.0 * wibble * wibble), np.float32(-wibble * wibble)
+        last = step == 2
+        r, c = ((rows + 1) // 2, (cols + 1) // 2) if last else (k, k)
+        grid, lo, hi = _step(grid, *u, scale, shift, r, c)
+        if last:
             break
-        grid = _interleave(parts, grid.shape)
         step //= 2
         wibble /= decay
-    lo = min(float(p.min()) for p in parts)
-    hi = max(float(p.max()) for p in parts)
-    out = _interleave(parts, ((rows + 1) // 2, (cols + 1) // 2))[:rows, :cols]
+    out = grid[:rows, :cols]
     out -= np.float32(lo)
     out /= np.float32(hi) - np.float32(lo)
-    return out
-
-
-def _interleave(parts, half_shape) -> np.ndarray:
-    """The next finer grid from one step's ``(corners, top, left, centres)``:
-    ``G'[2i, 2j]``, ``G'[2i, 2j + 1]``, ``G'[2i + 1, 2j]``, ``G'[2i + 1, 2j + 1]``;
-    only its first ``half_shape`` cells of each kind."""
-    r, c = half_shape
-    out = np.empty((2 * r, 2 * c), dtype=np.float32)
-    corners, top, left, centres = parts
-    out[0::2, 0::2] = corners[:r, :c]
-    out[0::2, 1::2] = top[:r, :c]
-    out[1::2, 0::2] = left[:r, :c]
-    out[1::2, 1::2] = centres[:r, :c]
     return out
 
 
@@ -134,6 +132,24 @@ def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     plasma = plasma_fractal(next_power_of_two(max(height, width)), d, rng, (height, width))
     m = float(x.max()) / 255.0
     scale = np.float32(m / (m + t))
-    g = plasma[:, :, None] * np.float32(255.0 * t)
-    g = g + x  # float32: the uint8 image is promoted
-    return truncate_to_uint8(g, scale)
+    thick = np.float32(255.0 * t)
+    out = np.empty_like(x)
+    if _add_fog(plasma, x, thick, scale, out):  # NaN only from a flat map: numpy's cast then
+        out = truncate_to_uint8(plasma[:, :, None] * thick + x, scale)
+    return out
+
+
+@njit
+def _add_fog(plasma, x, thick, scale, out):
+    """``out = uint8(clip((plasma * thick + x) * scale, 0, 255))`` per pixel and channel, in
+    float32 and in that order (the bits of the numpy expression); True if a value was NaN
+    (``out`` is then not to be used)."""
+    nan = False
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            p = plasma[i, j] * thick
+            for c in range(x.shape[2]):
+                v = (p + np.float32(x[i, j, c])) * scale
+                nan |= np.isnan(v)
+                out[i, j, c] = np.uint8(min(max(v, np.float32(0.0)), np.float32(255.0)))
+    return nan
