@@ -362,3 +362,27 @@ def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
     assert table.column("key").to_pylist() == keys
     by_path = dict(zip(table.column("path").to_pylist(), table.column("data").to_pylist()))
     assert by_path == {p.relative_to(out).as_posix(): p.read_bytes() for p in gts}
+
+
+def test_report_draws_a_frame_of_an_export_as_of_the_build(build, exports, tmp_path, cli):
+    """`report --dataset` takes an export: the one-frame figure's images are the build's."""
+    pytest.importorskip("matplotlib")
+    from robodepth_cli.report import write as W
+    from robodepth_cli.report.qualitative import qualitative
+    from test_report import evaluate_csv  # a whole KITTI-C results file (the paper's figures)
+
+    module = tmp_path / "m.py"
+    module.write_text(MODEL)
+    pred = tmp_path / "P"
+    assert cli("predict", build, "-m", f"python:{module}:brightness", "--kind", "disp", "-o", pred).exit_code == 0
+    report = W.assemble([evaluate_csv(tmp_path / "r.csv", "kitti-c", "MonoViT")], ["m"], None, "none", build)
+
+    def pixels(where):
+        (_, _, _, fig), _ = qualitative(report, where, [pred], 1)
+        return [np.asarray(im.get_array()) for ax in fig.axes for im in ax.get_images()]
+
+    tree = pixels(build)
+    assert len(tree) >= 4
+    for export in exports.values():
+        got = pixels(export)
+        assert len(got) == len(tree) and all(np.array_equal(a, b) for a, b in zip(tree, got))

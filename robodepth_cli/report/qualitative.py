@@ -84,7 +84,6 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
     ``(pred, kind)`` of each ``--pred`` drawn with the dataset's default kind because
     neither ``--kind`` nor a ``predictions.json`` said what it holds."""
     from ..evaluation.predictions import find_predictions
-    from ..imageio import read_rgb
     from .figures import qualitative_figure
 
     dataset = open_dataset(dataset_dir)
@@ -96,7 +95,7 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
     models = report.models[:len(preds)]
     images, rows = [], []
     for v in variants:
-        images.append(np.asarray(read_rgb(v.images()[frame])))
+        images.append(v.read(frame))  # a build's file or an export's shard
     for model, pred, (kind, _) in zip(models, preds, held):
         row = []
         for v in variants:
