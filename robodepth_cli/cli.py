@@ -146,6 +146,10 @@ def main():
       robodepth predict KITTI_C --model monodepth2:MODEL_DIR --out PRED
       robodepth evaluate KITTI_C --pred PRED --score
       robodepth score results.csv --benchmark kitti-c
+    Or all of that in memory, without writing the dataset:
+      robodepth run kitti-c --root KITTI_RAW --model monodepth2:MODEL_DIR --out results.csv
+    Then the paper's tables and figures:
+      robodepth report results.csv --out REPORT
 
     Ctrl-C or SIGTERM stops any command with one line saying what was kept (every output
     file is written whole or not at all), exit status 130.
