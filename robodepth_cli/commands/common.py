@@ -216,3 +216,30 @@ def write_bytes(path: Path, data: bytes) -> None:
         write_atomic(path, data)
     except OSError as exc:
         raise RobodepthError(cannot_write(path, exc)) from None
+
+
+def evaluation_options(command):
+    """How predictions are judged against the ground truth: the options ``evaluate`` and
+    ``run`` share (declared once, so their choices and defaults cannot drift apart)."""
+    options = [
+        click.option("--stereo", is_flag=True,
+                     help="kitti: a stereo-trained model: depth x 5.4, no median scaling."),
+        click.option("--align", type=click.Choice(["none", "median", "scale", "scale-shift"]),
+                     help="Per image, on the valid pixels: none; median (median(gt) / "
+                          "median(pred), the kitti mono default); scale (least-squares s); "
+                          "scale-shift (least-squares s and t). Default: PRED/predictions.json's, "
+                          "else the protocol's."),
+        click.option("--align-space", type=click.Choice(["depth", "disparity"]),
+                     help="Align the depth, or the disparity against 1/gt (relative models' "
+                          "default from predictions.json). Default: depth."),
+        click.option("--crop", type=click.Choice(["garg", "eigen", "cityscapes", "none"]),
+                     help="The evaluation crop (default: garg for kitti, eigen for nyu, the "
+                          "dataset's own for a zero-shot set, none for custom)."),
+        click.option("--min-depth", type=float, metavar="M",
+                     help="Valid ground truth and clamp: above M metres (default 0.001)."),
+        click.option("--max-depth", type=float, metavar="M",
+                     help="Valid ground truth and clamp: below M metres (default 80 kitti, 10 nyu)."),
+    ]
+    for option in reversed(options):  # as if stacked in this order above the command
+        command = option(command)
+    return command

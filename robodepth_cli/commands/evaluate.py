@@ -21,27 +21,11 @@ DEFAULT_OUT = "results.csv"
                    "mirroring the dataset tree.")
 @click.option("--protocol", type=click.Choice(["kitti", "nyu"]),
               help="kitti (monodepth2) or nyu (BTS/AdaBins); default: the dataset's.")
-@click.option("--stereo", is_flag=True,
-              help="kitti: a stereo-trained model: depth x 5.4, no median scaling.")
+@common.evaluation_options
 @click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
               help="What the arrays hold: disp (scaled disparity, kitti default), sigmoid "
                    "(raw network output, in [0, 1]), depth (nyu default). PNGs are depths. "
                    "Default: what PRED/predictions.json records, if robodepth predict wrote PRED.")
-@click.option("--align", type=click.Choice(["none", "median", "scale", "scale-shift"]),
-              help="Per image, on the valid pixels: none; median (median(gt) / median(pred), "
-                   "the kitti mono default); scale (least-squares s); scale-shift "
-                   "(least-squares s and t). Default: PRED/predictions.json's, else the "
-                   "protocol's.")
-@click.option("--align-space", type=click.Choice(["depth", "disparity"]),
-              help="Align the depth, or the disparity against 1/gt (relative models' default "
-                   "from predictions.json). Default: depth.")
-@click.option("--crop", type=click.Choice(["garg", "eigen", "cityscapes", "none"]),
-              help="The evaluation crop (default: garg for kitti, eigen for nyu, the dataset's "
-                   "own for a zero-shot set, none for custom).")
-@click.option("--min-depth", type=float, metavar="M",
-              help="Valid ground truth and clamp: above M metres (default 0.001).")
-@click.option("--max-depth", type=float, metavar="M",
-              help="Valid ground truth and clamp: below M metres (default 80 kitti, 10 nyu).")
 @click.option("--png-scale", type=float, metavar="S",
               help="16-bit PNG predictions hold depth x S (default 256 kitti, 1000 nyu); they "
                    "are read as depths (--kind depth).")

@@ -41,17 +41,7 @@ from . import common
               help="What the maps hold: required for python:, overrides an hf model's own.")
 @click.option("--metric/--relative", default=None,
               help="The maps are in metres or relative, as for predict.")
-@click.option("--stereo", is_flag=True,
-              help="kitti: a stereo-trained model: depth x 5.4, no median scaling.")
-@click.option("--align", type=click.Choice(["none", "median", "scale", "scale-shift"]),
-              help="Per-image alignment, as for evaluate (default: the model's, else the protocol's).")
-@click.option("--align-space", type=click.Choice(["depth", "disparity"]),
-              help="Align the depth or the disparity, as for evaluate.")
-@click.option("--crop", type=click.Choice(["garg", "eigen", "none"]),
-              help="The evaluation crop (default: garg for kitti, eigen for nyu).")
-@click.option("--min-depth", type=float, metavar="M", help="Valid ground truth above M metres (default 0.001).")
-@click.option("--max-depth", type=float, metavar="M",
-              help="Valid ground truth below M metres (default 80 kitti, 10 nyu).")
+@common.evaluation_options
 @click.option("--keep-predictions", type=click.Path(file_okay=False, path_type=Path), metavar="DIR",
               help="Also write the predictions to DIR, in predict's layout (DIR/clean.npy, "
                    "DIR/<corruption>/<level>.npy, DIR/predictions.json).")
