@@ -52,7 +52,7 @@ from .checks import BuildError
 from .config import BuildConfig
 from .executors import Executor, ExecutorError, LocalExecutor
 from .gather import check_root, gather_sources, orientation_record
-from .tasks import PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, run_task
+from .tasks import PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, for_source, run_task
 
 MAX_ERRORS_SHOWN = 10
 
@@ -258,6 +258,7 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
     ``reorient``: the rows were made without EXIF orientation, so nothing of a source with
     one counts as done."""
     jobs = tuple(ds.jobs(cfg.variants, cfg.levels))
+    fingerprints = {job.variant: fingerprint(renderer, job) for job in jobs}  # once, not per source
     tasks = []
     for src in sources:
         size = cfg.size or native_size(src)
@@ -271,7 +272,7 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
             same = (r is not None and not r.error
                     and ((r.source == src.rel and _same_source(r, src)) or bool(src.error))
                     and r.seed == cfg.seed and (r.height, r.width) == size
-                    and r.params == fingerprint(renderer, job, src))
+                    and r.params == for_source(fingerprints[job.variant], src, job))
             expected.append(r.sha256 if same else None)
             if same:
                 hashes.add(r.source_sha256)
