@@ -103,12 +103,14 @@ def render(clean: np.ndarray, variant: str, level, *, seed: int, dataset: str, k
 
     if looks_like_chain(variant):
         chain = parse_chain(variant)
-        rngs = [seeding.chain_rngs(seed, dataset, chain, draw_key(step.name, key, anchor))[k]
-                for k, step in enumerate(chain.steps)]
+        # Each step is seeded from its own draw key (key or anchor): at most two chains of
+        # generators, each made once.
+        by_key = {k: seeding.chain_rngs(seed, dataset, chain, k)
+                  for k in {draw_key(step.name, key, anchor) for step in chain.steps}}
+        rngs = [by_key[draw_key(step.name, key, anchor)][i] for i, step in enumerate(chain.steps)]
         return corrupt_chain(clean, chain, rngs, depth)
     return corrupt(clean, variant, level,
-                   seeding.job_rng(seed, dataset, variant, level, draw_key(get(variant).name, key, anchor)),
-                   depth)
+                   seeding.job_rng(seed, dataset, variant, level, draw_key(variant, key, anchor)), depth)
 
 
 def needs_depth(variant: str) -> bool:
