@@ -97,8 +97,3 @@ def _rel(key: str) -> str:
 def planned_keys(entry: dict) -> set[str]:
     """Every neighbour key a recorded plan entry lists (its outputs are planned too)."""
     return {k for row in (entry.get("neighbours") or {}).values() for k in row if k}
-
-
-def check_dataset(name: str, split_format: str) -> None:
-    if split_format != "eigen":
-        raise InvalidValueError(f"{name} has no frame sequence (--frames needs KITTI raw drives)")

@@ -130,7 +130,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
         (out / job.path(src.key)).unlink(missing_ok=True)
         results.append((JobState.FAILED, row(job, error=message)))
 
-    clean, message = _load(src, ctx.size)
+    clean, message = load_source(src, ctx.size)
     if clean is None:
         for job in todo:
             fail(job, message)
@@ -219,11 +219,6 @@ def load_source(src: Source, size: tuple[int, int] | None):
     """(clean image, "") or (None, why the source cannot be used): the source decoded, turned
     upright if it must be, and resized to ``size`` (None: its own), as every build's outputs
     start (``robodepth run`` starts from it too)."""
-    return _load(src, size)
-
-
-def _load(src: Source, size: tuple[int, int]):
-    """(clean image, "") or (None, why the source cannot be used)."""
     if src.error:
         return None, src.error
     try:
@@ -249,7 +244,7 @@ def _frames_of(src: Source, clean, todo: list[Job], size) -> dict:
     if any(j.variant in TEMPORAL for j in todo):
         # A frame that cannot be read is left out of the sequence, like one the drive lacks.
         frames = [clean if i == src.position else None if path is None
-                  else _load(Source("", "", path), size)[0] for i, path in enumerate(src.sequence)]
+                  else load_source(Source("", "", path), size)[0] for i, path in enumerate(src.sequence)]
         kw["sequence"] = (frames, src.position, src.center)
     return kw
 

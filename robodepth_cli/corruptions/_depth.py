@@ -26,7 +26,8 @@ FAR = 1000.0  # metres: the depth of a scene without any valid value, and the cl
 
 
 class DepthError(RobodepthError):
-    """A depth map that cannot be used with an image, or a depth-aware corruption without one."""
+    """A depth map that cannot be read (the message names the file) or used with an image,
+    or a depth-aware corruption without one."""
 
 
 def scene_depth(depth, shape: tuple[int, int]) -> np.ndarray:

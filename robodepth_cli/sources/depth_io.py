@@ -43,7 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import RobodepthError, os_reason
+# One DepthError for reading a map and for handing it to a corruption: catching the
+# exported robodepth_cli.corruptions.DepthError catches both.
+from ..corruptions._depth import DepthError
+from ..errors import os_reason
 
 FORMATS = ("png", "npy", "npz", "pfm", "exr", "dpt", "raw", "cityscapes")
 EXTENSIONS = {".png": "png", ".npy": "npy", ".npz": "npz", ".pfm": "pfm", ".exr": "exr",
@@ -52,8 +55,6 @@ DPT_TAG = 202021.25
 _MAX_SIDE = 1 << 16  # no depth map is wider or taller; a larger header is a damaged file
 
 
-class DepthError(RobodepthError):
-    """A depth or mask file that cannot be read as asked; the message names the file."""
 
 
 def depth_format(path: str | Path, fmt: str | None = None) -> str:
