@@ -27,8 +27,8 @@ from typing import Sequence
 import numpy as np
 
 from .errors import InvalidValueError, RobodepthError, cannot_write
-from .export.layout import META as EXPORT_META, RECORD as EXPORT_RECORD
-from .export.reader import ExportStore
+from .export.layout import META as EXPORT_META
+from .export.reader import ExportStore, is_export
 from .output.layout import (GT_DIR, GT_FILE, MANIFEST, RECORD, depth_gt_name, output_path,
                             variant_dir, variant_order)
 from .output.record import BuildRecord
@@ -328,7 +328,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     path = Path(path)
     if not path.is_dir():
         raise DatasetError(f"{path}: not a directory (expected a dataset made by robodepth build)")
-    export = (path / EXPORT_META / EXPORT_RECORD).is_file()  # it carries the build's record
+    export = is_export(path)  # it carries the build's record
     meta = path / EXPORT_META if export else path  # and manifest
     record_path = meta / RECORD
     record = read_record(meta)

@@ -34,10 +34,7 @@ class DepthMaps:
     def _header(path: Path, i: int) -> tuple[int, int]:
         try:
             with open(path, "rb") as fh:
-                fmt = np.lib.format
-                version = fmt.read_magic(fh)
-                read = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
-                shape, _, dtype = read(fh)
+                shape, _, dtype = read_npy_header(fh)
         except FileNotFoundError:
             raise EvaluationError(f"{path}: no such ground-truth file (image {i}); rerun the build "
                                   "to make it") from None
@@ -71,3 +68,15 @@ class DepthMaps:
 
     def open(self) -> DepthMaps:
         return self
+
+
+def read_npy_header(fh) -> tuple[tuple[int, ...], bool, np.dtype]:
+    """Shape, Fortran order and dtype of the ``.npy`` stream ``fh``, which is left at the
+    first byte of the data."""
+    fmt = np.lib.format
+    version = fmt.read_magic(fh)
+    if version == (1, 0):
+        shape, fortran, dtype = fmt.read_array_header_1_0(fh)
+    else:
+        shape, fortran, dtype = fmt.read_array_header_2_0(fh)
+    return tuple(shape), fortran, dtype

@@ -270,16 +270,16 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
     scales = []
     for i in range(len(variant)):
         m, where, is_png = preds.read(i)
-        errs, ratio = image_errors(m, where, truth.get(i), setup, image_size, is_png)
+        gt = truth.get(i)  # once: flicker's scale below reads the same map
+        errs, ratio = image_errors(m, where, gt, setup, image_size, is_png)
         if ratio is not None:
             ratios.append(ratio)
         errors.append(errs)
         if pairs:
             from .flicker import frame_scale
 
-            shape, index, gt = truth.get(i)
             m = m if m.dtype in (np.float32, np.float64) else m.astype(np.float32)
-            scales.append(frame_scale(m, setup.kind, shape, index, gt))
+            scales.append(frame_scale(m, setup.kind, *gt))
         if progress:
             progress(1)
     flicker = None

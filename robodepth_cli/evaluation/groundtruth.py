@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import os_reason
 from ..sources.kitti_raw import KEYS_MEMBER, frame_key
+from .depthmaps import read_npy_header
 from .protocols import VALID, EvaluationError
 
 
@@ -367,18 +368,6 @@ class _MapUnpickler:
         memo = self._unpickler.memo
         for k in [k for k, v in memo.items() if large(v)]:
             memo[k] = None  # not deleted: new entries are numbered by the memo's length
-
-
-def read_npy_header(fh) -> tuple[tuple[int, ...], bool, np.dtype]:
-    """Shape, Fortran order and dtype of the ``.npy`` stream ``fh``, which is left at the
-    first byte of the data."""
-    fmt = np.lib.format
-    version = fmt.read_magic(fh)
-    if version == (1, 0):
-        shape, fortran, dtype = fmt.read_array_header_1_0(fh)
-    else:
-        shape, fortran, dtype = fmt.read_array_header_2_0(fh)
-    return tuple(shape), fortran, dtype
 
 
 @contextmanager

@@ -21,7 +21,8 @@ import numpy as np
 
 from ..api import Variant
 from ..errors import os_reason
-from .groundtruth import read_npy_header, read_png16
+from .depthmaps import read_npy_header
+from .groundtruth import read_png16
 from .protocols import EvaluationError
 
 class Predictions:

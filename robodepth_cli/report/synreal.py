@@ -29,6 +29,7 @@ from typing import Callable, Sequence
 
 from ..benchmarks import CORRUPTIONS
 from ..errors import RobodepthError, os_reason
+from ..evaluation.csvrows import normalise_name
 from ..evaluation.ranking import LEVEL, bootstrap, kendall, spearman
 
 PAIRS = Path(__file__).resolve().parent / "pairs.csv"
@@ -86,7 +87,7 @@ def read_pairs(paths: Sequence[Path]) -> list[Pair]:
             if len(row) != 3 or not all(c.strip() for c in row):
                 raise PairsError(f"{where}: expected three cells: DATASET[:SPLIT],CORRUPTION,"
                                  "DATASET[:SPLIT]")
-            corruption = row[1].strip().lower().replace("-", "_").replace(" ", "_")
+            corruption = normalise_name(row[1])
             if corruption not in CORRUPTIONS:
                 raise PairsError(f"{where}: unknown corruption {row[1].strip()!r}; valid: "
                                  f"{', '.join(CORRUPTIONS)}")
@@ -150,10 +151,11 @@ def compare(models: Sequence[str], pairs: Sequence[Pair], value: Lookup, metric:
         note = ""
         if len(both) < MIN_MODELS:
             note = f"{len(both)} model{'s' if len(both) > 1 else ''} with both; a ranking needs {MIN_MODELS}"
-        elif math.isnan(spearman(xs, ys)):
+        elif math.isnan(rho := spearman(xs, ys)):
+            rho = None
             note = "every model has the same error on one side: no ranking to compare"
         else:
-            rho, tau = spearman(xs, ys), kendall(xs, ys)
+            tau = kendall(xs, ys)
             cis = bootstrap(xs, ys, n_boot, seed)
         out.append(Comparison(pair, metric, names, xs, ys, rho, tau, cis["spearman"],
                               cis["kendall"], note))
