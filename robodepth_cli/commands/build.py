@@ -21,17 +21,12 @@ _LISTED = 20  # paths shown per kind of problem by verify
                    "or a zero-shot set's download (diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output directory; rerunning into it resumes.")
-@click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
-              help="Your own YAML config, applied over the DATASET preset.")
+@common.selection_options
 @click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, kitti_sequences, nyu_test; drivingstereo-c: sunny, cloudy, foggy, rainy, all) or a split file.")
-@click.option("--corruptions", metavar="A,B|all|none", help="Comma-separated corruption names, 'all', or 'none' (only --compose chains).")
-@click.option("--levels", metavar="1,3|all", help="Comma-separated levels (e.g. 1,3 or 1,2.5,4: decimals allowed), or 'all'.")
 @click.option("--compose", metavar="CHAIN,CHAIN", help="Also build these chains of corruptions, e.g. "
               "fog:3+gaussian_noise:2.5 (into OUT/fog-3+gaussian_noise-2.5/); --corruptions none: only them.")
 @click.option("--size", metavar="HxW", help="Output size HxW (e.g. 320x1024); custom: each image's own size unless given.")
 @click.option("--jobs", "-j", metavar="N|auto", help="Worker processes (preset: 2); 'auto' or -1: one per CPU.")
-@click.option("--seed", metavar="S", help="Global seed (preset: 0).")
-@click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
 @click.option("--frames", metavar="-1,1", help="kitti-c: also write these neighbours of every test frame "
               "from its raw drive (offsets), corrupted consistently with it; see docs/video.md.")
 @click.option("--pattern", metavar="GLOB,GLOB", help="custom: which files under ROOT (default: png, jpg, jpeg, bmp, tif, tiff, webp at any depth, any case), e.g. '**/*_leftImg8bit.png'.")

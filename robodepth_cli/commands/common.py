@@ -218,6 +218,24 @@ def write_bytes(path: Path, data: bytes) -> None:
         raise RobodepthError(cannot_write(path, exc)) from None
 
 
+def selection_options(command):
+    """Which images, variants and seed a build configuration takes (``building.config``'s
+    flags): the options ``build`` and ``run`` share, declared once."""
+    options = [
+        click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
+                     help="Your own YAML config, applied over the DATASET preset."),
+        click.option("--corruptions", metavar="A,B|all|none",
+                     help="Comma-separated corruption names, 'all', or 'none' (only --compose chains)."),
+        click.option("--levels", metavar="1,3|all",
+                     help="Comma-separated levels (e.g. 1,3 or 1,2.5,4: decimals allowed), or 'all'."),
+        click.option("--seed", metavar="S", help="Global seed (preset: 0)."),
+        click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look."),
+    ]
+    for option in reversed(options):
+        command = option(command)
+    return command
+
+
 def evaluation_options(command):
     """How predictions are judged against the ground truth: the options ``evaluate`` and
     ``run`` share (declared once, so their choices and defaults cannot drift apart)."""

@@ -19,15 +19,10 @@ from . import common
                    "python:MODULE:CALLABLE.")
 @click.option("--out", "-o", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="The results CSV to write (replaced if it exists), as evaluate writes it.")
-@click.option("--config", "config_file", type=click.Path(dir_okay=False, path_type=Path),
-              help="Your own YAML config, applied over the DATASET preset (as for build).")
-@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, nyu_test) or a split file.")
-@click.option("--corruptions", metavar="A,B|all|none", help="Comma-separated corruption names, 'all', or 'none' (only --compose chains).")
-@click.option("--levels", metavar="1,3|all", help="Comma-separated levels (decimals allowed), or 'all'.")
+@common.selection_options
+@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, kitti_sequences, nyu_test) or a split file.")
 @click.option("--compose", metavar="CHAIN,CHAIN", help="Also judge these chains of corruptions, e.g. fog:3+gaussian_noise:2.5.")
 @click.option("--size", metavar="HxW", help="Image size HxW (preset: the benchmark's).")
-@click.option("--seed", metavar="S", help="Global seed (preset: 0).")
-@click.option("--limit", metavar="N", help="Only the first N images of the split, for a quick look.")
 @click.option("--engine", type=click.Choice(["numpy", "torch"]), default="numpy", show_default=True,
               help="The corruption engine (numpy: the published builds' bytes).")
 @click.option("--batch-size", "-b", default=8, show_default=True, type=click.IntRange(min=1),
