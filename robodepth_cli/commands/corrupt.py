@@ -7,8 +7,20 @@ from pathlib import Path
 import click
 import numpy as np
 
+from ..benchmarks import DEPTH_AWARE
 from ..errors import RobodepthError
 from . import common
+
+
+def _depth_options(command):
+    """``--depth`` and ``--depth-scale`` of ``corrupt`` and ``preview``, declared once; the
+    help names the depth-aware corruptions from the registry's list."""
+    command = click.option("--depth-scale", type=float, metavar="S",
+                           help="A 16-bit depth PNG's value per metre: 256 for KITTI, 1000 for "
+                                "millimetres (NYU).")(command)
+    return click.option("--depth", "depth_file", type=click.Path(dir_okay=False), metavar="FILE",
+                        help=f"The scene's depth, which {', '.join(DEPTH_AWARE)} need: a .npy of "
+                             f"metres or a 16-bit PNG (with --depth-scale).")(command)
 
 
 @click.command("list")
@@ -47,11 +59,7 @@ def list_command(fmt):
 @click.option("--out", "-o", required=True, type=click.Path(),
               help="Output .png for one image; otherwise (or ending with /) a directory "
                    "receiving NAME/LEVEL.png and CHAIN.png (e.g. fog-3+gaussian_noise-2.5.png).")
-@click.option("--depth", "depth_file", type=click.Path(dir_okay=False), metavar="FILE",
-              help="The scene's depth, which fog_3d, near_focus, far_focus, motion_3d and zoom_3d "
-                   "need: a .npy of metres or a 16-bit PNG (with --depth-scale).")
-@click.option("--depth-scale", type=float, metavar="S",
-              help="A 16-bit depth PNG's value per metre: 256 for KITTI, 1000 for millimetres (NYU).")
+@_depth_options
 def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth_scale):
     """Corrupt one image (its EXIF orientation applied first).
 
@@ -156,11 +164,7 @@ def _describe(items: list[str], level_list: list) -> str:
 @click.option("--seed", "-s", default=0, show_default=True, type=int, help="An integer >= 0.")
 @click.option("--thumb-width", default=320, show_default=True, type=click.IntRange(32, 2000),
               help="Width of each cell in pixels.")
-@click.option("--depth", "depth_file", type=click.Path(dir_okay=False), metavar="FILE",
-              help="The scene's depth, which fog_3d, near_focus, far_focus, motion_3d and zoom_3d "
-                   "need: a .npy of metres or a 16-bit PNG (with --depth-scale).")
-@click.option("--depth-scale", type=float, metavar="S",
-              help="A 16-bit depth PNG's value per metre: 256 for KITTI, 1000 for millimetres (NYU).")
+@_depth_options
 def preview_command(image, out, corruption, level, size, seed, thumb_width, depth_file, depth_scale):
     """A labelled contact sheet: the clean image, then one row per corruption or chain and
     one column per level.
