@@ -95,6 +95,9 @@ class KittiC(torch.utils.data.Dataset):
             self._index = [i for i, k in enumerate(self.keys) if k not in variant.missing]
             self.keys = [self.keys[i] for i in self._index]
         self.frames = tuple(frames)
+        if self.frames and self._store is not None:  # else its neighbours would read as black
+            raise TorchAPIError(f"{self.root}: frames=: the neighbour frames are read from a build's "
+                                "files; an export does not serve them")
         lacking = sorted(set(self.frames) - built.record.frames)
         if lacking:
             raise TorchAPIError(f"{self.root}: no neighbour frames at {', '.join(map(str, lacking))} "

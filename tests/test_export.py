@@ -386,3 +386,12 @@ def test_report_draws_a_frame_of_an_export_as_of_the_build(build, exports, tmp_p
     for export in exports.values():
         got = pixels(export)
         assert len(got) == len(tree) and all(np.array_equal(a, b) for a, b in zip(tree, got))
+
+
+def test_kittic_refuses_neighbour_frames_of_an_export(exports):
+    """The neighbours are read from a build's files: on an export they would come back black."""
+    from robodepth_cli.torch import KittiC, TorchAPIError
+
+    for export in exports.values():
+        with pytest.raises(TorchAPIError, match="an export does not serve them"):
+            KittiC(export, "fog", 3, frames=(-1,))
