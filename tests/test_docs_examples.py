@@ -59,7 +59,7 @@ def test_the_pages_have_image_examples():
     assert len(list(image_examples())) >= 10
 
 
-@pytest.mark.parametrize("command,comment", image_examples())
+@pytest.mark.parametrize("command,comment", list(image_examples()))  # a list: pytest 10 refuses generators
 def test_image_example_runs_and_writes_what_it_says(command, comment, frame, cli):
     args = shlex.split(command.replace("--size 192x640", "--size 48x160")
                        .replace("docs/images/", "images/"))[1:]
