@@ -180,6 +180,8 @@ def verify_command(out, progress):
             report = verify(out, progress=bar.update, on_total=lambda n: bar.reset(total=n))
     if report.incomplete():
         click.echo(report.incomplete())
+    if report.versions_note:
+        click.echo(f"{out}: {report.versions_note}")
     for kind in ("missing", "changed", "extra"):
         paths = getattr(report, kind)
         if paths:
