@@ -33,6 +33,12 @@ test:
 bench:
 	$(PYTHON) -m bench.run
 
+# Maintainers only: rewrite robodepth selftest's reference (robodepth_cli/selftest/data/
+# reference.json and reference.xz) from this install, which must be the locked one. Run it
+# after any change to pixels, to the selftest's builds or fixtures, or to the lock.
+selftest-record:
+	$(PYTHON) -m robodepth_cli.selftest --record
+
 # The whole loop on the fixtures: the KITTI frames get synthetic velodyne scans (copied in
 # from their own tree, so the tests' KITTI fixture stays without ground truth), the build
 # writes gt_depths.npz beside the images, and sample predictions are evaluated and scored.

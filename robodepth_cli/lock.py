@@ -23,10 +23,10 @@ def canonical(name: str) -> str:
     return re.sub(r"[-_.]+", "-", name).lower()
 
 
-def locked(path: Path = LOCK_FILE) -> dict[str, str]:
+def locked(path: Path | None = None) -> dict[str, str]:
     """``{name: version}`` of every ``name==version`` line of the lock, in file order."""
     pins = {}
-    for line in path.read_text(encoding="utf-8").splitlines():
+    for line in (path or LOCK_FILE).read_text(encoding="utf-8").splitlines():
         m = _PIN.match(line.strip())
         if m:
             pins[m.group(1)] = m.group(2)
