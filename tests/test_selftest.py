@@ -108,7 +108,7 @@ def test_a_version_other_than_the_lock_is_named(tmp_path, cli, prebuilt, monkeyp
 
 
 def test_without_pyav_only_the_codec_outputs_are_skipped(cli, prebuilt, monkeypatch):
-    monkeypatch.setattr(selftest, "skipped_codecs", lambda: selftest.CODEC)
+    monkeypatch.setattr(selftest, "absent", lambda: ("av",))
     flags = selftest.build_flags(dict(selftest.BUILDS[1][2]), {})
     assert flags["corruptions"] == "frame_lost,frame_freeze"
     res = cli("selftest")
@@ -118,6 +118,31 @@ def test_without_pyav_only_the_codec_outputs_are_skipped(cli, prebuilt, monkeypa
     assert codec == 3 * 6 * 3
     assert res.output.splitlines()[0] == "skipped h264_crf, h265_crf, bit_error: PyAV (av) is not installed"
     assert f"all {len(ref) - codec} outputs match" in res.output.splitlines()[1]
+
+
+def test_without_torch_only_kitti_s_is_skipped(cli, prebuilt, monkeypatch):
+    monkeypatch.setattr(selftest, "absent", lambda: ("torch",))
+    res = cli("selftest")
+    assert res.exit_code == 0, res.output
+    ref = selftest.read_reference().outputs
+    styles = sum(1 for k in ref if k.startswith("kitti-s/"))
+    assert styles == 2  # clean and sketch
+    assert res.output.splitlines()[0] == "skipped KITTI-S: torch is not installed"
+    assert f"all {len(ref) - styles} outputs match" in res.output.splitlines()[1]
+
+
+def test_without_torch_no_kitti_s_build_is_tried(tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    from robodepth_cli.building import pipeline
+
+    built = []
+    monkeypatch.setattr(selftest, "absent", lambda: ("torch",))
+    monkeypatch.setattr(pipeline, "build", lambda cfg, root, out, **kw: (
+        built.append((cfg.dataset, out.name)), SimpleNamespace(fatal="", interrupted=False))[1])
+    selftest.build_all(tmp_path)
+    assert built == [("custom", "custom"), ("kitti-c", "sequence"), ("kitti-c", "neighbours")]
+    assert not list(tmp_path.glob("*.pth"))
 
 
 def test_a_reference_of_other_builds_is_refused(tmp_path, cli, monkeypatch):

@@ -15,9 +15,9 @@ def selftest_command():
 
     \b
     The builds: the 18 corruptions and the six depth-aware ones at levels 1-5 and 2.5, a
-    chain, the corruptions over time on a three-frame sequence (h264_crf, h265_crf and
-    bit_error need PyAV: without it they are skipped, and a line says so), and KITTI-S
-    through a small AdaIN with seeded random weights. Every output must have the
+    chain, the corruptions over time on a three-frame sequence, and KITTI-S through a
+    small AdaIN with seeded random weights (h264_crf, h265_crf and bit_error need PyAV,
+    KITTI-S torch: without one, its outputs are skipped and a line says so). Every output must have the
     reference's bytes, except KITTI-S's stylised images, which may differ by 1 grey level
     (torch's CPU kernels are not bit-exact across CPUs). About 10-30 s on 2 cores.
 
@@ -31,7 +31,7 @@ def selftest_command():
     from pathlib import Path
 
     from ..errors import RobodepthError
-    from ..selftest import read_reference, run
+    from ..selftest import OPTIONAL, read_reference, run
 
     ref = read_reference()
     start = time.monotonic()
@@ -43,8 +43,8 @@ def selftest_command():
     with work_dir as work, contextlib.redirect_stderr(io.StringIO()):  # the builds' own notes
         outcome = run(Path(work), ref)
     seconds = time.monotonic() - start
-    if outcome.skipped:
-        click.echo(f"skipped {', '.join(outcome.skipped)}: PyAV (av) is not installed")
+    for name in outcome.skipped:
+        click.echo(f"skipped {OPTIONAL[name]} is not installed")
     if outcome.ok:
         click.echo(f"selftest: all {outcome.checked} outputs match the reference (KITTI-S within 1 grey level), "
                    f"versions as locked, in {seconds:.0f} s")

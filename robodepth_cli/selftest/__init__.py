@@ -6,8 +6,8 @@ The builds (:data:`BUILDS`) go through the ordinary builder, one of each kind of
 - ``custom``: one 33 x 49 frame with its depth map: the 18 corruptions and the six
   depth-aware ones at levels 1-5 and 2.5, and a chain;
 - ``sequence``: three consecutive 32 x 64 KITTI frames (``--frames -1,1``) with the five
-  corruptions over time at levels 1-5 and 2.5 (the codec ones need PyAV: without it they are
-  skipped, and the run says so);
+  corruptions over time at levels 1-5 and 2.5 (the codec ones need PyAV, KITTI-S needs
+  torch: without one, its outputs are skipped and the run says so);
 - ``neighbours``: the same frames with corruptions whose draws the neighbours share;
 - ``kitti-s``: one style through AdaIN with random weights drawn from a fixed seed
   (:func:`write_random_adain`). torch's CPU kernels are not bit-exact across CPUs, so these
@@ -39,6 +39,9 @@ REFERENCE = "reference.json"
 PIXELS = "reference.xz"
 STYLE_TOLERANCE = 1  # grey levels, KITTI-S only
 CODEC = ("h264_crf", "h265_crf", "bit_error")  # need PyAV
+# The optional distributions some outputs need: without one, those are skipped and a line
+# says so. {distribution: what it is needed for}
+OPTIONAL = {"av": "h264_crf, h265_crf, bit_error: PyAV (av)", "torch": "KITTI-S: torch"}
 LEVELS = "1,2,3,4,5,2.5"
 ADAIN_SEED = 20240601
 
@@ -67,9 +70,16 @@ class SelftestError(RobodepthError):
 # ----------------------------------------------------------------------- the builds
 
 
-def skipped_codecs() -> tuple[str, ...]:
-    """The corruptions this install cannot build: the codec ones without PyAV."""
-    return CODEC if importlib.util.find_spec("av") is None else ()
+def absent() -> tuple[str, ...]:
+    """The distributions of :data:`OPTIONAL` this install lacks."""
+    return tuple(name for name in OPTIONAL if importlib.util.find_spec(name) is None)
+
+
+def needs(entry: dict) -> str | None:
+    """The optional distribution a reference output needs, if any."""
+    if entry["corruption"] in CODEC:
+        return "av"
+    return "torch" if entry["variant"].startswith("kitti-s:") else None
 
 
 def write_random_adain(folder: Path) -> tuple[Path, Path]:
@@ -97,7 +107,7 @@ def build_flags(flags: dict[str, str], checkpoints: dict[str, str]) -> dict[str,
     install cannot build left out."""
     out = {k: str(DATA / v) if k in _PATH_FLAGS else v.format(**checkpoints) for k, v in flags.items()}
     if "corruptions" in out:
-        skip = skipped_codecs()
+        skip = CODEC if "av" in absent() else ()
         out["corruptions"] = ",".join(c for c in out["corruptions"].split(",") if c not in skip)
     return out
 
@@ -107,9 +117,12 @@ def build_all(work: Path) -> None:
     from ..building.config import resolve
     from ..building.pipeline import build
 
-    vgg, decoder = write_random_adain(work)
+    missing = absent()
+    vgg, decoder = ("", "") if "torch" in missing else write_random_adain(work)
     checkpoints = {"vgg": str(vgg), "decoder": str(decoder)}
     for name, dataset, flags in BUILDS:
+        if dataset == "kitti-s" and "torch" in missing:
+            continue
         flags = build_flags(flags, checkpoints)
         root = Path(flags.pop("root"))
         summary = build(resolve(dataset, None, flags), root, work / name, command=["selftest"], gt=False)
@@ -218,7 +231,7 @@ class VariantResult:
 class Outcome:
     checked: int  # outputs compared
     failed: dict[str, VariantResult]  # variants that do not match, in reference order
-    skipped: tuple[str, ...]  # corruptions this install cannot build
+    skipped: tuple[str, ...]  # the optional distributions missing, their outputs skipped
     versions: list[str]  # installed versions other than the lock's
 
     @property
@@ -230,10 +243,10 @@ def compare(work: Path, ref: Reference) -> dict[str, VariantResult]:
     """Every output of the reference against the build's: the variants that do not match."""
     from ..output.compare import largest_difference, pixels
 
-    built, skip = built_outputs(work), set(skipped_codecs())
+    built, skip = built_outputs(work), absent()
     results: dict[str, VariantResult] = {}
     for key, entry in ref.outputs.items():
-        if entry["corruption"] in skip:
+        if needs(entry) in skip:
             continue
         v = results.setdefault(entry["variant"], VariantResult())
         v.outputs += 1
@@ -256,21 +269,17 @@ def tolerance(entry: dict) -> int:
 
 
 def checked_count(ref: Reference) -> int:
-    skip = set(skipped_codecs())
-    return sum(1 for e in ref.outputs.values() if e["corruption"] not in skip)
+    skip = absent()
+    return sum(1 for e in ref.outputs.values() if needs(e) not in skip)
 
 
 def version_differences() -> list[str]:
     """The pixel-deciding distributions installed at other versions than the lock's (PyAV
-    only when it is installed: without it its outputs are skipped, and the run says so)."""
+    and torch only when installed: without one, its outputs are skipped and the run says so)."""
     from ..lock import differences, installed, locked
 
-    lock = locked()
-    have = installed(lock)
-    if "av" in have and skipped_codecs():
-        del have["av"]
-        lock = {k: v for k, v in lock.items() if k != "av"}
-    return differences(have, lock, missing=True)
+    lock = {k: v for k, v in locked().items() if k not in absent()}
+    return differences(installed(lock), lock, missing=True)
 
 
 def run(work: Path, ref: Reference | None = None) -> Outcome:
@@ -280,4 +289,4 @@ def run(work: Path, ref: Reference | None = None) -> Outcome:
         raise SelftestError("the reference was recorded for other fixtures or builds than these; "
                             "rerun 'make selftest-record' on the locked install")
     build_all(work)
-    return Outcome(checked_count(ref), compare(work, ref), skipped_codecs(), version_differences())
+    return Outcome(checked_count(ref), compare(work, ref), absent(), version_differences())

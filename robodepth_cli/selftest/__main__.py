@@ -7,7 +7,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from . import DATA, SelftestError, build_all, record, skipped_codecs, version_differences
+from . import DATA, SelftestError, absent, build_all, record, version_differences
 
 
 def main(argv: list[str]) -> int:
@@ -16,8 +16,7 @@ def main(argv: list[str]) -> int:
               "reference; users run 'robodepth selftest')", file=sys.stderr)
         return 2
     problems = version_differences()
-    if skipped_codecs():
-        problems.append("PyAV (av) is not installed")
+    problems += [f"{name} is not installed" for name in absent()]
     if problems:
         print(f"selftest --record: not the locked install ({'; '.join(problems)}); run make install "
               f"first", file=sys.stderr)
