@@ -180,10 +180,10 @@ def read_reference(folder: Path = DATA) -> Reference:
     try:
         meta = json.loads((folder / REFERENCE).read_text(encoding="utf-8"))
         pixels = lzma.decompress((folder / PIXELS).read_bytes())
-    except (OSError, ValueError, lzma.LZMAError) as exc:
-        raise SelftestError(f"{folder}: cannot read the selftest's reference ({exc}); reinstall "
+        return Reference(meta["outputs"], pixels, meta["plan"], meta.get("versions", {}))
+    except (OSError, ValueError, KeyError, TypeError, lzma.LZMAError) as exc:
+        raise SelftestError(f"{folder}: cannot read the selftest's reference ({exc!r}); reinstall "
                             f"robodepth") from None
-    return Reference(meta["outputs"], pixels, meta["plan"], meta.get("versions", {}))
 
 
 def record(work: Path, folder: Path = DATA) -> int:
