@@ -204,15 +204,7 @@ def verify_command(out, against, progress):
             click.echo(f"{kind}: {len(paths)}")
             _list(paths, "  ")
     if report.failed:
-        click.echo(f"failed: {len(report.failed)}")
-        by_reason: dict[str, list[str]] = {}
-        for p in report.failed:
-            by_reason.setdefault(report.reasons.get(p) or "no reason recorded", []).append(p)
-        for reason, paths in list(by_reason.items())[:_LISTED]:
-            click.echo(f"  {reason}")
-            _list(paths, "    ")
-        if len(by_reason) > _LISTED:
-            click.echo(f"  ... and {len(by_reason) - _LISTED} more reasons")
+        _list_failed(report)
     if report.ok:
         click.echo(f"{out}: {report.checked} files match the manifest")
     else:
@@ -220,6 +212,19 @@ def verify_command(out, against, progress):
     same = _against(out, against) if against is not None else True
     if not (report.ok and same):
         sys.exit(1)
+
+
+def _list_failed(report) -> None:
+    """The images the build recorded as failed, under their reasons."""
+    click.echo(f"failed: {len(report.failed)}")
+    by_reason: dict[str, list[str]] = {}
+    for p in report.failed:
+        by_reason.setdefault(report.reasons.get(p) or "no reason recorded", []).append(p)
+    for reason, paths in list(by_reason.items())[:_LISTED]:
+        click.echo(f"  {reason}")
+        _list(paths, "    ")
+    if len(by_reason) > _LISTED:
+        click.echo(f"  ... and {len(by_reason) - _LISTED} more reasons")
 
 
 def _against(out: Path, other: Path) -> bool:
