@@ -165,10 +165,11 @@ def plan_digest() -> str:
 
 @dataclass
 class Reference:
-    outputs: dict[str, dict]  # "<build>/<output>" -> {"sha256", "shape", "offset"}
+    # "<build>/<output>" -> {"sha256", "shape", "offset" (into pixels), "variant", "corruption"}
+    outputs: dict[str, dict]
     pixels: bytes
     plan: str
-    versions: dict[str, str] = field(default_factory=dict)
+    versions: dict[str, str] = field(default_factory=dict)  # the install it was recorded on
 
     def image(self, key: str) -> np.ndarray:
         entry = self.outputs[key]
@@ -190,6 +191,9 @@ def record(work: Path, folder: Path = DATA) -> int:
     """Write the reference of the builds in ``work`` into ``folder``; the number of outputs."""
     from PIL import Image
 
+    from ..files import write_atomic
+    from ..lock import installed, locked
+
     outputs, chunks, offset = {}, [], 0
     for key, out in sorted(built_outputs(work).items()):
         if out.error:
@@ -200,11 +204,7 @@ def record(work: Path, folder: Path = DATA) -> int:
                         "variant": out.variant, "corruption": out.corruption}
         chunks.append(img.tobytes())
         offset += img.size
-    from ..lock import installed, locked
-
     meta = {"plan": plan_digest(), "versions": installed(locked()), "outputs": outputs}
-    from ..files import write_atomic
-
     write_atomic(folder / PIXELS, lzma.compress(b"".join(chunks), preset=9 | lzma.PRESET_EXTREME))
     write_atomic(folder / REFERENCE, (json.dumps(meta, sort_keys=True) + "\n").encode())
     return len(outputs)
@@ -254,7 +254,10 @@ def compare(work: Path, ref: Reference) -> dict[str, VariantResult]:
         if out is None or out.error:
             v.not_built.append(out.error if out else "no manifest row")
         elif out.sha256 != entry["sha256"]:
-            d = largest_difference(pixels(work / key), ref.image(key))
+            try:
+                d = largest_difference(pixels(work / key), ref.image(key))
+            except OSError:  # the build's file is gone or damaged
+                d = None
             d = 255 if d is None else d  # another size: as different as it gets
             if d > tolerance(entry):
                 v.differ += 1
