@@ -6,14 +6,17 @@ PIP ?= $(PYTHON) -m pip
 TORCH_INDEX ?=
 # The browser the report's browser test drives (tests/test_report_browser.py).
 CHROMIUM ?= chromium
+# The exact versions of every distribution that decides a pixel (a pip constraints file,
+# read at run time by robodepth verify and selftest too).
+LOCK := robodepth_cli/constraints.txt
 
-.PHONY: install test bench demo
+.PHONY: install test bench demo selftest-record
 
 install:
-	$(PIP) install $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX) )torch==2.13.0
-	$(PIP) install -e '.[test,dask,models,figures,exr,export,video]'
+	$(PIP) install $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX) )-c $(LOCK) torch
+	$(PIP) install -c $(LOCK) -e '.[test,dask,models,figures,exr,export,video]'
 	# Frost textures only: the package's own dependencies (opencv-python, ...) are not wanted.
-	$(PIP) install --no-deps imagecorruptions-imaug==1.1.5
+	$(PIP) install --no-deps -c $(LOCK) imagecorruptions-imaug
 	# Headless Chromium for the browser test, where this system lets us install it (Debian
 	# or Ubuntu, as root); anywhere else, say how: only that one test needs it.
 	@if command -v $(CHROMIUM) >/dev/null 2>&1; then :; \
@@ -29,6 +32,12 @@ test:
 
 bench:
 	$(PYTHON) -m bench.run
+
+# Maintainers only: rewrite robodepth selftest's reference (robodepth_cli/selftest/data/
+# reference.json and reference.xz) from this install, which must be the locked one. Run it
+# after any change to pixels, to the selftest's builds or fixtures, or to the lock.
+selftest-record:
+	$(PYTHON) -m robodepth_cli.selftest --record
 
 # The whole loop on the fixtures: the KITTI frames get synthetic velodyne scans (copied in
 # from their own tree, so the tests' KITTI fixture stays without ground truth), the build

@@ -21,25 +21,69 @@ def make_n(*args: str) -> list[str]:
     return res.stdout.splitlines()
 
 
-def torch_lines(lines: list[str]) -> list[str]:
-    return [ln for ln in lines if re.search(r"\btorch==", ln)]
+LOCK = "robodepth_cli/constraints.txt"
+# Every distribution whose version decides a pixel of a build.
+PIXEL_DISTRIBUTIONS = {"numpy", "opencv-python-headless", "scipy", "scikit-image", "pillow", "numba",
+                       "llvmlite", "fpng", "imagecorruptions-imaug", "av", "torch"}
 
 
-def test_plain_install_pins_torch_from_the_default_index():
-    (line,) = torch_lines(make_n())
-    assert line.split()[-3:] == ["pip", "install", "torch==2.13.0"]
-    assert "--index-url" not in line
+def pip_lines(lines: list[str]) -> list[list[str]]:
+    return [ln.split() for ln in lines if " pip install " in ln]
+
+
+def lock_pins() -> dict[str, str]:
+    pins = {}
+    for line in (REPO / LOCK).read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            name, version = line.split("==")
+            pins[name.lower()] = version
+    return pins
+
+
+def test_every_install_step_takes_the_lock():
+    lines = pip_lines(make_n())
+    assert len(lines) == 3
+    for words in lines:
+        assert words[words.index("-c") + 1] == LOCK, words
+        assert not [w for w in words if "==" in w]  # versions come from the lock alone
+    torch, editable, frost = lines
+    assert torch[-1] == "torch" and "--index-url" not in torch
+    assert "-e" in editable
+    assert frost[-1] == "imagecorruptions-imaug" and "--no-deps" in frost
 
 
 def test_torch_index_installs_torch_alone_from_that_index():
     index = "file:///somewhere/cpu"
-    lines = make_n(f"TORCH_INDEX={index}")
-    (line,) = torch_lines(lines)
-    words = line.split()
-    assert words[words.index("--index-url") + 1] == index and words[-1] == "torch==2.13.0"
+    torch, editable, frost = pip_lines(make_n(f"TORCH_INDEX={index}"))
+    assert torch[torch.index("--index-url") + 1] == index and torch[-1] == "torch"
+    assert torch[torch.index("-c") + 1] == LOCK
     # The package and its extras still come from the default index, torch already pinned.
-    (editable,) = [ln for ln in lines if " -e " in ln]
-    assert "--index-url" not in editable
+    assert "--index-url" not in editable and "--index-url" not in frost
+
+
+def test_the_lock_pins_every_pixel_distribution_exactly():
+    from packaging.requirements import Requirement
+
+    pins = lock_pins()
+    assert set(pins) == PIXEL_DISTRIBUTIONS
+    text = (REPO / "pyproject.toml").read_text()
+    # pyproject.toml keeps ranges, and the locked versions are inside them.
+    checked = set()
+    for spec in re.findall(r'^\s*"([A-Za-z][^"]*)",?$', text, re.M):
+        req = Requirement(spec)
+        if req.name.lower() in pins:
+            assert req.specifier.contains(pins[req.name.lower()]), spec
+            checked.add(req.name.lower())
+    assert {"numpy", "opencv-python-headless", "scipy", "scikit-image", "pillow", "numba", "fpng"} <= checked
+    assert re.search(r'^style = \["torch==([^"]+)"\]', text, re.M).group(1) == pins["torch"]
+
+
+def test_the_installed_versions_are_the_locked_ones():
+    # make install installed this environment: the locked install.
+    from importlib import metadata
+
+    for name, version in lock_pins().items():
+        assert metadata.version(name).split("+")[0] == version, name
 
 
 def test_no_package_index_address_in_the_repository():

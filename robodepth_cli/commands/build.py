@@ -152,9 +152,12 @@ def _executor(cfg):
 
 @click.command("verify")
 @click.argument("out", type=click.Path(path_type=Path))
+@click.option("--against", metavar="OTHER", type=click.Path(path_type=Path),
+              help="Also compare OUT with another build of the same dataset (its folder or its "
+                   "manifest.csv): per variant, outputs identical, differing or missing.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
-def verify_command(out, progress):
+def verify_command(out, against, progress):
     """Re-hash every file in OUT against OUT/manifest.csv and the build's plan.
 
     OUT may be an export (robodepth export): every image in its shards is hashed against
@@ -162,14 +165,27 @@ def verify_command(out, progress):
 
     Reports a build that did not finish (outputs its plan asks for that were never made),
     files that are missing, changed or extra (not in the manifest), and images the build
-    recorded as failed, with the reason. Exit status 0 when everything matches, 1
-    otherwise; 2 if OUT cannot be verified (no manifest, a damaged one, or a build writing
+    recorded as failed, with the reason; and, in one line, the libraries that decide pixels
+    which the build used at other versions than robodepth's lock.
+
+    --against OTHER then compares the two builds' manifests: for each variant, how many
+    outputs are identical, differ, or are missing here (OTHER only) or there (OUT only), and
+    the largest pixel difference of the differing ones where both files are on disk.
+
+    Exit status 0 when everything matches, 1 otherwise (--against: any output not
+    identical); 2 if OUT cannot be verified (no manifest, a damaged one, or a build writing
     there right now).
     """
     from ..export.reader import is_export
     from ..output.verify import verify
     from ..progress import bar as progress_bar
 
+    if against is not None:
+        from ..output.compare import other_manifest
+
+        if is_export(out):
+            raise RobodepthError("--against: OUT is an export; compare the builds it was made from")
+        other_manifest(against)  # a wrong OTHER is refused before OUT is hashed
     with progress_bar("file", progress=progress) as bar:
         if is_export(out):  # robodepth export's folder: its shards against the carried manifest
             from ..export.verify import verify_export
@@ -180,26 +196,51 @@ def verify_command(out, progress):
             report = verify(out, progress=bar.update, on_total=lambda n: bar.reset(total=n))
     if report.incomplete():
         click.echo(report.incomplete())
+    if report.versions_note:
+        click.echo(f"{out}: {report.versions_note}")
     for kind in ("missing", "changed", "extra"):
         paths = getattr(report, kind)
         if paths:
             click.echo(f"{kind}: {len(paths)}")
             _list(paths, "  ")
     if report.failed:
-        click.echo(f"failed: {len(report.failed)}")
-        by_reason: dict[str, list[str]] = {}
-        for p in report.failed:
-            by_reason.setdefault(report.reasons.get(p) or "no reason recorded", []).append(p)
-        for reason, paths in list(by_reason.items())[:_LISTED]:
-            click.echo(f"  {reason}")
-            _list(paths, "    ")
-        if len(by_reason) > _LISTED:
-            click.echo(f"  ... and {len(by_reason) - _LISTED} more reasons")
+        _list_failed(report)
     if report.ok:
         click.echo(f"{out}: {report.checked} files match the manifest")
     else:
         click.echo(f"{out}: {report.checked} files checked; the tree does not match its manifest", err=True)
+    same = _against(out, against) if against is not None else True
+    if not (report.ok and same):
         sys.exit(1)
+
+
+def _list_failed(report) -> None:
+    """The images the build recorded as failed, under their reasons."""
+    click.echo(f"failed: {len(report.failed)}")
+    by_reason: dict[str, list[str]] = {}
+    for p in report.failed:
+        by_reason.setdefault(report.reasons.get(p) or "no reason recorded", []).append(p)
+    for reason, paths in list(by_reason.items())[:_LISTED]:
+        click.echo(f"  {reason}")
+        _list(paths, "    ")
+    if len(by_reason) > _LISTED:
+        click.echo(f"  ... and {len(by_reason) - _LISTED} more reasons")
+
+
+def _against(out: Path, other: Path) -> bool:
+    """Print OUT's comparison with OTHER, variant by variant; whether every output is identical."""
+    from ..output.compare import compare
+
+    variants = compare(out, other)
+    for name, v in variants.items():
+        click.echo(f"{name}: {v.text()}")
+    total = sum(v.identical + v.differ + v.only_here + v.only_there for v in variants.values())
+    bad = sum(v.differ + v.only_here + v.only_there for v in variants.values())
+    if not bad:
+        click.echo(f"{out}: all {total} outputs identical to {other}")
+        return True
+    click.echo(f"{out}: {bad} of {total} outputs differ from {other} or are missing on one side", err=True)
+    return False
 
 
 def _list(paths: list[str], indent: str) -> None:

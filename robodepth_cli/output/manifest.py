@@ -123,7 +123,11 @@ def format_rows(rows) -> str:
 def read_manifest(out: Path) -> dict[str, Row]:
     """The latest row of every output path in ``out``'s manifest ({} if there is none).
     A last line without its newline is a torn write and ignored."""
-    path = Path(out) / MANIFEST
+    return read_manifest_file(Path(out) / MANIFEST)
+
+
+def read_manifest_file(path: Path) -> dict[str, Row]:
+    """:func:`read_manifest` of the manifest file at ``path``, wherever it lies."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

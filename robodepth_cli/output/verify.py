@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..files import sha256_file
+from ..lock import build_note
 from .layout import BOOKKEEPING, JOURNAL, MANIFEST
 from .manifest import ManifestError, lock_holder, read_recorded
 from .record import read_record
@@ -29,6 +30,7 @@ class VerifyReport:
     unbuilt: list[str] = field(default_factory=list)  # planned, with no manifest row at all
     built: int = 0  # planned outputs with a manifest row and no error
     status: str = ""  # the build record's status
+    versions_note: str = ""  # the recorded versions that differ from the lock's, in one line
 
     @property
     def ok(self) -> bool:
@@ -101,7 +103,8 @@ def verify(out: Path, *, threads: int = 4, progress=None, on_total=None) -> Veri
                 progress(1)
     report = VerifyReport(len(present), missing, changed, extra, failed,
                           reasons={p: rows[p].error for p in failed},
-                          status=record.status if record else "")
+                          status=record.status if record else "",
+                          versions_note=build_note(record.versions) if record else "")
     if planned is not None:
         report.planned = len(planned)
         report.unbuilt = sorted(p for p in planned if p not in rows)

@@ -329,9 +329,11 @@ class Dataset:
         return numpy_engine
 
     def libraries(self) -> tuple[str, ...]:
-        """Distributions whose versions the build record keeps."""
+        """Distributions whose versions the build record keeps (``verify`` compares those
+        that decide a pixel with the lock's)."""
         return ("numpy", "Pillow", "opencv-python-headless", "scipy", "scikit-image", "numba",
-                "joblib", "tqdm", "PyYAML", "click", "fpng")
+                "llvmlite", "imagecorruptions-imaug", "av", "joblib", "tqdm", "PyYAML", "click",
+                "fpng")
 
 
 @dataclass(frozen=True)
