@@ -388,10 +388,63 @@ def test_report_draws_a_frame_of_an_export_as_of_the_build(build, exports, tmp_p
         assert len(got) == len(tree) and all(np.array_equal(a, b) for a, b in zip(tree, got))
 
 
-def test_kittic_refuses_neighbour_frames_of_an_export(exports):
-    """The neighbours are read from a build's files: on an export they would come back black."""
-    from robodepth_cli.torch import KittiC, TorchAPIError
+def test_a_frames_build_exports_every_neighbour_frame(tmp_path, cli, build_kitti, monkeypatch):
+    """A build with --frames: every file of it is exported (the neighbour frames in a split
+    ``<split>_neighbours`` of their variant, by key), read back by datasets, webdataset and
+    KittiC(frames=) as from the build, and verify passes."""
+    monkeypatch.setenv("HF_DATASETS_OFFLINE", "1")
+    import datasets
+    import webdataset as wds
 
-    for export in exports.values():
-        with pytest.raises(TorchAPIError, match="an export does not serve them"):
-            KittiC(export, "fog", 3, frames=(-1,))
+    from _trees import kitti_drive, kitti_key
+    from robodepth_cli.torch import KittiC
+
+    root = tmp_path / "raw"
+    split = kitti_drive(root, range(6), [0, 2, 5])
+    out = tmp_path / "out"
+    res = build_kitti(root, split, out, "--size", "48x64", "--corruptions", "fog", "--levels", "3",
+                      "--jobs", "1", "--no-gt", "--frames", "-1,1")
+    assert res.exit_code == 0, res.output
+    files = _manifest(out)
+    neighbours = [kitti_key(n) for n in (1, 3, 4)]
+    for fmt in ("parquet", "webdataset"):
+        to = tmp_path / fmt
+        res = cli("export", out, "--format", fmt, "--to", to, "--no-progress")
+        assert res.exit_code == 0, res.output
+        assert f"{len(files)} rows" in res.output
+        res = cli("verify", to)
+        assert res.exit_code == 0 and f"{len(files)} files match" in res.output, res.output
+        for config, folder in (("clean", "clean"), ("fog", "fog/3")):
+            split_name = "test" if config == "clean" else "level_3"
+            if fmt == "parquet":
+                ds = datasets.load_dataset(str(to), config, split=split_name + "_neighbours",
+                                           cache_dir=str(tmp_path / "hf"))
+                got = {r["key"]: np.asarray(r["image"]) for r in ds}
+            else:
+                shards = sorted(str(p) for p in (to / "data" / config).glob(f"{split_name}_neighbours-*.tar"))
+                got = {s["json"]["key"]: s["png"] for s in wds.WebDataset(shards, shardshuffle=False).decode("rgb8")}
+            assert list(got) == neighbours
+            for key, pixels in got.items():
+                assert np.array_equal(pixels, _pixels((out / folder / key).read_bytes()))
+        a, b = KittiC(to, "fog", 3, frames=(-1, 1)), KittiC(out, "fog", 3, frames=(-1, 1))
+        for i in range(len(b)):
+            for x, y in zip(a[i]["neighbours"], b[i]["neighbours"]):
+                assert np.array_equal(x.numpy(), y.numpy())
+        assert b[1]["neighbours"][0].numpy().any()  # frame 1, read from the export
+
+
+def test_an_export_that_would_leave_out_a_file_is_refused(build, tmp_path, cli):
+    """A manifest row the build's record does not place (here: a key of no split) would be
+    dropped: refused before any shard is written."""
+    changed = tmp_path / "changed"
+    shutil.copytree(build, changed)
+    lines = (changed / "manifest.csv").read_text().splitlines(keepends=True)
+    row = next(line for line in lines if line.startswith("clean/"))
+    key = row.split(",", 1)[0]
+    stray = "clean/elsewhere.png" + row[len(key):]
+    shutil.copy(changed / key, changed / "clean/elsewhere.png")
+    (changed / "manifest.csv").write_text("".join(lines) + stray)
+    res = cli("export", changed, "--format", "parquet", "--to", tmp_path / "x", "--no-progress")
+    assert res.exit_code == 2, res.output
+    assert "1 file(s) of the build would not be exported (clean/elsewhere.png)" in res.output
+    assert not list((tmp_path / "x").rglob("*.parquet"))

@@ -209,7 +209,9 @@ def for_source(params: str, src: Source, job: Job) -> str:
     ``sequence=<id>`` (its sequence's files). A single-frame build's are unchanged."""
     from ..benchmarks import TEMPORAL
 
-    parts = ([f"neighbour_of={src.anchor}"] if src.anchor else []) + ([params] if params else [])
+    from ..output.layout import NEIGHBOUR_OF
+
+    parts = ([f"{NEIGHBOUR_OF}{src.anchor}"] if src.anchor else []) + ([params] if params else [])
     if src.sequence_id and job.variant in TEMPORAL:
         parts.append(f"sequence={src.sequence_id}")
     return ";".join(parts)

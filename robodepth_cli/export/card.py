@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import json
 
-from .layout import FORMATS, GT_CONFIG
+from .layout import FORMATS, GT_CONFIG, NEIGHBOURS
+
+NEIGHBOUR_TEXT = (", and `<split>_neighbours` (`level_3_neighbours`) the neighbour frames of a "
+                  "build with `--frames`, by key: a frame's key holds its frame number")
 
 # Where each source dataset's terms are published: the export copies its images, so they
 # apply to it. robodepth cannot decide them; the card says which to check.
@@ -73,7 +76,8 @@ def card(record, shards: list[dict], fmt: str, version: str) -> str:
         f"{source}, byte for byte as built ({fmt} shards). Each configuration is one variant: "
         f"`clean`, {', '.join(f'`{v}`' for v in variants) or 'no corruption'}"
         f"{', and `' + GT_CONFIG + '` (the ground truth, once)' if GT_CONFIG in configs else ''}; "
-        "each split one level (`level_3`) or `test` for a variant without levels. Every row "
+        "each split one level (`level_3`) or `test` for a variant without levels"
+        f"{NEIGHBOUR_TEXT if any(s['split'].endswith(NEIGHBOURS) for s in shards) else ''}. Every row "
         "has the image's key (its path in the split), variant, level, seed and sha256.",
         "",
         "## How it was made",

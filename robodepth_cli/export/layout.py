@@ -24,6 +24,7 @@ RECORD = "export.json"
 JOURNAL = ".shards.jsonl"  # in META: the shards written so far, while an export runs
 GT_CONFIG = "ground_truth"
 NO_LEVEL = "test"  # the split of a variant without levels
+NEIGHBOURS = "_neighbours"  # a split's neighbour frames (a build with --frames): level_3_neighbours
 FORMATS = {"parquet": "parquet", "webdataset": "tar"}  # format -> shard extension
 
 

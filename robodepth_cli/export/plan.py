@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InvalidValueError, RobodepthError
-from ..output.layout import GT_DIR, GT_FILE, output_path
-from .layout import GT_CONFIG, NO_LEVEL, shard_name, split_name
+from ..output.layout import GT_DIR, GT_FILE, NEIGHBOUR_OF, output_path, variant_dir
+from .layout import GT_CONFIG, NEIGHBOURS, NO_LEVEL, shard_name, split_name
 
 DEFAULT_SHARD_SIZE = 500_000_000
 _UNITS = {"": 1, "b": 1, "kb": 10 ** 3, "mb": 10 ** 6, "gb": 10 ** 9}
@@ -58,6 +58,11 @@ class Shard:
     start: int  # the position in the split of its first row
     items: list[Item] = field(default_factory=list)
 
+    @property
+    def neighbours(self) -> bool:
+        """Whether this shard holds neighbour frames (a split ``<split>_neighbours``)."""
+        return self.split.endswith(NEIGHBOURS)
+
     def name(self, ext: str) -> str:
         return shard_name(self.config, self.split, self.index, self.count, ext)
 
@@ -74,18 +79,22 @@ def config_name(variant) -> str:
 
 def plan(out: Path, dataset, rows: dict, shard_bytes: int) -> list[Shard]:
     """Every shard of the export of ``dataset`` (an opened build at ``out``), variants in
-    the build's order, then the ground truth; ``rows``: the manifest's rows."""
+    the build's order (each followed by its neighbour frames, a build with --frames), then
+    the ground truth; ``rows``: the manifest's rows. :class:`ExportError` before any work if
+    the build holds a file that no shard would."""
     groups: list[tuple[str, str, list[Item]]] = []
+    around = neighbour_outputs(rows)
     for v in dataset.variants():
-        items = []
-        for key in v.keys:
-            path = output_path(v.name, v.level, key)
-            row = rows[path]
-            items.append(Item(path, key, v.name, v.level, row.seed, row.sha256, _size(out, path)))
-        groups.append((config_name(v), split_name(v.level), items))
+        paths = [(output_path(v.name, v.level, key), key) for key in v.keys]
+        groups.append((config_name(v), split_name(v.level), _items(out, rows, paths, v)))
+        if around.get(v.relpath):
+            paths = [(p, p[len(v.relpath) + 1:]) for p in around[v.relpath]]
+            groups.append((config_name(v), split_name(v.level) + NEIGHBOURS,
+                           _items(out, rows, paths, v)))
     truth = _ground_truth(out, dataset, rows)
     if truth:
         groups.append((GT_CONFIG, NO_LEVEL, truth))
+    _check_everything(out, rows, groups)
     shards = []
     for config, split, items in groups:
         cuts: list[list[Item]] = [[]]
@@ -101,6 +110,32 @@ def plan(out: Path, dataset, rows: dict, shard_bytes: int) -> list[Shard]:
             shards.append(Shard(config, split, i, len(cuts), start, part))
             start += len(part)
     return shards
+
+
+def _items(out: Path, rows: dict, paths, v) -> list[Item]:
+    return [Item(p, key, v.name, v.level, rows[p].seed, rows[p].sha256, _size(out, p))
+            for p, key in paths]
+
+
+def neighbour_outputs(rows: dict) -> dict[str, list[str]]:
+    """The neighbour frames of a build with --frames (rows whose ``params`` name the test
+    frame they were rendered for), by variant directory, each list sorted by path."""
+    found: dict[str, list[str]] = {}
+    for path, r in rows.items():
+        if r.params.startswith(NEIGHBOUR_OF) and not r.error:
+            found.setdefault(variant_dir(r.variant, r.level), []).append(path)
+    return {d: sorted(paths) for d, paths in found.items()}
+
+
+def _check_everything(out: Path, rows: dict, groups) -> None:
+    """Refuse an export that would leave out a file of the build."""
+    planned = {i.output for _, _, items in groups for i in items}
+    left = sorted(p for p, r in rows.items() if not r.error and p not in planned)
+    if left:
+        raise ExportError(f"{out}: {len(left)} file(s) of the build would not be exported "
+                          f"({', '.join(left[:3])}{', ...' if len(left) > 3 else ''}): the "
+                          "manifest lists them but the build's record does not place them; "
+                          f"run robodepth verify {out}, or rebuild into a new folder")
 
 
 def _ground_truth(out: Path, dataset, rows: dict) -> list[Item]:

@@ -16,8 +16,8 @@ from typing import Iterator
 
 from ..files import sha256_bytes
 from ..output.layout import GT_DIR, GT_FILE
-from .layout import GT_CONFIG, META, RECORD
-from .plan import ExportError
+from .layout import GT_CONFIG, META, NEIGHBOURS, RECORD
+from .plan import ExportError, neighbour_outputs
 
 
 def read_export_record(to: Path) -> dict | None:
@@ -73,10 +73,15 @@ class ExportStore:
         self.shards = record.get("shards") or []
         self._sha = {p: r.sha256 for p, r in manifest.items() if not r.error}
         self._where: dict[str, tuple[int, int]] = {}
+        around = neighbour_outputs(manifest)
         for n, e in enumerate(self.shards):
-            if e["config"] != GT_CONFIG:
-                for j in range(e["rows"]):
-                    self._where[f"{e['prefix']}/{keys[e['start'] + j]}"] = (n, j)
+            if e["config"] == GT_CONFIG:
+                continue
+            if e["split"].endswith(NEIGHBOURS):
+                paths = around.get(e["prefix"], [])[e["start"]:e["start"] + e["rows"]]
+            else:
+                paths = [f"{e['prefix']}/{k}" for k in keys[e["start"]:e["start"] + e["rows"]]]
+            self._where.update((p, (n, j)) for j, p in enumerate(paths))
         self._cache: dict = {}
         self._gt_dir = None
 
