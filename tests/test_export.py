@@ -40,6 +40,20 @@ def build(tmp_path_factory, cli) -> Path:
     return out
 
 
+def _kitti_maps(build: Path) -> list[np.ndarray]:
+    """The build's own gt_depths.npz as monodepth2 reads it (a test may unpickle its own file)."""
+    return list(np.load(build / "gt_depths.npz", allow_pickle=True)["data"])
+
+
+def _npy_sha(depth) -> str:
+    """sha256 of the map saved as a .npy (format 1.0, little-endian float32), numpy's own way."""
+    import hashlib
+
+    buf = io.BytesIO()
+    np.save(buf, np.asarray(depth, dtype="<f4"), allow_pickle=False)
+    return hashlib.sha256(buf.getvalue()).hexdigest()
+
+
 def _manifest(out: Path) -> dict[str, dict]:
     import csv
 
@@ -110,11 +124,15 @@ def test_parquet_loads_with_datasets_pixel_for_pixel(build, exports, tmp_path, m
         raw = ds.cast_column("image", datasets.Image(decode=False))
         assert [r["image"]["bytes"] for r in raw] == [(build / f).read_bytes() for f in files]
         assert [r["image"]["path"] for r in raw] == files
+    # The ground truth: one row per image, keyed like the images, its map a 2-D float array
+    # that datasets decodes without pickle, NaN where the build's file has 0 (no return).
     gt = datasets.load_dataset(str(export), "ground_truth", split="test", cache_dir=str(tmp_path / "hf"))
-    assert gt["path"] == ["gt_depths.npz"]
-    assert gt[0]["data"] == (build / "gt_depths.npz").read_bytes()
-    maps = np.load(io.BytesIO(gt[0]["data"]), allow_pickle=True)["data"]
-    assert len(maps) == 2 and maps[0].shape == (375, 1242)
+    assert gt.features["depth"] == datasets.Sequence(datasets.Sequence(datasets.Value("float32")))
+    assert gt["key"] == keys and gt["path"] == ["gt_depths.npz"] * 2
+    for row, want in zip(gt.with_format("numpy"), _kitti_maps(build)):
+        assert row["depth"].dtype == np.float32 and row["depth"].shape == want.shape == (375, 1242)
+        np.testing.assert_array_equal(row["depth"], np.where(want > 0, want, np.nan))
+        assert row["sha256"] == _npy_sha(row["depth"])
 
 
 def test_tar_shards_load_with_webdataset_and_tarfile(build, exports):
@@ -137,8 +155,17 @@ def test_tar_shards_load_with_webdataset_and_tarfile(build, exports):
                 members.update({m.name: tar.extractfile(m).read() for m in tar if m.name.endswith(".png")})
         assert [members[f.split("/", 1 if config == "clean" else 2)[-1]] for f in files] == \
                [(build / f).read_bytes() for f in files]
-    with tarfile.open(export / "data/ground_truth/test-00000-of-00001.tar") as tar:
-        assert tar.extractfile("gt_depths.npz").read() == (build / "gt_depths.npz").read_bytes()
+    keys = json.loads((build / "build.json").read_text())["split"]["keys"]
+    shards = sorted(str(p) for p in (export / "data/ground_truth").glob("test-*.tar"))
+    samples = list(wds.WebDataset(shards, shardshuffle=False, empty_check=False).decode())
+    assert [s["json"]["key"] for s in samples] == keys
+    for s, key, want in zip(samples, keys, _kitti_maps(build)):
+        assert s["__key__"] + ".png" == key and s["json"]["path"] == "gt_depths.npz"
+        np.testing.assert_array_equal(s["depth.npy"], np.where(want > 0, want, np.nan))
+        assert s["json"]["sha256"] == _npy_sha(s["depth.npy"])
+    with tarfile.open(shards[0]) as tar:  # a plain .npy: numpy loads it without pickle
+        member = tar.extractfile(keys[0][:-len(".png")] + ".depth.npy").read()
+        assert np.load(io.BytesIO(member), allow_pickle=False).shape == (375, 1242)
 
 
 @pytest.mark.parametrize("fmt", ["parquet", "webdataset"])
@@ -146,7 +173,7 @@ def test_verify_names_a_changed_missing_or_extra_row(build, exports, tmp_path, c
     export = tmp_path / fmt
     shutil.copytree(exports[fmt], export)
     res = cli("verify", export)
-    assert res.exit_code == 0 and "11 files match the manifest" in res.output, res.output
+    assert res.exit_code == 0 and "12 files match the manifest" in res.output, res.output
     assert (export / "robodepth" / "manifest.csv").read_bytes() == (build / "manifest.csv").read_bytes()
     ext = "parquet" if fmt == "parquet" else "tar"
     # One byte of one image, inside its shard: the image is named, and so is the shard.
@@ -186,7 +213,8 @@ def test_open_dataset_and_kittic_read_an_export_as_the_build(build, exports):
                     assert a.read() == b.read()
         with pytest.raises(DatasetError, match="images are in shards; use variant.read"):
             ds.variants()[0].images()
-        assert ds.ground_truth().read_bytes() == (build / "gt_depths.npz").read_bytes()
+        got = np.load(ds.ground_truth(), allow_pickle=True)["data"]  # written back from the rows
+        assert all(np.array_equal(a, b) for a, b in zip(got, _kitti_maps(build))) and len(got) == 2
         a, b = KittiC(export, "fog", 3), KittiC(build, "fog", 3)
         assert len(a) == len(b) == 2
         for i in range(2):
@@ -231,7 +259,7 @@ def test_resume_rewrites_only_the_missing_shard(build, exports, tmp_path, cli):
     res = cli("export", build, "--format", "parquet", "--to", export, "--shard-size", "20kB",
               "--no-progress")
     assert res.exit_code == 0, res.output
-    assert "11 rows in 11 parquet shards (1 written now)" in res.output
+    assert "12 rows in 12 parquet shards (1 written now)" in res.output
     assert _tree_bytes(export) == before  # the same shard, byte for byte
 
 
@@ -261,7 +289,7 @@ def test_an_interrupted_export_keeps_whole_shards_and_resumes(build, exports, tm
     assert len((export / "robodepth/.shards.jsonl").read_text().splitlines()) == 3
     monkeypatch.setitem(run.WRITERS, "webdataset", real)
     res = cli(*args)
-    assert res.exit_code == 0 and "(8 written now)" in res.output, res.output
+    assert res.exit_code == 0 and "(9 written now)" in res.output, res.output
     assert not (export / "robodepth/.shards.jsonl").exists()
     assert _tree_bytes(export) == _tree_bytes(exports["webdataset"])
 
@@ -360,8 +388,11 @@ def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
     table = pq.read_table(tmp_path / "parquet" / "data/ground_truth/test-00000-of-00001.parquet")
     keys = json.loads((out / "build.json").read_text())["split"]["keys"]
     assert table.column("key").to_pylist() == keys
-    by_path = dict(zip(table.column("path").to_pylist(), table.column("data").to_pylist()))
-    assert by_path == {p.relative_to(out).as_posix(): p.read_bytes() for p in gts}
+    assert table.column("path").to_pylist() == [p.relative_to(out).as_posix() for p in gts]
+    for depth, png in zip(table.column("depth").to_pylist(), gts):
+        mm = np.asarray(Image.open(png), dtype=np.float64)  # 16-bit millimetres, 0: none
+        want = np.where(mm > 0, mm / 1000, np.nan).astype(np.float32)
+        np.testing.assert_array_equal(np.asarray(depth, dtype=np.float32), want)
 
 
 def test_report_draws_a_frame_of_an_export_as_of_the_build(build, exports, tmp_path, cli):
@@ -448,3 +479,58 @@ def test_an_export_that_would_leave_out_a_file_is_refused(build, tmp_path, cli):
     assert res.exit_code == 2, res.output
     assert "1 file(s) of the build would not be exported (clean/elsewhere.png)" in res.output
     assert not list((tmp_path / "x").rglob("*.parquet"))
+
+
+def test_depth_build_ground_truth_rows_evaluate_and_verify(tmp_path, cli, monkeypatch):
+    """A build with depth (custom --depth): one ground_truth row per image, its float map as
+    built (NaN kept), in datasets and webdataset; evaluate on either export gives the build's
+    results; verify names a map whose values changed."""
+    monkeypatch.setenv("HF_DATASETS_OFFLINE", "1")
+    import datasets
+    import webdataset as wds
+
+    from _trees import random_image, save
+
+    maps = {"a": np.full((40, 48), 7.5, np.float32), "sub/b": np.linspace(1, 60, 40 * 48, dtype=np.float32).reshape(40, 48)}
+    maps["sub/b"][:5] = np.nan
+    for i, name in enumerate(maps):
+        save(tmp_path / "img" / f"{name}.png", random_image(40, 48, seed=i))
+        (tmp_path / "depth" / name).parent.mkdir(parents=True, exist_ok=True)
+        np.save(tmp_path / "depth" / f"{name}.npy", maps[name])
+    out = tmp_path / "out"
+    res = cli("build", "custom", "--root", tmp_path / "img", "--depth", tmp_path / "depth", "--out", out,
+              "--corruptions", "fog", "--levels", "2", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    module = tmp_path / "m.py"
+    module.write_text(MODEL)
+    results = []
+    for fmt in ("tree", "parquet", "webdataset"):
+        where = out if fmt == "tree" else tmp_path / fmt
+        if fmt != "tree":
+            assert cli("export", out, "--format", fmt, "--to", where, "--no-progress").exit_code == 0
+        res = cli("predict", where, "-m", f"python:{module}:brightness", "--kind", "depth", "-o", tmp_path / f"P_{fmt}")
+        assert res.exit_code == 0, res.output
+        res = cli("evaluate", where, "--pred", tmp_path / f"P_{fmt}", "--out", tmp_path / f"{fmt}.csv")
+        assert res.exit_code == 0, res.output
+        results.append((tmp_path / f"{fmt}.csv").read_text())
+    assert results[0] == results[1] == results[2]
+    keys = json.loads((out / "build.json").read_text())["split"]["keys"]
+    assert keys == ["a.png", "sub/b.png"]
+    gt = datasets.load_dataset(str(tmp_path / "parquet"), "ground_truth", split="test",
+                               cache_dir=str(tmp_path / "hf")).with_format("numpy")
+    assert list(gt["key"]) == keys
+    for row, name in zip(gt, maps):
+        np.testing.assert_array_equal(row["depth"], maps[name])
+    shards = sorted(str(p) for p in (tmp_path / "webdataset/data/ground_truth").glob("*.tar"))
+    samples = list(wds.WebDataset(shards, shardshuffle=False, empty_check=False).decode())
+    assert [s["__key__"] for s in samples] == ["a", "sub/b"]
+    for s, name in zip(samples, maps):
+        np.testing.assert_array_equal(s["depth.npy"], maps[name])
+    # One value of b's map changed inside its tar member (same length): verify names it.
+    shard = Path(shards[0])
+    data = bytearray(shard.read_bytes())
+    at = bytes(data).index(np.float32(60.0).tobytes())
+    data[at:at + 4] = np.float32(61.0).tobytes()
+    shard.write_bytes(bytes(data))
+    res = cli("verify", tmp_path / "webdataset")
+    assert res.exit_code == 1 and "  gt/sub/b.npy" in res.output.splitlines(), res.output

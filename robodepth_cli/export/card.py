@@ -75,7 +75,7 @@ def card(record, shards: list[dict], fmt: str, version: str) -> str:
         f"The images of a `robodepth build {record.dataset}` of {len(record.keys or [])} images of "
         f"{source}, byte for byte as built ({fmt} shards). Each configuration is one variant: "
         f"`clean`, {', '.join(f'`{v}`' for v in variants) or 'no corruption'}"
-        f"{', and `' + GT_CONFIG + '` (the ground truth, once)' if GT_CONFIG in configs else ''}; "
+        f"{', and `' + GT_CONFIG + '` (the ground truth: one row per image, `depth` its map, float32 metres, NaN where there is no measurement)' if GT_CONFIG in configs else ''}; "
         "each split one level (`level_3`) or `test` for a variant without levels"
         f"{NEIGHBOUR_TEXT if any(s['split'].endswith(NEIGHBOURS) for s in shards) else ''}. Every row "
         "has the image's key (its path in the split), variant, level, seed and sha256.",

@@ -47,6 +47,7 @@ class Item:
     seed: int
     sha256: str  # the manifest's
     size: int  # bytes
+    part: int = 0  # the ground truth: the map's index in its file (gt_depths.npz holds them all)
 
 
 @dataclass
@@ -139,12 +140,19 @@ def _check_everything(out: Path, rows: dict, groups) -> None:
 
 
 def _ground_truth(out: Path, dataset, rows: dict) -> list[Item]:
-    """The build's ground-truth files as rows, every one the manifest lists as made:
-    ``gt_depths.npz`` (key "") or ``gt/<depth name>`` (keyed by its image, split order)."""
+    """The build's ground truth as rows, one per map, from every file the manifest lists as
+    made: ``gt_depths.npz`` (a map per image of the split, in its order) or ``gt/<depth
+    name>`` (keyed by its image, split order; a file of no image of the split by its path)."""
     key_of = {f"{GT_DIR}/{n}": k for n, k in zip(dataset.depth_names(), dataset.keys)}
-    paths = [GT_FILE, *key_of, *sorted(p for p in rows if p.startswith(GT_DIR + "/") and p not in key_of)]
-    return [Item(p, key_of.get(p, ""), rows[p].variant, None, rows[p].seed, rows[p].sha256,
-                 _size(out, p)) for p in paths if p in rows and not rows[p].error]
+    items = []
+    gt = rows.get(GT_FILE)
+    if gt is not None and not gt.error:
+        size = _size(out, GT_FILE) // max(len(dataset.keys), 1)
+        items += [Item(GT_FILE, k, gt.variant, None, gt.seed, gt.sha256, size, i)
+                  for i, k in enumerate(dataset.keys)]
+    paths = [*key_of, *sorted(p for p in rows if p.startswith(GT_DIR + "/") and p not in key_of)]
+    return items + [Item(p, key_of.get(p, ""), rows[p].variant, None, rows[p].seed, rows[p].sha256,
+                         _size(out, p)) for p in paths if p in rows and not rows[p].error]
 
 
 def _size(out: Path, path: str) -> int:

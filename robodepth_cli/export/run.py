@@ -17,12 +17,12 @@ from pathlib import Path
 
 from ..files import atomic_output, check_writable, sha256_file, write_atomic
 from ..output.layout import MANIFEST, RECORD as BUILD_RECORD
-from .layout import CARD, DATA, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
+from .layout import CARD, DATA, EXPORT_VERSION, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
 from .plan import ExportError, Shard, plan
 from .reader import read_export_record
 from .shards import WRITERS
 
-EXPORT_VERSION = 1
+_DONE = ("file", "sha256", "bytes", "maps")  # what the journal keeps of a finished shard
 
 
 @dataclass
@@ -57,7 +57,8 @@ def _entry(shard: Shard, fmt: str) -> dict:
     prefix = "" if shard.config == GT_CONFIG else shard.items[0].output[:-len(shard.items[0].key) - 1]
     return {"file": shard.name(FORMATS[fmt]), "config": shard.config, "split": shard.split,
             "prefix": prefix, "start": shard.start, "rows": len(shard.items),
-            "source_bytes": shard.size, "sha256": None, "bytes": None}
+            "source_bytes": shard.size, "sha256": None, "bytes": None,
+            **({"maps": None} if shard.config == GT_CONFIG else {})}
 
 
 def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = True,
@@ -90,7 +91,7 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
         done.update(_journal(to))
         for e in entries:
             if e["file"] in done:
-                e["sha256"], e["bytes"] = done[e["file"]]["sha256"], done[e["file"]]["bytes"]
+                e.update({k: done[e["file"]].get(k) for k in _DONE if k in e})
     record = {**header, "robodepth": version, "status": "running", "shards": entries}
     try:
         write_atomic(to / META / MANIFEST, manifest)
@@ -105,18 +106,22 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
              desc="export") as meter:
         for shard, e in zip(shards, entries):
             target = to / e["file"]
+            gt = shard.config == GT_CONFIG
             if target.is_file() and e["sha256"] is None:  # renamed, then stopped: hash it now
                 e["sha256"], e["bytes"] = sha256_file(target), target.stat().st_size
-            if target.is_file() and e["bytes"] == target.stat().st_size:
+            # A ground-truth shard whose map hashes were not recorded is written again.
+            if target.is_file() and e["bytes"] == target.stat().st_size and not (gt and e["maps"] is None):
                 meter.update(shard.size)
                 continue
             try:
                 with atomic_output(target) as fh:
-                    write(fh, out, shard, shard.config == GT_CONFIG, meter.update)
+                    maps = write(fh, out, shard, gt, meter.update)
                     fh.flush()
                 e["sha256"], e["bytes"] = sha256_file(target), target.stat().st_size
+                if gt:
+                    e["maps"] = maps
                 with open(to / META / JOURNAL, "a", encoding="utf-8") as fh:
-                    fh.write(json.dumps({k: e[k] for k in ("file", "sha256", "bytes")}) + "\n")
+                    fh.write(json.dumps({k: e[k] for k in _DONE if k in e}) + "\n")
             except OSError as exc:
                 raise ExportError(_cannot(target, exc)) from None
             summary.written += 1
