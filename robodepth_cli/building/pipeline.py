@@ -421,6 +421,14 @@ def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str 
         summary.interrupted = True
     except OSError as exc:
         summary.fatal = cannot_write(out / MANIFEST, exc)
+    finally:
+        if plan.implausible:
+            summary.notes.append(
+                f"warning: {len(plan.implausible)} depth map(s) have a median depth above "
+                f"{build_gt.PLAUSIBLE_MEDIAN_M:g} m, no plausible distance in metres "
+                f"({', '.join(plan.implausible[:2])}{', ...' if len(plan.implausible) > 2 else ''}): "
+                "are they in another unit? The evaluation leaves out images without a valid pixel "
+                "in its depth range")
 
 
 def finish(out: Path, record: BuildRecord, summary: Summary) -> None:

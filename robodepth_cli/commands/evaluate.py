@@ -165,6 +165,11 @@ def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: 
     if result.missing:
         click.echo(f"robodepth: warning: no predictions for {len(result.missing)} variants; "
                    "evaluated the rest", err=True)
+    if result.left_out:
+        n, reasons = len(result.left_out), list(result.left_out.items())[:2]
+        click.echo(f"robodepth: left out {n} of {result.images} images without usable ground truth ("
+                   + "; ".join(f"{k}: {why}" for k, why in reasons) + ("; ..." if n > 2 else "")
+                   + ")", err=True)
     implausible = _implausible_clean(result) if bench is not None else ""
     scored = None
     if bench is not None and not implausible:

@@ -56,4 +56,8 @@ def export_command(out, fmt, to, shard_size, progress):
     click.echo(f"{to}: {summary.rows} rows in {summary.shards} {fmt} shards "
                f"({summary.written} written now), {summary.size / 1e6:.1f} MB "
                f"({ratio:.3f} x the build's {summary.source_size / 1e6:.1f} MB)", err=True)
+    if summary.no_depth:
+        first, why = next(iter(summary.no_depth.items()))
+        click.echo(f"robodepth: {len(summary.no_depth)} image(s) without a usable depth map have no "
+                   f"ground truth and no depth-aware images in the export ({first}: {why})", err=True)
     click.echo(f"next: robodepth verify {to}", err=True)

@@ -86,7 +86,8 @@ def plan(out: Path, dataset, rows: dict, shard_bytes: int) -> list[Shard]:
     groups: list[tuple[str, str, list[Item]]] = []
     around = neighbour_outputs(rows)
     for v in dataset.variants():
-        paths = [(output_path(v.name, v.level, key), key) for key in v.keys]
+        # The images a variant lacks (no usable depth map: see _open_build) have no row.
+        paths = [(output_path(v.name, v.level, key), key) for key in v.keys if key not in v.missing]
         groups.append((config_name(v), split_name(v.level), _items(out, rows, paths, v)))
         if around.get(v.relpath):
             paths = [(p, p[len(v.relpath) + 1:]) for p in around[v.relpath]]

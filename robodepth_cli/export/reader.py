@@ -104,8 +104,10 @@ class ExportStore:
                 continue
             if e["split"].endswith(NEIGHBOURS):
                 paths = around.get(e["prefix"], [])[e["start"]:e["start"] + e["rows"]]
-            else:
-                paths = [f"{e['prefix']}/{k}" for k in keys[e["start"]:e["start"] + e["rows"]]]
+            else:  # the split's images this variant has (see plan), in split order
+                made = [p for p in (f"{e['prefix']}/{k}" for k in keys)
+                        if p in manifest and not manifest[p].error]
+                paths = made[e["start"]:e["start"] + e["rows"]]
             self._where.update((p, (n, j)) for j, p in enumerate(paths))
         self._cache: dict = {}
         self._gt_dir = None

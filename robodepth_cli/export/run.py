@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..files import atomic_output, check_writable, sha256_file, write_atomic
@@ -32,6 +32,9 @@ class ExportSummary:
     rows: int = 0
     size: int = 0  # bytes of the shards
     source_size: int = 0  # bytes of the build's files exported
+    # The images without a usable depth map (their ground truth and depth-aware outputs
+    # do not exist), with the reason.
+    no_depth: dict = field(default_factory=dict)
 
 
 def _inside(a: Path, b: Path) -> bool:
@@ -47,10 +50,27 @@ def _open_build(out: Path):
     if holder:
         raise ExportError(f"{out}: a build (pid {holder}) is writing here right now; export "
                           "when it has finished")
-    if dataset.failed or dataset.record.status not in ("finished", ""):
+    rows = read_manifest(out)
+    # Images whose depth map is unusable have no ground truth and no depth-aware outputs;
+    # a rerun cannot make them, so the build is exported without those files.
+    status = dataset.record.status
+    if status == "finished with failures" and not _unexplained(dataset, rows):
+        status = "finished"
+    if dataset.failed or status not in ("finished", ""):
         why = dataset.incomplete() or f"{out}: the build's status is {dataset.record.status!r}"
         raise ExportError(f"{why}; export a finished build (rerun the build command to finish it)")
-    return dataset, read_manifest(out)
+    return dataset, rows
+
+
+def _unexplained(dataset, rows: dict) -> list[str]:
+    """The failed rows of the build that an unusable depth map does not explain."""
+    from ..api import depth_aware_variant
+    from ..output.layout import GT_DIR, depth_gt_name, variant_dir
+
+    lacking = {f"{GT_DIR}/{depth_gt_name(k)}" for k in dataset.no_depth}
+    return [p for p, r in rows.items() if r.error and p not in lacking
+            and not (depth_aware_variant(r.variant)
+                     and p[len(variant_dir(r.variant, r.level)) + 1:] in dataset.no_depth)]
 
 
 def _entry(shard: Shard, fmt: str) -> dict:
@@ -100,7 +120,7 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
     except OSError as exc:
         raise ExportError(_cannot(to, exc)) from None
     summary = ExportSummary(shards=len(shards), rows=sum(len(s.items) for s in shards),
-                            source_size=sum(s.size for s in shards))
+                            source_size=sum(s.size for s in shards), no_depth=dataset.no_depth)
     write = WRITERS[fmt]
     with bar("B", summary.source_size, progress=progress, unit_scale=True, unit_divisor=1024,
              desc="export") as meter:
