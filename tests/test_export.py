@@ -109,7 +109,8 @@ def test_parquet_loads_with_datasets_pixel_for_pixel(build, exports, tmp_path, m
     card = (export / "README.md").read_text()
     assert card.startswith("---\n") and "config_name: \"fog\"" in card and "kong2023robodepth" in card
     assert "| 3 | fog | weather & lighting | t, d | 1.5, 2 |" in card and "| 1 | brightness" not in card
-    assert "Seed 0; levels [1, 3]; size 48x160 (HxW)" in card and "cc-by-nc-sa-3.0" in card
+    assert "- `fog`: levels 1, 3; seed 0; numpy engine" in card and "Size 48x160 (HxW)" in card
+    assert "cc-by-nc-sa-3.0" in card
     manifest = _manifest(build)
     keys = json.loads((build / "build.json").read_text())["split"]["keys"]
     for (config, split), files in _variants(build).items():
@@ -534,3 +535,24 @@ def test_depth_build_ground_truth_rows_evaluate_and_verify(tmp_path, cli, monkey
     shard.write_bytes(bytes(data))
     res = cli("verify", tmp_path / "webdataset")
     assert res.exit_code == 1 and "  gt/sub/b.npy" in res.output.splitlines(), res.output
+
+
+def test_the_card_describes_every_request_into_the_build(build, tmp_path, cli):
+    """Two more requests into the build (fog level 1 again; contrast with the torch engine):
+    the card lists what the export holds, not the last request's levels."""
+    out = tmp_path / "K"
+    shutil.copytree(build, out)
+    root = tmp_path / "kitti_raw"
+    shutil.copytree(FIXTURES / "kitti_raw", root)
+    for extra in (("--corruptions", "contrast", "--levels", "2", "--engine", "torch"),
+                  ("--corruptions", "fog", "--levels", "1")):
+        res = cli("build", "kitti-c", "--root", root, "--split", FIXTURES / "kitti_split.txt", "--out",
+                  out, "--size", "48x160", "--jobs", "1", "--no-gt", *extra)
+        assert res.exit_code == 0, res.output
+    res = cli("export", out, "--format", "parquet", "--to", tmp_path / "hf", "--no-progress")
+    assert res.exit_code == 0, res.output
+    card = (tmp_path / "hf" / "README.md").read_text()
+    assert "- `fog`: levels 1, 3; seed 0; numpy engine" in card
+    assert "- `gaussian_noise`: levels 1, 3; seed 0; numpy engine" in card
+    assert "- `contrast`: levels 2; seed 0; torch engine" in card
+    assert "- `clean`: seed 0" in card and "levels [1]" not in card

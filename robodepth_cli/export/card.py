@@ -46,9 +46,42 @@ def _parameters(variants: list[str]) -> list[str]:
             corruption_table(markdown=True, names=names), ""]
 
 
-def card(record, shards: list[dict], fmt: str, version: str) -> str:
+def holdings(shards, rows: dict) -> dict[str, dict]:
+    """What the export holds, per configuration (:class:`~.plan.Shard` s): its ``levels``,
+    ``seeds`` and ``engines`` (``numpy``, ``torch``; none for the clean images and the
+    ground truth), from the manifest ``rows`` of its files: every build request into the
+    build counts, not only the last."""
+    from ..sources.engines import TORCH_FINGERPRINT
+
+    held: dict[str, dict] = {}
+    for s in shards:
+        h = held.setdefault(s.config, {"levels": set(), "seeds": set(), "engines": set()})
+        for item in s.items:
+            if item.level is not None:
+                h["levels"].add(item.level)
+            h["seeds"].add(item.seed)
+            if s.config not in ("clean", GT_CONFIG):
+                torch = TORCH_FINGERPRINT in rows[item.output].params.split(";")
+                h["engines"].add("torch" if torch else "numpy")
+    return {c: {k: sorted(v) for k, v in h.items()} for c, h in held.items()}
+
+
+def _held_lines(held: dict[str, dict]) -> list[str]:
+    """One line per configuration: its levels, seeds and engines."""
+    from ..corruptions.severity import level_text
+
+    lines = []
+    for config, h in held.items():
+        parts = [f"levels {', '.join(level_text(lv) for lv in h['levels'])}" if h["levels"] else "",
+                 f"seed {', '.join(map(str, h['seeds']))}",
+                 f"{' and '.join(h['engines'])} engine" if h["engines"] else ""]
+        lines.append(f"- `{config}`: " + "; ".join(p for p in parts if p))
+    return lines
+
+
+def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dict]) -> str:
     """The card's text for an export of the build ``record`` made of ``shards`` (the
-    export record's entries)."""
+    export record's entries) holding ``held`` (:func:`holdings`)."""
     from ..report.published import BIBTEX
 
     ext = FORMATS[fmt]
@@ -80,16 +113,19 @@ def card(record, shards: list[dict], fmt: str, version: str) -> str:
         f"{NEIGHBOUR_TEXT if any(s['split'].endswith(NEIGHBOURS) for s in shards) else ''}. Every row "
         "has the image's key (its path in the split), variant, level, seed and sha256.",
         "",
+        "## What it holds",
+        "",
+        *_held_lines(held),
+        "",
         "## How it was made",
         "",
         f"- robodepth {record.robodepth or 'unknown'} built it; robodepth {version} exported it.",
-        f"- Seed {record.seed}; levels {conf.get('levels')}; size "
-        f"{'x'.join(map(str, size)) + ' (HxW)' if size else 'each image its own'}.",
+        f"- Size {'x'.join(map(str, size)) + ' (HxW)' if size else 'each image its own'}.",
         f"- Corruption parameters: the RoboDepth benchmark's, as robodepth {record.robodepth} "
         "states them (`robodepth list`); the build's whole configuration and command are in "
         "`robodepth/build.json`, and `robodepth/manifest.csv` lists every file with its sha256 "
         "(`robodepth verify` checks an export against it).",
-        f"- Command: `{' '.join(record.command)}`" if record.command else "",
+        f"- The last build command into it: `{' '.join(record.command)}`" if record.command else "",
         "",
         *_parameters(variants),
         "## Licence to check",

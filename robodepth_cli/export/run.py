@@ -19,6 +19,7 @@ from ..files import atomic_output, check_writable, sha256_file, write_atomic
 from ..output.layout import MANIFEST, RECORD as BUILD_RECORD
 from .layout import CARD, DATA, EXPORT_VERSION, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
 from .plan import ExportError, Shard, plan
+from .card import holdings
 from .reader import read_export_record
 from .shards import WRITERS
 
@@ -145,18 +146,18 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
             except OSError as exc:
                 raise ExportError(_cannot(target, exc)) from None
             summary.written += 1
-    _finish(to, dataset, record, fmt, version)
+    _finish(to, dataset, record, fmt, version, holdings(shards, rows))
     summary.size = sum(e["bytes"] for e in entries)
     return summary
 
 
-def _finish(to: Path, dataset, record: dict, fmt: str, version: str) -> None:
+def _finish(to: Path, dataset, record: dict, fmt: str, version: str, held: dict) -> None:
     from .card import card
 
     _remove_strays(to)
     record["status"] = "finished"
     try:
-        write_atomic(to / CARD, card(dataset.record, record["shards"], fmt, version).encode("utf-8"))
+        write_atomic(to / CARD, card(dataset.record, record["shards"], fmt, version, held).encode("utf-8"))
         _write_record(to, record)
         (to / META / JOURNAL).unlink(missing_ok=True)
     except OSError as exc:
