@@ -142,8 +142,8 @@ def scored_benchmark(dataset: str, variants):
 
     if dataset in B.UNPUBLISHED:  # DEE and RR; CE needs robodepth score --baseline
         built = [v for v in variants if v.level is not None and v.level == int(v.level)]
-        return B.unpublished(dataset, tuple(v.name for v in built),
-                             max((int(v.level) for v in built), default=1))
+        return B.unpublished(dataset, tuple(v.name for v in built), 1,
+                             levels=[int(v.level) for v in built if v.name in B.CORRUPTIONS])
     if dataset not in B.BENCHMARKS:
         raise RobodepthError(f"--score: {dataset} has no robustness scores (they exist "
                              f"for {', '.join((*B.BENCHMARKS, *B.UNPUBLISHED))})")
