@@ -359,15 +359,9 @@ def test_a_plain_build_imports_no_export_library(tmp_path):
     assert res.stdout.strip() == "[]"
 
 
-def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
-    """NYU's ground truth is a PNG per image: one ground_truth row each, keyed by its image,
-    and evaluate reads them back out of the shards."""
-    out = tmp_path / "NYU_C"
-    res = cli("build", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", FIXTURES / "nyu_split.txt",
-              "--out", out, "--corruptions", "dark", "--levels", "2", "--size", "48x64", "--jobs", "1")
-    assert res.exit_code == 0, res.output
-    gts = sorted((out / "gt").rglob("*.png"))
-    assert len(gts) == 2
+def _evaluated_three_ways(cli, tmp_path, out) -> list[str]:
+    """The results CSV of the same depth predictions evaluated on the build ``out`` and on
+    its parquet and webdataset exports (each export verified first)."""
     module = tmp_path / "m.py"
     module.write_text(MODEL)
     results = []
@@ -383,6 +377,19 @@ def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
         res = cli("evaluate", where, "--pred", tmp_path / f"P_{fmt}", "--out", tmp_path / f"{fmt}.csv")
         assert res.exit_code == 0, res.output
         results.append((tmp_path / f"{fmt}.csv").read_text())
+    return results
+
+
+def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
+    """NYU's ground truth is a PNG per image: one ground_truth row each, keyed by its image,
+    and evaluate reads them back out of the shards."""
+    out = tmp_path / "NYU_C"
+    res = cli("build", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", FIXTURES / "nyu_split.txt",
+              "--out", out, "--corruptions", "dark", "--levels", "2", "--size", "48x64", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    gts = sorted((out / "gt").rglob("*.png"))
+    assert len(gts) == 2
+    results = _evaluated_three_ways(cli, tmp_path, out)
     assert results[0] == results[1] == results[2]
     import pyarrow.parquet as pq
 
@@ -502,18 +509,7 @@ def test_depth_build_ground_truth_rows_evaluate_and_verify(tmp_path, cli, monkey
     res = cli("build", "custom", "--root", tmp_path / "img", "--depth", tmp_path / "depth", "--out", out,
               "--corruptions", "fog", "--levels", "2", "--jobs", "1")
     assert res.exit_code == 0, res.output
-    module = tmp_path / "m.py"
-    module.write_text(MODEL)
-    results = []
-    for fmt in ("tree", "parquet", "webdataset"):
-        where = out if fmt == "tree" else tmp_path / fmt
-        if fmt != "tree":
-            assert cli("export", out, "--format", fmt, "--to", where, "--no-progress").exit_code == 0
-        res = cli("predict", where, "-m", f"python:{module}:brightness", "--kind", "depth", "-o", tmp_path / f"P_{fmt}")
-        assert res.exit_code == 0, res.output
-        res = cli("evaluate", where, "--pred", tmp_path / f"P_{fmt}", "--out", tmp_path / f"{fmt}.csv")
-        assert res.exit_code == 0, res.output
-        results.append((tmp_path / f"{fmt}.csv").read_text())
+    results = _evaluated_three_ways(cli, tmp_path, out)
     assert results[0] == results[1] == results[2]
     keys = json.loads((out / "build.json").read_text())["split"]["keys"]
     assert keys == ["a.png", "sub/b.png"]

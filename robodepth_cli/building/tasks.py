@@ -115,10 +115,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     expected = task.expected
     if task.source_sha256 and source_sha and source_sha != task.source_sha256:
         expected = (None,) * len(task.jobs)  # the source's bytes changed: redo everything
-    keyed = [depth_keyed(ctx.renderer, job) for job in task.jobs]
-    stamp = ctx.renderer.depth_stamp(src.key) if any(keyed) else ""
-    if stamp != task.depth_stamp:  # its depth changed: redo the outputs made from it
-        expected = tuple(None if k else e for k, e in zip(keyed, expected))
+    expected, stamp = _depth_checked(task, ctx.renderer, expected)
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
         return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
@@ -211,6 +208,16 @@ def fingerprint(renderer: Renderer, job: Job, src: Source | None = None, stamp: 
     if src is None:
         return params
     return for_source(params, src, job, stamp if params.startswith(DEPTH) else "")
+
+
+def _depth_checked(task: Task, renderer: Renderer, expected: tuple) -> tuple[tuple, str]:
+    """``expected`` without the depth-aware outputs when the source's depth changed since
+    they were made, and its depth stamp now ("" when no job needs depth)."""
+    keyed = [depth_keyed(renderer, job) for job in task.jobs]
+    stamp = renderer.depth_stamp(task.source.key) if any(keyed) else ""
+    if stamp != task.depth_stamp:
+        expected = tuple(None if k else e for k, e in zip(keyed, expected))
+    return expected, stamp
 
 
 def depth_keyed(renderer: Renderer, job: Job) -> bool:

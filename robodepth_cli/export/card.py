@@ -79,17 +79,8 @@ def _held_lines(held: dict[str, dict]) -> list[str]:
     return lines
 
 
-def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dict]) -> str:
-    """The card's text for an export of the build ``record`` made of ``shards`` (the
-    export record's entries) holding ``held`` (:func:`holdings`)."""
-    from ..report.published import BIBTEX
-
-    ext = FORMATS[fmt]
-    configs: dict[str, list[str]] = {}
-    for s in shards:
-        splits = configs.setdefault(s["config"], [])
-        if s["split"] not in splits:
-            splits.append(s["split"])
+def _yaml(record, configs: dict[str, list[str]], ext: str) -> list[str]:
+    """The YAML header: the licence, the name, each configuration's splits and their files."""
     head = ["---", f"license: {_source(record.dataset)[1]}", f"pretty_name: {record.dataset} "
             "(robodepth build)", "configs:"]
     for config, splits in configs.items():
@@ -97,7 +88,20 @@ def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dic
         for split in splits:
             head += [f"  - split: {json.dumps(split)}",
                      f"    path: {json.dumps(f'data/{config}/{split}-*.{ext}')}"]
-    head.append("---")
+    return head + ["---"]
+
+
+def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dict]) -> str:
+    """The card's text for an export of the build ``record`` made of ``shards`` (the
+    export record's entries) holding ``held`` (:func:`holdings`)."""
+    from ..report.published import BIBTEX
+
+    configs: dict[str, list[str]] = {}
+    for s in shards:
+        splits = configs.setdefault(s["config"], [])
+        if s["split"] not in splits:
+            splits.append(s["split"])
+    head = _yaml(record, configs, FORMATS[fmt])
     source, _, terms = _source(record.dataset)
     variants = [c for c in configs if c not in ("clean", GT_CONFIG)]
     conf = record.config or {}

@@ -377,8 +377,7 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     try:
         with ThreadPoolExecutor(1) as reader:
             for v in todo:
-                lacking = _lacking(dataset, v)
-                run.no_depth.update({v.keys[i]: dataset.no_depth[v.keys[i]] for i in lacking})
+                lacking = _lacking(dataset, v, run)
                 read_v = _stand_in(read, dataset, lacking)
                 n = len(v)
                 chunks = _chunks(v, batch_size, dataset.size, model.input_size, 1 + len(frames),
@@ -410,9 +409,10 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     return run
 
 
-def _lacking(dataset: BuiltDataset, v: Variant) -> set[int]:
-    """The positions of ``v``'s images that are missing because their depth map is unusable;
-    :class:`ModelError` for an image the build failed otherwise (a rerun makes it)."""
+def _lacking(dataset: BuiltDataset, v: Variant, run: PredictRun) -> set[int]:
+    """The positions of ``v``'s images that are missing because their depth map is unusable
+    (noted in ``run.no_depth``); :class:`ModelError` for an image the build failed otherwise
+    (a rerun makes it)."""
     if not v.missing:
         return set()
     from ..api import _failed_text
@@ -421,6 +421,7 @@ def _lacking(dataset: BuiltDataset, v: Variant) -> set[int]:
     if other:
         raise ModelError(f"{dataset.path / v.relpath}: {_failed_text(other, len(v))}; rerun the "
                          "build command to make them, or leave this variant out with --variants")
+    run.no_depth.update({k: dataset.no_depth[k] for k in v.missing})
     return {i for i, k in enumerate(v.keys) if k in v.missing}
 
 
