@@ -229,8 +229,13 @@ class BuiltDataset:
 
     def __init__(self, path: Path, record: BuildRecord, keys: tuple[str, ...],
                  variants: Sequence[tuple[str, int | None]],
-                 missing: dict[tuple, dict[str, str]] | None = None, store=None):
+                 missing: dict[tuple, dict[str, str]] | None = None, store=None,
+                 no_depth: dict[str, str] | None = None):
         self.path, self.store = path, store  # store: an export's files; None for a build
+        # The images of a build with depth whose depth map the build could not use (missing,
+        # unreadable, all invalid), each with the reason: they have no ground truth and no
+        # depth-aware outputs, and rerunning the build cannot change that.
+        self.no_depth: dict[str, str] = no_depth or {}
         self.record = record
         self.name: str = record.dataset
         self.keys = keys
@@ -250,8 +255,14 @@ class BuiltDataset:
         reasons: dict[str, str] = {}
         for v in self._variants:
             for key, why in v.missing.items():
-                reasons.setdefault(key, why)
+                if not self.lacks_depth(v, key):
+                    reasons.setdefault(key, why)
         return {k: reasons[k] for k in self.keys if k in reasons}
+
+    def lacks_depth(self, variant: Variant, key: str) -> bool:
+        """Whether ``variant``'s image ``key`` is missing because its depth map is unusable
+        (a depth-aware variant of an image in :attr:`no_depth`): not a failure to redo."""
+        return key in self.no_depth and depth_aware_variant(variant.name)
 
     def incomplete(self) -> str:
         """``"OUT: 2 of 697 images failed in the build (key: why; ...); rerunning the build
@@ -349,7 +360,8 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
         raise DatasetError(f"{path}: no {MANIFEST} (or an empty one); was the build run to the end?")
     variants = variant_order(ds, {(r.variant, r.level) for r in rows.values()})
     store = ExportStore(path, keys, rows) if export else None
-    dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants), store)
+    dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants), store,
+                           _no_depth(rows, keys) if ds.discovers_sources else None)
     if dataset.failed and warn:
         import warnings
 
@@ -378,6 +390,27 @@ def _missing(rows: dict, keys: tuple[str, ...], variants) -> dict[tuple, dict[st
         if gone:
             missing[(v, lv)] = gone
     return missing
+
+
+def depth_aware_variant(name: str) -> bool:
+    """Whether the variant ``name`` (a corruption, a chain; clean or a style: no) is made
+    from the scene's depth."""
+    from .corruptions import needs_depth
+
+    try:
+        return needs_depth(name)
+    except InvalidValueError:  # clean, a style
+        return False
+
+
+def _no_depth(rows: dict, keys: tuple[str, ...]) -> dict[str, str]:
+    """The keys whose ground truth (``gt/<key stem>.npy``) the build failed, with the reason."""
+    found = {}
+    for key in keys:
+        row = rows.get(f"{GT_DIR}/{depth_gt_name(key)}")
+        if row is not None and row.error:
+            found[key] = row.error
+    return found
 
 
 def _failed_text(failed: dict[str, str], total: int, shown: int = 3) -> str:

@@ -11,7 +11,7 @@ or torch.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, Sequence
 
 from .errors import InvalidValueError
 
@@ -69,10 +69,13 @@ class Benchmark:
     corruptions: tuple[str, ...]
     n_levels: int
     baseline: Baseline | None  # None: no published one (:func:`unpublished`)
+    # The levels when they are not all of 1..n_levels: an unpublished dataset's are those
+    # its results (or its build) have, e.g. (1, 3).
+    level_set: tuple[int, ...] | None = None
 
     @property
-    def levels(self) -> range:
-        return range(1, self.n_levels + 1)
+    def levels(self) -> Sequence[int]:
+        return self.level_set if self.level_set is not None else range(1, self.n_levels + 1)
 
 
 def _baseline(name: str, clean: float, corruptions: tuple[str, ...], dees: str) -> Baseline:
@@ -105,10 +108,12 @@ UNPUBLISHED = ("custom", "diode-c", "sintel-c", "eth3d-c", "scannet-c", "vkitti2
 
 
 def unpublished(name: str, corruptions: tuple[str, ...] = CORRUPTIONS,
-                n_levels: int = N_LEVELS) -> Benchmark:
+                n_levels: int = N_LEVELS, levels: Sequence[int] | None = None) -> Benchmark:
     """The benchmark of a dataset without a published baseline (by default every corruption
-    at levels 1..5; a build of fewer: those it has), baseline None."""
-    return Benchmark(name, tuple(c for c in CORRUPTIONS if c in corruptions), n_levels, None)
+    at levels 1..5; a build of fewer: those it has, at ``levels`` when given), baseline None."""
+    chosen = tuple(sorted(set(levels))) if levels else None
+    return Benchmark(name, tuple(c for c in CORRUPTIONS if c in corruptions),
+                     max(chosen) if chosen else n_levels, None, chosen)
 
 
 def get_benchmark(name: str) -> Benchmark:

@@ -95,9 +95,6 @@ class KittiC(torch.utils.data.Dataset):
             self._index = [i for i, k in enumerate(self.keys) if k not in variant.missing]
             self.keys = [self.keys[i] for i in self._index]
         self.frames = tuple(frames)
-        if self.frames and self._store is not None:  # else its neighbours would read as black
-            raise TorchAPIError(f"{self.root}: frames=: the neighbour frames are read from a build's "
-                                "files; an export does not serve them")
         lacking = sorted(set(self.frames) - built.record.frames)
         if lacking:
             raise TorchAPIError(f"{self.root}: no neighbour frames at {', '.join(map(str, lacking))} "
@@ -166,15 +163,22 @@ class KittiC(torch.utils.data.Dataset):
         return self.transform(img) if self.transform else torch.from_numpy(img.copy()).permute(2, 0, 1)
 
     def _neighbours(self, i: int, img: np.ndarray) -> list[np.ndarray]:
+        import io
+
         from .imageio import read_rgb
         from .keys import neighbour_key
 
         out = []
         for o in self.frames:
             key = neighbour_key(self.keys[i], o)
-            path = self.root / self._relpath() / key if key else None
-            out.append(np.asarray(read_rgb(path)) if path is not None and path.is_file()
-                       else np.zeros_like(img))
+            output = f"{self._relpath()}/{key}" if key else None
+            if output is None or not (self._store.has(output) if self._store is not None
+                                      else (self.root / output).is_file()):
+                out.append(np.zeros_like(img))
+            elif self._store is not None:
+                out.append(np.asarray(read_rgb(io.BytesIO(self._store.read(output)))))
+            else:
+                out.append(np.asarray(read_rgb(self.root / output)))
         return out
 
     def __getstate__(self):

@@ -19,3 +19,12 @@ def png16(path, values):
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, 0, 0, 0, 0))
                      + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+def depth_stamp(*files) -> str:
+    """The stamp a depth-aware output's manifest row ends with (``;map=<stamp>``): the sha256
+    of the hex sha256s of the files its depth is made from, joined by spaces."""
+    import hashlib
+
+    return hashlib.sha256(" ".join(hashlib.sha256(f.read_bytes()).hexdigest()
+                                   for f in files).encode()).hexdigest()

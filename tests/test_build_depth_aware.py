@@ -15,6 +15,7 @@ from scipy.ndimage import distance_transform_edt
 
 from robodepth_cli.sources import kitti_raw
 
+from _depth_files import depth_stamp
 from _paths import FIXTURES
 
 KEY_NYU = "bedroom/rgb_00001.png"
@@ -51,7 +52,8 @@ def test_nyu_build_uses_its_own_ground_truth(tmp_path, cli):
     record = json.loads((out / "build.json").read_text())
     assert record["depth"]["kind"] == "nyu-ground-truth"
     r = rows(out)
-    assert r[f"fog_3d/4/{KEY_NYU}"]["params"] == "depth=nyu-ground-truth/v1"
+    assert r[f"fog_3d/4/{KEY_NYU}"]["params"] == \
+        f"depth=nyu-ground-truth/v1;map={depth_stamp(FIXTURES / 'nyu/bedroom/sync_depth_00001.png')}"
     assert r[f"brightness/4/{KEY_NYU}"]["params"] == ""  # the 18 are made as before
     assert cli("verify", out).exit_code == 0
     again = cli(*args)
@@ -87,9 +89,41 @@ def test_kitti_build_densifies_the_velodyne_at_the_output_size(tmp_path, cli):
     np.testing.assert_array_equal(got, fog_by_hand(clean, np.clip(dense, 0.05, 1000), 75.0))
     record = json.loads((out / "build.json").read_text())
     assert record["depth"]["kind"] == "kitti-lidar-densified"
-    assert {r["params"] for r in rows(out).values() if r["variant"] != "clean" and r["variant"] != "gt"} \
-        == {"depth=kitti-lidar-densified/v1"}
+    for path, r in rows(out).items():
+        if r["variant"] not in ("clean", "gt"):
+            frame = path.split("/")[-1][:-len(".png")]
+            files = [root / KITTI_DRIVE / f"velodyne_points/data/{frame}.bin",
+                     root / "2011_09_26/calib_cam_to_cam.txt", root / "2011_09_26/calib_velo_to_cam.txt"]
+            assert r["params"] == f"depth=kitti-lidar-densified/v1;map={depth_stamp(*files)}"
     assert cli("verify", out).exit_code == 0
+
+
+def test_a_changed_scan_remakes_its_depth_aware_outputs(tmp_path, cli):
+    """A velodyne scan overwritten (its points nearer): the rerun remakes that frame's
+    depth-aware output, as a fresh build makes it, and no other."""
+    root = kitti_root(tmp_path)
+
+    def build(out):
+        res = cli("build", "kitti-c", "--root", root, "--split", FIXTURES / "kitti_split.txt", "--out",
+                  out, "--corruptions", "fog_3d,brightness", "--levels", "3", "--size", "32x96",
+                  "--jobs", "1", "--no-gt")
+        assert res.exit_code == 0, res.output
+        return res.output
+
+    key = f"kitti_data/{KITTI_DRIVE}/image_02/data/0000000069.png"
+    other = f"kitti_data/{KITTI_DRIVE}/image_02/data/0000000054.png"
+    out = tmp_path / "k"
+    build(out)
+    before = {k: (out / "fog_3d/3" / k).read_bytes() for k in (key, other)}
+    scan = root / KITTI_DRIVE / "velodyne_points/data/0000000069.bin"
+    points = np.fromfile(scan, dtype=np.float32).reshape(-1, 4)
+    points[:, :3] *= 0.25
+    points.tofile(scan)
+    assert "1 written" in build(out)
+    assert (out / "fog_3d/3" / key).read_bytes() != before[key]
+    assert (out / "fog_3d/3" / other).read_bytes() == before[other]
+    build(tmp_path / "fresh")
+    assert (tmp_path / "fresh/fog_3d/3" / key).read_bytes() == (out / "fog_3d/3" / key).read_bytes()
 
 
 def test_a_missing_scan_fails_only_the_depth_aware_outputs(tmp_path, cli):
@@ -152,6 +186,7 @@ def test_torch_engine_renders_depth_aware_corruptions_with_the_numpy_engine(tmp_
         b = np.asarray(Image.open(outs["torch"] / name / "2" / KEY_NYU))
         np.testing.assert_array_equal(a, b)
     r = rows(outs["torch"])
-    assert r[f"fog_3d/2/{KEY_NYU}"]["params"] == "depth=nyu-ground-truth/v1"
+    assert r[f"fog_3d/2/{KEY_NYU}"]["params"] == \
+        f"depth=nyu-ground-truth/v1;map={depth_stamp(FIXTURES / 'nyu/bedroom/sync_depth_00001.png')}"
     assert r[f"contrast/2/{KEY_NYU}"]["params"] == "engine=torch"
     assert cli("verify", outs["torch"]).exit_code == 0

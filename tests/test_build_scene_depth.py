@@ -12,6 +12,7 @@ import struct
 
 import numpy as np
 import pytest
+from _depth_files import depth_stamp
 from _trees import random_image, save
 from PIL import Image
 from scipy.ndimage import distance_transform_edt
@@ -65,7 +66,7 @@ def test_custom_depth_folder_fog_is_the_transmission_formula(tmp_path, cli):
     # only b's depth-aware output (and its ground truth) failed, naming the missing file
     assert sorted(o for o, row in r.items() if row["error"]) == ["fog_3d/4/b.png", "gt/b.npy"]
     assert "b" in r["fog_3d/4/b.png"]["error"] and "no depth file" in r["fog_3d/4/b.png"]["error"]
-    assert r["fog_3d/4/a.png"]["params"] == "depth=depth-folder/v1"
+    assert r["fog_3d/4/a.png"]["params"] == f"depth=depth-folder/v1;map={depth_stamp(depth / 'a.npy')}"
     assert r["brightness/4/a.png"]["params"] == ""
     record = json.loads((out / "build.json").read_text())
     assert record["depth"]["kind"] == "depth-folder" and record["depth"]["directory"] == str(depth)
@@ -104,7 +105,8 @@ def test_zero_shot_preset_fog_from_its_ground_truth(tmp_path, cli):
     key = "training/final/alley_1/frame_0001.png"
     want = fog_by_hand(clean_of(out, key), np.full((H, W), 30.0), 300.0)
     np.testing.assert_array_equal(np.asarray(Image.open(out / "fog_3d" / "1" / key)), want)
-    assert rows(out)[f"fog_3d/1/{key}"]["params"] == "depth=sintel-c-ground-truth/v1"
+    params = rows(out)[f"fog_3d/1/{key}"]["params"]  # the preset's pairing rule, then the map's hash
+    assert params.startswith("depth=sintel-c-ground-truth/v1(") and params.endswith(f";map={depth_stamp(dpt)}")
     assert cli("verify", out).exit_code == 0
 
 
@@ -139,7 +141,7 @@ def test_scene_depth_from_metric_predictions_and_the_own_depth_warning(tmp_path,
     depth_entry = json.loads((second / "build.json").read_text())["depth"]
     assert depth_entry["kind"] == "predictions" and depth_entry["rule"] == "metric"
     assert depth_entry["identity"].startswith("python:")
-    assert rows(second)["fog_3d/3/a.png"]["params"] == f"depth=predictions:{depth_entry['identity']}"
+    assert rows(second)["fog_3d/3/a.png"]["params"].startswith(f"depth=predictions:{depth_entry['identity']};map=")
     assert cli("verify", second).exit_code == 0
     again = cli("build", "custom", "--root", img, "--depth", depth, "--out", second, "--corruptions",
                 "fog_3d,brightness", "--levels", "3", "--jobs", 1, "--scene-depth", tmp_path / "P")
@@ -231,3 +233,60 @@ def test_score_of_depth_aware_rows_alone(tmp_path, cli):
     assert res.exit_code == 0, res.output
     curve = json.loads(res.output)["beyond_benchmark"]["severity_curves"]["fog_3d"]
     assert list(curve) == ["3"] and curve["3"] == pytest.approx((0.2 + (1 - 0.8)) / 2)  # DEE
+
+
+def test_a_rebuild_redoes_exactly_the_outputs_whose_depth_changed(tmp_path, cli):
+    """Overwriting one depth map, then changing --depth-scale: the same command remakes the
+    depth-aware outputs made from the old depth (as a fresh build makes them), nothing else."""
+    from _depth_files import png16
+
+    for i, name in enumerate("ab"):
+        save(tmp_path / "img" / f"{name}.png", random_image(H, W, seed=i))
+        png16(tmp_path / "depth" / f"{name}.png", np.full((H, W), 12000, np.uint16))
+    img, depth, out = tmp_path / "img", tmp_path / "depth", tmp_path / "out"
+
+    def build(where, scale):
+        res = cli("build", "custom", "--root", img, "--depth", depth, "--depth-scale", scale, "--out",
+                  where, "--corruptions", "fog_3d,brightness", "--levels", "3", "--jobs", 1)
+        assert res.exit_code == 0, res.output
+        return res.output
+
+    def made(where):
+        return {p: (where / p).read_bytes() for p in ("fog_3d/3/a.png", "fog_3d/3/b.png", "brightness/3/a.png")}
+
+    build(out, 1000)
+    r = rows(out)
+    assert r["fog_3d/3/a.png"]["params"] == f"depth=depth-folder/v1(scale=1000.0);map={depth_stamp(depth / 'a.png')}"
+    before = made(out)
+    png16(depth / "a.png", np.full((H, W), 3000, np.uint16))  # a is nearer now: less fog
+    assert "2 written" in build(out, 1000)  # fog_3d/3/a.png and gt/a.npy
+    after = made(out)
+    assert after["fog_3d/3/a.png"] != before["fog_3d/3/a.png"]
+    assert after["fog_3d/3/b.png"] == before["fog_3d/3/b.png"]
+    build(tmp_path / "fresh", 1000)
+    assert made(tmp_path / "fresh") == after
+    assert cli("verify", out).exit_code == 0
+
+    assert "4 written" in build(out, 500)  # both maps at another scale: both fogs and both gt
+    build(tmp_path / "fresh500", 500)
+    assert made(tmp_path / "fresh500") == made(out) != after
+
+
+def test_scene_depth_outputs_are_keyed_on_the_prediction(tmp_path, cli):
+    """--scene-depth: a prediction with other values remakes the depth-aware outputs."""
+    img, depth = folder(tmp_path, {"a": np.full((H, W), 12.0, np.float32)})
+    first, second = tmp_path / "first", tmp_path / "second"
+    assert cli("build", "custom", "--root", img, "--depth", depth, "--out", first, "--corruptions",
+               "none", "--jobs", 1).exit_code == 0
+    args = ("build", "custom", "--root", img, "--out", second, "--corruptions", "fog_3d", "--levels",
+            "3", "--jobs", 1, "--scene-depth", tmp_path / "P")
+    _predict(cli, tmp_path, first, tmp_path / "P", "metric", "--kind", "depth", "--metric")
+    assert cli(*args).exit_code == 0
+    fog = (second / "fog_3d/3/a.png").read_bytes()
+    # The same model's prediction, other values (as a rerun of a nondeterministic model gives).
+    np.save(tmp_path / "P" / "clean" / "a.npy", np.full((H, W), 3.0, np.float32))
+    again = cli(*args)
+    assert again.exit_code == 0 and "1 written" in again.output, again.output
+    want = fog_by_hand(clean_of(second, "a.png"), np.full((H, W), 3.0), 75.0)
+    np.testing.assert_array_equal(np.asarray(Image.open(second / "fog_3d" / "3" / "a.png")), want)
+    assert (second / "fog_3d/3/a.png").read_bytes() != fog

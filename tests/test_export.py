@@ -40,6 +40,20 @@ def build(tmp_path_factory, cli) -> Path:
     return out
 
 
+def _kitti_maps(build: Path) -> list[np.ndarray]:
+    """The build's own gt_depths.npz as monodepth2 reads it (a test may unpickle its own file)."""
+    return list(np.load(build / "gt_depths.npz", allow_pickle=True)["data"])
+
+
+def _npy_sha(depth) -> str:
+    """sha256 of the map saved as a .npy (format 1.0, little-endian float32), numpy's own way."""
+    import hashlib
+
+    buf = io.BytesIO()
+    np.save(buf, np.asarray(depth, dtype="<f4"), allow_pickle=False)
+    return hashlib.sha256(buf.getvalue()).hexdigest()
+
+
 def _manifest(out: Path) -> dict[str, dict]:
     import csv
 
@@ -95,7 +109,8 @@ def test_parquet_loads_with_datasets_pixel_for_pixel(build, exports, tmp_path, m
     card = (export / "README.md").read_text()
     assert card.startswith("---\n") and "config_name: \"fog\"" in card and "kong2023robodepth" in card
     assert "| 3 | fog | weather & lighting | t, d | 1.5, 2 |" in card and "| 1 | brightness" not in card
-    assert "Seed 0; levels [1, 3]; size 48x160 (HxW)" in card and "cc-by-nc-sa-3.0" in card
+    assert "- `fog`: levels 1, 3; seed 0; numpy engine" in card and "Size 48x160 (HxW)" in card
+    assert "cc-by-nc-sa-3.0" in card
     manifest = _manifest(build)
     keys = json.loads((build / "build.json").read_text())["split"]["keys"]
     for (config, split), files in _variants(build).items():
@@ -110,11 +125,15 @@ def test_parquet_loads_with_datasets_pixel_for_pixel(build, exports, tmp_path, m
         raw = ds.cast_column("image", datasets.Image(decode=False))
         assert [r["image"]["bytes"] for r in raw] == [(build / f).read_bytes() for f in files]
         assert [r["image"]["path"] for r in raw] == files
+    # The ground truth: one row per image, keyed like the images, its map a 2-D float array
+    # that datasets decodes without pickle, NaN where the build's file has 0 (no return).
     gt = datasets.load_dataset(str(export), "ground_truth", split="test", cache_dir=str(tmp_path / "hf"))
-    assert gt["path"] == ["gt_depths.npz"]
-    assert gt[0]["data"] == (build / "gt_depths.npz").read_bytes()
-    maps = np.load(io.BytesIO(gt[0]["data"]), allow_pickle=True)["data"]
-    assert len(maps) == 2 and maps[0].shape == (375, 1242)
+    assert gt.features["depth"] == datasets.Sequence(datasets.Sequence(datasets.Value("float32")))
+    assert gt["key"] == keys and gt["path"] == ["gt_depths.npz"] * 2
+    for row, want in zip(gt.with_format("numpy"), _kitti_maps(build)):
+        assert row["depth"].dtype == np.float32 and row["depth"].shape == want.shape == (375, 1242)
+        np.testing.assert_array_equal(row["depth"], np.where(want > 0, want, np.nan))
+        assert row["sha256"] == _npy_sha(row["depth"])
 
 
 def test_tar_shards_load_with_webdataset_and_tarfile(build, exports):
@@ -137,8 +156,17 @@ def test_tar_shards_load_with_webdataset_and_tarfile(build, exports):
                 members.update({m.name: tar.extractfile(m).read() for m in tar if m.name.endswith(".png")})
         assert [members[f.split("/", 1 if config == "clean" else 2)[-1]] for f in files] == \
                [(build / f).read_bytes() for f in files]
-    with tarfile.open(export / "data/ground_truth/test-00000-of-00001.tar") as tar:
-        assert tar.extractfile("gt_depths.npz").read() == (build / "gt_depths.npz").read_bytes()
+    keys = json.loads((build / "build.json").read_text())["split"]["keys"]
+    shards = sorted(str(p) for p in (export / "data/ground_truth").glob("test-*.tar"))
+    samples = list(wds.WebDataset(shards, shardshuffle=False, empty_check=False).decode())
+    assert [s["json"]["key"] for s in samples] == keys
+    for s, key, want in zip(samples, keys, _kitti_maps(build)):
+        assert s["__key__"] + ".png" == key and s["json"]["path"] == "gt_depths.npz"
+        np.testing.assert_array_equal(s["depth.npy"], np.where(want > 0, want, np.nan))
+        assert s["json"]["sha256"] == _npy_sha(s["depth.npy"])
+    with tarfile.open(shards[0]) as tar:  # a plain .npy: numpy loads it without pickle
+        member = tar.extractfile(keys[0][:-len(".png")] + ".depth.npy").read()
+        assert np.load(io.BytesIO(member), allow_pickle=False).shape == (375, 1242)
 
 
 @pytest.mark.parametrize("fmt", ["parquet", "webdataset"])
@@ -146,7 +174,7 @@ def test_verify_names_a_changed_missing_or_extra_row(build, exports, tmp_path, c
     export = tmp_path / fmt
     shutil.copytree(exports[fmt], export)
     res = cli("verify", export)
-    assert res.exit_code == 0 and "11 files match the manifest" in res.output, res.output
+    assert res.exit_code == 0 and "12 files match the manifest" in res.output, res.output
     assert (export / "robodepth" / "manifest.csv").read_bytes() == (build / "manifest.csv").read_bytes()
     ext = "parquet" if fmt == "parquet" else "tar"
     # One byte of one image, inside its shard: the image is named, and so is the shard.
@@ -186,7 +214,8 @@ def test_open_dataset_and_kittic_read_an_export_as_the_build(build, exports):
                     assert a.read() == b.read()
         with pytest.raises(DatasetError, match="images are in shards; use variant.read"):
             ds.variants()[0].images()
-        assert ds.ground_truth().read_bytes() == (build / "gt_depths.npz").read_bytes()
+        got = np.load(ds.ground_truth(), allow_pickle=True)["data"]  # written back from the rows
+        assert all(np.array_equal(a, b) for a, b in zip(got, _kitti_maps(build))) and len(got) == 2
         a, b = KittiC(export, "fog", 3), KittiC(build, "fog", 3)
         assert len(a) == len(b) == 2
         for i in range(2):
@@ -231,7 +260,7 @@ def test_resume_rewrites_only_the_missing_shard(build, exports, tmp_path, cli):
     res = cli("export", build, "--format", "parquet", "--to", export, "--shard-size", "20kB",
               "--no-progress")
     assert res.exit_code == 0, res.output
-    assert "11 rows in 11 parquet shards (1 written now)" in res.output
+    assert "12 rows in 12 parquet shards (1 written now)" in res.output
     assert _tree_bytes(export) == before  # the same shard, byte for byte
 
 
@@ -261,7 +290,7 @@ def test_an_interrupted_export_keeps_whole_shards_and_resumes(build, exports, tm
     assert len((export / "robodepth/.shards.jsonl").read_text().splitlines()) == 3
     monkeypatch.setitem(run.WRITERS, "webdataset", real)
     res = cli(*args)
-    assert res.exit_code == 0 and "(8 written now)" in res.output, res.output
+    assert res.exit_code == 0 and "(9 written now)" in res.output, res.output
     assert not (export / "robodepth/.shards.jsonl").exists()
     assert _tree_bytes(export) == _tree_bytes(exports["webdataset"])
 
@@ -330,15 +359,9 @@ def test_a_plain_build_imports_no_export_library(tmp_path):
     assert res.stdout.strip() == "[]"
 
 
-def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
-    """NYU's ground truth is a PNG per image: one ground_truth row each, keyed by its image,
-    and evaluate reads them back out of the shards."""
-    out = tmp_path / "NYU_C"
-    res = cli("build", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", FIXTURES / "nyu_split.txt",
-              "--out", out, "--corruptions", "dark", "--levels", "2", "--size", "48x64", "--jobs", "1")
-    assert res.exit_code == 0, res.output
-    gts = sorted((out / "gt").rglob("*.png"))
-    assert len(gts) == 2
+def _evaluated_three_ways(cli, tmp_path, out) -> list[str]:
+    """The results CSV of the same depth predictions evaluated on the build ``out`` and on
+    its parquet and webdataset exports (each export verified first)."""
     module = tmp_path / "m.py"
     module.write_text(MODEL)
     results = []
@@ -354,14 +377,30 @@ def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
         res = cli("evaluate", where, "--pred", tmp_path / f"P_{fmt}", "--out", tmp_path / f"{fmt}.csv")
         assert res.exit_code == 0, res.output
         results.append((tmp_path / f"{fmt}.csv").read_text())
+    return results
+
+
+def test_nyu_ground_truth_rows_and_evaluation(tmp_path, cli):
+    """NYU's ground truth is a PNG per image: one ground_truth row each, keyed by its image,
+    and evaluate reads them back out of the shards."""
+    out = tmp_path / "NYU_C"
+    res = cli("build", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", FIXTURES / "nyu_split.txt",
+              "--out", out, "--corruptions", "dark", "--levels", "2", "--size", "48x64", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    gts = sorted((out / "gt").rglob("*.png"))
+    assert len(gts) == 2
+    results = _evaluated_three_ways(cli, tmp_path, out)
     assert results[0] == results[1] == results[2]
     import pyarrow.parquet as pq
 
     table = pq.read_table(tmp_path / "parquet" / "data/ground_truth/test-00000-of-00001.parquet")
     keys = json.loads((out / "build.json").read_text())["split"]["keys"]
     assert table.column("key").to_pylist() == keys
-    by_path = dict(zip(table.column("path").to_pylist(), table.column("data").to_pylist()))
-    assert by_path == {p.relative_to(out).as_posix(): p.read_bytes() for p in gts}
+    assert table.column("path").to_pylist() == [p.relative_to(out).as_posix() for p in gts]
+    for depth, png in zip(table.column("depth").to_pylist(), gts):
+        mm = np.asarray(Image.open(png), dtype=np.float64)  # 16-bit millimetres, 0: none
+        want = np.where(mm > 0, mm / 1000, np.nan).astype(np.float32)
+        np.testing.assert_array_equal(np.asarray(depth, dtype=np.float32), want)
 
 
 def test_report_draws_a_frame_of_an_export_as_of_the_build(build, exports, tmp_path, cli):
@@ -388,10 +427,128 @@ def test_report_draws_a_frame_of_an_export_as_of_the_build(build, exports, tmp_p
         assert len(got) == len(tree) and all(np.array_equal(a, b) for a, b in zip(tree, got))
 
 
-def test_kittic_refuses_neighbour_frames_of_an_export(exports):
-    """The neighbours are read from a build's files: on an export they would come back black."""
-    from robodepth_cli.torch import KittiC, TorchAPIError
+def test_a_frames_build_exports_every_neighbour_frame(tmp_path, cli, build_kitti, monkeypatch):
+    """A build with --frames: every file of it is exported (the neighbour frames in a split
+    ``<split>_neighbours`` of their variant, by key), read back by datasets, webdataset and
+    KittiC(frames=) as from the build, and verify passes."""
+    monkeypatch.setenv("HF_DATASETS_OFFLINE", "1")
+    import datasets
+    import webdataset as wds
 
-    for export in exports.values():
-        with pytest.raises(TorchAPIError, match="an export does not serve them"):
-            KittiC(export, "fog", 3, frames=(-1,))
+    from _trees import kitti_drive, kitti_key
+    from robodepth_cli.torch import KittiC
+
+    root = tmp_path / "raw"
+    split = kitti_drive(root, range(6), [0, 2, 5])
+    out = tmp_path / "out"
+    res = build_kitti(root, split, out, "--size", "48x64", "--corruptions", "fog", "--levels", "3",
+                      "--jobs", "1", "--no-gt", "--frames", "-1,1")
+    assert res.exit_code == 0, res.output
+    files = _manifest(out)
+    neighbours = [kitti_key(n) for n in (1, 3, 4)]
+    for fmt in ("parquet", "webdataset"):
+        to = tmp_path / fmt
+        res = cli("export", out, "--format", fmt, "--to", to, "--no-progress")
+        assert res.exit_code == 0, res.output
+        assert f"{len(files)} rows" in res.output
+        res = cli("verify", to)
+        assert res.exit_code == 0 and f"{len(files)} files match" in res.output, res.output
+        for config, folder in (("clean", "clean"), ("fog", "fog/3")):
+            split_name = "test" if config == "clean" else "level_3"
+            if fmt == "parquet":
+                ds = datasets.load_dataset(str(to), config, split=split_name + "_neighbours",
+                                           cache_dir=str(tmp_path / "hf"))
+                got = {r["key"]: np.asarray(r["image"]) for r in ds}
+            else:
+                shards = sorted(str(p) for p in (to / "data" / config).glob(f"{split_name}_neighbours-*.tar"))
+                got = {s["json"]["key"]: s["png"] for s in wds.WebDataset(shards, shardshuffle=False).decode("rgb8")}
+            assert list(got) == neighbours
+            for key, pixels in got.items():
+                assert np.array_equal(pixels, _pixels((out / folder / key).read_bytes()))
+        a, b = KittiC(to, "fog", 3, frames=(-1, 1)), KittiC(out, "fog", 3, frames=(-1, 1))
+        for i in range(len(b)):
+            for x, y in zip(a[i]["neighbours"], b[i]["neighbours"]):
+                assert np.array_equal(x.numpy(), y.numpy())
+        assert b[1]["neighbours"][0].numpy().any()  # frame 1, read from the export
+
+
+def test_an_export_that_would_leave_out_a_file_is_refused(build, tmp_path, cli):
+    """A manifest row the build's record does not place (here: a key of no split) would be
+    dropped: refused before any shard is written."""
+    changed = tmp_path / "changed"
+    shutil.copytree(build, changed)
+    lines = (changed / "manifest.csv").read_text().splitlines(keepends=True)
+    row = next(line for line in lines if line.startswith("clean/"))
+    key = row.split(",", 1)[0]
+    stray = "clean/elsewhere.png" + row[len(key):]
+    shutil.copy(changed / key, changed / "clean/elsewhere.png")
+    (changed / "manifest.csv").write_text("".join(lines) + stray)
+    res = cli("export", changed, "--format", "parquet", "--to", tmp_path / "x", "--no-progress")
+    assert res.exit_code == 2, res.output
+    assert "1 file(s) of the build would not be exported (clean/elsewhere.png)" in res.output
+    assert not list((tmp_path / "x").rglob("*.parquet"))
+
+
+def test_depth_build_ground_truth_rows_evaluate_and_verify(tmp_path, cli, monkeypatch):
+    """A build with depth (custom --depth): one ground_truth row per image, its float map as
+    built (NaN kept), in datasets and webdataset; evaluate on either export gives the build's
+    results; verify names a map whose values changed."""
+    monkeypatch.setenv("HF_DATASETS_OFFLINE", "1")
+    import datasets
+    import webdataset as wds
+
+    from _trees import random_image, save
+
+    maps = {"a": np.full((40, 48), 7.5, np.float32), "sub/b": np.linspace(1, 60, 40 * 48, dtype=np.float32).reshape(40, 48)}
+    maps["sub/b"][:5] = np.nan
+    for i, name in enumerate(maps):
+        save(tmp_path / "img" / f"{name}.png", random_image(40, 48, seed=i))
+        (tmp_path / "depth" / name).parent.mkdir(parents=True, exist_ok=True)
+        np.save(tmp_path / "depth" / f"{name}.npy", maps[name])
+    out = tmp_path / "out"
+    res = cli("build", "custom", "--root", tmp_path / "img", "--depth", tmp_path / "depth", "--out", out,
+              "--corruptions", "fog", "--levels", "2", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    results = _evaluated_three_ways(cli, tmp_path, out)
+    assert results[0] == results[1] == results[2]
+    keys = json.loads((out / "build.json").read_text())["split"]["keys"]
+    assert keys == ["a.png", "sub/b.png"]
+    gt = datasets.load_dataset(str(tmp_path / "parquet"), "ground_truth", split="test",
+                               cache_dir=str(tmp_path / "hf")).with_format("numpy")
+    assert list(gt["key"]) == keys
+    for row, name in zip(gt, maps):
+        np.testing.assert_array_equal(row["depth"], maps[name])
+    shards = sorted(str(p) for p in (tmp_path / "webdataset/data/ground_truth").glob("*.tar"))
+    samples = list(wds.WebDataset(shards, shardshuffle=False, empty_check=False).decode())
+    assert [s["__key__"] for s in samples] == ["a", "sub/b"]
+    for s, name in zip(samples, maps):
+        np.testing.assert_array_equal(s["depth.npy"], maps[name])
+    # One value of b's map changed inside its tar member (same length): verify names it.
+    shard = Path(shards[0])
+    data = bytearray(shard.read_bytes())
+    at = bytes(data).index(np.float32(60.0).tobytes())
+    data[at:at + 4] = np.float32(61.0).tobytes()
+    shard.write_bytes(bytes(data))
+    res = cli("verify", tmp_path / "webdataset")
+    assert res.exit_code == 1 and "  gt/sub/b.npy" in res.output.splitlines(), res.output
+
+
+def test_the_card_describes_every_request_into_the_build(build, tmp_path, cli):
+    """Two more requests into the build (fog level 1 again; contrast with the torch engine):
+    the card lists what the export holds, not the last request's levels."""
+    out = tmp_path / "K"
+    shutil.copytree(build, out)
+    root = tmp_path / "kitti_raw"
+    shutil.copytree(FIXTURES / "kitti_raw", root)
+    for extra in (("--corruptions", "contrast", "--levels", "2", "--engine", "torch"),
+                  ("--corruptions", "fog", "--levels", "1")):
+        res = cli("build", "kitti-c", "--root", root, "--split", FIXTURES / "kitti_split.txt", "--out",
+                  out, "--size", "48x160", "--jobs", "1", "--no-gt", *extra)
+        assert res.exit_code == 0, res.output
+    res = cli("export", out, "--format", "parquet", "--to", tmp_path / "hf", "--no-progress")
+    assert res.exit_code == 0, res.output
+    card = (tmp_path / "hf" / "README.md").read_text()
+    assert "- `fog`: levels 1, 3; seed 0; numpy engine" in card
+    assert "- `gaussian_noise`: levels 1, 3; seed 0; numpy engine" in card
+    assert "- `contrast`: levels 2; seed 0; torch engine" in card
+    assert "- `clean`: seed 0" in card and "levels [1]" not in card

@@ -25,7 +25,7 @@ another scene) is a failed row, like a broken image.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import RobodepthError, cannot_write
@@ -34,6 +34,9 @@ from ..output.manifest import Row
 
 GT = "gt"  # the variant of ground-truth rows
 _VERSION = "1"  # bump when the ground truth of the same inputs changes
+# A scene's median depth beyond this is no plausible distance in metres (KITTI's is ~15 m,
+# the farthest outdoor sets' ~100 m): the map is most likely in millimetres or another unit.
+PLAUSIBLE_MEDIAN_M = 1000.0
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,8 @@ class GtPlan:
     split_name: str
     jobs: list[GtJob]
     note: str = ""  # why there is no ground truth, when there is none
+    # Depth maps written whose values look like another unit than metres: "path (median X m)".
+    implausible: list[str] = field(default_factory=list)
 
 
 def _stat(path: Path) -> str:
@@ -289,6 +294,9 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
     except RobodepthError as exc:
         target.unlink(missing_ok=True)
         return "failed", _row(job, error=str(exc))
+    median = float(np.nanmedian(depth))
+    if median > PLAUSIBLE_MEDIAN_M:
+        plan.implausible.append(f"{base / found.depth} (median {median:g} m)")
     buf = io.BytesIO()
     np.save(buf, depth, allow_pickle=False)
     data = buf.getvalue()

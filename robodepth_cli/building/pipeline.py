@@ -47,12 +47,14 @@ from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
 from ..output.record import BuildRecord, plan_entry
 from ..sources.datasets import Dataset, Renderer, get_dataset
+from ..sources.scenedepth import DEPTH
 from . import checks as buildchecks
 from .checks import BuildError
 from .config import BuildConfig
 from .executors import Executor, ExecutorError, LocalExecutor
 from .gather import check_root, gather_sources, orientation_record
-from .tasks import PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, for_source, run_task
+from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, for_source,
+                    run_task, split_stamp)
 
 MAX_ERRORS_SHOWN = 10
 
@@ -259,27 +261,34 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
     one counts as done."""
     jobs = tuple(ds.jobs(cfg.variants, cfg.levels))
     fingerprints = {job.variant: fingerprint(renderer, job) for job in jobs}  # once, not per source
+    keyed = {v: f.startswith(DEPTH) for v, f in fingerprints.items()}
     tasks = []
     for src in sources:
         size = cfg.size or native_size(src)
         if reorient and src.orientation != 1:
             tasks.append(Task(src, jobs, (None,) * len(jobs), "", False, size))
             continue
-        expected, hashes, refresh = [], set(), False
+        expected, hashes, stamps, refresh = [], set(), set(), False
         for job in jobs:
             r = done.get(job.path(src.key))
+            params, stamp = split_stamp(r.params) if r is not None else ("", "")
             # A source that has gone missing does not spoil the outputs already made from it.
             same = (r is not None and not r.error
                     and ((r.source == src.rel and _same_source(r, src)) or bool(src.error))
                     and r.seed == cfg.seed and (r.height, r.width) == size
-                    and r.params == for_source(fingerprints[job.variant], src, job))
+                    and params == for_source(fingerprints[job.variant], src, job)
+                    and bool(stamp) == keyed[job.variant])  # a depth-aware row names its depth
             expected.append(r.sha256 if same else None)
             if same:
                 hashes.add(r.source_sha256)
+                stamps.add(stamp)
                 refresh = refresh or (not src.error and r.source_size is None)
-        # Rows made from different bytes of this source (or with none recorded): no claim.
+        # Rows made from different bytes of this source (or with none recorded), or from
+        # different depths: no claim (the worker compares them with the files as they are).
         source_sha = hashes.pop() if len(hashes) == 1 else ""
-        tasks.append(Task(src, jobs, tuple(expected), source_sha, refresh, size))
+        stamps.discard("")
+        stamp = stamps.pop() if len(stamps) == 1 else ("mixed" if stamps else "")
+        tasks.append(Task(src, jobs, tuple(expected), source_sha, refresh, size, stamp))
     return tasks
 
 
@@ -412,6 +421,14 @@ def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str 
         summary.interrupted = True
     except OSError as exc:
         summary.fatal = cannot_write(out / MANIFEST, exc)
+    finally:
+        if plan.implausible:
+            summary.notes.append(
+                f"warning: {len(plan.implausible)} depth map(s) have a median depth above "
+                f"{build_gt.PLAUSIBLE_MEDIAN_M:g} m, no plausible distance in metres "
+                f"({', '.join(plan.implausible[:2])}{', ...' if len(plan.implausible) > 2 else ''}): "
+                "are they in another unit? The evaluation leaves out images without a valid pixel "
+                "in its depth range")
 
 
 def finish(out: Path, record: BuildRecord, summary: Summary) -> None:

@@ -18,6 +18,7 @@ from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
 from ..output.manifest import Journal, Row
 from ..sources.datasets import CLEAN, Entry, Job, Renderer, locate
+from ..sources.scenedepth import DEPTH
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
 
@@ -84,6 +85,9 @@ class Task:
     # outputs get their row again, now with them.
     refresh: bool = False
     size: tuple[int, int] | None = None  # the outputs' (H, W) when known before decoding
+    # The depth stamp (what identifies the source's depth map) recorded by the matching rows
+    # of its depth-aware outputs ("" if none): a depth that changed redoes them.
+    depth_stamp: str = ""
 
 
 @dataclass(frozen=True)
@@ -111,10 +115,11 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     expected = task.expected
     if task.source_sha256 and source_sha and source_sha != task.source_sha256:
         expected = (None,) * len(task.jobs)  # the source's bytes changed: redo everything
+    expected, stamp = _depth_checked(task, ctx.renderer, expected)
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
         return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
-                   fingerprint(ctx.renderer, job, src), src.size, src.mtime, source_sha)
+                   fingerprint(ctx.renderer, job, src, stamp), src.size, src.mtime, source_sha)
 
     results: list[tuple[JobState, Row]] = []
     todo: list[Job] = []
@@ -195,24 +200,55 @@ def _keep_freed_memory() -> None:
         pass
 
 
-def fingerprint(renderer: Renderer, job: Job, src: Source | None = None) -> str:
-    """The manifest's ``params`` of ``job`` (of the source ``src``): what besides the seed
-    and size decides its pixels (:func:`for_source` of the renderer's fingerprint)."""
+def fingerprint(renderer: Renderer, job: Job, src: Source | None = None, stamp: str = "") -> str:
+    """The manifest's ``params`` of ``job`` (of the source ``src``, whose depth has
+    ``stamp``): what besides the seed and size decides its pixels (:func:`for_source` of the
+    renderer's fingerprint)."""
     params = "" if job.variant == CLEAN else renderer.fingerprint(job.variant)
-    return params if src is None else for_source(params, src, job)
+    if src is None:
+        return params
+    return for_source(params, src, job, stamp if params.startswith(DEPTH) else "")
 
 
-def for_source(params: str, src: Source, job: Job) -> str:
+def _depth_checked(task: Task, renderer: Renderer, expected: tuple) -> tuple[tuple, str]:
+    """``expected`` without the depth-aware outputs when the source's depth changed since
+    they were made, and its depth stamp now ("" when no job needs depth)."""
+    keyed = [depth_keyed(renderer, job) for job in task.jobs]
+    stamp = renderer.depth_stamp(task.source.key) if any(keyed) else ""
+    if stamp != task.depth_stamp:
+        expected = tuple(None if k else e for k, e in zip(keyed, expected))
+    return expected, stamp
+
+
+def depth_keyed(renderer: Renderer, job: Job) -> bool:
+    """Whether ``job``'s output is made from its source's depth map (and keyed on it)."""
+    return job.variant != CLEAN and renderer.fingerprint(job.variant).startswith(DEPTH)
+
+
+def for_source(params: str, src: Source, job: Job, stamp: str = "") -> str:
     """``params`` of ``job`` made from ``src``. A neighbour frame's begin with
     ``neighbour_of=<test frame key>``, which lists it under its test frame in the manifest and
     redoes it when it is rendered for another one; a corruption over time's end with
-    ``sequence=<id>`` (its sequence's files). A single-frame build's are unchanged."""
+    ``sequence=<id>`` (its sequence's files); a depth-aware output's with ``map=<stamp>`` (the
+    sha256 of its depth's files). A single-frame build's are unchanged otherwise."""
     from ..benchmarks import TEMPORAL
+    from ..output.layout import NEIGHBOUR_OF
 
-    parts = ([f"neighbour_of={src.anchor}"] if src.anchor else []) + ([params] if params else [])
+    parts = ([f"{NEIGHBOUR_OF}{src.anchor}"] if src.anchor else []) + ([params] if params else [])
     if src.sequence_id and job.variant in TEMPORAL:
         parts.append(f"sequence={src.sequence_id}")
+    if stamp:
+        parts.append(MAP + stamp)
     return ";".join(parts)
+
+
+MAP = "map="  # the last part of a depth-aware output's params: its depth stamp
+
+
+def split_stamp(params: str) -> tuple[str, str]:
+    """A manifest row's ``params`` without its depth stamp, and the stamp ("" if none)."""
+    head, sep, stamp = params.rpartition(";" + MAP)
+    return (head, stamp) if sep else (params, "")
 
 
 def load_source(src: Source, size: tuple[int, int] | None):

@@ -142,8 +142,8 @@ def scored_benchmark(dataset: str, variants):
 
     if dataset in B.UNPUBLISHED:  # DEE and RR; CE needs robodepth score --baseline
         built = [v for v in variants if v.level is not None and v.level == int(v.level)]
-        return B.unpublished(dataset, tuple(v.name for v in built),
-                             max((int(v.level) for v in built), default=1))
+        return B.unpublished(dataset, tuple(v.name for v in built), 1,
+                             levels=[int(v.level) for v in built if v.name in B.CORRUPTIONS])
     if dataset not in B.BENCHMARKS:
         raise RobodepthError(f"--score: {dataset} has no robustness scores (they exist "
                              f"for {', '.join((*B.BENCHMARKS, *B.UNPUBLISHED))})")
@@ -165,6 +165,11 @@ def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: 
     if result.missing:
         click.echo(f"robodepth: warning: no predictions for {len(result.missing)} variants; "
                    "evaluated the rest", err=True)
+    if result.left_out:
+        n, reasons = len(result.left_out), list(result.left_out.items())[:2]
+        click.echo(f"robodepth: left out {n} of {result.images} images without usable ground truth ("
+                   + "; ".join(f"{k}: {why}" for k, why in reasons) + ("; ..." if n > 2 else "")
+                   + ")", err=True)
     implausible = _implausible_clean(result) if bench is not None else ""
     scored = None
     if bench is not None and not implausible:

@@ -29,7 +29,9 @@ def export_command(out, fmt, to, shard_size, progress):
     variant (clean, each corruption, style or chain, and ground_truth), one split per level
     (level_3; test without levels), and DIR/README.md, the dataset card whose YAML header
     datasets.load_dataset and the Hugging Face Hub read. webdataset: the same names as
-    .tar shards, one sample per image (<key>.png, <key>.json). Either way DIR/robodepth/
+    .tar shards, one sample per image (<key>.png, <key>.json). The ground truth: one row
+    per image, its depth map as a float32 array (parquet: depth; tar: <key>.depth.npy), no
+    pickle. Either way DIR/robodepth/
     carries the build's manifest.csv and build.json, and robodepth verify DIR checks every
     image against that manifest. Each shard is written whole or not at all; rerunning the
     command resumes. Nothing is uploaded.
@@ -54,4 +56,8 @@ def export_command(out, fmt, to, shard_size, progress):
     click.echo(f"{to}: {summary.rows} rows in {summary.shards} {fmt} shards "
                f"({summary.written} written now), {summary.size / 1e6:.1f} MB "
                f"({ratio:.3f} x the build's {summary.source_size / 1e6:.1f} MB)", err=True)
+    if summary.no_depth:
+        first, why = next(iter(summary.no_depth.items()))
+        click.echo(f"robodepth: {len(summary.no_depth)} image(s) without a usable depth map have no "
+                   f"ground truth and no depth-aware images in the export ({first}: {why})", err=True)
     click.echo(f"next: robodepth verify {to}", err=True)

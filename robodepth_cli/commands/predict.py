@@ -81,6 +81,11 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     done = f"{len(run.written)} variants x {len(dataset.keys)} images"
     skipped = f" ({len(run.skipped)} already done, skipped)" if run.skipped else ""
     click.echo(f"{model.spec} on {model.device}: {done}{skipped} -> {pred}", err=True)
+    if run.no_depth:
+        first, why = next(iter(run.no_depth.items()))
+        click.echo(f"robodepth: {len(run.no_depth)} image(s) without a usable depth map have no "
+                   f"depth-aware images; their predictions there are NaN and evaluate leaves these "
+                   f"images out ({first}: {why})", err=True)
     import shlex
 
     click.echo(f"next: robodepth evaluate {shlex.quote(str(dataset_dir))} --pred "

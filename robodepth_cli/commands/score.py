@@ -94,11 +94,10 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 
 def _unpublished(name: str, res):
     """The benchmark of ``name`` (no published baseline) that ``res`` is on: the corruptions
-    it has rows of, levels 1 to the highest level among them."""
+    it has rows of, at the levels among them."""
     from .. import benchmarks as B
 
-    top = max((lv for levels in res.dee.values() for lv in levels), default=B.N_LEVELS)
-    return B.unpublished(name, tuple(res.dee), top)
+    return B.unpublished(name, tuple(res.dee), levels=[lv for d in res.dee.values() for lv in d])
 
 
 def _warn_own_depth(path: Path) -> None:

@@ -17,18 +17,28 @@ import numpy as np
 from .protocols import EvaluationError
 
 
+class NoValidPixel(EvaluationError):
+    """A map without a pixel to judge a prediction on (in another unit than metres, say):
+    its image is left out of the evaluation."""
+
+
 class DepthMaps:
     """The interface of :class:`~.groundtruth.GroundTruth` that evaluation uses (``len``,
     ``get``, ``shapes``, ``share``/``open``), over one ``.npy`` file per image."""
 
     keys = None  # no frame keys to check the order against: the names are the keys
 
-    def __init__(self, directory: Path, names: Sequence[str], protocol: str, valid):
+    def __init__(self, directory: Path, names: Sequence[str], protocol: str, valid,
+                 absent=frozenset()):
         self.source = str(directory)
         self.protocol = protocol
         self.valid = valid
         self.paths = [str(Path(directory) / n) for n in names]
-        self.shapes = [self._header(Path(p), i) for i, p in enumerate(self.paths)]
+        # absent: images the build has no ground truth of (their depth map is unusable);
+        # get() gives None for them and the evaluation leaves them out.
+        self.absent = frozenset(absent)
+        self.shapes = [(0, 0) if i in self.absent else self._header(Path(p), i)
+                       for i, p in enumerate(self.paths)]
 
     @staticmethod
     def _header(path: Path, i: int) -> tuple[int, int]:
@@ -49,7 +59,10 @@ class DepthMaps:
         return len(self.paths)
 
     def get(self, i: int) -> tuple[tuple[int, int], np.ndarray, np.ndarray]:
-        """(shape, flat indices of the valid pixels, their depths) of map ``i``, read now."""
+        """(shape, flat indices of the valid pixels, their depths) of map ``i``, read now;
+        None for an image without ground truth."""
+        if i in self.absent:
+            return None
         path = self.paths[i]
         try:
             depth = np.load(path, mmap_mode="r", allow_pickle=False)
@@ -59,8 +72,8 @@ class DepthMaps:
             raise EvaluationError(f"{path}: changed while it was evaluated")
         index = self.valid(depth)
         if not index.size:
-            raise EvaluationError(f"{path} (ground truth of image {i}) has no valid pixel inside "
-                                  "the crop and depth range")
+            raise NoValidPixel(f"{path} (ground truth of image {i}) has no valid pixel inside "
+                               "the crop and depth range")
         return self.shapes[i], index, np.asarray(depth.reshape(-1)[index])
 
     def share(self, path: Path) -> DepthMaps:

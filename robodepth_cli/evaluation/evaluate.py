@@ -22,6 +22,7 @@ import numpy as np
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
 from ..errors import cannot_write
+from .depthmaps import NoValidPixel
 from .groundtruth import GroundTruth, load_ground_truth
 from .predictions import Predictions, check_values, find_predictions
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
@@ -36,6 +37,8 @@ class VariantResult:
     metrics: dict[str, float]  # mean over the images
     ratios: np.ndarray | None = None  # median-scaling ratio per image (mono kitti only)
     flicker: dict[str, float] | None = None  # with --flicker: flicker.COLUMNS
+    # Images left out: their ground truth has no valid pixel (position -> why).
+    left_out: dict[int, str] = field(default_factory=dict)
 
     @property
     def csv_key(self) -> tuple[str, int]:
@@ -60,6 +63,9 @@ class Evaluation:
     results: list[VariantResult] = field(default_factory=list)
     missing: list[Variant] = field(default_factory=list)  # no predictions (--allow-partial)
     pairs: int = 0  # consecutive frame pairs the flicker is measured on (0: not measured)
+    # Images left out of every variant: no ground truth, their depth map being unusable
+    # (key -> the build's reason); the metrics are the means over the others.
+    left_out: dict[str, str] = field(default_factory=dict)
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -183,12 +189,14 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
                               "robodepth gt, or pass --gt")
     gt_path = Path(gt_path)
     names = dataset.depth_names() if gt_path.is_dir() else dataset.keys
-    truth = load_ground_truth(gt_path, names, setup.protocol, setup.valid)
+    absent = {i for i, k in enumerate(dataset.keys) if k in dataset.no_depth} if gt is None else set()
+    truth = load_ground_truth(gt_path, names, setup.protocol, setup.valid, absent=absent)
     n = len(dataset.keys)
     if on_total:
         on_total(n * len(found))
     result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing,
-                        pairs=len(pairs or ()))
+                        pairs=len(pairs or ()),
+                        left_out={dataset.keys[i]: dataset.no_depth[dataset.keys[i]] for i in sorted(absent)})
     jobs = min(jobs, len(found), -(-n * len(found) // MAPS_PER_WORKER))
     if jobs > 1:
         import tempfile
@@ -199,13 +207,21 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
             del truth
             result.results = _evaluate_in_workers(found, shared, setup, dataset.size, progress,
                                                   pairs, jobs)
-        return result
+        return _with_left_out(result, dataset)
     for v, p in found:
         try:
             result.results.append(_evaluate_variant(v, p, truth, setup, dataset.size, progress,
                                                     pairs))
         finally:
             p.close()
+    return _with_left_out(result, dataset)
+
+
+def _with_left_out(result: Evaluation, dataset: BuiltDataset) -> Evaluation:
+    """``result`` with the images its variants left out (no valid ground-truth pixel)."""
+    for r in result.results:
+        for i, why in r.left_out.items():
+            result.left_out.setdefault(dataset.keys[i], why)
     return result
 
 
@@ -268,9 +284,19 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
     errors = []
     ratios = []
     scales = []
+    left_out = {}
     for i in range(len(variant)):
+        try:
+            gt = truth.get(i)  # once: flicker's scale below reads the same map
+        except NoValidPixel as exc:
+            if pairs:
+                raise
+            gt, left_out[i] = None, str(exc)
+        if gt is None:  # an image without ground truth (Evaluation.left_out)
+            if progress:
+                progress(1)
+            continue
         m, where, is_png = preds.read(i)
-        gt = truth.get(i)  # once: flicker's scale below reads the same map
         errs, ratio = image_errors(m, where, gt, setup, image_size, is_png)
         if ratio is not None:
             ratios.append(ratio)
@@ -290,7 +316,12 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
             flicker = measure(scales, [e[0] for e in errors], pairs)
         except EvaluationError as exc:
             raise EvaluationError(f"{preds.source}: {exc}") from None
-    return variant_result(variant, errors, ratios, setup, flicker)
+    if not errors:
+        raise EvaluationError(f"{preds.source}: no image of {variant.label} has usable ground truth"
+                              + (f" ({next(iter(left_out.values()))})" if left_out else ""))
+    result = variant_result(variant, errors, ratios, setup, flicker)
+    result.left_out = left_out
+    return result
 
 
 def image_errors(m: np.ndarray, where: str, truth: tuple, setup: Setup, image_size,

@@ -132,7 +132,7 @@ class SharedGroundTruth:
 
 
 def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
-                      valid=None) -> GroundTruth:
+                      valid=None, absent=frozenset()) -> GroundTruth:
     """Read the ground truth of a split's images from ``path``: a ``.npz``/``.npy`` file of
     depth maps in metres, one per image in split order (monodepth2's ``gt_depths.npz``), or
     a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
@@ -144,12 +144,14 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
     array and dtype reconstructors allowed, so a crafted file cannot run code, and each map
     is reduced as soon as it is read: the ~1.3 GB of KITTI maps are never in memory
     together (peak ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``).
+    ``absent``: the images of a build with depth that have no map (left out, see
+    :class:`.depthmaps.DepthMaps`).
     """
     path = Path(path)
     if path.is_dir() and names and all(n.endswith(".npy") for n in names):
         from .depthmaps import DepthMaps  # a build with depth: one float map per image
 
-        return DepthMaps(path, names, protocol, valid or VALID[protocol])
+        return DepthMaps(path, names, protocol, valid or VALID[protocol], absent)
     gt = GroundTruth(str(path), protocol, valid)
     if path.is_dir():
         for i, name in enumerate(names):

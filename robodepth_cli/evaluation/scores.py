@@ -53,6 +53,7 @@ class Scores:
     curves: dict[str, dict[float, float]] = field(default_factory=dict)
     chains: dict[str, float] = field(default_factory=dict)
     note: str = ""  # why there is no mCE, mRR or mDEE (rows beyond the benchmark only)
+    levels: tuple[int, ...] = ()  # the benchmark's levels (an unpublished set's: its own)
 
     def to_json(self) -> dict:
         """The JSON form; keys are documented in docs/evaluation.md and stay stable. A results file
@@ -131,7 +132,7 @@ def score(results: Results, benchmark: Benchmark, baseline: Baseline | None = No
     curves = {n: dict(sorted({**results.dee.get(n, {}), **d}.items())) for n, d in results.decimal.items()}
     return Scores(benchmark.name, benchmark.n_levels, results.source, baseline, results.clean, tuple(rows),
                   categories, _group("overall", rows), tuple(missing), curves, dict(results.chains),
-                  no_score_note(benchmark) if results.beyond_only else "")
+                  no_score_note(benchmark) if results.beyond_only else "", tuple(benchmark.levels))
 
 
 def no_score_note(benchmark: Benchmark) -> str:
@@ -150,8 +151,11 @@ def _cell(value: float | None, spec: str, width: int) -> str:
 def _partial_note(c: CorruptionScore, s: Scores) -> str:
     if not c.level_dee:
         return "  (missing)"
-    if len(c.level_dee) < s.n_levels:
-        return f"  (levels {','.join(map(str, c.level_dee))} of 1..{s.n_levels})"
+    levels = s.levels or tuple(range(1, s.n_levels + 1))
+    if set(levels) - set(c.level_dee):
+        every = (f"1..{s.n_levels}" if levels == tuple(range(1, s.n_levels + 1))
+                 else ",".join(map(str, levels)))
+        return f"  (levels {','.join(map(str, c.level_dee))} of {every})"
     return ""
 
 
@@ -167,6 +171,8 @@ def format_table(s: Scores) -> str:
     if s.note:
         return "\n".join([lines[0], lines[2], "", s.note] + _beyond(s)) + "\n"
     for cat, group in zip(CATEGORIES, s.categories):
+        if not any(c.category == cat for c in s.corruptions):
+            continue  # a set without this category's corruptions (a custom build's)
         lines.append(cat)
         for c in s.corruptions:
             if c.category == cat:

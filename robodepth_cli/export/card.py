@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import json
 
-from .layout import FORMATS, GT_CONFIG
+from .layout import FORMATS, GT_CONFIG, NEIGHBOURS
+
+NEIGHBOUR_TEXT = (", and `<split>_neighbours` (`level_3_neighbours`) the neighbour frames of a "
+                  "build with `--frames`, by key: a frame's key holds its frame number")
 
 # Where each source dataset's terms are published: the export copies its images, so they
 # apply to it. robodepth cannot decide them; the card says which to check.
@@ -43,17 +46,41 @@ def _parameters(variants: list[str]) -> list[str]:
             corruption_table(markdown=True, names=names), ""]
 
 
-def card(record, shards: list[dict], fmt: str, version: str) -> str:
-    """The card's text for an export of the build ``record`` made of ``shards`` (the
-    export record's entries)."""
-    from ..report.published import BIBTEX
+def holdings(shards, rows: dict) -> dict[str, dict]:
+    """What the export holds, per configuration (:class:`~.plan.Shard` s): its ``levels``,
+    ``seeds`` and ``engines`` (``numpy``, ``torch``; none for the clean images and the
+    ground truth), from the manifest ``rows`` of its files: every build request into the
+    build counts, not only the last."""
+    from ..sources.engines import TORCH_FINGERPRINT
 
-    ext = FORMATS[fmt]
-    configs: dict[str, list[str]] = {}
+    held: dict[str, dict] = {}
     for s in shards:
-        splits = configs.setdefault(s["config"], [])
-        if s["split"] not in splits:
-            splits.append(s["split"])
+        h = held.setdefault(s.config, {"levels": set(), "seeds": set(), "engines": set()})
+        for item in s.items:
+            if item.level is not None:
+                h["levels"].add(item.level)
+            h["seeds"].add(item.seed)
+            if s.config not in ("clean", GT_CONFIG):
+                torch = TORCH_FINGERPRINT in rows[item.output].params.split(";")
+                h["engines"].add("torch" if torch else "numpy")
+    return {c: {k: sorted(v) for k, v in h.items()} for c, h in held.items()}
+
+
+def _held_lines(held: dict[str, dict]) -> list[str]:
+    """One line per configuration: its levels, seeds and engines."""
+    from ..corruptions.severity import level_text
+
+    lines = []
+    for config, h in held.items():
+        parts = [f"levels {', '.join(level_text(lv) for lv in h['levels'])}" if h["levels"] else "",
+                 f"seed {', '.join(map(str, h['seeds']))}",
+                 f"{' and '.join(h['engines'])} engine" if h["engines"] else ""]
+        lines.append(f"- `{config}`: " + "; ".join(p for p in parts if p))
+    return lines
+
+
+def _yaml(record, configs: dict[str, list[str]], ext: str) -> list[str]:
+    """The YAML header: the licence, the name, each configuration's splits and their files."""
     head = ["---", f"license: {_source(record.dataset)[1]}", f"pretty_name: {record.dataset} "
             "(robodepth build)", "configs:"]
     for config, splits in configs.items():
@@ -61,7 +88,20 @@ def card(record, shards: list[dict], fmt: str, version: str) -> str:
         for split in splits:
             head += [f"  - split: {json.dumps(split)}",
                      f"    path: {json.dumps(f'data/{config}/{split}-*.{ext}')}"]
-    head.append("---")
+    return head + ["---"]
+
+
+def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dict]) -> str:
+    """The card's text for an export of the build ``record`` made of ``shards`` (the
+    export record's entries) holding ``held`` (:func:`holdings`)."""
+    from ..report.published import BIBTEX
+
+    configs: dict[str, list[str]] = {}
+    for s in shards:
+        splits = configs.setdefault(s["config"], [])
+        if s["split"] not in splits:
+            splits.append(s["split"])
+    head = _yaml(record, configs, FORMATS[fmt])
     source, _, terms = _source(record.dataset)
     variants = [c for c in configs if c not in ("clean", GT_CONFIG)]
     conf = record.config or {}
@@ -72,20 +112,24 @@ def card(record, shards: list[dict], fmt: str, version: str) -> str:
         f"The images of a `robodepth build {record.dataset}` of {len(record.keys or [])} images of "
         f"{source}, byte for byte as built ({fmt} shards). Each configuration is one variant: "
         f"`clean`, {', '.join(f'`{v}`' for v in variants) or 'no corruption'}"
-        f"{', and `' + GT_CONFIG + '` (the ground truth, once)' if GT_CONFIG in configs else ''}; "
-        "each split one level (`level_3`) or `test` for a variant without levels. Every row "
+        f"{', and `' + GT_CONFIG + '` (the ground truth: one row per image, `depth` its map, float32 metres, NaN where there is no measurement)' if GT_CONFIG in configs else ''}; "
+        "each split one level (`level_3`) or `test` for a variant without levels"
+        f"{NEIGHBOUR_TEXT if any(s['split'].endswith(NEIGHBOURS) for s in shards) else ''}. Every row "
         "has the image's key (its path in the split), variant, level, seed and sha256.",
+        "",
+        "## What it holds",
+        "",
+        *_held_lines(held),
         "",
         "## How it was made",
         "",
         f"- robodepth {record.robodepth or 'unknown'} built it; robodepth {version} exported it.",
-        f"- Seed {record.seed}; levels {conf.get('levels')}; size "
-        f"{'x'.join(map(str, size)) + ' (HxW)' if size else 'each image its own'}.",
+        f"- Size {'x'.join(map(str, size)) + ' (HxW)' if size else 'each image its own'}.",
         f"- Corruption parameters: the RoboDepth benchmark's, as robodepth {record.robodepth} "
         "states them (`robodepth list`); the build's whole configuration and command are in "
         "`robodepth/build.json`, and `robodepth/manifest.csv` lists every file with its sha256 "
         "(`robodepth verify` checks an export against it).",
-        f"- Command: `{' '.join(record.command)}`" if record.command else "",
+        f"- The last build command into it: `{' '.join(record.command)}`" if record.command else "",
         "",
         *_parameters(variants),
         "## Licence to check",

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from ..corruptions.severity import level_text
 
+EXPORT_VERSION = 2  # of the export record; 2: the ground truth as one depth map per row
 CARD = "README.md"
 DATA = "data"
 META = "robodepth"  # the folder with the build's record and manifest and the export record
@@ -24,6 +25,7 @@ RECORD = "export.json"
 JOURNAL = ".shards.jsonl"  # in META: the shards written so far, while an export runs
 GT_CONFIG = "ground_truth"
 NO_LEVEL = "test"  # the split of a variant without levels
+NEIGHBOURS = "_neighbours"  # a split's neighbour frames (a build with --frames): level_3_neighbours
 FORMATS = {"parquet": "parquet", "webdataset": "tar"}  # format -> shard extension
 
 

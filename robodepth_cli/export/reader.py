@@ -10,14 +10,13 @@ reading a variant in split order reads each shard once; a tar read seeks to the 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Iterator
 
 from ..files import sha256_bytes
 from ..output.layout import GT_DIR, GT_FILE
-from .layout import GT_CONFIG, META, RECORD
-from .plan import ExportError
+from .layout import EXPORT_VERSION, GT_CONFIG, META, NEIGHBOURS, RECORD
+from .plan import ExportError, neighbour_outputs
 
 
 def read_export_record(to: Path) -> dict | None:
@@ -36,19 +35,14 @@ def is_export(path: Path) -> bool:
 
 
 def shard_rows(path: Path, fmt: str, prefix: str) -> Iterator[tuple[str, bytes]]:
-    """(path in the build, bytes) of every file in one shard, in order. Raises whatever
+    """(path in the build, bytes) of every image in one shard, in order. Raises whatever
     the shard's reader raises for a damaged file (the caller names the shard)."""
     if fmt == "parquet":
         import pyarrow.parquet as pq
 
-        pf = pq.ParquetFile(path)
-        gt = "data" in pf.schema_arrow.names
-        for batch in pf.iter_batches(batch_size=64, columns=["path", "data"] if gt else ["image"]):
-            if gt:
-                yield from zip(batch.column("path").to_pylist(), batch.column("data").to_pylist())
-            else:
-                for cell in batch.column("image").to_pylist():
-                    yield cell["path"], cell["bytes"]
+        for batch in pq.ParquetFile(path).iter_batches(batch_size=64, columns=["image"]):
+            for cell in batch.column("image").to_pylist():
+                yield cell["path"], cell["bytes"]
         return
     import tarfile
 
@@ -60,6 +54,34 @@ def shard_rows(path: Path, fmt: str, prefix: str) -> Iterator[tuple[str, bytes]]
             yield (f"{prefix}/{member.name}" if prefix else member.name), data
 
 
+def gt_rows(path: Path, fmt: str) -> Iterator[tuple[str, str, bytes]]:
+    """(path of its file in the build, image key, the map's ``.npy`` bytes) of every
+    ground-truth map in one shard, in order (see :mod:`.groundtruth`)."""
+    from .groundtruth import npy_bytes
+
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
+
+        for batch in pq.ParquetFile(path).iter_batches(batch_size=8, columns=["path", "key", "depth"]):
+            depth = batch.column("depth")
+            for i, (p, k) in enumerate(zip(batch.column("path").to_pylist(), batch.column("key").to_pylist())):
+                rows = depth[i].values
+                flat = rows.flatten().to_numpy(zero_copy_only=False)
+                yield p, k, npy_bytes(flat.reshape(len(rows), -1) if len(rows) else flat.reshape(0, 0))
+        return
+    import tarfile
+
+    with tarfile.open(path, mode="r:") as tar:
+        data = None
+        for member in tar:
+            if member.isfile() and member.name.endswith(".json") and data is not None:
+                meta = json.loads(tar.extractfile(member).read())
+                yield meta["path"], meta["key"], data
+                data = None
+            elif member.isfile():
+                data = tar.extractfile(member).read()
+
+
 class ExportStore:
     """The files of the build exported into ``path``, by their path in the build."""
 
@@ -69,14 +91,24 @@ class ExportStore:
         if record.get("status") != "finished":
             raise ExportError(f"{self.path}: the export did not finish; rerun the robodepth export "
                               "command that made it")
+        if record.get("export") != EXPORT_VERSION:
+            raise ExportError(f"{self.path}: an export of another version of robodepth (its ground "
+                              "truth is stored otherwise); export the build again")
         self.format = record.get("format")
         self.shards = record.get("shards") or []
         self._sha = {p: r.sha256 for p, r in manifest.items() if not r.error}
         self._where: dict[str, tuple[int, int]] = {}
+        around = neighbour_outputs(manifest)
         for n, e in enumerate(self.shards):
-            if e["config"] != GT_CONFIG:
-                for j in range(e["rows"]):
-                    self._where[f"{e['prefix']}/{keys[e['start'] + j]}"] = (n, j)
+            if e["config"] == GT_CONFIG:
+                continue
+            if e["split"].endswith(NEIGHBOURS):
+                paths = around.get(e["prefix"], [])[e["start"]:e["start"] + e["rows"]]
+            else:  # the split's images this variant has (see plan), in split order
+                made = [p for p in (f"{e['prefix']}/{k}" for k in keys)
+                        if p in manifest and not manifest[p].error]
+                paths = made[e["start"]:e["start"] + e["rows"]]
+            self._where.update((p, (n, j)) for j, p in enumerate(paths))
         self._cache: dict = {}
         self._gt_dir = None
 
@@ -137,24 +169,29 @@ class ExportStore:
             return fh.read(size)
 
     def ground_truth(self) -> Path | None:
-        """The build's ground truth as it wrote it (``gt_depths.npz`` or ``gt/``), copied
-        out of the ground-truth shards into a temporary folder that lives as long as this
-        store; None when the export has none."""
+        """The build's ground truth (``gt_depths.npz`` or ``gt/``), written back from the
+        export's maps into a temporary folder that lives as long as this store: the same
+        values as the build's files; None when the export has none."""
         entries = [e for e in self.shards if e["config"] == GT_CONFIG]
         if not entries:
             return None
         if self._gt_dir is None:
             import tempfile
 
-            from ..files import write_atomic
+            from .groundtruth import from_npy, write_back
 
-            tmp = tempfile.TemporaryDirectory(prefix="robodepth-gt-")
+            maps: dict[str, list] = {}
+            keys: dict[str, list] = {}
             for e in entries:
-                for output, data in shard_rows(self.path / e["file"], self.format, ""):
-                    if sha256_bytes(data) != self._sha.get(output):
-                        raise ExportError(f"{self.path / e['file']}: {output} is not the build's; "
-                                          f"run robodepth verify {self.path}")
-                    write_atomic(os.path.join(tmp.name, output), data)
+                file = self.path / e["file"]
+                for (path, key, data), want in zip(gt_rows(file, self.format), e.get("maps") or []):
+                    if [path, key, sha256_bytes(data)] != want:
+                        raise ExportError(f"{file}: the ground truth of {key or path} is not the one "
+                                          f"exported; run robodepth verify {self.path}")
+                    maps.setdefault(path, []).append(from_npy(data, str(file)))
+                    keys.setdefault(path, []).append(key)
+            tmp = tempfile.TemporaryDirectory(prefix="robodepth-gt-")
+            write_back(Path(tmp.name), maps, keys)
             self._gt_dir = tmp
         root = Path(self._gt_dir.name)
         return root / GT_FILE if (root / GT_FILE).is_file() else root / GT_DIR

@@ -12,17 +12,18 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..files import atomic_output, check_writable, sha256_file, write_atomic
 from ..output.layout import MANIFEST, RECORD as BUILD_RECORD
-from .layout import CARD, DATA, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
+from .layout import CARD, DATA, EXPORT_VERSION, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
 from .plan import ExportError, Shard, plan
+from .card import holdings
 from .reader import read_export_record
 from .shards import WRITERS
 
-EXPORT_VERSION = 1
+_DONE = ("file", "sha256", "bytes", "maps")  # what the journal keeps of a finished shard
 
 
 @dataclass
@@ -32,6 +33,9 @@ class ExportSummary:
     rows: int = 0
     size: int = 0  # bytes of the shards
     source_size: int = 0  # bytes of the build's files exported
+    # The images without a usable depth map (their ground truth and depth-aware outputs
+    # do not exist), with the reason.
+    no_depth: dict = field(default_factory=dict)
 
 
 def _inside(a: Path, b: Path) -> bool:
@@ -47,17 +51,35 @@ def _open_build(out: Path):
     if holder:
         raise ExportError(f"{out}: a build (pid {holder}) is writing here right now; export "
                           "when it has finished")
-    if dataset.failed or dataset.record.status not in ("finished", ""):
+    rows = read_manifest(out)
+    # Images whose depth map is unusable have no ground truth and no depth-aware outputs;
+    # a rerun cannot make them, so the build is exported without those files.
+    status = dataset.record.status
+    if status == "finished with failures" and not _unexplained(dataset, rows):
+        status = "finished"
+    if dataset.failed or status not in ("finished", ""):
         why = dataset.incomplete() or f"{out}: the build's status is {dataset.record.status!r}"
         raise ExportError(f"{why}; export a finished build (rerun the build command to finish it)")
-    return dataset, read_manifest(out)
+    return dataset, rows
+
+
+def _unexplained(dataset, rows: dict) -> list[str]:
+    """The failed rows of the build that an unusable depth map does not explain."""
+    from ..api import depth_aware_variant
+    from ..output.layout import GT_DIR, depth_gt_name, variant_dir
+
+    lacking = {f"{GT_DIR}/{depth_gt_name(k)}" for k in dataset.no_depth}
+    return [p for p, r in rows.items() if r.error and p not in lacking
+            and not (depth_aware_variant(r.variant)
+                     and p[len(variant_dir(r.variant, r.level)) + 1:] in dataset.no_depth)]
 
 
 def _entry(shard: Shard, fmt: str) -> dict:
     prefix = "" if shard.config == GT_CONFIG else shard.items[0].output[:-len(shard.items[0].key) - 1]
     return {"file": shard.name(FORMATS[fmt]), "config": shard.config, "split": shard.split,
             "prefix": prefix, "start": shard.start, "rows": len(shard.items),
-            "source_bytes": shard.size, "sha256": None, "bytes": None}
+            "source_bytes": shard.size, "sha256": None, "bytes": None,
+            **({"maps": None} if shard.config == GT_CONFIG else {})}
 
 
 def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = True,
@@ -90,7 +112,7 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
         done.update(_journal(to))
         for e in entries:
             if e["file"] in done:
-                e["sha256"], e["bytes"] = done[e["file"]]["sha256"], done[e["file"]]["bytes"]
+                e.update({k: done[e["file"]].get(k) for k in _DONE if k in e})
     record = {**header, "robodepth": version, "status": "running", "shards": entries}
     try:
         write_atomic(to / META / MANIFEST, manifest)
@@ -99,39 +121,43 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
     except OSError as exc:
         raise ExportError(_cannot(to, exc)) from None
     summary = ExportSummary(shards=len(shards), rows=sum(len(s.items) for s in shards),
-                            source_size=sum(s.size for s in shards))
+                            source_size=sum(s.size for s in shards), no_depth=dataset.no_depth)
     write = WRITERS[fmt]
     with bar("B", summary.source_size, progress=progress, unit_scale=True, unit_divisor=1024,
              desc="export") as meter:
         for shard, e in zip(shards, entries):
             target = to / e["file"]
+            gt = shard.config == GT_CONFIG
             if target.is_file() and e["sha256"] is None:  # renamed, then stopped: hash it now
                 e["sha256"], e["bytes"] = sha256_file(target), target.stat().st_size
-            if target.is_file() and e["bytes"] == target.stat().st_size:
+            # A ground-truth shard whose map hashes were not recorded is written again.
+            if target.is_file() and e["bytes"] == target.stat().st_size and not (gt and e["maps"] is None):
                 meter.update(shard.size)
                 continue
             try:
                 with atomic_output(target) as fh:
-                    write(fh, out, shard, shard.config == GT_CONFIG, meter.update)
+                    maps = write(fh, out, shard, gt, meter.update)
                     fh.flush()
                 e["sha256"], e["bytes"] = sha256_file(target), target.stat().st_size
+                if gt:
+                    e["maps"] = maps
                 with open(to / META / JOURNAL, "a", encoding="utf-8") as fh:
-                    fh.write(json.dumps({k: e[k] for k in ("file", "sha256", "bytes")}) + "\n")
+                    fh.write(json.dumps({k: e[k] for k in _DONE if k in e}) + "\n")
             except OSError as exc:
                 raise ExportError(_cannot(target, exc)) from None
             summary.written += 1
-    _finish(to, dataset, record, fmt, version)
+    _finish(to, dataset, record, fmt, version, holdings(shards, rows))
     summary.size = sum(e["bytes"] for e in entries)
     return summary
 
 
-def _finish(to: Path, dataset, record: dict, fmt: str, version: str) -> None:
+def _finish(to: Path, dataset, record: dict, fmt: str, version: str, held: dict) -> None:
     from .card import card
 
     _remove_strays(to)
     record["status"] = "finished"
     try:
-        write_atomic(to / CARD, card(dataset.record, record["shards"], fmt, version).encode("utf-8"))
+        write_atomic(to / CARD, card(dataset.record, record["shards"], fmt, version, held).encode("utf-8"))
         _write_record(to, record)
         (to / META / JOURNAL).unlink(missing_ok=True)
     except OSError as exc:

@@ -2,7 +2,8 @@
 manifest carried in the export (``robodepth/manifest.csv``).
 
 Each shard is read whole, row by row (memory: one row group or one member), and each
-row's bytes hashed: a row whose bytes are not the manifest's is changed, a file of the
+row's bytes hashed (a ground-truth map's ``.npy`` against the hash the export record took
+when it read the build's file): a row whose bytes are not the manifest's is changed, a file of the
 manifest that no shard holds is missing, a row the manifest does not list (or a second
 row for one file) is extra, and so is a file under ``data/`` that the export record does
 not name. A shard whose bytes differ from the export record, or that cannot be read, is
@@ -17,8 +18,9 @@ from pathlib import Path
 from ..files import sha256_bytes, sha256_file
 from ..output.manifest import ManifestError, read_manifest
 from ..output.verify import VerifyReport
-from .layout import DATA, META
-from .reader import read_export_record, shard_rows
+from ..output.layout import GT_FILE
+from .layout import DATA, GT_CONFIG, META
+from .reader import gt_rows, read_export_record, shard_rows
 
 
 def verify_export(to: Path, *, progress=None) -> VerifyReport:
@@ -28,7 +30,9 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
     if not rows:
         raise ManifestError(f"{to / META}: no manifest; not a robodepth export")
     expected = {p: r.sha256 for p, r in rows.items() if not r.error}
-    seen: set[str] = set()
+    maps = {(p, k): sha for e in record.get("shards") or [] if e["config"] == GT_CONFIG
+            for p, k, sha in e.get("maps") or []}
+    seen: set = set()
     changed, extra = [], []
     checked = 0
     named = set()
@@ -40,14 +44,16 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
         if e.get("sha256") and sha256_file(file) != e["sha256"]:
             changed.append(f"{e['file']} (shard: its sha256 is not the export record's)")
         try:
-            for output, data in shard_rows(file, record.get("format"), e["prefix"]):
+            for name, data in _rows(file, record.get("format"), e):
                 checked += 1
-                if output not in expected or output in seen:
-                    extra.append(f"{output} (in {e['file']})")
+                want = maps.get(name) if isinstance(name, tuple) else expected.get(name)
+                label = _label(name)
+                if want is None or name in seen:
+                    extra.append(f"{label} (in {e['file']})")
                     continue
-                seen.add(output)
-                if sha256_bytes(data) != expected[output]:
-                    changed.append(output)
+                seen.add(name)
+                if sha256_bytes(data) != want:
+                    changed.append(label)
                 if progress:
                     progress(1)
         except Exception as exc:  # noqa: BLE001 -- any reader error means a damaged shard
@@ -57,6 +63,27 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
             rel = Path(dirpath, name).relative_to(to).as_posix()
             if rel not in named:
                 extra.append(rel)
-    missing = sorted(p for p in expected if p not in seen)
+    # A ground-truth file of the build counts as exported when every map of it is there.
+    gt_files = {p for p, _ in maps}
+    missing = sorted(p for p in expected if p not in seen and p not in gt_files)
+    missing += sorted(_label(m) for m in maps if m not in seen)
     return VerifyReport(checked, missing, changed, sorted(extra), [],
                         status=record.get("status", ""))
+
+
+def _rows(file: Path, fmt: str, entry: dict):
+    """(name, bytes) of each row of a shard: an image's path in the build, or a ground-truth
+    map's (path of its file, image key) with its ``.npy`` bytes."""
+    if entry["config"] != GT_CONFIG:
+        yield from shard_rows(file, fmt, entry["prefix"])
+        return
+    for path, key, data in gt_rows(file, fmt):
+        yield (path, key), data
+
+
+def _label(name) -> str:
+    """How a row is named in the report: its path, or ``<file> (<key>)`` for a map."""
+    if not isinstance(name, tuple):
+        return name
+    path, key = name
+    return f"{path} ({key})" if key and path == GT_FILE else path

@@ -42,6 +42,7 @@ import numpy as np
 
 from .. import __version__
 from ..api import BuiltDataset, PredictionWriter, Variant
+from ..benchmarks import CLEAN
 from ..errors import cannot_write, os_reason
 from .errors import ModelError
 
@@ -60,6 +61,9 @@ _SAME = ("adapter", "identity", "options", "evaluate")
 class PredictRun:
     written: list[Variant] = field(default_factory=list)
     skipped: list[Variant] = field(default_factory=list)  # finished by an earlier run
+    # Images without a usable depth map (key -> reason): their depth-aware images do not
+    # exist, and their predictions there are NaN (evaluate leaves these images out).
+    no_depth: dict[str, str] = field(default_factory=dict)
 
 
 def select_variants(dataset: BuiltDataset, value: str | None) -> list[Variant]:
@@ -138,11 +142,12 @@ def batch_limit(requested: int, image_size, input_size=None) -> int:
     return max(1, min(requested, BATCH_PIXELS // pixels))
 
 
-def _chunks(variant: Variant, batch_size: int, image_size, input_size, per_item: int = 1) -> list[range]:
+def _chunks(variant: Variant, batch_size: int, image_size, input_size, per_item: int = 1,
+            opens=None) -> list[range]:
     """The positions of ``variant``'s images in batches of at most ``batch_size`` items and
     :data:`BATCH_PIXELS` pixels, an item holding ``per_item`` images (a multi-frame model's
     frame and neighbours); a build without one size reads each image's size from its
-    header (a build's file or an export's bytes: :meth:`Variant.open`)."""
+    header (a build's file or an export's bytes: :meth:`Variant.open`, or ``opens(i)``)."""
     n = len(variant)
     if image_size is not None:
         step = max(1, batch_limit(batch_size, image_size, input_size) // per_item)
@@ -152,7 +157,7 @@ def _chunks(variant: Variant, batch_size: int, image_size, input_size, per_item:
     per_input = _pixels(input_size) or 0
     chunks, start, held = [], 0, 0
     for i in range(n):
-        with variant.open(i) as fh, Image.open(fh) as im:
+        with (opens or variant.open)(i) as fh, Image.open(fh) as im:
             pixels = max(im.width * im.height, per_input) * per_item
         if i > start and (i - start == batch_size or held + pixels > BATCH_PIXELS):
             chunks.append(range(start, i))
@@ -372,25 +377,28 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     try:
         with ThreadPoolExecutor(1) as reader:
             for v in todo:
-                if v.missing:
-                    v.images()  # refuses, naming the images the build did not make
+                lacking = _lacking(dataset, v, run)
+                read_v = _stand_in(read, dataset, lacking)
                 n = len(v)
-                chunks = _chunks(v, batch_size, dataset.size, model.input_size, 1 + len(frames))
+                chunks = _chunks(v, batch_size, dataset.size, model.input_size, 1 + len(frames),
+                                 _opens(dataset, v, lacking))
                 out_writer = (ImageFilesWriter(pred, v) if dataset.size is None
                               else PredictionWriter(v.prediction_file(pred), n))
                 with out_writer as out:
-                    pending = reader.submit(read, v, chunks[0]) if chunks else None
+                    pending = reader.submit(read_v, v, chunks[0]) if chunks else None
                     for k in range(len(chunks)):
                         images = pending.result()
-                        pending = (reader.submit(read, v, chunks[k + 1])
+                        pending = (reader.submit(read_v, v, chunks[k + 1])
                                    if k + 1 < len(chunks) else None)
+                        at = chunks[k].start
                         for batch in same_size_runs(images):
                             maps = model.predict(batch)
                             if not recorded:
                                 write_record(pred, record)
                                 recorded = True
                             for m in maps:
-                                out.write(m)
+                                out.write(_no_prediction(m) if at in lacking else m)
+                                at += 1
                             if progress:
                                 progress(len(batch))
                 run.written.append(v)
@@ -399,6 +407,48 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
             _remove_empty(pred)
         raise
     return run
+
+
+def _lacking(dataset: BuiltDataset, v: Variant, run: PredictRun) -> set[int]:
+    """The positions of ``v``'s images that are missing because their depth map is unusable
+    (noted in ``run.no_depth``); :class:`ModelError` for an image the build failed otherwise
+    (a rerun makes it)."""
+    if not v.missing:
+        return set()
+    from ..api import _failed_text
+
+    other = {k: why for k, why in v.missing.items() if not dataset.lacks_depth(v, k)}
+    if other:
+        raise ModelError(f"{dataset.path / v.relpath}: {_failed_text(other, len(v))}; rerun the "
+                         "build command to make them, or leave this variant out with --variants")
+    run.no_depth.update({k: dataset.no_depth[k] for k in v.missing})
+    return {i for i, k in enumerate(v.keys) if k in v.missing}
+
+
+def _stand_in(read, dataset: BuiltDataset, lacking: set[int]):
+    """``read`` with the clean image standing in for each image at ``lacking`` (so that its
+    prediction has the shape of the others; :func:`_no_prediction` then replaces it)."""
+    if not lacking:
+        return read
+    clean = dataset.variant(CLEAN)
+
+    def read_some(v: Variant, indices: range) -> list[np.ndarray]:
+        return [clean.read(i) if i in lacking else v.read(i) for i in indices]
+
+    return read_some
+
+
+def _opens(dataset: BuiltDataset, v: Variant, lacking: set[int]):
+    """``v.open``, with the clean image standing in at ``lacking`` (its size is the same)."""
+    if not lacking:
+        return None
+    clean = dataset.variant(CLEAN)
+    return lambda i: clean.open(i) if i in lacking else v.open(i)
+
+
+def _no_prediction(m: np.ndarray) -> np.ndarray:
+    """The prediction written for an image that does not exist: NaN (0 for integer maps)."""
+    return np.full_like(m, np.nan) if m.dtype.kind == "f" else np.zeros_like(m)
 
 
 def write_record(pred: Path, record: dict) -> None:

@@ -34,8 +34,11 @@ JOURNAL = ".robodepth.journal"  # a directory
 BOOKKEEPING = frozenset({MANIFEST, RECORD, LOCK})
 GT_FILE = "gt_depths.npz"
 GT_DIR = "gt"
+# A neighbour frame's manifest params begin with it and its test frame's key (--frames).
+NEIGHBOUR_OF = "neighbour_of="
 
 __all__ = ["MANIFEST", "RECORD", "LOCK", "JOURNAL", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
+           "NEIGHBOUR_OF",
            "variant_dir", "output_path", "depth_gt_name",
            "variant_order"]
 

@@ -123,7 +123,9 @@ def load(paths: Sequence[Path], names: Sequence[str], keys: Sequence[tuple[str, 
 
 
 def _corrupted(e: Entry) -> bool:
-    return any(v["corruption"] != B.CLEAN and isinstance(v["level"], int) for v in e.variants)
+    """Whether ``e`` has rows of the benchmark's corruptions (the depth-aware ones have no
+    baseline and never enter mCE, mRR or mDEE, as in ``score``)."""
+    return any(v["corruption"] in B.CORRUPTIONS and isinstance(v["level"], int) for v in e.variants)
 
 
 def _check(text: str, source: str) -> None:
@@ -132,9 +134,9 @@ def _check(text: str, source: str) -> None:
     seen: dict[tuple, int] = {}
     for line, where, cells, use_dee in data_rows(text, source):
         name = normalise_name(cells["corruption"])
-        if name != B.CLEAN and name not in B.CORRUPTIONS:
+        if name != B.CLEAN and name not in B.ALL_CORRUPTIONS:
             raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
-                             f"valid: clean, {', '.join(B.CORRUPTIONS)}")
+                             f"valid: clean, {', '.join(B.ALL_CORRUPTIONS)}")
         level = parse_level(cells["level"], where)
         if name == B.CLEAN and level != 0:
             raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
@@ -153,7 +155,7 @@ def _check(text: str, source: str) -> None:
 def _results(e: Entry) -> tuple[R.Results, B.Benchmark]:
     table: dict[str, dict[int, float]] = {}
     for v in e.variants:
-        if v["corruption"] != B.CLEAN and isinstance(v["level"], int):
+        if v["corruption"] in B.CORRUPTIONS and isinstance(v["level"], int):
             table.setdefault(v["corruption"], {})[v["level"]] = _error(v, "dee")
     names = tuple(n for n in B.CORRUPTIONS if n in table)
     top = max(lv for levels in table.values() for lv in levels)

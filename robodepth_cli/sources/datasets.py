@@ -247,6 +247,10 @@ class CorruptionRenderer:
 
         return self.depth.fingerprint if needs_depth(variant) else ""
 
+    def depth_stamp(self, key: str) -> str:
+        """What identifies source ``key``'s depth (:meth:`.scenedepth.DepthSource.stamp`)."""
+        return self.depth.stamp(key) if self.depth is not None else ""
+
 
 @dataclass(frozen=True)
 class Dataset:

@@ -90,3 +90,6 @@ class TorchCorruptionRenderer:
         from ..corruptions import needs_depth
 
         return self.numpy_engine.fingerprint(variant) if needs_depth(variant) else TORCH_FINGERPRINT
+
+    def depth_stamp(self, key: str) -> str:
+        return self.numpy_engine.depth_stamp(key) if self.numpy_engine is not None else ""

@@ -34,6 +34,21 @@ from ..errors import InvalidValueError, RobodepthError, os_reason
 from .depth_io import DepthError
 
 _VERSION = "1"  # bump when a source gives other depths for the same files
+DEPTH = "depth="  # the start of a depth source's fingerprint in a manifest row's params
+
+
+def files_stamp(paths) -> str:
+    """The sha256 of the files ``paths`` (in order) taken together; a file that cannot be read
+    counts as ``missing`` (its output fails with the reason when it is rendered)."""
+    from ..files import sha256_file
+
+    parts = []
+    for p in paths:
+        try:
+            parts.append(sha256_file(p))
+        except OSError:
+            parts.append("missing")
+    return hashlib.sha256(" ".join(parts).encode("ascii")).hexdigest()
 
 
 class DepthSource:
@@ -53,9 +68,14 @@ class DepthSource:
 
     @property
     def fingerprint(self) -> str:
-        """The manifest's account of the depth behind a depth-aware output: a row made from
-        another depth source is made again."""
-        return f"depth={self.kind}/v{_VERSION}"
+        """The manifest's account of how a depth-aware output's depth is made (the same for
+        every source): a row made from another depth source is made again."""
+        return f"{DEPTH}{self.kind}/v{_VERSION}"
+
+    def stamp(self, key: str) -> str:
+        """What identifies source ``key``'s depth: the sha256 of the files it is made from
+        (a row made from other bytes is made again); "" where they are not hashed."""
+        return ""
 
 
 class NyuDepth(DepthSource):
@@ -81,6 +101,12 @@ class NyuDepth(DepthSource):
             return read_depth(root / rel, nyu_labeled.DEPTH_SCALE)
         d[~(d > 0)] = np.nan
         return d
+
+    def stamp(self, key):
+        # A frame inside the labeled .mat is not hashed, as its image is not: that would read
+        # the whole multi-GB file for every image.
+        root = Path(self.root)
+        return "" if root.is_file() else files_stamp([root / self.paths[key][1]])
 
 
 class KittiLidarDepth(DepthSource):
@@ -111,6 +137,17 @@ class KittiLidarDepth(DepthSource):
         sparse = kitti_raw.depth_map(calib, kitti_raw.load_velodyne(velo))
         return densify_grid(sparse, shape)
 
+    def stamp(self, key):
+        from . import kitti_raw
+
+        frame = kitti_raw.frame_key(key)
+        if frame is None:
+            return ""
+        folder, number = frame.split()
+        date = Path(self.root) / folder.split("/")[0]
+        return files_stamp([Path(self.root) / folder / "velodyne_points" / "data" / f"{number}.bin",
+                            date / kitti_raw.CAM_TO_CAM, date / kitti_raw.VELO_TO_CAM])
+
 
 class FolderDepth(DepthSource):
     method = ("the depth map paired with each image (the ground truth's pairing rule and reader), "
@@ -129,6 +166,25 @@ class FolderDepth(DepthSource):
 
     def describe(self):
         return {**super().describe(), "directory": self.rule.directory}
+
+    @property
+    def fingerprint(self):
+        # The rule reads the files: another --depth-scale (or pattern, mask, form) is another
+        # depth. Only the options given are named: "depth=depth-folder/v1(scale=1000.0)".
+        r = self.rule
+        named = {"pattern": r.pattern, "mask": r.mask, "camera": r.camera, "scale": r.scale,
+                 "format": r.fmt, "size": None if r.same_size else "any"}
+        given = ",".join(f"{k}={v}" for k, v in named.items() if v is not None)
+        return super().fingerprint + (f"({given})" if given else "")
+
+    def stamp(self, key):
+        from .depth_pairs import pair
+
+        found = pair(self.rule, self.sources[key][0])
+        if found.error:
+            return "missing"
+        root = Path(self.rule.directory)
+        return files_stamp([root / f for f in (found.depth, found.mask, found.camera) if f])
 
     def depth(self, key, shape):
         from PIL import Image
@@ -233,7 +289,16 @@ class PredictedDepth(DepthSource):
 
     @property
     def fingerprint(self):
-        return f"depth=predictions:{self.identity}"
+        return f"{DEPTH}predictions:{self.identity}"
+
+    def stamp(self, key):
+        try:
+            m = np.ascontiguousarray(self._read(key))
+        except DepthError:
+            return "missing"
+        own = self.own.stamp(key) if self.rule == "median" else ""
+        head = f"{m.dtype.str}{m.shape}{own}".encode("ascii")
+        return hashlib.sha256(head + m.tobytes()).hexdigest()
 
     def describe(self):
         return {**super().describe(), "model": self.model, "identity": self.identity,
