@@ -134,7 +134,7 @@ class KittiC(torch.utils.data.Dataset):
         if self._gt is None:
             if self._gt_path is None or not self._gt_path.is_file():
                 return None
-            from .evaluation.groundtruth import read_depth_maps
+            from .groundtruth.read import read_depth_maps
 
             # Read lazily in each process (a DataLoader worker reads its own copy).
             self._gt = read_depth_maps(self._gt_path)

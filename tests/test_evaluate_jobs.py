@@ -117,7 +117,7 @@ def test_jobs_flag_checked(kitti, tmp_path, cli):
 
 
 def test_ground_truth_shared_through_a_file_comes_back_equal(tmp_path):
-    from robodepth_cli.evaluation.groundtruth import GroundTruth
+    from robodepth_cli.groundtruth.read import GroundTruth
 
     rng = np.random.default_rng(2)
     gt = GroundTruth("mem", "kitti")

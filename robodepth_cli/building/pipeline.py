@@ -387,10 +387,10 @@ def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str 
                      sources: list[Source], frames: int, out: Path, summary: Summary,
                      progress: bool, rerun: str | None = None) -> None:
     """Write the ground truth of the first ``frames`` split entries (those in ``out``), or of
-    the ``sources`` of a build with depth (:mod:`robodepth_cli.building.groundtruth`), as
+    the ``sources`` of a build with depth (:mod:`robodepth_cli.groundtruth.write`), as
     manifest rows counted in ``summary``; when it cannot be made at all, only a note
     (naming ``rerun``, the command that adds it once the files are there)."""
-    from . import groundtruth as build_gt
+    from ..groundtruth import write as build_gt
 
     plan = build_gt.plan_for(ds, cfg, root, split_path, sources, frames, rerun)
     if plan is None:

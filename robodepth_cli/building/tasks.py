@@ -223,7 +223,7 @@ def load_source(src: Source, size: tuple[int, int] | None):
         return None, src.error
     try:
         if src.frame is not None:
-            from ..sources.nyu_labeled import source_image
+            from ..groundtruth.nyu import source_image
 
             return resize_lanczos(source_image(src.path, src.frame), size), ""
         return load_clean(src.path, size, orient=src.orientation != 1), ""

@@ -22,7 +22,7 @@ import numpy as np
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
 from ..errors import cannot_write
-from .groundtruth import GroundTruth, load_ground_truth
+from ..groundtruth.read import GroundTruth, load_ground_truth
 from .predictions import Predictions, check_values, find_predictions
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
 

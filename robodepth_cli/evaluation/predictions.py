@@ -21,8 +21,8 @@ import numpy as np
 
 from ..api import Variant
 from ..errors import os_reason
-from .depthmaps import read_npy_header
-from .groundtruth import read_png16
+from ..groundtruth.depthmaps import read_npy_header
+from ..groundtruth.read import read_png16
 from .protocols import EvaluationError
 
 class Predictions:

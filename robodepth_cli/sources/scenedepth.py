@@ -68,7 +68,7 @@ class NyuDepth(DepthSource):
         self.paths = depth_paths  # key -> (RGB path, depth path) as the split lists them
 
     def depth(self, key, shape):
-        from . import nyu_labeled
+        from ..groundtruth import nyu as nyu_labeled
 
         rgb, rel = self.paths[key]
         root = Path(self.root)
@@ -96,7 +96,7 @@ class KittiLidarDepth(DepthSource):
         return {"root": self.root, "_calibs": {}}
 
     def depth(self, key, shape):
-        from . import kitti_raw
+        from ..groundtruth import kitti as kitti_raw
 
         frame = kitti_raw.frame_key(key)
         if frame is None or "/image_02/" not in key:

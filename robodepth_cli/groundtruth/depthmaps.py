@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .protocols import EvaluationError
+from ..evaluation.protocols import EvaluationError
 
 
 class DepthMaps:

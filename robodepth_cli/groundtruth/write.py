@@ -1,11 +1,11 @@
 """The ground truth a build writes beside its images, so the dataset can be evaluated as it is.
 
 - KITTI-C, KITTI-C-HR, KITTI-S (Eigen-format splits): ``OUT/gt_depths.npz``, the depth maps
-  of the built frames in split order (:mod:`robodepth_cli.sources.kitti_raw`), one manifest row.
+  of the built frames in split order (:mod:`robodepth_cli.groundtruth.kitti`), one manifest row.
   Made only when every frame has its velodyne file; otherwise a note says which is missing
   and that rerunning the same build adds it (a manifest row, so ``verify`` still passes).
 - NYUDepth2-C (NYU-format splits): ``OUT/gt/<depth path of the split line>``, e.g.
-  ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.sources.nyu_labeled`), one row each:
+  ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.groundtruth.nyu`), one row each:
   made from the labeled ``.mat`` when that is the root, copied from a BTS test folder
   otherwise (when every listed depth file is there; else a note).
 
@@ -119,7 +119,7 @@ def _later(what: str, rerun: str | None) -> str:
 
 
 def _plan_kitti(root: Path, split_path: Path, limit: int | None, rerun: str | None) -> GtPlan:
-    from ..sources import kitti_raw as gt_kitti
+    from . import kitti as gt_kitti
 
     frames = gt_kitti.read_frames(split_path)[:limit]
     plan = GtPlan("kitti", root, str(split_path), [])
@@ -139,7 +139,7 @@ def _plan_kitti(root: Path, split_path: Path, limit: int | None, rerun: str | No
 
 
 def _plan_nyu(root: Path, split_path: Path, limit: int | None, rerun: str | None) -> GtPlan:
-    from ..sources import nyu_labeled as gt_nyu
+    from . import nyu as gt_nyu
 
     frames = gt_nyu.read_frames(split_path)[:limit]
     plan = GtPlan("nyu", root, str(split_path), [])
@@ -211,7 +211,7 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
     from threadpoolctl import threadpool_limits
     from ..progress import bar as progress_bar
 
-    from ..sources import kitti_raw as gt_kitti
+    from . import kitti as gt_kitti
 
     target = out / job.output
     with progress_bar("frame", len(job.frames), progress=progress, desc="ground truth") as bar:
@@ -234,7 +234,7 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
 
 
 def _run_nyu(plan: GtPlan, job: GtJob, out: Path):
-    from ..sources import nyu_labeled as gt_nyu
+    from . import nyu as gt_nyu
     from ..files import write_atomic
     from ..files import sha256_bytes
 

@@ -71,7 +71,7 @@ class NyuFrame:
 def read_frames(split: Path) -> list[NyuFrame]:
     """The frames of a NYU-format split file, with the checks every split gets
     (:func:`robodepth_cli.sources.datasets.read_split`)."""
-    from .datasets import read_split
+    from ..sources.datasets import read_split
 
     return [NyuFrame(e.line, e.fields[0], e.fields[1]) for e in read_split(split, "nyu")]
 

@@ -27,9 +27,9 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import os_reason
-from ..sources.kitti_raw import KEYS_MEMBER, frame_key
+from .kitti import KEYS_MEMBER, frame_key
 from .depthmaps import read_npy_header
-from .protocols import VALID, EvaluationError
+from ..evaluation.protocols import VALID, EvaluationError
 
 
 class GroundTruth:
