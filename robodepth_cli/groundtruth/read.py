@@ -16,17 +16,15 @@ ground truth with ``allow_pickle=True``.
 
 from __future__ import annotations
 
-import os
-import sys
 import zipfile
 import zlib
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from ..errors import os_reason
+from . import png16
 from .kitti import KEYS_MEMBER, frame_key
 from .depthmaps import read_npy_header
 from ..evaluation.protocols import VALID, EvaluationError
@@ -370,34 +368,16 @@ class _MapUnpickler:
             memo[k] = None  # not deleted: new entries are numbered by the memo's length
 
 
-@contextmanager
-def _native_stderr_silenced():
-    """File descriptor 2 sent to /dev/null: libpng prints ``libpng error: Read Error`` there
-    for a truncated file before OpenCV returns None; the one-line error says it instead."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(devnull)
-
-
 def read_png16(file: Path, what: str) -> np.ndarray:
     """A 16-bit single-channel PNG (depth maps of BTS's test set and of PNG predictions);
     ``what`` says in messages whose file it is."""
-    import cv2
-
     if not file.is_file():
         raise EvaluationError(f"{file}: no such file ({what})")
-    with _native_stderr_silenced():
-        raw = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
-    if raw is None:
-        raise EvaluationError(f"{file}: not a readable PNG, truncated or damaged ({what})")
-    if raw.ndim != 2 or raw.dtype != np.uint16:
-        got = f"{raw.dtype.itemsize * 8}-bit" + (f", {raw.shape[2]} channels" if raw.ndim == 3 else "")
-        raise EvaluationError(f"{file}: {got}; expected a 16-bit single-channel PNG ({what})")
-    return raw
+    try:
+        return png16.read_png16(file)
+    except OSError as exc:
+        raise EvaluationError(f"{file}: cannot read ({os_reason(exc)}) ({what})") from None
+    except png16.Png16Error as exc:
+        if not exc.got:
+            raise EvaluationError(f"{file}: not a readable PNG, truncated or damaged ({what})") from None
+        raise EvaluationError(f"{file}: {exc.got}; expected a 16-bit single-channel PNG ({what})") from None
