@@ -214,7 +214,7 @@ def _own_depth_lines(dataset, pred: Path) -> str:
 
 def _record(pred: Path) -> dict | None:
     """``PRED/predictions.json`` when robodepth predict wrote PRED; None otherwise."""
-    from ..models.predict import read_record
+    from ..predictions import read_record
 
     return read_record(pred) if pred.is_dir() else None
 

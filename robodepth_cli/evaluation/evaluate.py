@@ -23,7 +23,7 @@ from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
 from ..errors import cannot_write
 from ..groundtruth.read import GroundTruth, load_ground_truth
-from .predictions import Predictions, check_values, find_predictions
+from ..predictions import Predictions, find_predictions
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
 
 # A worker takes about a second to start (a fresh interpreter importing numpy and OpenCV),
@@ -341,3 +341,35 @@ def write_results(path: Path, text: str) -> None:
         write_atomic(path, text.encode("utf-8"))
     except OSError as exc:
         raise EvaluationError(cannot_write(path, exc)) from None
+
+
+def check_values(m: np.ndarray, where: str, kind: str = "depth",
+                 allow_negative: bool = False) -> None:
+    """Refuse a map that cannot give finite metrics (the rule is :data:`ZERO_AND_INF`):
+    NaN, inf, negative values (unless ``allow_negative``: a prediction aligned by a scale
+    and a shift may have them), a sigmoid output outside [0, 1], or (disp, depth) no
+    positive value at all, a dead map."""
+    low = np.min(m)
+    if np.isnan(low):
+        raise EvaluationError(f"{where} contains NaN")
+    if low < 0 and not allow_negative:
+        raise EvaluationError(f"{where} has negative values (min {float(low):g})")
+    high = np.max(m)
+    if np.isinf(high):
+        raise EvaluationError(f"{where} contains inf ({int(np.isinf(m).sum())} pixels); give "
+                              "finite values (a far pixel as a large depth or a 0 disparity)")
+    if kind == "sigmoid":
+        if high > 1:
+            raise EvaluationError(f"{where}: values up to {float(high):g}; --kind sigmoid is a "
+                                  "network's sigmoid output, in [0, 1] (a disparity or a depth? "
+                                  "give --kind disp or --kind depth)")
+    elif high == 0:
+        raise EvaluationError(f"{where}: no positive finite value (all 0); a dead map cannot be "
+                              "evaluated")
+
+
+ZERO_AND_INF = ("0 and inf: a disparity (--kind disp) of 0 is infinitely far, a depth of 0 is "
+                "distance 0; either is clamped to the protocol's depth range (1e-3 to 80 m kitti, "
+                "10 m nyu) as the reference evaluators clamp. inf and NaN are refused, as are "
+                "negative values, sigmoid outputs outside [0, 1], a map with no positive value "
+                "and (median scaling) a map that is 0 at half of the valid pixels or more.")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import RobodepthError
+from ..errors import RobodepthError, os_reason
 
 SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -60,3 +60,18 @@ def read_png16(source: Path | bytes) -> np.ndarray:
         raise Png16Error(f"{raw.dtype.itemsize * 8}-bit" + (f", {raw.shape[2]} channels" if raw.ndim == 3 else ""),
                          raw)
     return raw
+
+
+def read_depth_png(file: Path, what: str, error: type[RobodepthError]) -> np.ndarray:
+    """:func:`read_png16` of ``file`` with the refusals as ``error`` naming it; ``what``
+    says whose file it is (``ground truth of image 3``)."""
+    if not file.is_file():
+        raise error(f"{file}: no such file ({what})")
+    try:
+        return read_png16(file)
+    except OSError as exc:
+        raise error(f"{file}: cannot read ({os_reason(exc)}) ({what})") from None
+    except Png16Error as exc:
+        if not exc.got:
+            raise error(f"{file}: not a readable PNG, truncated or damaged ({what})") from None
+        raise error(f"{file}: {exc.got}; expected a 16-bit single-channel PNG ({what})") from None

@@ -369,15 +369,6 @@ class _MapUnpickler:
 
 
 def read_png16(file: Path, what: str) -> np.ndarray:
-    """A 16-bit single-channel PNG (depth maps of BTS's test set and of PNG predictions);
-    ``what`` says in messages whose file it is."""
-    if not file.is_file():
-        raise EvaluationError(f"{file}: no such file ({what})")
-    try:
-        return png16.read_png16(file)
-    except OSError as exc:
-        raise EvaluationError(f"{file}: cannot read ({os_reason(exc)}) ({what})") from None
-    except png16.Png16Error as exc:
-        if not exc.got:
-            raise EvaluationError(f"{file}: not a readable PNG, truncated or damaged ({what})") from None
-        raise EvaluationError(f"{file}: {exc.got}; expected a 16-bit single-channel PNG ({what})") from None
+    """A 16-bit single-channel PNG of the ground truth; ``what`` says in messages whose
+    file it is."""
+    return png16.read_depth_png(file, what, EvaluationError)

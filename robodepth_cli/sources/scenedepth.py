@@ -24,9 +24,8 @@ chooses it for a build.
 
 from __future__ import annotations
 
-import hashlib
 import json
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
 import numpy as np
 
@@ -181,11 +180,12 @@ class PredictedDepth(DepthSource):
     kind = "predictions"
 
     def __init__(self, pred: Path, record: dict, keys: dict[str, int], own: DepthSource | None):
+        from ..predictions import model_identity
         from . import predicted as P
 
         self.pred = str(pred)
         self.model = str(record.get("model"))
-        self.identity = P.model_identity(record)
+        self.identity = model_identity(record)
         self.disparity = record["evaluate"]["kind"] == "disp"
         self.rule = P.conversion(record, pred)
         self.keys = keys  # key -> index in the predicting build's split order
@@ -200,6 +200,7 @@ class PredictedDepth(DepthSource):
     def open(cls, pred: Path, own: DepthSource | None) -> PredictedDepth:
         """The depth of ``PRED``, checked before any work; ``own``: the dataset's own depth,
         which relative maps are scaled to. :class:`RobodepthError` naming ``--scene-depth``."""
+        from .. import predictions
         from . import predicted as P
 
         try:
@@ -215,10 +216,9 @@ class PredictedDepth(DepthSource):
         try:
             keys = json.loads((built / "build.json").read_text(encoding="utf-8"))["split"]["keys"]
         except (OSError, ValueError, KeyError, TypeError):
-            raise RobodepthError(f"--scene-depth: {pred}: the build its {P.RECORD} names ({built}) has no "
+            raise RobodepthError(f"--scene-depth: {pred}: the build its {predictions.RECORD} names ({built}) has no "
                                  "readable build.json listing its images (moved or deleted?)") from None
-        digest = hashlib.sha256("\n".join(keys).encode("utf-8")).hexdigest()
-        if digest != record.get("split_sha256"):
+        if predictions.split_digest(keys) != record.get("split_sha256"):
             raise RobodepthError(f"--scene-depth: {pred}: {built} holds other images than when the "
                                  "predictions were made; predict again")
         src = cls(pred, record, {k: i for i, k in enumerate(keys)}, own)
@@ -240,11 +240,9 @@ class PredictedDepth(DepthSource):
                 "predictions": self.pred, "rule": self.rule}
 
     def _source(self) -> Path | None:
-        base = Path(self.pred)
-        for p in (base / "clean.npy", base / "clean.npz", base / "clean"):
-            if p.exists():
-                return p
-        return None
+        from ..predictions import clean_source
+
+        return clean_source(Path(self.pred))
 
     def _read(self, key: str) -> np.ndarray:
         if key not in self.keys:
@@ -252,7 +250,9 @@ class PredictedDepth(DepthSource):
                              "build's images)")
         i, src = self.keys[key], self._source()
         if src is not None and src.is_dir():
-            path = src / str(PurePosixPath(key).with_suffix(".npy"))
+            from ..predictions import image_files
+
+            path = image_files(src, [key])[0]
             try:
                 return np.load(path, allow_pickle=False)
             except (OSError, ValueError, EOFError) as exc:
