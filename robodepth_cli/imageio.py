@@ -129,6 +129,17 @@ def exif_orientation(path: str | os.PathLike) -> int:
     return value if isinstance(value, int) and 1 <= value <= 8 else 1
 
 
+def stored_size(path: str | os.PathLike, orientation: int = 1) -> tuple[int, int] | None:
+    """The (H, W) of an image from its header, as stored, or as shown when its EXIF
+    ``orientation`` turns it (:data:`TRANSPOSED`); None if it cannot be read (the caller's
+    reader says why)."""
+    try:
+        with Image.open(path) as im:
+            return (im.width, im.height) if orientation in TRANSPOSED else (im.height, im.width)
+    except Exception:  # anything unreadable fails where it is read, with the reason
+        return None
+
+
 def resize_lanczos(im: Image.Image, size_hw: tuple[int, int] | None) -> np.ndarray:
     """The clean image: RGB, resized to ``(H, W)`` with Pillow's Lanczos filter (unless it is
     already that size or ``size_hw`` is None), as a uint8 H x W x 3 array."""

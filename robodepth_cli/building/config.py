@@ -411,7 +411,7 @@ class _Resolver:
         if lacking:
             raise ConfigError(f"{_loc(self.origin[lacking[0]], lacking[0])}: {lacking[1]}")
         if "engine" in ds.options():  # the corruption datasets: which engine, on which device
-            from ..sources.engines import settle
+            from .renderers import settle
 
             try:
                 extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()})

@@ -41,12 +41,13 @@ from pathlib import Path
 from .. import __version__
 from ..errors import cannot_write
 from ..files import probe_writable
-from ..imageio import PNG_ENCODERS, TRANSPOSED, check_png
+from ..imageio import PNG_ENCODERS, check_png
 from ..output import manifest, record as build_record
 from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
 from ..output.record import BuildRecord, plan_entry
-from ..sources.datasets import Dataset, Renderer, get_dataset
+from ..sources.datasets import Dataset, get_dataset
+from .renderers import Renderer, make_renderer as renderer_of
 from . import checks as buildchecks
 from .checks import BuildError
 from .config import BuildConfig
@@ -219,7 +220,7 @@ def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | N
     """The renderer, with the depth source a variant needs; it may refuse files (KITTI-S's), so before OUT."""
     from ..sources.scenedepth import depth_for
 
-    return ds.renderer(cfg, depth_for(ds, cfg, root, split_path, sources))
+    return renderer_of(ds, cfg, depth_for(ds, cfg, root, split_path, sources))
 
 
 def prepare_out(out: Path) -> Path:
@@ -296,13 +297,9 @@ def native_size(src: Source) -> tuple[int, int] | None:
     will say why)."""
     if src.error or not src.path:
         return None
-    from PIL import Image
+    from ..imageio import stored_size
 
-    try:
-        with Image.open(src.path) as im:
-            return (im.width, im.height) if src.orientation in TRANSPOSED else (im.height, im.width)
-    except Exception:  # anything unreadable fails in its task, with the reason
-        return None
+    return stored_size(src.path, src.orientation)
 
 
 def _same_source(row: Row, src: Source) -> bool:

@@ -17,7 +17,8 @@ from ..errors import RobodepthError, cannot_write, os_reason
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
 from ..output.manifest import Journal, Row
-from ..sources.datasets import CLEAN, Entry, Job, Renderer, locate
+from ..sources.datasets import CLEAN, Entry, Job, locate
+from .renderers import Renderer
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
 

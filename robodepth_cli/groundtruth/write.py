@@ -267,6 +267,7 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
     import numpy as np
 
     from ..files import sha256_bytes, write_atomic
+    from ..imageio import stored_size
     from ..sources.depth_pairs import read_pair
 
     target = out / job.output
@@ -275,7 +276,7 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
         if job.error:
             raise RobodepthError(job.error)
         base = Path(rule.directory)
-        size = _image_size(src)
+        size = stored_size(src.path)  # the depth map is the stored image's
         if size is None and (rule.same_size or rule.fmt == "raw"):
             raise RobodepthError(f"{src.path}: cannot read the image's size")
         depth = read_pair(rule, found, size)
@@ -297,14 +298,3 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
     except OSError as exc:
         return "fatal", _row(job, error=cannot_write(target, exc))
     return "written", _row(job, sha256_bytes(data), size=depth.shape)
-
-
-def _image_size(src) -> tuple[int, int] | None:
-    """(H, W) of a source image as stored: the depth map is the stored image's."""
-    from PIL import Image
-
-    try:
-        with Image.open(src.path) as im:
-            return im.height, im.width
-    except Exception:  # unreadable: the caller says so
-        return None

@@ -18,7 +18,8 @@ from ..building.config import BuildConfig
 from ..building.gather import check_root, gather_sources
 from ..building.tasks import Source, load_source
 from ..errors import RobodepthError
-from ..sources.datasets import Dataset, Job, Renderer, get_dataset
+from ..building.renderers import Renderer
+from ..sources.datasets import Dataset, Job, get_dataset
 
 ENGINES = ("numpy", "torch")
 

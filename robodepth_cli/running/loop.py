@@ -25,7 +25,8 @@ from ..benchmarks import CLEAN
 from ..evaluation.evaluate import Evaluation, VariantResult, image_errors, variant_result
 from ..models import predict as P
 from ..predictions import PredictionWriter, finished, remove_leftovers, split_digest
-from ..sources.datasets import Job, Renderer
+from ..building.renderers import Renderer
+from ..sources.datasets import Job
 from .inputs import RunError, RunInputs
 from .state import RunState
 
