@@ -182,7 +182,9 @@ class Dataset:
     n_levels: int = N_LEVELS  # levels 1..n_levels
     discovers_sources: bool = False  # True: images found under the root, no split (custom)
     depth_in_root: bool = False  # True: a zero-shot preset, its depth maps under the root
-    evaluation: tuple = ()  # (key, value) defaults of `robodepth evaluate` beyond the protocol's
+    # (key, value) defaults of `robodepth evaluate`: protocol (kitti unless given), crop,
+    # min_depth, max_depth (the protocol's unless given)
+    evaluation: tuple = ()
 
     def variant_names(self) -> tuple[str, ...]:
         """The variants this dataset has; ``all`` in a configuration means these."""
@@ -273,10 +275,11 @@ class StyleDataset(Dataset):
         return super().libraries() + ("torch",)
 
 
-def _benchmark_dataset(name: str, split_format: str) -> Dataset:
+def _benchmark_dataset(name: str, split_format: str, evaluation: tuple = ()) -> Dataset:
     """The dataset of corruption benchmark ``name``: its corruptions and levels."""
     b = BENCHMARKS[name]
-    return Dataset(name, split_format, corruptions=b.corruptions, n_levels=b.n_levels)
+    return Dataset(name, split_format, corruptions=b.corruptions, n_levels=b.n_levels,
+                   evaluation=evaluation)
 
 
 @dataclass(frozen=True)
@@ -309,7 +312,7 @@ _WEATHER_SPLITS = tuple((w, f"{w}/left-image-full-size/*.jpg,{w}/left-image-full
 
 DATASETS: dict[str, Dataset] = {
     "kitti-c": _benchmark_dataset("kitti-c", "eigen"),
-    "nyudepth2-c": _benchmark_dataset("nyudepth2-c", "nyu"),
+    "nyudepth2-c": _benchmark_dataset("nyudepth2-c", "nyu", (("protocol", "nyu"),)),
     "kitti-s": StyleDataset("kitti-s", "eigen"),
     "custom": CustomDataset("custom", ""),
     # The zero-shot sets: custom builds whose pairing rule and reader are the preset's
