@@ -16,7 +16,7 @@ import pytest
 from scipy.ndimage import map_coordinates
 
 from robodepth_cli.corruptions import DEPTH_NAMES, REGISTRY, DepthError, corrupt, render
-from robodepth_cli.corruptions._depth import scene_depth
+from robodepth_cli.corruptions.depth import scene_depth
 
 RNG = np.random.default_rng
 

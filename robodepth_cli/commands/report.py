@@ -86,11 +86,11 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     if len(preds) > len(results):
         raise RobodepthError(f"--pred given {len(preds)} times for {len(results)} results files; "
                              "give it at most once per file, in the same order")
-    from ..evaluation.plot import _mpl
+    from ..report.plot import load_matplotlib
     from ..report.qualitative import check_kinds
 
     check_kinds(kinds, preds)
-    _mpl()  # refuse before anything is created when matplotlib is missing
+    load_matplotlib()  # refuse before anything is created when matplotlib is missing
     W.check_writable(out)
     report = W.assemble(list(results), list(names), benchmark, context, dataset, on=on,
                         pairs=pairs, baseline=baseline, metric=metric, n_boot=n_boot, seed=seed,

@@ -46,10 +46,10 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 
     plot_file = None
     if plot_path is not None:
-        from ..evaluation.plot import _mpl
+        from ..report.plot import load_matplotlib
 
         plot_file = common.figure_output(plot_path, f"{results.stem}_ce.png", "--plot")
-        _mpl()  # refuse before scoring when matplotlib is missing
+        load_matplotlib()  # refuse before scoring when matplotlib is missing
     if benchmark is None:
         from ..report.inputs import style_names
 
@@ -75,7 +75,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     if plot_file is not None and result.note:
         raise RobodepthError(f"--plot: {results}: {result.note} (no CE to draw)")
     if plot_file is not None:
-        from ..evaluation.plot import Model, ce_figure, render
+        from ..report.plot import Model, ce_figure, render
 
         fig = ce_figure([Model(results.stem, result)], bench.name)
         common.write_bytes(plot_file, render(fig, plot_file.suffix.lower().lstrip(".")))

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import InvalidValueError
 from ..imageio import as_rgb
-from ._depth import DepthError, scene_depth
+from .depth import DepthError, scene_depth
 from .registry import Corruption, registry
 from .chains import Chain, expand_chain, looks_like_chain, parse_chain
 from .severity import parse_level

@@ -46,7 +46,7 @@ def _parameters(variants: list[str]) -> list[str]:
 def card(record, shards: list[dict], fmt: str, version: str) -> str:
     """The card's text for an export of the build ``record`` made of ``shards`` (the
     export record's entries)."""
-    from ..report.published import BIBTEX
+    from ..benchmarks import BIBTEX
 
     ext = FORMATS[fmt]
     configs: dict[str, list[str]] = {}

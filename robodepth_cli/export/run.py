@@ -38,8 +38,7 @@ def _inside(a: Path, b: Path) -> bool:
     return a == b or b in a.parents
 
 
-def _open_build(out: Path):
-    from ..api import open_dataset
+def _open_build(out: Path, open_dataset):
     from ..output.manifest import lock_holder, read_manifest
 
     dataset = open_dataset(out, warn=False)
@@ -60,9 +59,10 @@ def _entry(shard: Shard, fmt: str) -> dict:
             "source_bytes": shard.size, "sha256": None, "bytes": None}
 
 
-def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = True,
+def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, open_dataset, progress: bool = True,
            version: str = "") -> ExportSummary:
-    """Export the finished build ``out`` into ``to`` as ``fmt`` shards (see the module)."""
+    """Export the finished build ``out`` into ``to`` as ``fmt`` shards (see the module);
+    ``open_dataset``: :func:`robodepth_cli.api.open_dataset`, which reads the build."""
     from ..files import sha256_bytes
     from ..progress import bar
 
@@ -70,7 +70,7 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
     if _inside(to.resolve(), out.resolve()) or _inside(out.resolve(), to.resolve()):
         raise ExportError(f"--to {to}: must be outside the build {out} (and not hold it): the "
                           "build stays as it is")
-    dataset, rows = _open_build(out)
+    dataset, rows = _open_build(out, open_dataset)
     check_writable(to / CARD, "--to")
     manifest = (out / MANIFEST).read_bytes()
     shards = plan(out, dataset, rows, shard_bytes)

@@ -14,7 +14,7 @@ from pathlib import Path
 from ..files import sha256_file
 from .layout import BOOKKEEPING, JOURNAL, MANIFEST
 from .manifest import ManifestError, lock_holder, read_recorded
-from .record import read_record
+from .record import planned_outputs, read_record
 
 
 @dataclass
@@ -63,8 +63,6 @@ def verify(out: Path, *, threads: int = 4, progress=None, on_total=None) -> Veri
     """Re-hash every file of ``out`` against its manifest. ``on_total(n)`` is called once
     with the number of files to hash, then ``progress(n)`` as files are checked."""
     from concurrent.futures import ThreadPoolExecutor
-
-    from ..building.checks import planned_outputs
 
     out = Path(out)
     if not out.exists():

@@ -45,7 +45,7 @@ import numpy as np
 
 # One DepthError for reading a map and for handing it to a corruption: catching the
 # exported robodepth_cli.corruptions.DepthError catches both.
-from ..corruptions._depth import DepthError
+from ..corruptions.depth import DepthError
 from ..errors import os_reason
 
 FORMATS = ("png", "npy", "npz", "pfm", "exr", "dpt", "raw", "cityscapes")

@@ -17,7 +17,7 @@ hold. They become metres by this rule:
   and raw sigmoid outputs, are refused: no rule turns them into metres.
 
 Then a depth of 0 or less is missing (the corruptions fill it from the nearest valid
-pixel), a disparity of 0 or less is infinitely far (:data:`~..corruptions._depth.FAR`), and
+pixel), a disparity of 0 or less is infinitely far (:data:`~..corruptions.depth.FAR`), and
 the map is brought to the output size as a depth folder's (:func:`.scenedepth.at_size`);
 :class:`.scenedepth.PredictedDepth` reads the maps.
 The build record keeps the model and its identity (:func:`~..predictions.model_identity`), each depth-aware

@@ -2,7 +2,7 @@
 
 A :class:`DepthSource` gives the depth of one source (by its key) in metres, NaN where
 missing, at the build's output size or at its own with the same aspect ratio (the
-corruption engine fills and resizes it: :mod:`robodepth_cli.corruptions._depth`). It is
+corruption engine fills and resizes it: :mod:`robodepth_cli.corruptions.depth`). It is
 small and picklable (the renderer carries it to the workers) and reads its files lazily.
 The renderer asks it for a source's depth only when a job needs it; :func:`depth_for`
 chooses it for a build.
@@ -171,7 +171,7 @@ def at_size(d: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     own rule), then each output pixel the depth under its centre, whatever the aspect ratio."""
     if d.shape == tuple(shape):
         return d
-    from ..corruptions._depth import fill_missing, nearest_resize
+    from ..corruptions.depth import fill_missing, nearest_resize
 
     return nearest_resize(fill_missing(d), shape)
 
@@ -271,7 +271,7 @@ class PredictedDepth(DepthSource):
             raise DepthError(f"{src}: cannot read prediction {i} ({reason})") from None
 
     def depth(self, key, shape):
-        from ..corruptions._depth import FAR, nearest_resize
+        from ..corruptions.depth import FAR, nearest_resize
 
         m = self._read(key)
         if m.ndim != 2 or m.dtype.kind not in "fiu" or not np.isfinite(m).all():
