@@ -87,7 +87,7 @@ class Variant:
         if self.store is not None:
             raise DatasetError(f"{self.root}: an export's images are in shards; use variant.read(i)")
         if self.missing and missing == "raise":
-            raise DatasetError(f"{base}: {_failed_text(self.missing, len(self.keys))}; rerun the "
+            raise DatasetError(f"{base}: {failed_text(self.missing, len(self.keys))}; rerun the "
                                f"build command to make them, or use images(missing='skip') for "
                                f"the {len(self.keys) - len(self.missing)} that exist")
         return [base / key for key in self.keys if key not in self.missing]
@@ -182,7 +182,7 @@ class BuiltDataset:
         failed = self.failed
         if not failed:
             return ""
-        return (f"{self.path}: {_failed_text(failed, len(self.keys))}; rerunning the build "
+        return (f"{self.path}: {failed_text(failed, len(self.keys))}; rerunning the build "
                 f"command makes them")
 
     @property
@@ -303,7 +303,7 @@ def _missing(rows: dict, keys: tuple[str, ...], variants) -> dict[tuple, dict[st
     return missing
 
 
-def _failed_text(failed: dict[str, str], total: int, shown: int = 3) -> str:
+def failed_text(failed: dict[str, str], total: int, shown: int = 3) -> str:
     """``"2 of 697 images failed in the build (a.png: why; b.png: why)"``."""
     listed = "; ".join(f"{k}: {why}" for k, why in list(failed.items())[:shown])
     more = f"; and {len(failed) - shown} more" if len(failed) > shown else ""
