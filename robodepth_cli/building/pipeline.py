@@ -33,7 +33,6 @@ import functools
 import os
 import platform
 import shlex
-import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -51,7 +50,7 @@ from .renderers import Renderer, make_renderer as renderer_of
 from . import checks as buildchecks
 from .checks import BuildError
 from .config import BuildConfig
-from .executors import Executor, ExecutorError, LocalExecutor
+from .executors import Executor, ExecutorError, checked_executor
 from .gather import check_root, gather_sources, orientation_record
 from .tasks import PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, for_source, run_task
 
@@ -141,6 +140,17 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
+def _upright_note(sources) -> list[str]:
+    """The summary's note on sources turned upright by their EXIF orientation, if any."""
+    turned = sum(1 for s in sources if s.orientation != 1)
+    if not turned:
+        return []
+    return [f"{turned} source image{'s' if turned > 1 else ''} turned upright "
+            f"by {'their' if turned > 1 else 'its'} EXIF orientation, as "
+            f"viewers show {'them' if turned > 1 else 'it'} (listed in "
+            f"{RECORD}: exif_orientation)"]
+
+
 # --- the build, step by step (main process) ------------------------------------------------
 
 def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
@@ -175,11 +185,8 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         reorient = (ds.discovers_sources and previous is not None
                     and previous.exif_orientation is None)
         tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer, reorient=reorient)
-        if executor is None:
-            executor = LocalExecutor(min(cfg.jobs, len(tasks)))  # never more workers than images
-            _warn_above_cpus(executor.workers, cfg.jobs)
-        # A labeled .mat root: the workers must see the folder that holds it.
-        executor.check(root if root.is_dir() else root.parent, out, worker_files(cfg), ds.libraries())
+        executor = checked_executor(executor, cfg.jobs, len(tasks), root, out, worker_files(cfg),
+                                    ds.libraries())
         if any(e is None for t in tasks for e in t.expected):
             # Work to do: let the renderer get ready once here rather than in every worker
             # (KITTI-S computes its style statistics); a rerun with nothing to do skips it.
@@ -195,25 +202,12 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1, png=png)
         summary = run_tasks(tasks, ctx, executor, out, progress)
-        turned = sum(1 for s in sources if s.orientation != 1)
-        if turned:
-            summary.notes.append(f"{turned} source image{'s' if turned > 1 else ''} turned upright "
-                                 f"by {'their' if turned > 1 else 'its'} EXIF orientation, as "
-                                 f"viewers show {'them' if turned > 1 else 'it'} (listed in "
-                                 f"{RECORD}: exif_orientation)")
+        summary.notes += _upright_note(sources)
         if gt and not (summary.interrupted or summary.fatal):
             add_ground_truth(ds, cfg, root, split.get("path"), sources, len(keys), out, summary,
                              progress, rerun=shlex.join(command) if command else None)
         finish(out, record, summary)
     return summary
-
-
-def _warn_above_cpus(workers: int, jobs: int) -> None:
-    cpus = os.cpu_count() or 1
-    if workers > cpus:  # each worker holds its own images: past one per CPU, only contention
-        print(f"robodepth: warning: {workers} workers (--jobs {jobs}) on {cpus} CPU"
-              f"{'s' if cpus > 1 else ''}: the extra workers only add memory and contention "
-              f"(--jobs auto: one per CPU)", file=sys.stderr)
 
 
 def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None, sources=()) -> Renderer:

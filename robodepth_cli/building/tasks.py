@@ -106,12 +106,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     out = Path(ctx.out)
     src = task.source
     hw = list(task.size or ctx.size or (0, 0))  # the decoded image's own, once decoded
-    # A frame inside a container (NYU's labeled .mat) is not hashed: that would read the
-    # whole multi-GB file for every image.
-    source_sha = (_sha_or_none(Path(src.path)) or "") if src.path and src.frame is None else ""
-    expected = task.expected
-    if task.source_sha256 and source_sha and source_sha != task.source_sha256:
-        expected = (None,) * len(task.jobs)  # the source's bytes changed: redo everything
+    source_sha, expected = _source_hash(task)
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
         return Row(job.path(src.key), src.rel, job.variant, job.level, ctx.seed, hw[0], hw[1], sha, error,
@@ -163,6 +158,18 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
             except OSError:
                 pass  # only a safety net: the row still reaches the manifest with the task
     return results
+
+
+def _source_hash(task: Task) -> tuple[str, tuple]:
+    """The source's sha256 ("" when not hashed) and the outputs' recorded hashes that still
+    stand: none of them when the source's bytes changed (everything is redone)."""
+    src = task.source
+    # A frame inside a container (NYU's labeled .mat) is not hashed: that would read the
+    # whole multi-GB file for every image.
+    source_sha = (_sha_or_none(Path(src.path)) or "") if src.path and src.frame is None else ""
+    if task.source_sha256 and source_sha and source_sha != task.source_sha256:
+        return source_sha, (None,) * len(task.jobs)
+    return source_sha, task.expected
 
 
 _configured = False

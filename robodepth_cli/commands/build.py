@@ -130,6 +130,12 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
     except KeyboardInterrupt:  # before or after the images (the build itself handles its own)
         click.echo(interrupted, err=True)
         sys.exit(130)
+    _exit(cfg, summary, interrupted)
+
+
+def _exit(cfg, summary, interrupted: str) -> None:
+    """The build's summary line, then its exit status: 130 interrupted, 2 stopped by a
+    write error, 1 some images failed, 0 (returning) all done."""
     click.echo(f"{cfg.preset}: {summary.text()}", err=True)
     if summary.interrupted:
         click.echo(interrupted, err=True)

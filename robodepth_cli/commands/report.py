@@ -102,16 +102,26 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
         if m.own_depth:
             click.echo(f"robodepth: warning: {m.own_depth}", err=True)
     if preds:
-        from ..report.qualitative import qualitative
-
-        figure, guessed = qualitative(report, dataset, list(preds), frame, kinds)
-        report.figures.append(figure)
-        for pred, kind in guessed:
-            click.echo(f"robodepth: warning: --pred {pred}: no predictions.json says what it holds; "
-                       f"drawn as {kind} (the {report.benchmark} default); give --kind if wrong",
-                       err=True)
+        _add_qualitative(report, dataset, preds, frame, kinds)
     written = W.write(report, out, progress=say,
                       published=lambda: common.on_interrupt(f"the report was written to {out}"))
+    _say_written(report, written, out)
+
+
+def _add_qualitative(report, dataset, preds, frame, kinds) -> None:
+    """The one-frame figure of ``--pred``; a warning for each folder drawn by a guess."""
+    from ..report.qualitative import qualitative
+
+    figure, guessed = qualitative(report, dataset, list(preds), frame, kinds)
+    report.figures.append(figure)
+    for pred, kind in guessed:
+        click.echo(f"robodepth: warning: --pred {pred}: no predictions.json says what it holds; "
+                   f"drawn as {kind} (the {report.benchmark} default); give --kind if wrong",
+                   err=True)
+
+
+def _say_written(report, written, out: Path) -> None:
+    """The closing line: what was written where, and the earlier figures removed."""
     models = ", ".join(dict.fromkeys(m.name for m in report.entries or report.models))
     where = report.benchmark
     if report.entries:

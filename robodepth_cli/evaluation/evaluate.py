@@ -152,36 +152,14 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     pred = Path(pred)
     if not pred.is_dir():
         raise EvaluationError(f"{pred}: no such predictions directory")
-    variants = dataset.variants()
-    found: list[tuple[Variant, Predictions]] = []
-    missing: list[Variant] = []
-    for v in variants:
-        p = find_predictions(pred, v, setup.png_scale)
-        if p is None:
-            missing.append(v)
-        else:
-            found.append((v, p))
-    if not found:
-        raise EvaluationError(f"{pred}: no predictions for any of the {len(variants)} variants of "
-                              f"{dataset.path} (expected e.g. {variants[0].prediction_file(pred)})")
-    if missing and not allow_partial:
-        raise EvaluationError(f"{pred}: no predictions for {len(missing)} of {len(variants)} "
-                              f"variants: {_list(missing)} (--allow-partial evaluates the rest)")
-    if require_clean and variants[0].name == CLEAN and variants[0] in missing:
-        raise EvaluationError(f"{pred}: no predictions for the clean images; the scores need "
-                              "them (resilience rates divide by the clean DEE)")
+    found, missing = _find_all(dataset, pred, setup, allow_partial, require_clean)
     setup = _kind_read(setup, found)
     pairs = None
     if flicker:
         from .flicker import check_pairs
 
         pairs = check_pairs(dataset.keys, setup.protocol)
-    gt_path = gt if gt is not None else dataset.ground_truth()
-    if gt_path is None:
-        raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
-                              "NYU and builds with --depth); build it with ground truth, run "
-                              "robodepth gt, or pass --gt")
-    gt_path = Path(gt_path)
+    gt_path = _ground_truth_path(dataset, gt)
     names = dataset.depth_names() if gt_path.is_dir() else dataset.keys
     truth = load_ground_truth(gt_path, names, setup.protocol, setup.valid)
     n = len(dataset.keys)
@@ -207,6 +185,42 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
         finally:
             p.close()
     return result
+
+
+def _find_all(dataset: BuiltDataset, pred: Path, setup: Setup, allow_partial: bool,
+              require_clean: bool) -> tuple[list[tuple[Variant, Predictions]], list[Variant]]:
+    """``(found, missing)``: each variant's predictions under ``pred`` (checked for count
+    and shape), and the variants without; refused when none are there, when some are
+    missing without ``allow_partial``, or the clean ones with ``require_clean``."""
+    variants = dataset.variants()
+    found: list[tuple[Variant, Predictions]] = []
+    missing: list[Variant] = []
+    for v in variants:
+        p = find_predictions(pred, v, setup.png_scale)
+        if p is None:
+            missing.append(v)
+        else:
+            found.append((v, p))
+    if not found:
+        raise EvaluationError(f"{pred}: no predictions for any of the {len(variants)} variants of "
+                              f"{dataset.path} (expected e.g. {variants[0].prediction_file(pred)})")
+    if missing and not allow_partial:
+        raise EvaluationError(f"{pred}: no predictions for {len(missing)} of {len(variants)} "
+                              f"variants: {_list(missing)} (--allow-partial evaluates the rest)")
+    if require_clean and variants[0].name == CLEAN and variants[0] in missing:
+        raise EvaluationError(f"{pred}: no predictions for the clean images; the scores need "
+                              "them (resilience rates divide by the clean DEE)")
+    return found, missing
+
+
+def _ground_truth_path(dataset: BuiltDataset, gt: Path | None) -> Path:
+    """``--gt``, or the build's own ground truth; refused when there is none."""
+    gt_path = gt if gt is not None else dataset.ground_truth()
+    if gt_path is None:
+        raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
+                              "NYU and builds with --depth); build it with ground truth, run "
+                              "robodepth gt, or pass --gt")
+    return Path(gt_path)
 
 
 def _kind_read(setup: Setup, found: Sequence[tuple[Variant, Predictions]]) -> Setup:

@@ -77,20 +77,7 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, open_dataset, pro
     entries = [_entry(s, fmt) for s in shards]
     header = {"export": EXPORT_VERSION, "format": fmt, "shard_size": shard_bytes,
               "dataset": dataset.name, "build_manifest_sha256": sha256_bytes(manifest)}
-    previous = read_export_record(to)
-    if previous is None and to.is_dir() and any(to.iterdir()):
-        raise ExportError(f"--to {to}: not empty and not an export; choose a new or empty folder")
-    if previous is not None:
-        same = ({k: previous.get(k) for k in header} == header
-                and [e["file"] for e in previous.get("shards", [])] == [e["file"] for e in entries])
-        if not same:
-            raise ExportError(f"--to {to}: holds an export of another build or with other options "
-                              "(--format, --shard-size); choose a new or empty folder")
-        done = {e["file"]: e for e in previous["shards"] if e.get("sha256")}
-        done.update(_journal(to))
-        for e in entries:
-            if e["file"] in done:
-                e["sha256"], e["bytes"] = done[e["file"]]["sha256"], done[e["file"]]["bytes"]
+    _resume(to, header, entries)
     record = {**header, "robodepth": version, "status": "running", "shards": entries}
     try:
         write_atomic(to / META / MANIFEST, manifest)
@@ -123,6 +110,26 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, open_dataset, pro
     _finish(to, dataset, record, fmt, version)
     summary.size = sum(e["bytes"] for e in entries)
     return summary
+
+
+def _resume(to: Path, header: dict, entries: list[dict]) -> None:
+    """Take the shards a stopped export of the same build and options finished in ``to``
+    (into ``entries``); refused for a folder that holds something else."""
+    previous = read_export_record(to)
+    if previous is None and to.is_dir() and any(to.iterdir()):
+        raise ExportError(f"--to {to}: not empty and not an export; choose a new or empty folder")
+    if previous is None:
+        return
+    same = ({k: previous.get(k) for k in header} == header
+            and [e["file"] for e in previous.get("shards", [])] == [e["file"] for e in entries])
+    if not same:
+        raise ExportError(f"--to {to}: holds an export of another build or with other options "
+                          "(--format, --shard-size); choose a new or empty folder")
+    done = {e["file"]: e for e in previous["shards"] if e.get("sha256")}
+    done.update(_journal(to))
+    for e in entries:
+        if e["file"] in done:
+            e["sha256"], e["bytes"] = done[e["file"]]["sha256"], done[e["file"]]["bytes"]
 
 
 def _finish(to: Path, dataset, record: dict, fmt: str, version: str) -> None:

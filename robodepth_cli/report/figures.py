@@ -65,8 +65,8 @@ def radar_figure(series: Sequence[tuple[str, dict]], benchmark: str,
                     bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.8})
     ax.grid(color="#dddddd")
     figure_title(fig, f"Depth estimation error (DEE) per {what} on {bench_title(benchmark)}",
-           ("mean over the levels; " if what == "corruption" else "")
-           + "lower (nearer the centre) is better")
+                 ("mean over the levels; " if what == "corruption" else "")
+                 + "lower (nearer the centre) is better")
     figure_legend(fig)
     return fig
 
@@ -176,7 +176,7 @@ def severity_figure(models: Sequence[Model], benchmark: str):
     for row in axes:
         row[0].set_ylabel("DEE")
     figure_title(fig, f"DEE against continuous severity on {bench_title(benchmark)}",
-           "beyond the benchmark: not in mCE or mRR; lower is better")
+                 "beyond the benchmark: not in mCE or mRR; lower is better")
     figure_legend(fig)
     return fig
 
@@ -222,7 +222,7 @@ def summary_figure(models: Sequence[Point], published: Sequence[Point], benchmar
         if ref is not None:
             ax.axhline(ref, color=MUTED, linestyle=":", linewidth=1.0, zorder=1)
     figure_title(fig, f"Robustness against clean error on {bench_title(benchmark)}",
-           "grey: the paper's models; the baseline has mCE 100 by definition")
+                 "grey: the paper's models; the baseline has mCE 100 by definition")
     figure_legend(fig)
     renderer = freeze_layout(fig)
     for ax, key in ((axes[0], "mce"), (axes[1], "mrr")):
@@ -286,7 +286,7 @@ def ranking_figure(models: Sequence[tuple[str, float]], published: Sequence[tupl
     ax.set_xlabel(f"{metric}, lower is better")
     bar_axes(ax, grid=False)
     figure_title(fig, f"{metric} on {bench_title(benchmark)}: your models and the paper's",
-           "grey: published; coloured and bold: yours")
+                 "grey: published; coloured and bold: yours")
     return fig
 
 
@@ -307,7 +307,7 @@ def qualitative_figure(labels: Sequence[str], images: Sequence, rows: Sequence[t
     names = [_wrap(name, panel_w * cols) for name, _ in rows]
     extra_lines = sum(name.count("\n") for name in names)
     fig = new_figure(panel_w * cols + 1.2,
-                  panel_w * h / w * nrows + 0.35 * nrows + 0.9 + 0.17 * extra_lines)
+                     panel_w * h / w * nrows + 0.35 * nrows + 0.9 + 0.17 * extra_lines)
     axes = fig.subplots(nrows, cols, squeeze=False)
     for k, (label, image) in enumerate(zip(labels, images)):
         axes[0][k].imshow(image, extent=(0, w, h, 0))
@@ -338,7 +338,7 @@ def qualitative_figure(labels: Sequence[str], images: Sequence, rows: Sequence[t
             ax.set_xticks([])
             ax.set_yticks([])
     figure_title(fig, f"One frame of {bench_title(benchmark)}: {frame}",
-           "top: the input; below: each model's prediction (inverse depth, bright is near)")
+                 "top: the input; below: each model's prediction (inverse depth, bright is near)")
     return fig
 
 

@@ -131,7 +131,7 @@ def figure(flicker: Sequence[Flicker], benchmark: str):
     axes[0].set_yticks(range(len(names)), [pretty(n) for n in names])
     axes[0].set_ylim(len(names) - 0.5, -0.5)
     figure_title(fig, f"Flicker on consecutive frames of {bench_title(benchmark)}",
-           "clean and each corruption (mean over the levels); dotted: each model's clean value")
+                 "clean and each corruption (mean over the levels); dotted: each model's clean value")
     figure_legend(fig)
     return fig
 

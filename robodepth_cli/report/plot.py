@@ -257,18 +257,7 @@ def ce_figure(models: Sequence[Model], benchmark: str):
     per_group = len(models)
     band = 0.8
     bar_h = band / per_group
-    # y positions: corruptions top to bottom, a gap and a heading row between categories.
-    rows, y, cat_heads = {}, 0.0, []
-    for cat in CATEGORIES:
-        members = [c.name for c in first.corruptions if c.category == cat]
-        if not members:
-            continue
-        cat_heads.append((cat, y))
-        y += 1.0
-        for n in members:
-            rows[n] = y
-            y += 1.0
-        y += 0.4
+    rows, y, cat_heads = _category_rows(first)
     height = 1.4 + 0.19 * y * max(1.0, 0.55 * per_group)
     fig = new_figure(8.0, height)
     ax = fig.add_subplot()
@@ -308,23 +297,45 @@ def ce_figure(models: Sequence[Model], benchmark: str):
         o = first.overall
         summary = "   ".join(f"{k} {v:.2f}" for k, v in (("mCE", o.ce), ("mRR", o.rr)) if v is not None)
         figure_title(fig, f"Corruption error per corruption: {models[0].name} on {bench_title(benchmark)}",
-               f"baseline {base} = 100%   {summary}" + ("   (partial)" if first.missing else ""))
+                     f"baseline {base} = 100%   {summary}" + ("   (partial)" if first.missing else ""))
     else:
         figure_title(fig, f"Corruption error per corruption on {bench_title(benchmark)}",
-               f"baseline {base} = 100%")
+                     f"baseline {base} = 100%")
         figure_legend(fig)
     if notes:
-        renderer = freeze_layout(fig)
-        x100 = ax.transData.transform((100.0, 0))[0]
-        for ce, yc, note, colour in notes:
-            text = ax.text(ce + xmax * 0.008, yc, note, va="center", fontsize=8, color=INK)
-            box = text.get_window_extent(renderer)
-            if box.x0 - 3 <= x100 <= box.x1 + 3:
-                # It would cross the 100% line: inside the bar's end instead, in whichever
-                # of black and white reads better on the bar's colour.
-                text.set(x=ce - xmax * 0.008, ha="right",
-                         color=INK if _luminance(colour) > 0.2 else "white")
+        _write_bar_ends(fig, ax, notes, xmax)
     return fig
+
+
+def _category_rows(first: Scores) -> tuple[dict[str, float], float, list]:
+    """The y positions of the CE chart: corruptions top to bottom, a gap and a heading row
+    between categories; ``(row of each corruption, the end, (category, heading row)s)``."""
+    rows, y, cat_heads = {}, 0.0, []
+    for cat in CATEGORIES:
+        members = [c.name for c in first.corruptions if c.category == cat]
+        if not members:
+            continue
+        cat_heads.append((cat, y))
+        y += 1.0
+        for n in members:
+            rows[n] = y
+            y += 1.0
+        y += 0.4
+    return rows, y, cat_heads
+
+
+def _write_bar_ends(fig, ax, notes, xmax: float) -> None:
+    """Each bar's value at its end, ``notes`` (CE, y, text, bar colour)."""
+    renderer = freeze_layout(fig)
+    x100 = ax.transData.transform((100.0, 0))[0]
+    for ce, yc, note, colour in notes:
+        text = ax.text(ce + xmax * 0.008, yc, note, va="center", fontsize=8, color=INK)
+        box = text.get_window_extent(renderer)
+        if box.x0 - 3 <= x100 <= box.x1 + 3:
+            # It would cross the 100% line: inside the bar's end instead, in whichever
+            # of black and white reads better on the bar's colour.
+            text.set(x=ce - xmax * 0.008, ha="right",
+                     color=INK if _luminance(colour) > 0.2 else "white")
 
 
 def bar_axes(ax, grid: bool = True) -> None:
