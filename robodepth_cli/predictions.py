@@ -30,8 +30,8 @@ from typing import Sequence
 import numpy as np
 
 from .errors import RobodepthError, cannot_write, os_reason
-from .groundtruth.depthmaps import read_npy_header
-from .groundtruth.png16 import read_depth_png
+from .files import read_npy_header
+from .imageio import read_depth_png
 
 RECORD = "predictions.json"
 

@@ -41,28 +41,24 @@ FOUNDATION = {"errors", "files", "keys", "values", "progress", "benchmarks"}
 # leaves); the ground truth (groundtruth/: made, written, read) and the predictions folder
 # (predictions.py); the evaluation (numpy); the build (building/); api, export, models,
 # report, running; the torch package; commands; cli.
-_EVALUATION_RUNS = {"evaluation.evaluate", "evaluation.results", "evaluation.scores",
-                    "evaluation.setup", "evaluation.flicker", "evaluation.csvrows",
-                    "evaluation.ranking", "evaluation.owndepth"}
 FORBIDDEN = {
     # The corruptions are the library's core, usable without the rest (torch transforms,
     # corrupt/preview): besides themselves only the foundation, seeding and imageio
     # (the engine's check of an input image) -- see test_corruptions_stand_alone.
     "seeding": {"corruptions", "imageio", "sources", "output", "building", "evaluation", "api",
                 "torch", "cli", "commands"},
-    # (sources/ may ask output/layout.py for the output-path rule: it owns every output name;
-    # the scene depth of KITTI and NYU sources is their ground truth's, made as gt makes it.)
+    # (sources/ may ask output/layout.py for the output-path rule: it owns every output name.)
     "sources": {"building", "evaluation", "commands", "output.manifest", "output.record",
                 "output.verify", "api", "torch", "cli", "models", "running", "report", "export",
-                "groundtruth.write", "groundtruth.read", "groundtruth.depthmaps"},
+                "groundtruth"},
+    # (verify is handed the build plan's outputs by its command: the datasets know them.)
     "output": {"building", "commands", "evaluation", "api", "torch", "cli", "running", "report",
-               "models", "export", "styles", "groundtruth", "predictions"},
-    # The ground truth takes the protocols' validity masks and error from evaluation/protocols.py,
-    # nothing of how an evaluation runs.
+               "models", "export", "styles", "groundtruth", "predictions", "sources"},
+    # The ground truth is read with the evaluation's rule of valid pixels, handed to it.
     "groundtruth": {"building", "commands", "cli", "torch", "running", "models", "report", "api",
-                    "export", "predictions", "styles", *_EVALUATION_RUNS},
+                    "export", "predictions", "styles", "evaluation"},
     "predictions": {"api", "building", "commands", "cli", "torch", "running", "models", "report",
-                    "evaluation", "export", "sources", "output", "styles"},
+                    "evaluation", "export", "sources", "output", "styles", "groundtruth"},
     "evaluation": {"building", "commands", "cli", "torch", "running", "report", "models",
                    "export", "styles", "output"},
     "styles": {"building", "commands", "evaluation", "output", "sources", "api", "torch", "cli",
@@ -299,7 +295,7 @@ def test_the_private_rule_catches_what_it_forbids():
     assert _private_scope("report.plot") == "report"
     assert _private_scope("corruptions") == "corruptions"
     assert _under("corruptions.torch_engine._engine", _private_scope("corruptions"))
-    assert not _under("sources.scenedepth", _private_scope("corruptions"))
+    assert not _under("sources.depth_io", _private_scope("corruptions"))
 
 
 def test_the_rules_catch_what_they_forbid():
@@ -312,7 +308,7 @@ def test_the_rules_catch_what_they_forbid():
                                  ("api", "commands"), ("errors", "imageio"), ("torch", "cli"),
                                  ("seeding", "corruptions.severity"), ("export.run", "api"),
                                  ("output.verify", "building.checks"), ("predictions", "api"),
-                                 ("groundtruth.read", "evaluation.evaluate"), ("evaluation.scores", "report.plot"),
+                                 ("groundtruth.read", "evaluation.protocols"), ("sources.depth_io", "groundtruth.nyu"), ("evaluation.scores", "report.plot"),
                                  ("commands.run", "commands.evaluate")]:
             GRAPH[importer].add(target)
             assert (importer, target) in _violations(), (importer, target)

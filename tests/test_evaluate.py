@@ -803,7 +803,7 @@ def test_ground_truth_file_read_map_by_map(tmp_path, protocol):
     maps = [lidar_gt((40 + i, 90 + 3 * i), i) for i in range(20)]
     path = _object_npz(tmp_path / "gt.npz", maps, protocol)
     loaded = np.load(path, allow_pickle=True)["data"]  # numpy's loader, for comparison
-    gt = load_ground_truth(path, [str(i) for i in range(20)], "kitti")
+    gt = load_ground_truth(path, [str(i) for i in range(20)], "kitti", kitti_valid)
     assert len(gt) == 20
     for i, m in enumerate(loaded):
         shape, index, values = gt.get(i)

@@ -4,9 +4,9 @@
 - :func:`check_sources_outside`: no source may resolve into OUT through a symlink;
 - :func:`check_same_build`: a build into an OUT made by another dataset, size or seed is
   refused; ``--limit`` and subsets of the same build extend it;
-- :func:`merge_plans`: the record of what was asked for, which ``robodepth verify``
-  compares the tree against (:func:`robodepth_cli.output.record.planned_outputs`; an
-  interrupted build is incomplete, not fine).
+- :func:`merge_plans` / :func:`planned_outputs`: the record of what was asked for, which
+  ``robodepth verify`` compares the tree against (an interrupted build is incomplete, not
+  fine).
 
 The plan of an OUT is kept in ``build.json`` as ``plans``: one entry per distinct request
 (``variants``, ``levels``, ``keys`` of the split entries), so that a ``--limit 2`` look
@@ -120,6 +120,24 @@ def built_keys(entries: list[dict[str, list]]) -> list[str]:
     the extent of the whole build, which a later ``--limit`` look does not shrink. (A
     preset's requests are prefixes of its split, so this is the split's order.)"""
     return list(dict.fromkeys(k for p in entries for k in p["keys"]))
+
+
+def planned_outputs(record: BuildRecord | None) -> set[str] | None:
+    """Every output path the recorded plans ask for, or None when the record keeps no plan
+    (a build made before plans were recorded: only the manifest can be checked)."""
+    entries = record.requests() if record else []
+    if not entries:
+        return None
+    from ..sources.datasets import get_dataset
+    from .neighbours import planned_keys
+
+    ds = get_dataset(record.dataset)
+    paths: set[str] = set()
+    for p in entries:
+        jobs = ds.jobs(p["variants"], p["levels"])
+        for key in [*p["keys"], *planned_keys(p)]:
+            paths.update(job.path(key) for job in jobs)
+    return paths
 
 
 class BuildError(RobodepthError):

@@ -36,7 +36,7 @@ from ..benchmarks import TEMPORAL
 from ..files import data_dir
 from ..sources import splits
 from ..sources.datasets import get_dataset
-from ..sources.scenedepth import missing_depth
+from .scenedepth import missing_depth
 from ..errors import InvalidValueError
 from .choices import (_CHECKS, _VARIANTS, ALL, NONE, ConfigError, check_train,  # noqa: F401
                       choose_chains, choose_levels, choose_names, takes_frames)

@@ -92,3 +92,8 @@ def _find(root, test: Source, key: str) -> Source | None:
 
 def _rel(key: str) -> str:
     return key.split("/", 1)[1]
+
+
+def planned_keys(entry: dict) -> set[str]:
+    """Every neighbour key a recorded plan entry lists (its outputs are planned too)."""
+    return {k for row in (entry.get("neighbours") or {}).values() for k in row if k}

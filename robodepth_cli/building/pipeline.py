@@ -212,7 +212,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
 
 def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None, sources=()) -> Renderer:
     """The renderer, with the depth source a variant needs; it may refuse files (KITTI-S's), so before OUT."""
-    from ..sources.scenedepth import depth_for
+    from .scenedepth import depth_for
 
     return renderer_of(ds, cfg, depth_for(ds, cfg, root, split_path, sources))
 

@@ -173,6 +173,7 @@ def verify_command(out, progress):
     there right now).
     """
     from ..export.reader import is_export
+    from ..building.checks import planned_outputs
     from ..output.verify import verify
     from ..progress import bar as progress_bar
 
@@ -183,7 +184,8 @@ def verify_command(out, progress):
             report = verify_export(out, progress=bar.update)
         else:
             # The total is known once the manifest is read; reset() also restarts the clock.
-            report = verify(out, progress=bar.update, on_total=lambda n: bar.reset(total=n))
+            report = verify(out, planned_outputs=planned_outputs, progress=bar.update,
+                            on_total=lambda n: bar.reset(total=n))
     if report.incomplete():
         click.echo(report.incomplete())
     for kind in ("missing", "changed", "extra"):

@@ -49,7 +49,8 @@ KEYS_MEMBER = "keys.npy"
 
 
 class GroundTruthError(RobodepthError):
-    """Input that ground truth cannot be made from; the message names the file."""
+    """Input that ground truth cannot be made from, or ground truth that cannot be read
+    for an evaluation; the message names the file."""
 
 
 @dataclass(frozen=True)

@@ -210,7 +210,7 @@ def encode_depth_png(depth_mm: np.ndarray) -> bytes:
 def read_depth_png(path: Path) -> tuple[bytes, tuple[int, int]]:
     """The bytes of a BTS ``sync_depth`` file, checked to be a single-channel 16-bit PNG,
     and its size (H, W)."""
-    from .png16 import Png16Error, read_png16
+    from ..imageio import Png16Error, read_png16
 
     path = Path(path)
     try:

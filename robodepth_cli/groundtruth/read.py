@@ -24,10 +24,8 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import os_reason
-from . import png16
-from .kitti import KEYS_MEMBER, frame_key
-from .depthmaps import read_npy_header
-from ..evaluation.protocols import VALID, EvaluationError
+from .kitti import KEYS_MEMBER, GroundTruthError, frame_key
+from ..files import read_npy_header
 
 
 class GroundTruth:
@@ -37,11 +35,11 @@ class GroundTruth:
     than the map itself, else as read and prepared again on each use.
     """
 
-    def __init__(self, source: str, protocol: str, valid=None):
+    def __init__(self, source: str, protocol: str, valid):
         self.source = source
         self.protocol = protocol
-        # valid: a setup's own rule (crop, depth range); by default the protocol's
-        self._valid = valid or VALID[protocol]
+        # valid: the evaluation setup's rule of valid pixels (its protocol's crop, depth range)
+        self._valid = valid
         self._items: list = []
         self.shapes: list[tuple[int, int]] = []
         self.keys: list[str] | None = None  # the frame of each map, when the file says
@@ -59,7 +57,7 @@ class GroundTruth:
         index = self._valid(depth).astype(np.int32 if depth.size < 2 ** 31 else np.int64)
         if not index.size:
             # The reference would average a NaN into every metric; say which map instead.
-            raise EvaluationError(f"{where} has no valid pixel inside the protocol's crop and "
+            raise GroundTruthError(f"{where} has no valid pixel inside the protocol's crop and "
                                   "depth range")
         values = depth.reshape(-1)[index]
         kept = raw if raw is not None else depth
@@ -129,12 +127,11 @@ class SharedGroundTruth:
         return gt
 
 
-def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
-                      valid=None) -> GroundTruth:
+def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid) -> GroundTruth:
     """Read the ground truth of a split's images from ``path``: a ``.npz``/``.npy`` file of
     depth maps in metres, one per image in split order (monodepth2's ``gt_depths.npz``), or
     a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
-    image, in split order). Raises :class:`EvaluationError` naming the file (and map index)
+    image, in split order). Raises :class:`GroundTruthError` naming the file (and map index)
     for a missing, unreadable or malformed map, and when the file holds another number of
     maps than the split has images.
 
@@ -147,7 +144,7 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
     if path.is_dir() and names and all(n.endswith(".npy") for n in names):
         from .depthmaps import DepthMaps  # a build with depth: one float map per image
 
-        return DepthMaps(path, names, protocol, valid or VALID[protocol])
+        return DepthMaps(path, names, protocol, valid)
     gt = GroundTruth(str(path), protocol, valid)
     if path.is_dir():
         for i, name in enumerate(names):
@@ -158,7 +155,7 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
         return gt
     count = _read_gt_file(path, gt)
     if count != len(names):
-        raise EvaluationError(f"{path}: {count} ground-truth maps, but the dataset's split has "
+        raise GroundTruthError(f"{path}: {count} ground-truth maps, but the dataset's split has "
                               f"{len(names)} images; ground truth and split must match one to one")
     _check_order(path, gt.keys, names)
     return gt
@@ -170,11 +167,11 @@ def _check_order(path: Path, keys: Sequence[str] | None, names: Sequence[str]) -
     if keys is None:
         return
     if len(keys) != len(names):
-        raise EvaluationError(f"{path}: {len(keys)} frame keys for its maps; the file is damaged")
+        raise GroundTruthError(f"{path}: {len(keys)} frame keys for its maps; the file is damaged")
     for i, (have, name) in enumerate(zip(keys, names)):
         want = frame_key(name)
         if want is not None and have != want:
-            raise EvaluationError(f"{path}: map {i} is the ground truth of {have}, but image {i} of "
+            raise GroundTruthError(f"{path}: map {i} is the ground truth of {have}, but image {i} of "
                                   f"the split is {want} ({name}); ground truth and split must be "
                                   "in the same order")
 
@@ -201,7 +198,7 @@ def _check_gt_map(m, path: Path, i: int) -> np.ndarray:
     if not isinstance(m, np.ndarray) or m.ndim != 2 or m.dtype.kind not in "fiu" or 0 in m.shape:
         what = (f"shape {m.shape} and dtype {m.dtype}" if isinstance(m, np.ndarray)
                 else f"a {type(m).__name__}")
-        raise EvaluationError(f"{path}: ground-truth map {i} has {what}; expected a 2-D depth map")
+        raise GroundTruthError(f"{path}: ground-truth map {i} has {what}; expected a 2-D depth map")
     return m
 
 
@@ -215,7 +212,7 @@ def _read_gt_file(path: Path, gt: GroundTruth) -> int:
     memory together. A plain N x H x W array is read as it is.
     """
     if not path.exists():
-        raise EvaluationError(f"{path}: no such ground-truth file")
+        raise GroundTruthError(f"{path}: no such ground-truth file")
     try:
         with open(path, "rb") as raw:
             if zipfile.is_zipfile(raw):
@@ -225,7 +222,7 @@ def _read_gt_file(path: Path, gt: GroundTruth) -> int:
                     member = ("data.npy" if "data.npy" in names
                               else names[0] if len(names) == 1 else None)
                     if member is None:
-                        raise EvaluationError(f"{path}: holds {', '.join(names)}; expected 'data' "
+                        raise GroundTruthError(f"{path}: holds {', '.join(names)}; expected 'data' "
                                               "(monodepth2's gt_depths.npz) or a single array")
                     with zf.open(member) as fh:
                         count = _read_gt_stream(fh, path, gt)
@@ -233,34 +230,34 @@ def _read_gt_file(path: Path, gt: GroundTruth) -> int:
                         with zf.open(KEYS_MEMBER) as fh:
                             keys = np.lib.format.read_array(fh, allow_pickle=False)
                         if keys.ndim != 1 or keys.dtype.kind != "U":
-                            raise EvaluationError(f"{path}: {KEYS_MEMBER} is not a list of frame keys")
+                            raise GroundTruthError(f"{path}: {KEYS_MEMBER} is not a list of frame keys")
                         gt.keys = [str(k) for k in keys]
                     return count
             raw.seek(0)
             return _read_gt_stream(raw, path, gt)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
-        if isinstance(exc, EvaluationError):
+        if isinstance(exc, GroundTruthError):
             raise
         reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
-        raise EvaluationError(f"{path}: not a numpy .npz/.npy ground-truth file ({reason})") from None
+        raise GroundTruthError(f"{path}: not a numpy .npz/.npy ground-truth file ({reason})") from None
 
 
 def _read_gt_stream(fh, path: Path, gt: GroundTruth) -> int:
     shape, fortran, dtype = read_npy_header(fh)
     if not dtype.hasobject:
         if len(shape) != 3:
-            raise EvaluationError(f"{path}: ground truth of shape {shape}; expected N depth maps "
+            raise GroundTruthError(f"{path}: ground truth of shape {shape}; expected N depth maps "
                                   "(an object array of 2-D maps, or N x H x W)")
         nbytes = int(np.prod(shape)) * dtype.itemsize
         buf = fh.read(nbytes)
         if len(buf) != nbytes:
-            raise EvaluationError(f"{path}: the array ends early (truncated?)")
+            raise GroundTruthError(f"{path}: the array ends early (truncated?)")
         data = np.frombuffer(buf, dtype).reshape(shape, order="F" if fortran else "C")
         for i in range(len(data)):
             gt.add(_check_gt_map(data[i], path, i))
         return len(data)
     if len(shape) != 1:
-        raise EvaluationError(f"{path}: ground truth of shape {shape}; expected a 1-D object "
+        raise GroundTruthError(f"{path}: ground truth of shape {shape}; expected a 1-D object "
                               "array of 2-D depth maps")
     counter = iter(range(1 << 62))
 
@@ -271,7 +268,7 @@ def _read_gt_stream(fh, path: Path, gt: GroundTruth) -> int:
 
     data = _MapUnpickler(fh, path, reduce).load()
     if not isinstance(data, np.ndarray) or data.ndim != 1:
-        raise EvaluationError(f"{path}: does not hold a 1-D array of depth maps")
+        raise GroundTruthError(f"{path}: does not hold a 1-D array of depth maps")
     for i, m in enumerate(data):
         prepared = m if isinstance(m, _Prepared) else getattr(m, "prepared", None)
         if prepared is None:
@@ -342,7 +339,7 @@ class _MapUnpickler:
                 if (module, name) == ("_codecs", "encode"):
                     return super().find_class(module, name)
                 if module not in _NUMPY_MODULES or name not in _ALLOWED:
-                    raise EvaluationError(f"{path}: holds a pickled {module}.{name}; ground truth "
+                    raise GroundTruthError(f"{path}: holds a pickled {module}.{name}; ground truth "
                                           "may hold only numpy arrays (refused, not loaded)")
                 if name == "ndarray":
                     return Map
@@ -371,4 +368,6 @@ class _MapUnpickler:
 def read_png16(file: Path, what: str) -> np.ndarray:
     """A 16-bit single-channel PNG of the ground truth; ``what`` says in messages whose
     file it is."""
-    return png16.read_depth_png(file, what, EvaluationError)
+    from ..imageio import read_depth_png
+
+    return read_depth_png(file, what, GroundTruthError)

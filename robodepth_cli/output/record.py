@@ -157,22 +157,3 @@ def write_record(out: Path, record: BuildRecord) -> None:
     """Write ``OUT/build.json`` atomically (sorted keys, so equal records are equal bytes)."""
     text = json.dumps(record.to_dict(), indent=2, sort_keys=True) + "\n"
     write_atomic(Path(out) / RECORD, text.encode("utf-8"))
-
-
-def planned_outputs(record: BuildRecord | None) -> set[str] | None:
-    """Every output path the recorded plans ask for, or None when the record keeps no plan
-    (a build made before plans were recorded: only the manifest can be checked). A plan's
-    neighbour frames (``--frames``) are planned outputs too."""
-    entries = record.requests() if record else []
-    if not entries:
-        return None
-    from ..sources.datasets import get_dataset
-
-    ds = get_dataset(record.dataset)
-    paths: set[str] = set()
-    for p in entries:
-        jobs = ds.jobs(p["variants"], p["levels"])
-        neighbours = {k for row in (p.get("neighbours") or {}).values() for k in row if k}
-        for key in [*p["keys"], *neighbours]:
-            paths.update(job.path(key) for job in jobs)
-    return paths

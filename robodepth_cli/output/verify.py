@@ -14,7 +14,7 @@ from pathlib import Path
 from ..files import sha256_file
 from .layout import BOOKKEEPING, JOURNAL, MANIFEST
 from .manifest import ManifestError, lock_holder, read_recorded
-from .record import planned_outputs, read_record
+from .record import read_record
 
 
 @dataclass
@@ -59,9 +59,13 @@ def tree_files(out: Path) -> set[str]:
     return found
 
 
-def verify(out: Path, *, threads: int = 4, progress=None, on_total=None) -> VerifyReport:
+def verify(out: Path, *, planned_outputs, threads: int = 4, progress=None,
+           on_total=None) -> VerifyReport:
     """Re-hash every file of ``out`` against its manifest. ``on_total(n)`` is called once
-    with the number of files to hash, then ``progress(n)`` as files are checked."""
+    with the number of files to hash, then ``progress(n)`` as files are checked.
+    ``planned_outputs(record)``: every output the build record's plans ask for (None when
+    it keeps none): :func:`robodepth_cli.building.checks.planned_outputs`, which knows the
+    datasets."""
     from concurrent.futures import ThreadPoolExecutor
 
     out = Path(out)

@@ -143,7 +143,7 @@ def _two_d(values: np.ndarray, path: Path) -> np.ndarray:
 
 
 def _png(path: Path, shape) -> np.ndarray:
-    from ..groundtruth.png16 import Png16Error, read_png16
+    from ..imageio import Png16Error, read_png16
 
     try:
         return read_png16(path).astype(np.int64)

@@ -18,8 +18,8 @@ hold. They become metres by this rule:
 
 Then a depth of 0 or less is missing (the corruptions fill it from the nearest valid
 pixel), a disparity of 0 or less is infinitely far (:data:`~..corruptions.depth.FAR`), and
-the map is brought to the output size as a depth folder's (:func:`.scenedepth.at_size`);
-:class:`.scenedepth.PredictedDepth` reads the maps.
+the map is brought to the output size as a depth folder's (:func:`robodepth_cli.building.scenedepth.at_size`);
+:class:`~robodepth_cli.building.scenedepth.PredictedDepth` reads the maps.
 The build record keeps the model and its identity (:func:`~..predictions.model_identity`), each depth-aware
 output's manifest row ``depth=predictions:<identity>``.
 """

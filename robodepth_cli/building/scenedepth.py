@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidValueError, RobodepthError, os_reason
-from .depth_io import DepthError
+from ..sources.depth_io import DepthError
 
 _VERSION = "1"  # bump when a source gives other depths for the same files
 
@@ -75,7 +75,7 @@ class NyuDepth(DepthSource):
             labeled = nyu_labeled.opened(root)
             d = labeled.depth(nyu_labeled.frame_index(labeled, rgb)).astype(np.float64)
         else:
-            from .depthfile import read_depth
+            from ..sources.depthfile import read_depth
 
             return read_depth(root / rel, nyu_labeled.DEPTH_SCALE)
         d[~(d > 0)] = np.nan
@@ -119,7 +119,7 @@ class FolderDepth(DepthSource):
 
     def __init__(self, kind: str, extra: dict, root: Path, in_root: bool,
                  sources: dict[str, tuple[str, int]]):
-        from .depth_pairs import rule_of
+        from ..sources.depth_pairs import rule_of
 
         self.kind = kind
         self.rule = rule_of(extra, Path(root), in_root)
@@ -132,8 +132,8 @@ class FolderDepth(DepthSource):
     def depth(self, key, shape):
         from PIL import Image
 
-        from .depth_io import DepthError
-        from .depth_pairs import pair, read_pair
+        from ..sources.depth_io import DepthError
+        from ..sources.depth_pairs import pair, read_pair
 
         rel, orientation = self.sources[key]
         found = pair(self.rule, rel)
@@ -181,7 +181,7 @@ class PredictedDepth(DepthSource):
 
     def __init__(self, pred: Path, record: dict, keys: dict[str, int], own: DepthSource | None):
         from ..predictions import model_identity
-        from . import predicted as P
+        from ..sources import predicted as P
 
         self.pred = str(pred)
         self.model = str(record.get("model"))
@@ -201,7 +201,7 @@ class PredictedDepth(DepthSource):
         """The depth of ``PRED``, checked before any work; ``own``: the dataset's own depth,
         which relative maps are scaled to. :class:`RobodepthError` naming ``--scene-depth``."""
         from .. import predictions
-        from . import predicted as P
+        from ..sources import predicted as P
 
         try:
             record = P.read_record(pred)
@@ -349,7 +349,7 @@ def own_depth(ds, cfg, root: Path, split_path: str | None, sources) -> DepthSour
     if ds.split_format == "eigen":
         return KittiLidarDepth(Path(root))
     if ds.split_format == "nyu":
-        from .datasets import read_split
+        from ..sources.datasets import read_split
 
         entries = read_split(Path(split_path or ""), "nyu")
         return NyuDepth(Path(root), {e.key: (e.fields[0], e.fields[1]) for e in entries})
