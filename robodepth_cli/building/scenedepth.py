@@ -19,7 +19,7 @@ chooses it for a build.
   truth, paired and read as its ground truth is (:mod:`.depth_pairs`), turned upright with
   its image (EXIF orientation), then brought to the output size by :func:`at_size`.
 - :class:`PredictedDepth` (``--scene-depth PRED``): a model's predictions for
-  the clean images, in metres by the rule of :mod:`.predicted`.
+  the clean images, in metres by the rule of :mod:`robodepth_cli.sources.predicted`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """``robodepth evaluate``: a model's predictions on a built dataset, scored under the
-protocol of its benchmark (:mod:`.protocols`) against its ground truth (:mod:`.groundtruth`),
-into the results CSV that ``robodepth score`` reads.
+protocol of its benchmark (:mod:`.protocols`) against its ground truth
+(:mod:`robodepth_cli.groundtruth.read`), into the results CSV that ``robodepth score`` reads.
 
 With ``jobs`` > 1 the variants are shared out among worker processes, each evaluating whole
 variants with the same code as one job, so the numbers are the same to the last bit. The

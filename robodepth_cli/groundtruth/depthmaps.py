@@ -19,7 +19,7 @@ from .kitti import GroundTruthError
 
 
 class DepthMaps:
-    """The interface of :class:`~.groundtruth.GroundTruth` that evaluation uses (``len``,
+    """The interface of :class:`~.read.GroundTruth` that evaluation uses (``len``,
     ``get``, ``shapes``, ``share``/``open``), over one ``.npy`` file per image."""
 
     keys = None  # no frame keys to check the order against: the names are the keys
