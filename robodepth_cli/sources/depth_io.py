@@ -150,7 +150,7 @@ def _png(path: Path, shape) -> np.ndarray:
     except Png16Error as exc:
         if not exc.got:
             raise DepthError(f"{path}: not a readable PNG (truncated or damaged)") from None
-        raise DepthError(f"{path}: a {exc.got} PNG; depth PNGs are 16-bit, one channel") from None
+        raise DepthError(f"{path}: {exc.got}; depth PNGs are 16-bit, one channel") from None
     except OSError as exc:
         if isinstance(exc, FileNotFoundError):
             raise
