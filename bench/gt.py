@@ -135,7 +135,7 @@ def run_cli(root: Path, split: Path, out: Path, jobs: int = 1) -> tuple[float, f
 
 def compare(root: Path, lines: list[str], n: int) -> tuple[float, float]:
     """Best-of-3 per-frame seconds of the depth rule: ours, the plain loop."""
-    from robodepth_cli.sources.kitti_raw import Calibration, depth_map, load_velodyne
+    from robodepth_cli.groundtruth.kitti import Calibration, depth_map, load_velodyne
 
     work = []
     for line in lines[:n]:

@@ -26,7 +26,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import InvalidValueError, RobodepthError, cannot_write
+from .errors import InvalidValueError, RobodepthError
 from .export.layout import META as EXPORT_META
 from .export.reader import ExportStore, is_export
 from .output.layout import (GT_DIR, GT_FILE, MANIFEST, RECORD, depth_gt_name, output_path,
@@ -87,7 +87,7 @@ class Variant:
         if self.store is not None:
             raise DatasetError(f"{self.root}: an export's images are in shards; use variant.read(i)")
         if self.missing and missing == "raise":
-            raise DatasetError(f"{base}: {_failed_text(self.missing, len(self.keys))}; rerun the "
+            raise DatasetError(f"{base}: {failed_text(self.missing, len(self.keys))}; rerun the "
                                f"build command to make them, or use images(missing='skip') for "
                                f"the {len(self.keys) - len(self.missing)} that exist")
         return [base / key for key in self.keys if key not in self.missing]
@@ -110,7 +110,9 @@ class Variant:
 
     def prediction_file(self, pred: str | os.PathLike) -> Path:
         """Where :meth:`save_predictions` writes: ``PRED/<relpath>.npy``."""
-        return Path(pred) / f"{self.relpath}.npy"
+        from .predictions import prediction_file
+
+        return prediction_file(pred, self.relpath)
 
     def save_predictions(self, pred: str | os.PathLike, predictions) -> Path:
         """Write a model's outputs for this variant as ``PRED/<relpath>.npy``; return the path.
@@ -134,94 +136,15 @@ class Variant:
         if n != len(self.keys):
             raise DatasetError(f"{target}: {n} predictions for the {len(self.keys)} images of "
                                f"{self.label}")
-        with PredictionWriter(target, n) as out:
-            for i in range(n):
-                out.write(predictions[i])
+        from .predictions import PredictionsError, PredictionWriter
+
+        try:
+            with PredictionWriter(target, n) as out:
+                for i in range(n):
+                    out.write(predictions[i])
+        except PredictionsError as exc:
+            raise DatasetError(str(exc)) from None
         return target
-
-
-class PredictionWriter:
-    """Streams ``n`` maps into one ``N x h x w`` ``.npy`` file (form 1 of ``robodepth
-    evaluate``) through a temporary file and a rename: a reader sees the whole file or
-    none, and a failure (or fewer than ``n`` maps) leaves nothing behind.
-
-    The first map fixes the size and the dtype (a floating dtype is kept, others become
-    float32); each later map must have that size and is converted to that dtype.
-
-    >>> with PredictionWriter(Path("PRED/clean.npy"), 2) as out:    # doctest: +SKIP
-    ...     out.write(map0); out.write(map1)
-    """
-
-    def __init__(self, target: Path, n: int):
-        self.target = Path(target)
-        self.n = n
-        self.count = 0
-        self._shape = None
-        self._dtype = None
-        self._cm = None
-        self._fh = None
-
-    def __enter__(self) -> "PredictionWriter":
-        from .files import atomic_output
-
-        self._cm = atomic_output(self.target)
-        try:
-            self._fh = self._cm.__enter__()
-        except OSError as exc:
-            raise DatasetError(cannot_write(self.target, exc)) from None
-        if self.n == 0:
-            self._header((0, 0), np.dtype(np.float32))
-        return self
-
-    def _header(self, shape, dtype) -> None:
-        self._shape, self._dtype = shape, dtype
-        np.lib.format.write_array_header_1_0(self._fh, {
-            "descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False,
-            "shape": (self.n, *shape)})
-
-    def write(self, value) -> None:
-        """Append the next map (anything :func:`numpy.asarray` takes, CPU tensors too; a
-        leading axis of length 1 is dropped)."""
-        i = self.count
-        if i >= self.n:
-            raise DatasetError(f"{self.target}: more than the {self.n} predictions expected")
-        m = _as_map(value, self.target, i)
-        if self._shape is None:
-            self._header(m.shape, m.dtype if m.dtype.kind == "f" else np.dtype(np.float32))
-        elif m.shape != self._shape:
-            raise DatasetError(f"{self.target}: prediction {i} is {m.shape[0]} x {m.shape[1]}, "
-                               f"prediction 0 is {self._shape[0]} x {self._shape[1]}; all must "
-                               "have one size")
-        try:
-            self._fh.write(np.ascontiguousarray(m, dtype=self._dtype).data)
-        except OSError as exc:
-            raise DatasetError(cannot_write(self.target, exc)) from None
-        self.count += 1
-
-    def __exit__(self, exc_type, exc, tb):
-        if exc_type is None and self.count != self.n:
-            exc = DatasetError(f"{self.target}: {self.count} predictions written of the "
-                               f"{self.n} expected")
-            self._cm.__exit__(type(exc), exc, None)
-            raise exc
-        try:
-            return self._cm.__exit__(exc_type, exc, tb)
-        except OSError as err:
-            raise DatasetError(cannot_write(self.target, err)) from None
-
-
-def _as_map(value, target: Path, i: int) -> np.ndarray:
-    if hasattr(value, "detach"):  # a torch tensor, perhaps on a GPU or needing grad
-        value = value.detach().cpu().numpy()
-    m = np.asarray(value)
-    if m.ndim == 3 and m.shape[0] == 1:
-        m = m[0]
-    if m.ndim != 2:
-        raise DatasetError(f"{target}: prediction {i} has shape {m.shape}; expected one 2-D "
-                           "map (h x w) per image")
-    if m.dtype.kind not in "fiu":
-        raise DatasetError(f"{target}: prediction {i} has dtype {m.dtype}; expected numbers")
-    return m
 
 
 class BuiltDataset:
@@ -262,6 +185,8 @@ class BuiltDataset:
     def lacks_depth(self, variant: Variant, key: str) -> bool:
         """Whether ``variant``'s image ``key`` is missing because its depth map is unusable
         (a depth-aware variant of an image in :attr:`no_depth`): not a failure to redo."""
+        from .corruptions import depth_aware_variant
+
         return key in self.no_depth and depth_aware_variant(variant.name)
 
     def incomplete(self) -> str:
@@ -270,7 +195,7 @@ class BuiltDataset:
         failed = self.failed
         if not failed:
             return ""
-        return (f"{self.path}: {_failed_text(failed, len(self.keys))}; rerunning the build "
+        return (f"{self.path}: {failed_text(failed, len(self.keys))}; rerunning the build "
                 f"command makes them")
 
     @property
@@ -392,17 +317,6 @@ def _missing(rows: dict, keys: tuple[str, ...], variants) -> dict[tuple, dict[st
     return missing
 
 
-def depth_aware_variant(name: str) -> bool:
-    """Whether the variant ``name`` (a corruption, a chain; clean or a style: no) is made
-    from the scene's depth."""
-    from .corruptions import needs_depth
-
-    try:
-        return needs_depth(name)
-    except InvalidValueError:  # clean, a style
-        return False
-
-
 def _no_depth(rows: dict, keys: tuple[str, ...]) -> dict[str, str]:
     """The keys whose ground truth (``gt/<key stem>.npy``) the build failed, with the reason."""
     found = {}
@@ -413,7 +327,7 @@ def _no_depth(rows: dict, keys: tuple[str, ...]) -> dict[str, str]:
     return found
 
 
-def _failed_text(failed: dict[str, str], total: int, shown: int = 3) -> str:
+def failed_text(failed: dict[str, str], total: int, shown: int = 3) -> str:
     """``"2 of 697 images failed in the build (a.png: why; b.png: why)"``."""
     listed = "; ".join(f"{k}: {why}" for k, why in list(failed.items())[:shown])
     more = f"; and {len(failed) - shown} more" if len(failed) > shown else ""

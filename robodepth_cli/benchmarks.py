@@ -15,6 +15,15 @@ from typing import Mapping, Sequence
 
 from .errors import InvalidValueError
 
+# The paper, as the report page and an export's dataset card cite it.
+BIBTEX = """@inproceedings{kong2023robodepth,
+  title     = {RoboDepth: Robust Out-of-Distribution Depth Estimation under Corruptions},
+  author    = {Kong, Lingdong and Xie, Shaoyuan and Hu, Hanjiang and Ng, Lai Xing and
+               Cottereau, Benoit R. and Ooi, Wei Tsang},
+  booktitle = {Advances in Neural Information Processing Systems (NeurIPS), Datasets and Benchmarks Track},
+  year      = {2023}
+}"""
+
 WEATHER = "weather & lighting"
 SENSOR = "sensor & movement"
 DATA = "data & processing"

@@ -154,3 +154,17 @@ def sha256_stream(fh: BinaryIO) -> str:
     for chunk in iter(lambda: fh.read(1 << 20), b""):
         h.update(chunk)
     return h.hexdigest()
+
+
+def read_npy_header(fh) -> tuple[tuple[int, ...], bool, object]:
+    """Shape, Fortran order and dtype (a ``numpy.dtype``) of the ``.npy`` stream ``fh``,
+    which is left at the first byte of the data."""
+    import numpy as np
+
+    fmt = np.lib.format
+    version = fmt.read_magic(fh)
+    if version == (1, 0):
+        shape, fortran, dtype = fmt.read_array_header_1_0(fh)
+    else:
+        shape, fortran, dtype = fmt.read_array_header_2_0(fh)
+    return tuple(shape), fortran, dtype

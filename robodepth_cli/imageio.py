@@ -7,12 +7,14 @@ written atomically."""
 from __future__ import annotations
 
 import os
+import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
-from .errors import InvalidValueError, RobodepthError
+from .errors import InvalidValueError, RobodepthError, os_reason
 from .files import write_atomic
 
 MIN_SIDE = 32
@@ -129,6 +131,17 @@ def exif_orientation(path: str | os.PathLike) -> int:
     return value if isinstance(value, int) and 1 <= value <= 8 else 1
 
 
+def stored_size(path: str | os.PathLike, orientation: int = 1) -> tuple[int, int] | None:
+    """The (H, W) of an image from its header, as stored, or as shown when its EXIF
+    ``orientation`` turns it (:data:`TRANSPOSED`); None if it cannot be read (the caller's
+    reader says why)."""
+    try:
+        with Image.open(path) as im:
+            return (im.width, im.height) if orientation in TRANSPOSED else (im.height, im.width)
+    except Exception:  # anything unreadable fails where it is read, with the reason
+        return None
+
+
 def resize_lanczos(im: Image.Image, size_hw: tuple[int, int] | None) -> np.ndarray:
     """The clean image: RGB, resized to ``(H, W)`` with Pillow's Lanczos filter (unless it is
     already that size or ``size_hw`` is None), as a uint8 H x W x 3 array."""
@@ -234,3 +247,71 @@ def parse_size(text: str) -> tuple[int, int]:
     if h > MAX_SIDE or w > MAX_SIDE:
         raise InvalidValueError(f"size {text!r}: both sides must be at most {MAX_SIDE}")
     return h, w
+
+
+# --- 16-bit single-channel PNGs: depth maps ----------------------------------------------
+# The one reader of them (BTS's NYU sync_depth files, PNG predictions, a custom build's
+# --depth PNGs): OpenCV's decoder, whatever reads them. Each caller words the refusal for
+# its own file (ground truth, a prediction, a depth map), from Png16Error.got.
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+class Png16Error(RobodepthError):
+    """Not a 16-bit single-channel PNG: ``got`` is ``""`` for bytes no PNG decoder reads
+    (truncated, damaged, not a PNG) and else what it is (``8-bit``, ``16-bit, 3 channels``);
+    ``raw`` the decoded array, when there is one."""
+
+    def __init__(self, got: str, raw: np.ndarray | None = None):
+        super().__init__(got or "not a readable PNG")
+        self.got = got
+        self.raw = raw
+
+
+@contextmanager
+def _native_stderr_silenced():
+    """File descriptor 2 sent to /dev/null: libpng prints ``libpng error: Read Error`` there
+    for a truncated file before OpenCV returns None; the one-line error says it instead."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
+def read_png16(source: Path | bytes) -> np.ndarray:
+    """The ``H x W`` uint16 map of a PNG file (a path; :class:`OSError` as reading raises
+    it) or of its bytes; :class:`Png16Error` for anything else."""
+    import cv2
+
+    data = source if isinstance(source, bytes) else Path(source).read_bytes()
+    raw = None
+    if data[:8] == PNG_SIGNATURE:
+        with _native_stderr_silenced():
+            raw = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if raw is None:
+        raise Png16Error("")
+    if raw.ndim != 2 or raw.dtype != np.uint16:
+        raise Png16Error(f"{raw.dtype.itemsize * 8}-bit" + (f", {raw.shape[2]} channels" if raw.ndim == 3 else ""),
+                         raw)
+    return raw
+
+
+def read_depth_png(file: Path, what: str, error: type[RobodepthError]) -> np.ndarray:
+    """:func:`read_png16` of ``file`` with the refusals as ``error`` naming it; ``what``
+    says whose file it is (``ground truth of image 3``)."""
+    if not file.is_file():
+        raise error(f"{file}: no such file ({what})")
+    try:
+        return read_png16(file)
+    except OSError as exc:
+        raise error(f"{file}: cannot read ({os_reason(exc)}) ({what})") from None
+    except Png16Error as exc:
+        if not exc.got:
+            raise error(f"{file}: not a readable PNG, truncated or damaged ({what})") from None
+        raise error(f"{file}: {exc.got}; expected a 16-bit single-channel PNG ({what})") from None

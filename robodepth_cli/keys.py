@@ -10,6 +10,8 @@ draw exactly what a build draws for that image.
 * ``kitti-c``, ``kitti-c-hr``, ``kitti-s``: ``kitti_data/`` + the path with its image
   extension replaced by ``.png`` (a key that already starts with ``kitti_data/`` is kept).
 * ``nyudepth2-c``: the path with its image extension replaced by ``.png``.
+
+A level's part of an output path and of a job's key is its canonical text (:func:`level_text`).
 """
 
 from __future__ import annotations
@@ -66,3 +68,11 @@ def neighbour_key(key: str, offset: int) -> str | None:
     p = PurePosixPath(key)
     n = int(p.stem) + offset
     return None if n < 0 else str(p.with_name(f"{n:0{len(p.stem)}d}{p.suffix}"))
+
+
+def level_text(level) -> str:
+    """The canonical text of a level: ``3`` for an integer level (as every name, seed and
+    manifest row has always written it), the shortest round-trip decimal otherwise
+    (``2.5``, ``1.25``). It names directories and keys random streams."""
+    v = float(level)
+    return str(int(v)) if v == int(v) else repr(v)

@@ -13,7 +13,7 @@ import hashlib
 
 import numpy as np
 
-from .corruptions.severity import level_text
+from .keys import level_text
 
 
 def job_seed_sequence(seed: int, dataset: str, variant: str, level, relpath: str) -> np.random.SeedSequence:

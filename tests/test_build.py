@@ -13,9 +13,8 @@ from PIL import Image
 
 from robodepth_cli import corruptions, files, seeding
 
-from robodepth_cli.building import tasks
+from robodepth_cli.building import renderers, tasks
 
-from robodepth_cli.sources import datasets
 from robodepth_cli.corruptions import NAMES
 from robodepth_cli.output.manifest import BuildLock
 
@@ -207,7 +206,7 @@ def test_per_variant_error_does_not_stop_the_others(kitti, tmp_path, monkeypatch
         for job in jobs:
             yield job, (RuntimeError("boom") if job.level == 2 else clean)
 
-    monkeypatch.setattr(datasets.CorruptionRenderer, "render", broken)  # in-process with --jobs 1
+    monkeypatch.setattr(renderers.CorruptionRenderer, "render", broken)  # in-process with --jobs 1
     out = tmp_path / "out"
     res = build_kitti(root, split, out, "--size", "64x96", "--corruptions", "contrast", "--levels", "1,2",
                       "--jobs", "1")

@@ -13,7 +13,7 @@ import numpy as np
 from PIL import Image
 from scipy.ndimage import distance_transform_edt
 
-from robodepth_cli.sources import kitti_raw
+from robodepth_cli.groundtruth import kitti as kitti_raw
 
 from _depth_files import depth_stamp
 from _paths import FIXTURES

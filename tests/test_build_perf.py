@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pickle
 
-from robodepth_cli.building import gather, pipeline as builder, tasks
+from robodepth_cli.building import gather, pipeline as builder, renderers, tasks
 
 from robodepth_cli.building import config
 from robodepth_cli.sources.datasets import get_dataset
@@ -40,7 +40,7 @@ def test_what_a_worker_receives_per_source_is_small(tmp_path):
     cfg = config.resolve("kitti-c", flags={"split": str(split)})
     ds = get_dataset(cfg.dataset)
     sources = gather.find_sources((tmp_path / "kitti_raw").resolve(), split, ds)
-    renderer = ds.renderer(cfg)
+    renderer = renderers.make_renderer(ds, cfg)
     planned = builder.plan(ds, cfg, sources, {}, renderer)
     assert len(planned[0].jobs) == 18 * 5 + 1
     assert len(pickle.dumps(renderer)) < 1024

@@ -16,7 +16,7 @@ import pytest
 from scipy.ndimage import map_coordinates
 
 from robodepth_cli.corruptions import DEPTH_NAMES, REGISTRY, DepthError, corrupt, render
-from robodepth_cli.corruptions._depth import scene_depth
+from robodepth_cli.corruptions.depth import scene_depth
 
 RNG = np.random.default_rng
 
@@ -244,7 +244,7 @@ def test_same_inputs_give_the_same_bytes_in_another_process():
 
 
 def test_the_image_only_transforms_refuse_depth_aware_corruptions():
-    from robodepth_cli.transforms import Corrupt, RandomChain, RandomCorrupt, TorchAPIError
+    from robodepth_cli.torch import Corrupt, RandomChain, RandomCorrupt, TorchAPIError
 
     for make in (lambda: Corrupt("fog_3d", 2), lambda: Corrupt("brightness:1+zoom_3d:2"),
                  lambda: RandomCorrupt(names=["fog", "near_focus"]), lambda: RandomChain(names=["motion_3d", "fog"])):

@@ -797,13 +797,13 @@ def test_ground_truth_file_read_map_by_map(tmp_path, protocol):
     """The pickled object array is read one map at a time (each reduced to its valid
     pixels as it arrives); the result is what numpy's own loader gives, for the pickle
     protocols numpy and the ground-truth writers use."""
-    from robodepth_cli.evaluation.groundtruth import load_ground_truth
+    from robodepth_cli.groundtruth.read import load_ground_truth
     from robodepth_cli.evaluation.protocols import kitti_valid
 
     maps = [lidar_gt((40 + i, 90 + 3 * i), i) for i in range(20)]
     path = _object_npz(tmp_path / "gt.npz", maps, protocol)
     loaded = np.load(path, allow_pickle=True)["data"]  # numpy's loader, for comparison
-    gt = load_ground_truth(path, [str(i) for i in range(20)], "kitti")
+    gt = load_ground_truth(path, [str(i) for i in range(20)], "kitti", kitti_valid)
     assert len(gt) == 20
     for i, m in enumerate(loaded):
         shape, index, values = gt.get(i)

@@ -117,10 +117,11 @@ def test_jobs_flag_checked(kitti, tmp_path, cli):
 
 
 def test_ground_truth_shared_through_a_file_comes_back_equal(tmp_path):
-    from robodepth_cli.evaluation.groundtruth import GroundTruth
+    from robodepth_cli.evaluation.protocols import kitti_valid
+    from robodepth_cli.groundtruth.read import GroundTruth
 
     rng = np.random.default_rng(2)
-    gt = GroundTruth("mem", "kitti")
+    gt = GroundTruth("mem", "kitti", kitti_valid)
     sparse = rng.uniform(1, 90, (375, 1242)).astype(np.float32)
     sparse[rng.random(sparse.shape) > 0.05] = 0
     gt.add(sparse)  # kept as its valid pixels

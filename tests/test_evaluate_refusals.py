@@ -259,7 +259,7 @@ def test_missing_variants_are_written_as_score_writes_them(kitti_c, kitti_pred, 
 
 def test_ground_truth_in_another_order_is_refused(kitti_c, kitti_pred, tmp_path, cli):
     """Ground truth that robodepth writes carries the split's keys; evaluate checks them."""
-    from robodepth_cli.sources import kitti_raw
+    from robodepth_cli.groundtruth import kitti as kitti_raw
 
     out, gts = kitti_c
     keys = ["2011_09_26/2011_09_26_drive_0002_sync 0000000054",

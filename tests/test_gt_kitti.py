@@ -114,7 +114,7 @@ def test_export_equals_reference(kitti, tmp_path, run):
 
 def test_depth_map_drops_points_outside(tmp_path, fixtures_dir):
     """Points behind the sensor or outside the image leave no trace; one in the frame does."""
-    from robodepth_cli.sources.kitti_raw import Calibration, depth_map
+    from robodepth_cli.groundtruth.kitti import Calibration, depth_map
 
     calib = Calibration.load(fixtures_dir / "kitti_raw" / DATE1)
     proj, (h, w) = projection(fixtures_dir / "kitti_raw", DATE1)
@@ -200,7 +200,7 @@ def test_split_with_a_byte_order_mark_gives_the_same_maps(kitti, tmp_path, run):
 
 
 def test_jobs_give_the_same_file_and_errors(kitti, tmp_path, run, monkeypatch):
-    from robodepth_cli.sources import kitti_raw
+    from robodepth_cli.groundtruth import kitti as kitti_raw
 
     root, split_file, lines = kitti
     monkeypatch.setattr(kitti_raw, "FRAMES_PER_TASK", 2)  # several tasks even for a few frames

@@ -56,7 +56,7 @@ def test_gt_nyu_from_labeled_file_is_bts_layout(labeled, tmp_path, run):
 
 def test_clean_image_is_bts_jpeg_decoded(labeled, tmp_path):
     """The clean source of a labeled frame has the pixels of BTS's JPEG of it."""
-    from robodepth_cli.sources.nyu_labeled import LabeledFile, clean_image
+    from robodepth_cli.groundtruth.nyu import LabeledFile, clean_image
 
     path, rgb, depth = labeled
     bts_files(rgb[3], depth[3], tmp_path / "bts", 3, SCENES[3])

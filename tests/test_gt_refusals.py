@@ -67,7 +67,7 @@ def test_a_build_fails_its_ground_truth_on_an_empty_scan(kitti, tmp_path, cli, b
 # --------------------------------------------------------------------------- outputs (items 3, 18)
 
 def test_gt_kitti_checks_its_output_before_any_work(kitti, tmp_path, read_only_dir, monkeypatch, cli):
-    from robodepth_cli.sources import kitti_raw
+    from robodepth_cli.groundtruth import kitti as kitti_raw
 
     root, split, _ = kitti
 
@@ -117,7 +117,7 @@ def test_gt_nyu_refuses_an_out_inside_a_build(fixtures_dir, tmp_path, cli):
 
 
 def test_gt_nyu_stopped_midway_leaves_nothing(tmp_path, monkeypatch, cli):
-    from robodepth_cli.sources import nyu_labeled
+    from robodepth_cli.groundtruth import nyu as nyu_labeled
 
     mat = tmp_path / "labeled.mat"
     write_labeled(mat)
@@ -159,7 +159,7 @@ def test_gt_nyu_refuses_a_non_empty_out(tmp_path, cli):
 
 def test_gt_kitti_reports_the_writing_step(kitti, tmp_path):
     """The maps are done before the file is compressed and written: a step of its own."""
-    from robodepth_cli.sources import kitti_raw
+    from robodepth_cli.groundtruth import kitti as kitti_raw
 
     root, split, lines = kitti
     out = tmp_path / "gt.npz"

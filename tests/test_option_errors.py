@@ -113,7 +113,7 @@ def test_a_bare_group_still_shows_its_help():
 def test_jobs_minus_one_and_auto_mean_one_per_cpu_everywhere(cli, monkeypatch, tmp_path, value):
     from robodepth_cli.errors import RobodepthError
     from robodepth_cli.evaluation import evaluate as E
-    from robodepth_cli.sources import kitti_raw
+    from robodepth_cli.groundtruth import kitti as kitti_raw
 
     monkeypatch.setattr(workers, "default_jobs", lambda: 7)
     seen = []

@@ -431,7 +431,7 @@ def _no_overlap(fig):
 def test_no_text_overlaps_in_any_figure(tmp_path, cli):
     """Labels of crowded scatters, radar axes, tick labels and legends: no two texts of a
     figure overlap (the figures of several models, and of one)."""
-    from robodepth_cli.evaluation import plot
+    from robodepth_cli.report import plot
     from robodepth_cli.report import write as W
 
     files = [evaluate_csv(tmp_path / f"m{i}.csv", "kitti-c", m)

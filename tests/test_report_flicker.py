@@ -124,7 +124,7 @@ def test_a_model_without_flicker_beside_one_with_it(tmp_path, two_models):
     pytest.importorskip("matplotlib")
     from matplotlib.colors import to_hex
 
-    from robodepth_cli.evaluation.plot import style
+    from robodepth_cli.report.plot import style
     from robodepth_cli.report import write as W
 
     plain = evaluate_csv(tmp_path / "plain.csv", "kitti-c", "CADepth")

@@ -46,7 +46,7 @@ def test_read_only_out_is_refused_first(tmp_path, cli, no_work, read_only_dir): 
 
 
 def _interrupt_at_third_figure(monkeypatch):
-    from robodepth_cli.evaluation import plot
+    from robodepth_cli.report import plot
 
     save, calls = plot.save, []
 

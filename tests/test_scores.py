@@ -15,7 +15,7 @@ from PIL import Image
 from robodepth_cli import benchmarks as B
 from robodepth_cli.evaluation import results as R, scores as S
 from robodepth_cli.corruptions import DATA, NAMES, SENSOR, WEATHER
-from robodepth_cli.evaluation.plot import COLOURS, Model, ce_figure, render
+from robodepth_cli.report.plot import COLOURS, Model, ce_figure, render
 
 KITTI = B.get_benchmark("kitti-c")
 NYU = B.get_benchmark("nyudepth2-c")

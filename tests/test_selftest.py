@@ -10,7 +10,8 @@ import shutil
 import numpy as np
 import pytest
 
-from robodepth_cli import lock, selftest
+from robodepth_cli import lock
+from robodepth_cli.selftest import check as selftest
 
 READ_REFERENCE = selftest.read_reference  # the real one, for the tampered copies
 

@@ -36,18 +36,12 @@ from ..benchmarks import TEMPORAL
 from ..files import data_dir
 from ..sources import splits
 from ..sources.datasets import get_dataset
-from ..sources.scenedepth import missing_depth
-from ..imageio import parse_size
-from ..errors import InvalidValueError, RobodepthError
-from ..values import int_from_text, is_int
+from .scenedepth import missing_depth
+from ..errors import InvalidValueError
+from .choices import (_CHECKS, _VARIANTS, ALL, NONE, ConfigError, check_train,  # noqa: F401
+                      choose_chains, choose_levels, choose_names, takes_frames)
 
 CONFIG_DIR = data_dir("configs")
-ALL = "all"
-NONE = "none"  # corruptions: none, e.g. to build only chains
-
-
-class ConfigError(RobodepthError):
-    """A configuration value that cannot be used; the message names its origin and key."""
 
 
 @dataclass(frozen=True)
@@ -115,113 +109,6 @@ def _loc(where: str, key: str) -> str:
     return where if where.startswith("--") else f"{where}: {key}"
 
 
-def _int(loc: str, v, minimum: int) -> int:
-    v = int_from_text(v)
-    if not is_int(v) or v < minimum:
-        raise ConfigError(f"{loc}: expected an integer >= {minimum}, got {v!r}")
-    return v
-
-
-def _names(loc: str, v) -> list:
-    """A list from a YAML list, ``all``, or comma-separated text; empty lists refused."""
-    if isinstance(v, str):
-        v = [s.strip() for s in v.split(",") if s.strip()]
-    elif is_int(v) or isinstance(v, float):
-        v = [v]
-    if not isinstance(v, list) or not v:
-        raise ConfigError(f"{loc}: expected a non-empty list or {ALL!r}, got {v!r}")
-    return v
-
-
-def choose_names(loc: str, v, valid: tuple[str, ...], noun: str, *, owner: str = "",
-                 known: tuple[str, ...] = (), extra: tuple[str, ...] = ()) -> tuple[str, ...]:
-    """The names ``v`` selects from ``valid`` (``all``, a list, or comma-separated text),
-    in the given order without repeats; :class:`ConfigError` naming ``loc`` otherwise.
-    A name in ``known`` but not in ``valid`` is refused as one that ``owner`` lacks.
-    Names in ``extra`` may be listed but ``all`` does not select them."""
-    if v == ALL:
-        return valid
-    v = _names(loc, v)
-    valid = valid + tuple(n for n in extra if n not in valid)
-    for name in v:
-        if name in valid:
-            continue
-        if name in known:
-            raise ConfigError(f"{loc}: {owner} has no {noun} {name!r}; valid: {', '.join(valid)}")
-        raise ConfigError(f"{loc}: unknown {noun} {name!r}; valid: {', '.join(valid)}")
-    return tuple(dict.fromkeys(v))
-
-
-def choose_levels(loc: str, v, valid: tuple[int, ...] | None, *, owner: str = "") -> tuple:
-    """The levels ``v`` selects (``all``, a number, a list, or comma-separated text),
-    sorted without repeats: integers, or decimals between them (``2.5``). ``all`` means
-    ``valid`` (the integer levels); any other level must lie in ``valid``'s span, else it is
-    refused naming ``owner`` (``valid`` None: 1..5). :class:`ConfigError` naming ``loc``."""
-    from ..benchmarks import N_LEVELS
-    from ..corruptions.severity import LevelError, parse_level
-
-    if v == ALL:
-        return tuple(valid or ())
-    top = valid[-1] if valid else N_LEVELS
-    try:
-        return tuple(sorted({parse_level(lv, top=top, what=loc, owner=owner) for lv in _names(loc, v)}))
-    except LevelError as exc:
-        raise ConfigError(str(exc)) from None
-
-
-def choose_chains(loc: str, v, top: int, names: tuple[str, ...], owner: str) -> tuple[str, ...]:
-    """The chains ``v`` lists (a YAML list, or comma-separated text), each checked: steps
-    among ``names`` (``owner``'s corruptions), levels within ``1..top``; as canonical texts
-    in the given order without repeats. ``none`` or an empty list: no chains.
-    :class:`ConfigError` naming ``loc``."""
-    from ..corruptions.chains import parse_chain
-
-    if v is None or v == NONE or v == []:
-        return ()
-    chains = [parse_chain(c, top=top, where=loc) for c in _names(loc, v)]
-    for c in chains:
-        for k, step in enumerate(c.steps, 1):
-            if step.name not in names:
-                raise ConfigError(f"{loc}: chain {c.text!r}: step {k}: {owner} has no corruption "
-                                  f"{step.name!r}; valid: {', '.join(names)}")
-    return tuple(dict.fromkeys(c.text for c in chains))
-
-
-def check_train(loc: str, v, ds) -> dict[str, Any]:
-    """The ``train`` mapping of a held-out protocol, checked: ``corruptions`` (names of
-    ``ds``), ``steps`` (an integer or ``[min, max]`` within 1..8) and ``severity``
-    (``[low, high]`` within the dataset's levels). A build records nothing of it;
-    :meth:`robodepth_cli.torch.RandomChain.from_protocol` draws from it."""
-    from ..corruptions.chains import MAX_STEPS
-    from ..corruptions.severity import LevelError, parse_level
-
-    if not isinstance(v, dict) or not v.get("corruptions"):
-        raise ConfigError(f"{loc}: expected a mapping with corruptions (and optionally steps, severity)")
-    unknown = sorted(set(v) - {"corruptions", "steps", "severity"})
-    if unknown:
-        raise ConfigError(f"{loc}: unknown key {unknown[0]!r}; valid: corruptions, steps, severity")
-    out: dict[str, Any] = {"corruptions": choose_names(f"{loc}: corruptions", v["corruptions"], ds.variant_names(),
-                                                        ds.variant_noun, owner=ds.name,
-                                                        known=ds.known_variant_names())}
-    steps = v.get("steps", [1, 3])
-    steps = [steps, steps] if is_int(steps) else steps
-    if (not isinstance(steps, list) or len(steps) != 2 or not all(is_int(s) for s in steps)
-            or not 1 <= steps[0] <= steps[1] <= MAX_STEPS):
-        raise ConfigError(f"{loc}: steps: expected an integer or [min, max] within 1..{MAX_STEPS}, got {steps!r}")
-    out["steps"] = steps
-    sev = v.get("severity", [1, ds.n_levels])
-    try:
-        if not isinstance(sev, list) or len(sev) != 2:
-            raise LevelError(f"expected [low, high], got {sev!r}")
-        sev = [parse_level(s, top=ds.n_levels, what="level", owner=ds.name) for s in sev]
-    except LevelError as exc:
-        raise ConfigError(f"{loc}: severity: {exc}") from None
-    if sev[0] > sev[1]:
-        raise ConfigError(f"{loc}: severity: low {sev[0]} above high {sev[1]}")
-    out["severity"] = sev
-    return out
-
-
 class _Resolver:
     """Applies layers of raw values onto the current configuration, checking each one."""
 
@@ -242,7 +129,7 @@ class _Resolver:
         """The config keys dataset ``ds`` takes (no ``levels`` for one without levels)."""
         return (tuple(k for k in cls.KEYS if k != "levels" or ds.leveled)
                 + (ds.variant_key,) + (("compose", "train") if ds.leveled else ())
-                + (("frames",) if ds.leveled and ds.split_format == "eigen" else ())
+                + (("frames",) if takes_frames(ds) else ())
                 + tuple(ds.options()) + cls.ONE_OF)
 
     def valid_keys(self) -> tuple[str, ...]:
@@ -299,87 +186,13 @@ class _Resolver:
         self.origin["dataset"] = where
 
     def _check(self, loc: str, key: str, v, base: Path):
+        """The checked value of ``key`` by its rule in :data:`_CHECKS` (a dataset's own
+        option by the dataset's); a value the rule refuses is a :class:`ConfigError` at ``loc``."""
         ds = self.dataset
-        if key == "split" and ds.discovers_sources and ds.splits:
-            if v not in dict(ds.splits):  # a preset's named subsets, e.g. weather sets
-                raise ConfigError(f"{loc}: {ds.name} has no split {v!r}; valid: "
-                                  f"{', '.join(dict(ds.splits))}")
-            return v
-        if key == "split":
-            if ds.discovers_sources:
-                raise ConfigError(f"{loc}: {ds.name} has no split: it builds the images found under "
-                                  f"--root (--pattern), or those of --list FILE")
-            try:
-                return splits.check_choice(v, ds.split_format, base, owner=ds.name)
-            except (InvalidValueError, splits.SplitError) as exc:  # SplitError: the records file
-                raise ConfigError(f"{loc}: {exc}") from None
-        if key == "size":
-            if v is None and ds.discovers_sources:
-                return None  # each image at its own size
-            if isinstance(v, list) and len(v) == 2 and all(is_int(s) for s in v):
-                v = f"{v[0]}x{v[1]}"
-            if not isinstance(v, str):
-                raise ConfigError(f"{loc}: expected HxW such as 192x640, or [H, W], got {v!r}")
-            try:
-                return parse_size(v)
-            except InvalidValueError as exc:
-                raise ConfigError(f"{loc}: {exc}") from None
-        if key == ds.variant_key and v == NONE and ds.leveled:
-            return ()  # only chains
-        if key == "compose":
-            return choose_chains(loc, v, ds.n_levels, ds.variant_names() + ds.depth_variant_names(), ds.name)
-        if key == "train":
-            return check_train(loc, v, ds)
-        if key == ds.variant_key:
-            # The corruptions over time are named, never part of 'all'; they need --frames.
-            over_time = TEMPORAL if "frames" in self.keys_of(ds) and v != ALL else ()
-            return choose_names(loc, v, ds.variant_names() + over_time, ds.variant_noun,
-                                owner=ds.name, known=ds.known_variant_names(),
-                                extra=ds.depth_variant_names())
-        if key == "levels":
-            # A dataset without levels accepts the key and ignores it.
-            return choose_levels(loc, v, ds.levels() if ds.leveled else None, owner=ds.name)
-        if key == "seed":
-            from ..seeding import check_seed
-
-            try:
-                return check_seed(v, loc)  # the rule of every command's seed
-            except RobodepthError as exc:
-                raise ConfigError(str(exc)) from None
-        if key == "jobs":
-            from ..workers import parse_jobs
-
-            try:
-                return parse_jobs(v)  # the rule of every command's --jobs
-            except RobodepthError as exc:
-                raise ConfigError(f"{loc}: {exc}") from None
-        if key == "limit":
-            return None if v is None else _int(loc, v, 1)
-        if key == "frames":
-            from .neighbours import check_frames
-
-            try:
-                return () if v is None else check_frames(v)
-            except InvalidValueError as exc:
-                raise ConfigError(f"{loc}: {exc}") from None
-        if key == "png":
-            from ..imageio import PNG_METHODS
-
-            if v is not None and v not in PNG_METHODS:
-                raise ConfigError(f"{loc}: expected one of {', '.join(PNG_METHODS)}, got {v!r}")
-            return v
-        if key == "scheduler":
-            if v is not None and (not isinstance(v, str) or not v.strip()):
-                raise ConfigError(f"{loc}: expected a Dask scheduler address such as "
-                                  f"tcp://head:8786, got {v!r}")
-            return v and v.strip()
-        if key == "scheduler_file":
-            if v is not None and (not isinstance(v, str) or not v):
-                raise ConfigError(f"{loc}: expected the path of a Dask scheduler file, got {v!r}")
-            return v and str((base / Path(v).expanduser()).resolve())
+        rule = _CHECKS.get(_VARIANTS if key == ds.variant_key else key)
         try:
-            return ds.check_option(key, v, base)
-        except InvalidValueError as exc:
+            return rule(loc, v, base, ds) if rule else ds.check_option(key, v, base)
+        except (InvalidValueError, splits.SplitError) as exc:  # SplitError: the records file
             raise ConfigError(f"{loc}: {exc}") from None
 
     def result(self) -> BuildConfig:
@@ -411,7 +224,7 @@ class _Resolver:
         if lacking:
             raise ConfigError(f"{_loc(self.origin[lacking[0]], lacking[0])}: {lacking[1]}")
         if "engine" in ds.options():  # the corruption datasets: which engine, on which device
-            from ..sources.engines import settle
+            from .renderers import settle
 
             try:
                 extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()})

@@ -88,3 +88,26 @@ class LocalExecutor:
 
     def describe(self) -> dict:
         return {"backend": "local", "workers": self.workers}
+
+
+def checked_executor(executor: Executor | None, jobs: int, n_tasks: int, root: Path, out: Path,
+                     files: Sequence[str], libraries: Sequence[str]) -> Executor:
+    """``executor``, or the local pool of ``jobs`` workers (never more than the ``n_tasks``
+    images), checked to see the root, OUT and the ``files`` the workers read."""
+    if executor is None:
+        executor = LocalExecutor(min(jobs, n_tasks))
+        _warn_above_cpus(executor.workers, jobs)
+    # A labeled .mat root: the workers must see the folder that holds it.
+    executor.check(root if root.is_dir() else root.parent, out, files, libraries)
+    return executor
+
+
+def _warn_above_cpus(workers: int, jobs: int) -> None:
+    import os
+    import sys
+
+    cpus = os.cpu_count() or 1
+    if workers > cpus:  # each worker holds its own images: past one per CPU, only contention
+        print(f"robodepth: warning: {workers} workers (--jobs {jobs}) on {cpus} CPU"
+              f"{'s' if cpus > 1 else ''}: the extra workers only add memory and contention "
+              f"(--jobs auto: one per CPU)", file=sys.stderr)

@@ -52,7 +52,7 @@ def labeled_sources(path: Path, split_path: Path, entries: list[Entry]) -> list[
     the file for ``SCENE/rgb_N``. A line whose frame is not in the file, or is of another
     scene, is that image's failure; a file that is not the labeled file is a
     :class:`BuildError`."""
-    from ..sources import nyu_labeled as gt_nyu
+    from ..groundtruth import nyu as gt_nyu
 
     try:
         labeled = gt_nyu.opened(path)

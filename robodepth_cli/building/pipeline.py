@@ -33,7 +33,6 @@ import functools
 import os
 import platform
 import shlex
-import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -41,20 +40,21 @@ from pathlib import Path
 from .. import __version__
 from ..errors import cannot_write
 from ..files import probe_writable
-from ..imageio import PNG_ENCODERS, TRANSPOSED, check_png
+from ..imageio import PNG_ENCODERS, check_png
 from ..output import manifest, record as build_record
 from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
 from ..output.record import BuildRecord, plan_entry
-from ..sources.datasets import Dataset, Renderer, get_dataset
-from ..sources.scenedepth import DEPTH
+from ..sources.datasets import Dataset, get_dataset
+from .renderers import Renderer, make_renderer as renderer_of
+from .scenedepth import DEPTH
 from . import checks as buildchecks
 from .checks import BuildError
 from .config import BuildConfig
-from .executors import Executor, ExecutorError, LocalExecutor
+from .executors import Executor, ExecutorError, checked_executor
 from .gather import check_root, gather_sources, orientation_record
 from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, for_source,
-                    run_task, split_stamp)
+                    run_task, same_source, split_stamp)
 
 MAX_ERRORS_SHOWN = 10
 
@@ -142,6 +142,17 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
+def _upright_note(sources) -> list[str]:
+    """The summary's note on sources turned upright by their EXIF orientation, if any."""
+    turned = sum(1 for s in sources if s.orientation != 1)
+    if not turned:
+        return []
+    return [f"{turned} source image{'s' if turned > 1 else ''} turned upright "
+            f"by {'their' if turned > 1 else 'its'} EXIF orientation, as "
+            f"viewers show {'them' if turned > 1 else 'it'} (listed in "
+            f"{RECORD}: exif_orientation)"]
+
+
 # --- the build, step by step (main process) ------------------------------------------------
 
 def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
@@ -176,11 +187,8 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         reorient = (ds.discovers_sources and previous is not None
                     and previous.exif_orientation is None)
         tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer, reorient=reorient)
-        if executor is None:
-            executor = LocalExecutor(min(cfg.jobs, len(tasks)))  # never more workers than images
-            _warn_above_cpus(executor.workers, cfg.jobs)
-        # A labeled .mat root: the workers must see the folder that holds it.
-        executor.check(root if root.is_dir() else root.parent, out, worker_files(cfg), ds.libraries())
+        executor = checked_executor(executor, cfg.jobs, len(tasks), root, out, worker_files(cfg),
+                                    ds.libraries())
         if any(e is None for t in tasks for e in t.expected):
             # Work to do: let the renderer get ready once here rather than in every worker
             # (KITTI-S computes its style statistics); a rerun with nothing to do skips it.
@@ -196,12 +204,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1, png=png)
         summary = run_tasks(tasks, ctx, executor, out, progress)
-        turned = sum(1 for s in sources if s.orientation != 1)
-        if turned:
-            summary.notes.append(f"{turned} source image{'s' if turned > 1 else ''} turned upright "
-                                 f"by {'their' if turned > 1 else 'its'} EXIF orientation, as "
-                                 f"viewers show {'them' if turned > 1 else 'it'} (listed in "
-                                 f"{RECORD}: exif_orientation)")
+        summary.notes += _upright_note(sources)
         if gt and not (summary.interrupted or summary.fatal):
             add_ground_truth(ds, cfg, root, split.get("path"), sources, len(keys), out, summary,
                              progress, rerun=shlex.join(command) if command else None)
@@ -209,19 +212,11 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     return summary
 
 
-def _warn_above_cpus(workers: int, jobs: int) -> None:
-    cpus = os.cpu_count() or 1
-    if workers > cpus:  # each worker holds its own images: past one per CPU, only contention
-        print(f"robodepth: warning: {workers} workers (--jobs {jobs}) on {cpus} CPU"
-              f"{'s' if cpus > 1 else ''}: the extra workers only add memory and contention "
-              f"(--jobs auto: one per CPU)", file=sys.stderr)
-
-
 def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None, sources=()) -> Renderer:
     """The renderer, with the depth source a variant needs; it may refuse files (KITTI-S's), so before OUT."""
-    from ..sources.scenedepth import depth_for
+    from .scenedepth import depth_for
 
-    return ds.renderer(cfg, depth_for(ds, cfg, root, split_path, sources))
+    return renderer_of(ds, cfg, depth_for(ds, cfg, root, split_path, sources))
 
 
 def prepare_out(out: Path) -> Path:
@@ -274,7 +269,7 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
             params, stamp = split_stamp(r.params) if r is not None else ("", "")
             # A source that has gone missing does not spoil the outputs already made from it.
             same = (r is not None and not r.error
-                    and ((r.source == src.rel and _same_source(r, src)) or bool(src.error))
+                    and ((r.source == src.rel and same_source(r, src)) or bool(src.error))
                     and r.seed == cfg.seed and (r.height, r.width) == size
                     and params == for_source(fingerprints[job.variant], src, job)
                     and bool(stamp) == keyed[job.variant])  # a depth-aware row names its depth
@@ -305,25 +300,9 @@ def native_size(src: Source) -> tuple[int, int] | None:
     will say why)."""
     if src.error or not src.path:
         return None
-    from PIL import Image
+    from ..imageio import stored_size
 
-    try:
-        with Image.open(src.path) as im:
-            return (im.width, im.height) if src.orientation in TRANSPOSED else (im.height, im.width)
-    except Exception:  # anything unreadable fails in its task, with the reason
-        return None
-
-
-def _same_source(row: Row, src: Source) -> bool:
-    """Whether ``row`` was made from the source as it is now, as far as its size and time
-    tell: a different size always means a change; with a recorded hash (compared by the
-    worker) the time does not matter, so a copied root is not rebuilt; without one, a
-    different time counts as a change. Rows written before sources were recorded pass."""
-    if row.source_size is None:
-        return True
-    if row.source_size != src.size:
-        return False
-    return bool(row.source_sha256) or row.source_mtime == src.mtime
+    return stored_size(src.path, src.orientation)
 
 
 def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: dict,
@@ -396,10 +375,10 @@ def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str 
                      sources: list[Source], frames: int, out: Path, summary: Summary,
                      progress: bool, rerun: str | None = None) -> None:
     """Write the ground truth of the first ``frames`` split entries (those in ``out``), or of
-    the ``sources`` of a build with depth (:mod:`robodepth_cli.building.groundtruth`), as
+    the ``sources`` of a build with depth (:mod:`robodepth_cli.groundtruth.write`), as
     manifest rows counted in ``summary``; when it cannot be made at all, only a note
     (naming ``rerun``, the command that adds it once the files are there)."""
-    from . import groundtruth as build_gt
+    from ..groundtruth import write as build_gt
 
     plan = build_gt.plan_for(ds, cfg, root, split_path, sources, frames, rerun)
     if plan is None:
@@ -423,12 +402,7 @@ def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str 
         summary.fatal = cannot_write(out / MANIFEST, exc)
     finally:
         if plan.implausible:
-            summary.notes.append(
-                f"warning: {len(plan.implausible)} depth map(s) have a median depth above "
-                f"{build_gt.PLAUSIBLE_MEDIAN_M:g} m, no plausible distance in metres "
-                f"({', '.join(plan.implausible[:2])}{', ...' if len(plan.implausible) > 2 else ''}): "
-                "are they in another unit? The evaluation leaves out images without a valid pixel "
-                "in its depth range")
+            summary.notes.append(plan.unit_warning())
 
 
 def finish(out: Path, record: BuildRecord, summary: Summary) -> None:

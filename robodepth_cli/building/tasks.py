@@ -17,8 +17,9 @@ from ..errors import RobodepthError, cannot_write, os_reason
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
 from ..output.manifest import Journal, Row
-from ..sources.datasets import CLEAN, Entry, Job, Renderer, locate
-from ..sources.scenedepth import DEPTH
+from ..sources.datasets import CLEAN, Entry, Job, locate
+from .renderers import Renderer
+from .scenedepth import DEPTH
 
 PNG_COMPRESS_LEVEL = 1  # zlib level: pixels are identical at any level; 1 is the fastest
 
@@ -109,12 +110,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     out = Path(ctx.out)
     src = task.source
     hw = list(task.size or ctx.size or (0, 0))  # the decoded image's own, once decoded
-    # A frame inside a container (NYU's labeled .mat) is not hashed: that would read the
-    # whole multi-GB file for every image.
-    source_sha = (_sha_or_none(Path(src.path)) or "") if src.path and src.frame is None else ""
-    expected = task.expected
-    if task.source_sha256 and source_sha and source_sha != task.source_sha256:
-        expected = (None,) * len(task.jobs)  # the source's bytes changed: redo everything
+    source_sha, expected = _source_hash(task)
     expected, stamp = _depth_checked(task, ctx.renderer, expected)
 
     def row(job: Job, sha: str = "", error: str = "") -> Row:
@@ -167,6 +163,18 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
             except OSError:
                 pass  # only a safety net: the row still reaches the manifest with the task
     return results
+
+
+def _source_hash(task: Task) -> tuple[str, tuple]:
+    """The source's sha256 ("" when not hashed) and the outputs' recorded hashes that still
+    stand: none of them when the source's bytes changed (everything is redone)."""
+    src = task.source
+    # A frame inside a container (NYU's labeled .mat) is not hashed: that would read the
+    # whole multi-GB file for every image.
+    source_sha = (_sha_or_none(Path(src.path)) or "") if src.path and src.frame is None else ""
+    if task.source_sha256 and source_sha and source_sha != task.source_sha256:
+        return source_sha, (None,) * len(task.jobs)
+    return source_sha, task.expected
 
 
 _configured = False
@@ -259,7 +267,7 @@ def load_source(src: Source, size: tuple[int, int] | None):
         return None, src.error
     try:
         if src.frame is not None:
-            from ..sources.nyu_labeled import source_image
+            from ..groundtruth.nyu import source_image
 
             return resize_lanczos(source_image(src.path, src.frame), size), ""
         return load_clean(src.path, size, orient=src.orientation != 1), ""
@@ -294,3 +302,15 @@ def _sha_or_none(path: Path) -> str | None:
         return sha256_file(path)
     except OSError:
         return None
+
+
+def same_source(row: Row, src: Source) -> bool:
+    """Whether ``row`` was made from the source as it is now, as far as its size and time
+    tell: a different size always means a change; with a recorded hash (compared by the
+    worker) the time does not matter, so a copied root is not rebuilt; without one, a
+    different time counts as a change. Rows written before sources were recorded pass."""
+    if row.source_size is None:
+        return True
+    if row.source_size != src.size:
+        return False
+    return bool(row.source_sha256) or row.source_mtime == src.mtime

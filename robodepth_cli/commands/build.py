@@ -130,6 +130,12 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
     except KeyboardInterrupt:  # before or after the images (the build itself handles its own)
         click.echo(interrupted, err=True)
         sys.exit(130)
+    _exit(cfg, summary, interrupted)
+
+
+def _exit(cfg, summary, interrupted: str) -> None:
+    """The build's summary line, then its exit status: 130 interrupted, 2 stopped by a
+    write error, 1 some images failed, 0 (returning) all done."""
     click.echo(f"{cfg.preset}: {summary.text()}", err=True)
     if summary.interrupted:
         click.echo(interrupted, err=True)
@@ -177,6 +183,7 @@ def verify_command(out, against, progress):
     there right now).
     """
     from ..export.reader import is_export
+    from ..building.checks import planned_outputs
     from ..output.verify import verify
     from ..progress import bar as progress_bar
 
@@ -193,7 +200,8 @@ def verify_command(out, against, progress):
             report = verify_export(out, progress=bar.update)
         else:
             # The total is known once the manifest is read; reset() also restarts the clock.
-            report = verify(out, progress=bar.update, on_total=lambda n: bar.reset(total=n))
+            report = verify(out, planned_outputs=planned_outputs, progress=bar.update,
+                            on_total=lambda n: bar.reset(total=n))
     if report.incomplete():
         click.echo(report.incomplete())
     if report.versions_note:

@@ -261,3 +261,62 @@ def evaluation_options(command):
     for option in reversed(options):  # as if stacked in this order above the command
         command = option(command)
     return command
+
+
+def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: bool) -> None:
+    """Print an evaluation written to ``out`` as ``text``: its table (or JSON), the warnings
+    it calls for, and with ``bench`` the robustness scores, as ``robodepth score`` prints them."""
+    import json
+
+    from ..evaluation import results as R, scores as S
+    from ..evaluation.protocols import STEREO_SCALE
+
+    if result.setup.stereo and result.setup.kind == "depth":
+        click.echo(f"robodepth: warning: --stereo multiplied every depth by {STEREO_SCALE}: right "
+                   "for a stereo model's depths in monodepth2's units (1 / its disparity), wrong "
+                   f"for depths in metres ({STEREO_SCALE} times too far; drop --stereo)", err=True)
+    if result.missing:
+        click.echo(f"robodepth: warning: no predictions for {len(result.missing)} variants; "
+                   "evaluated the rest", err=True)
+    if result.left_out:
+        n, reasons = len(result.left_out), list(result.left_out.items())[:2]
+        click.echo(f"robodepth: left out {n} of {result.images} images without usable ground truth ("
+                   + "; ".join(f"{k}: {why}" for k, why in reasons) + ("; ..." if n > 2 else "")
+                   + ")", err=True)
+    implausible = _implausible_clean(result) if bench is not None else ""
+    scored = None
+    if bench is not None and not implausible:
+        res = R.parse_results(text, str(out), bench)
+        missing = R.missing_message(res, bench)
+        if missing:
+            click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
+        scored = S.score(res, bench, allow_partial=True)
+    if as_json:
+        doc = {**result.to_json(), "csv": str(out)}
+        if scored is not None:
+            doc["scores"] = scored.to_json()
+        click.echo(json.dumps(doc, indent=2, allow_nan=False))
+    else:
+        click.echo(result.summary(), nl=False)
+    wrote(f"{out} (replaced)" if replacing else out)
+    if implausible:
+        raise RobodepthError(implausible)
+    if scored is not None and not as_json:
+        click.echo()
+        click.echo(S.format_table(scored), nl=False)
+
+
+def _implausible_clean(result) -> str:
+    """Why the clean DEE cannot be scored (at least 1: every rate divides by 1 - DEE), as
+    a wrong --kind, --stereo or --png-scale gives it; "" when it is plausible."""
+    from ..benchmarks import CLEAN
+    from ..evaluation.results import dee
+
+    for r in result.results:
+        if r.variant.name == CLEAN:
+            value = dee(r.metrics["abs_rel"], r.metrics["a1"])
+            if value >= 1:
+                return (f"clean DEE {value:.3f} is implausible (at least 1, with "
+                        f"{result.setup.describe()}); check --kind, --stereo and --png-scale; "
+                        "the metrics above are written, not scored")
+    return ""

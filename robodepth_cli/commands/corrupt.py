@@ -107,7 +107,7 @@ def _depth(path: str | None, scale: float | None, variants: list[str], clean: np
     """The depth map of ``--depth`` (None without it), checked against the image; a
     depth-aware corruption without one is refused before any work."""
     from ..corruptions import needs_depth
-    from ..corruptions._depth import DepthError, scene_depth
+    from ..corruptions.depth import DepthError, scene_depth
     from ..sources.depthfile import read_depth
 
     if path is None:

@@ -75,6 +75,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     from ..progress import bar as progress_bar
 
     from ..evaluation import evaluate as E
+    from ..evaluation.setup import evaluation_setup, scored_benchmark
     from ..workers import default_jobs
     from ..api import open_dataset
     from ..files import check_writable
@@ -90,8 +91,10 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     dataset = open_dataset(dataset_dir, warn=False)
     if dataset.failed:
         click.echo(f"robodepth: warning: {dataset.incomplete()}", err=True)
-    setup = evaluation_setup(dataset.name, _recorded(pred), pred / "predictions.json", protocol,
-                             kind, stereo, png_scale, align, align_space, crop, min_depth, max_depth)
+    setup, taken = evaluation_setup(dataset.name, _recorded(pred), protocol, kind, stereo, png_scale,
+                                    align, align_space, crop, min_depth, max_depth)
+    if taken:
+        click.echo(f"robodepth: from {pred / 'predictions.json'}: {', '.join(taken)}", err=True)
     bench = scored_benchmark(dataset.name, dataset.variants()) if with_score else None
     with progress_bar("img", progress=progress) as bar:
         def set_total(n):
@@ -104,109 +107,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
                             jobs=jobs or default_jobs(), flicker=flicker)
     text = result.csv_text()
     E.write_results(out, _own_depth_lines(dataset, pred) + text)
-    show_results(result, text, out, bench, as_json, replacing)
-
-
-def evaluation_setup(dataset: str, recorded: dict, record_path, protocol, kind, stereo, png_scale,
-                     align, align_space, crop, min_depth, max_depth):
-    """The evaluation's :class:`~robodepth_cli.evaluation.protocols.Setup` from the flags,
-    with the ``kind``, ``align`` and ``align_space`` the model's record gives (``recorded``:
-    its ``evaluate`` entry; ``record_path``: where that came from, said when used unless
-    None) for those not given."""
-    from ..evaluation.protocols import make_setup
-
-    given = {"kind": kind, "align": align, "align_space": align_space}
-    kind = kind or recorded.get("kind")
-    if not stereo:  # stereo's fixed 5.4 replaces any recorded alignment
-        align = align or recorded.get("align")
-        align_space = align_space or recorded.get("align_space")
-    taken = [f"{k} {v}" for k, v in (("kind", kind), ("align", align), ("align_space", align_space))
-             if given[k] is None and v is not None and v == recorded.get(k)]
-    if taken and record_path is not None:
-        click.echo(f"robodepth: from {record_path}: {', '.join(taken)}", err=True)
-    from ..sources.datasets import get_dataset
-
-    # A zero-shot set's own crop and depth range (custom builds: no crop) unless flags say.
-    own = dict(get_dataset(dataset).evaluation)
-    return make_setup(protocol or ("nyu" if dataset == "nyudepth2-c" else "kitti"),
-                      kind, stereo, png_scale, align=align, align_space=align_space,
-                      crop=crop or own.get("crop"),
-                      min_depth=own.get("min_depth") if min_depth is None else min_depth,
-                      max_depth=own.get("max_depth") if max_depth is None else max_depth)
-
-
-def scored_benchmark(dataset: str, variants):
-    """The benchmark whose scores ``--score`` prints for ``dataset`` (its ``variants``: what
-    an unpublished one scores); refused for one without."""
-    from .. import benchmarks as B
-
-    if dataset in B.UNPUBLISHED:  # DEE and RR; CE needs robodepth score --baseline
-        built = [v for v in variants if v.level is not None and v.level == int(v.level)]
-        return B.unpublished(dataset, tuple(v.name for v in built), 1,
-                             levels=[int(v.level) for v in built if v.name in B.CORRUPTIONS])
-    if dataset not in B.BENCHMARKS:
-        raise RobodepthError(f"--score: {dataset} has no robustness scores (they exist "
-                             f"for {', '.join((*B.BENCHMARKS, *B.UNPUBLISHED))})")
-    return B.get_benchmark(dataset)
-
-
-def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: bool) -> None:
-    """Print an evaluation written to ``out`` as ``text``: its table (or JSON), the warnings
-    it calls for, and with ``bench`` the robustness scores, as ``robodepth score`` prints them."""
-    import json
-
-    from ..evaluation import results as R, scores as S
-    from ..evaluation.protocols import STEREO_SCALE
-
-    if result.setup.stereo and result.setup.kind == "depth":
-        click.echo(f"robodepth: warning: --stereo multiplied every depth by {STEREO_SCALE}: right "
-                   "for a stereo model's depths in monodepth2's units (1 / its disparity), wrong "
-                   f"for depths in metres ({STEREO_SCALE} times too far; drop --stereo)", err=True)
-    if result.missing:
-        click.echo(f"robodepth: warning: no predictions for {len(result.missing)} variants; "
-                   "evaluated the rest", err=True)
-    if result.left_out:
-        n, reasons = len(result.left_out), list(result.left_out.items())[:2]
-        click.echo(f"robodepth: left out {n} of {result.images} images without usable ground truth ("
-                   + "; ".join(f"{k}: {why}" for k, why in reasons) + ("; ..." if n > 2 else "")
-                   + ")", err=True)
-    implausible = _implausible_clean(result) if bench is not None else ""
-    scored = None
-    if bench is not None and not implausible:
-        res = R.parse_results(text, str(out), bench)
-        missing = R.missing_message(res, bench)
-        if missing:
-            click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
-        scored = S.score(res, bench, allow_partial=True)
-    if as_json:
-        doc = {**result.to_json(), "csv": str(out)}
-        if scored is not None:
-            doc["scores"] = scored.to_json()
-        click.echo(json.dumps(doc, indent=2, allow_nan=False))
-    else:
-        click.echo(result.summary(), nl=False)
-    common.wrote(f"{out} (replaced)" if replacing else out)
-    if implausible:
-        raise RobodepthError(implausible)
-    if scored is not None and not as_json:
-        click.echo()
-        click.echo(S.format_table(scored), nl=False)
-
-
-def _implausible_clean(result) -> str:
-    """Why the clean DEE cannot be scored (at least 1: every rate divides by 1 - DEE), as
-    a wrong --kind, --stereo or --png-scale gives it; "" when it is plausible."""
-    from ..benchmarks import CLEAN
-    from ..evaluation.results import dee
-
-    for r in result.results:
-        if r.variant.name == CLEAN:
-            value = dee(r.metrics["abs_rel"], r.metrics["a1"])
-            if value >= 1:
-                return (f"clean DEE {value:.3f} is implausible (at least 1, with "
-                        f"{result.setup.describe()}); check --kind, --stereo and --png-scale; "
-                        "the metrics above are written, not scored")
-    return ""
+    common.show_results(result, text, out, bench, as_json, replacing)
 
 
 def _own_depth_lines(dataset, pred: Path) -> str:
@@ -219,7 +120,7 @@ def _own_depth_lines(dataset, pred: Path) -> str:
 
 def _record(pred: Path) -> dict | None:
     """``PRED/predictions.json`` when robodepth predict wrote PRED; None otherwise."""
-    from ..models.predict import read_record
+    from ..predictions import read_record
 
     return read_record(pred) if pred.is_dir() else None
 

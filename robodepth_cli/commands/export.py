@@ -42,6 +42,7 @@ def export_command(out, fmt, to, shard_size, progress):
       robodepth export KITTI_C --format webdataset --to KITTI_C_WDS --shard-size 1GB
     """
     from .. import __version__
+    from ..api import open_dataset
     from ..export.plan import parse_size
     from ..export.run import export
     from .common import on_interrupt
@@ -51,7 +52,8 @@ def export_command(out, fmt, to, shard_size, progress):
     except InvalidValueError as exc:
         raise RobodepthError(f"--shard-size {exc}") from None
     on_interrupt(f"finished shards are kept in {to}; rerun the command to resume")
-    summary = export(out, to, fmt, size, progress=progress, version=__version__)
+    summary = export(out, to, fmt, size, open_dataset=open_dataset, progress=progress,
+                     version=__version__)
     ratio = summary.size / summary.source_size if summary.source_size else 1.0
     click.echo(f"{to}: {summary.rows} rows in {summary.shards} {fmt} shards "
                f"({summary.written} written now), {summary.size / 1e6:.1f} MB "

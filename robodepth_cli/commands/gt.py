@@ -76,7 +76,7 @@ def gt_kitti_command(root, split, out, jobs, progress):
     benchmark's evaluation scripts do. The file appears only when every map is made.
     """
     from ..files import check_writable
-    from ..sources import kitti_raw as gt_kitti
+    from ..groundtruth import kitti as gt_kitti
 
     if not root.is_dir():
         raise RobodepthError(f"--root {root}: not a directory (the KITTI raw root)")
@@ -114,7 +114,7 @@ def gt_nyu_command(root, split, out, progress):
     (index, scene) before anything is written.
     """
     from ..files import check_writable
-    from ..sources import nyu_labeled as gt_nyu
+    from ..groundtruth import nyu as gt_nyu
 
     if not root.exists():
         raise RobodepthError(f"--root {root}: no such file or directory")

@@ -86,11 +86,11 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     if len(preds) > len(results):
         raise RobodepthError(f"--pred given {len(preds)} times for {len(results)} results files; "
                              "give it at most once per file, in the same order")
-    from ..evaluation.plot import _mpl
+    from ..report.plot import load_matplotlib
     from ..report.qualitative import check_kinds
 
     check_kinds(kinds, preds)
-    _mpl()  # refuse before anything is created when matplotlib is missing
+    load_matplotlib()  # refuse before anything is created when matplotlib is missing
     W.check_writable(out)
     report = W.assemble(list(results), list(names), benchmark, context, dataset, on=on,
                         pairs=pairs, baseline=baseline, metric=metric, n_boot=n_boot, seed=seed,
@@ -102,16 +102,26 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
         if m.own_depth:
             click.echo(f"robodepth: warning: {m.own_depth}", err=True)
     if preds:
-        from ..report.qualitative import qualitative
-
-        figure, guessed = qualitative(report, dataset, list(preds), frame, kinds)
-        report.figures.append(figure)
-        for pred, kind in guessed:
-            click.echo(f"robodepth: warning: --pred {pred}: no predictions.json says what it holds; "
-                       f"drawn as {kind} (the {report.benchmark} default); give --kind if wrong",
-                       err=True)
+        _add_qualitative(report, dataset, preds, frame, kinds)
     written = W.write(report, out, progress=say,
                       published=lambda: common.on_interrupt(f"the report was written to {out}"))
+    _say_written(report, written, out)
+
+
+def _add_qualitative(report, dataset, preds, frame, kinds) -> None:
+    """The one-frame figure of ``--pred``; a warning for each folder drawn by a guess."""
+    from ..report.qualitative import qualitative
+
+    figure, guessed = qualitative(report, dataset, list(preds), frame, kinds)
+    report.figures.append(figure)
+    for pred, kind in guessed:
+        click.echo(f"robodepth: warning: --pred {pred}: no predictions.json says what it holds; "
+                   f"drawn as {kind} (the {report.benchmark} default); give --kind if wrong",
+                   err=True)
+
+
+def _say_written(report, written, out: Path) -> None:
+    """The closing line: what was written where, and the earlier figures removed."""
     models = ", ".join(dict.fromkeys(m.name for m in report.entries or report.models))
     where = report.benchmark
     if report.entries:

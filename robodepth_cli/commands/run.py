@@ -67,52 +67,17 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
       robodepth run kitti-c --root KITTI_RAW -m monodepth2:M --corruptions fog --levels 3 \\
           --limit 50 --keep-predictions PRED --out fog.csv
     """
-    from ..building.config import resolve
-    from ..evaluation import evaluate as E
-    from ..files import check_writable
-    from ..models import load_model
-    from ..models.predict import BATCH_PIXELS, batch_limit
-    from ..progress import bar as progress_bar
-    from ..running import inputs as I, loop
-    from ..running.state import RunState
-    from .evaluate import evaluation_setup, scored_benchmark, show_results
+    from ..running.session import run
 
-    check_writable(out, "--out")
-    if keep_predictions is not None:
-        check_writable(keep_predictions / "predictions.json", "--keep-predictions")
-    cfg = resolve(dataset, config_file, {**flags, **I.engine_flags(engine, device)})
-    inputs = I.gather(cfg, root, out)
-    bench = scored_benchmark(cfg.dataset, [v for v, _ in inputs.variants])
-    model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
-    setup = evaluation_setup(cfg.dataset, model.record()["evaluate"], None, None, kind, stereo,
-                             None, align, align_space, crop, min_depth, max_depth)
-    renderer = I.renderer(inputs)
-    step = batch_limit(batch_size, cfg.size, model.input_size)
-    if step < batch_size:
-        click.echo(f"robodepth: --batch-size {batch_size}: {step} images per batch (a batch "
-                   f"holds at most {BATCH_PIXELS:,} pixels)", err=True)
-    state = RunState.open(out, loop.settings(inputs, model, setup, step, engine))
-    state.check_writable()
-    if state.note:
-        click.echo(f"robodepth: {state.note}", err=True)
-    with progress_bar("img", len(inputs.sources), progress=progress, desc="decoding") as bar:
-        cleans = I.decode(inputs, bar.update)
-    truth = I.ground_truth(inputs, setup)
-    common.on_interrupt(f"the finished variants are kept in {state.path}; rerun the same "
-                        "command to continue")
-    with progress_bar("img", progress=progress, desc="run") as bar:
-        def set_total(n):
-            bar.reset(total=n)
+    def on_state(path):
+        common.on_interrupt(f"the finished variants are kept in {path}; rerun the same "
+                            "command to continue")
 
-        result, earlier = loop.run(inputs, cleans, renderer, model, truth, setup, state,
-                                   batch_size=batch_size, keep=keep_predictions,
-                                   progress=bar.update, on_total=set_total)
-    if earlier:
-        click.echo(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
-                   f"{state.path} (finished by an earlier run)", err=True)
-    replacing = out.exists()
-    text = result.csv_text()
-    E.write_results(out, text)
-    state.remove()
-    show_results(result, text, out, bench, as_json, replacing)
-
+    evaluation = dict(stereo=stereo, align=align, align_space=align_space, crop=crop,
+                      min_depth=min_depth, max_depth=max_depth)
+    result, text, bench, replacing = run(
+        dataset, root, out, config_file, flags, spec=spec, engine=engine, batch_size=batch_size,
+        device=device, post_process=post_process, kind=kind, metric=metric, evaluation=evaluation,
+        keep=keep_predictions, progress=progress, note=lambda line: click.echo(line, err=True),
+        on_state=on_state)
+    common.show_results(result, text, out, bench, as_json, replacing)

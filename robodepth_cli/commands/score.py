@@ -39,28 +39,15 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
       robodepth score monovit.csv --plot ce.png
       robodepth score monovit.csv --benchmark kitti-c --json
     """
-    import json
-
-    from .. import benchmarks as B
     from ..evaluation import results as R, scores as S
 
     plot_file = None
     if plot_path is not None:
-        from ..evaluation.plot import _mpl
+        from ..report.plot import load_matplotlib
 
         plot_file = common.figure_output(plot_path, f"{results.stem}_ce.png", "--plot")
-        _mpl()  # refuse before scoring when matplotlib is missing
-    if benchmark is None:
-        from ..report.inputs import style_names
-
-        benchmark = R.infer_benchmark(results, style_names())
-        if benchmark not in B.BENCHMARKS:
-            raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
-                                 "robodepth report shows their DEE per style and mDEE")
-    if benchmark in UNPUBLISHED:
-        bench = _unpublished(benchmark, R.read_results(results, B.unpublished(benchmark)))
-    else:
-        bench = B.get_benchmark(benchmark)
+        load_matplotlib()  # refuse before scoring when matplotlib is missing
+    bench = _benchmark(results, benchmark)
     res = R.read_results(results, bench)
     _warn_own_depth(results)
     base = None
@@ -75,14 +62,41 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
     if plot_file is not None and result.note:
         raise RobodepthError(f"--plot: {results}: {result.note} (no CE to draw)")
     if plot_file is not None:
-        from ..evaluation.plot import Model, ce_figure, render
+        from ..report.plot import Model, ce_figure, render
 
         fig = ce_figure([Model(results.stem, result)], bench.name)
         common.write_bytes(plot_file, render(fig, plot_file.suffix.lower().lstrip(".")))
         common.wrote(plot_file)
+    _show(results, result, as_json)
+
+
+def _benchmark(results, benchmark: str | None):
+    """The benchmark the results are scored on: ``--benchmark``, or the one their rows
+    name; KITTI-S results are refused (no CE or RR)."""
+    from .. import benchmarks as B
+    from ..evaluation import results as R
+
+    if benchmark is None:
+        from ..report.inputs import style_names
+
+        benchmark = R.infer_benchmark(results, style_names())
+        if benchmark not in B.BENCHMARKS:
+            raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
+                                 "robodepth report shows their DEE per style and mDEE")
+    if benchmark in UNPUBLISHED:
+        return _unpublished(benchmark, R.read_results(results, B.unpublished(benchmark)))
+    return B.get_benchmark(benchmark)
+
+
+def _show(results, result, as_json: bool) -> None:
+    """The scores as a table (or JSON), with the flicker when the CSV has evaluate
+    --flicker's columns."""
+    import json
+
+    from ..evaluation import scores as S
     from ..evaluation.flicker import format_flicker, read_flicker
 
-    flicker = read_flicker(results)  # evaluate --flicker's columns, when the CSV has them
+    flicker = read_flicker(results)
     if as_json:
         click.echo(json.dumps({**result.to_json(), **({"flicker": flicker} if flicker else {})},
                               indent=2, allow_nan=False))

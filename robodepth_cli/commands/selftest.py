@@ -31,7 +31,7 @@ def selftest_command():
     from pathlib import Path
 
     from ..errors import RobodepthError
-    from ..selftest import OPTIONAL, read_reference, run
+    from ..selftest.check import OPTIONAL, read_reference, run
 
     ref = read_reference()
     start = time.monotonic()

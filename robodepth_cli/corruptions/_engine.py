@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import InvalidValueError
 from ..imageio import as_rgb
-from ._depth import DepthError, scene_depth
+from .depth import DepthError, scene_depth
 from .registry import Corruption, registry
 from .chains import Chain, expand_chain, looks_like_chain, parse_chain
 from .severity import parse_level
@@ -118,6 +118,15 @@ def needs_depth(variant: str) -> bool:
     steps lack levels) has a depth-aware step."""
     names = expand_chain(variant, (1,))[0].names if looks_like_chain(variant) else (variant,)
     return any(get(n).needs_depth for n in names)
+
+
+def depth_aware_variant(name: str) -> bool:
+    """Whether the variant ``name`` (a corruption, a chain; clean or a style: no) is made
+    from the scene's depth."""
+    try:
+        return needs_depth(name)
+    except InvalidValueError:  # clean, a style
+        return False
 
 
 def _depth_for(image: np.ndarray, depth, steps, what: str = ""):

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ._depth import round_to_uint8
+from .depth import round_to_uint8
 from .registry import register
 from .severity import interpolate
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._depth import round_to_uint8
+from .depth import round_to_uint8
 from ._lens import lens_blur
 from .registry import register
 from .severity import interpolate

@@ -26,6 +26,7 @@ import numbers
 from typing import NamedTuple, Sequence
 
 from ..errors import RobodepthError
+from ..keys import level_text
 
 LINEAR, ROUND, NEAREST, BLEND = "linear", "round", "nearest", "blend"
 RULES = (LINEAR, ROUND, NEAREST, BLEND)
@@ -66,14 +67,6 @@ def parse_level(value, *, top: int, what: str = "level", owner: str = "", bottom
         shown = raw.strip() if isinstance(raw, str) else level_text(v) if math.isfinite(v) else raw
         raise LevelError(f"{what}: level {shown} is out of range{of}; valid levels: {bottom}..{top}")
     return int(v) if v == int(v) else v
-
-
-def level_text(level) -> str:
-    """The canonical text of a level: ``3`` for an integer level (as every name, seed and
-    manifest row has always written it), the shortest round-trip decimal otherwise
-    (``2.5``, ``1.25``). It names directories and keys random streams."""
-    v = float(level)
-    return str(int(v)) if v == int(v) else repr(v)
 
 
 def bracket(level) -> tuple[int, float]:

@@ -1,4 +1,6 @@
-"""How a model is judged: the metric protocols (:mod:`.protocols`), the ground truth
-(:mod:`.groundtruth`), the model's predictions (:mod:`.predictions`), the driver behind
-``robodepth evaluate`` (:mod:`.evaluate`), the robustness scores (:mod:`.scores`) and their
-chart (:mod:`.plot`)."""
+"""How a model is judged, with numpy alone: the metric protocols (:mod:`.protocols`), the
+setup taken from the dataset and the flags (:mod:`.setup`), the driver behind ``robodepth
+evaluate`` (:mod:`.evaluate`), the results CSV (:mod:`.csvrows`, :mod:`.results`) and the
+robustness scores (:mod:`.scores`). The ground truth is :mod:`robodepth_cli.groundtruth`'s,
+the predictions :mod:`robodepth_cli.predictions`'; the CE chart is the report's
+(:mod:`robodepth_cli.report.plot`)."""

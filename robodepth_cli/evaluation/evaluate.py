@@ -1,6 +1,6 @@
 """``robodepth evaluate``: a model's predictions on a built dataset, scored under the
-protocol of its benchmark (:mod:`.protocols`) against its ground truth (:mod:`.groundtruth`),
-into the results CSV that ``robodepth score`` reads.
+protocol of its benchmark (:mod:`.protocols`) against its ground truth
+(:mod:`robodepth_cli.groundtruth.read`), into the results CSV that ``robodepth score`` reads.
 
 With ``jobs`` > 1 the variants are shared out among worker processes, each evaluating whole
 variants with the same code as one job, so the numbers are the same to the last bit. The
@@ -22,9 +22,9 @@ import numpy as np
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
 from ..errors import cannot_write
-from .depthmaps import NoValidPixel
-from .groundtruth import GroundTruth, load_ground_truth
-from .predictions import Predictions, check_values, find_predictions
+from ..groundtruth.depthmaps import NoValidPixel
+from ..groundtruth.read import GroundTruth, load_ground_truth
+from ..predictions import Predictions, find_predictions
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
 
 # A worker takes about a second to start (a fresh interpreter importing numpy and OpenCV),
@@ -158,36 +158,14 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     pred = Path(pred)
     if not pred.is_dir():
         raise EvaluationError(f"{pred}: no such predictions directory")
-    variants = dataset.variants()
-    found: list[tuple[Variant, Predictions]] = []
-    missing: list[Variant] = []
-    for v in variants:
-        p = find_predictions(pred, v, setup.png_scale)
-        if p is None:
-            missing.append(v)
-        else:
-            found.append((v, p))
-    if not found:
-        raise EvaluationError(f"{pred}: no predictions for any of the {len(variants)} variants of "
-                              f"{dataset.path} (expected e.g. {variants[0].prediction_file(pred)})")
-    if missing and not allow_partial:
-        raise EvaluationError(f"{pred}: no predictions for {len(missing)} of {len(variants)} "
-                              f"variants: {_list(missing)} (--allow-partial evaluates the rest)")
-    if require_clean and variants[0].name == CLEAN and variants[0] in missing:
-        raise EvaluationError(f"{pred}: no predictions for the clean images; the scores need "
-                              "them (resilience rates divide by the clean DEE)")
+    found, missing = _find_all(dataset, pred, setup, allow_partial, require_clean)
     setup = _kind_read(setup, found)
     pairs = None
     if flicker:
         from .flicker import check_pairs
 
         pairs = check_pairs(dataset.keys, setup.protocol)
-    gt_path = gt if gt is not None else dataset.ground_truth()
-    if gt_path is None:
-        raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
-                              "NYU and builds with --depth); build it with ground truth, run "
-                              "robodepth gt, or pass --gt")
-    gt_path = Path(gt_path)
+    gt_path = _ground_truth_path(dataset, gt)
     names = dataset.depth_names() if gt_path.is_dir() else dataset.keys
     absent = {i for i, k in enumerate(dataset.keys) if k in dataset.no_depth} if gt is None else set()
     truth = load_ground_truth(gt_path, names, setup.protocol, setup.valid, absent=absent)
@@ -223,6 +201,42 @@ def _with_left_out(result: Evaluation, dataset: BuiltDataset) -> Evaluation:
         for i, why in r.left_out.items():
             result.left_out.setdefault(dataset.keys[i], why)
     return result
+
+
+def _find_all(dataset: BuiltDataset, pred: Path, setup: Setup, allow_partial: bool,
+              require_clean: bool) -> tuple[list[tuple[Variant, Predictions]], list[Variant]]:
+    """``(found, missing)``: each variant's predictions under ``pred`` (checked for count
+    and shape), and the variants without; refused when none are there, when some are
+    missing without ``allow_partial``, or the clean ones with ``require_clean``."""
+    variants = dataset.variants()
+    found: list[tuple[Variant, Predictions]] = []
+    missing: list[Variant] = []
+    for v in variants:
+        p = find_predictions(pred, v, setup.png_scale)
+        if p is None:
+            missing.append(v)
+        else:
+            found.append((v, p))
+    if not found:
+        raise EvaluationError(f"{pred}: no predictions for any of the {len(variants)} variants of "
+                              f"{dataset.path} (expected e.g. {variants[0].prediction_file(pred)})")
+    if missing and not allow_partial:
+        raise EvaluationError(f"{pred}: no predictions for {len(missing)} of {len(variants)} "
+                              f"variants: {_list(missing)} (--allow-partial evaluates the rest)")
+    if require_clean and variants[0].name == CLEAN and variants[0] in missing:
+        raise EvaluationError(f"{pred}: no predictions for the clean images; the scores need "
+                              "them (resilience rates divide by the clean DEE)")
+    return found, missing
+
+
+def _ground_truth_path(dataset: BuiltDataset, gt: Path | None) -> Path:
+    """``--gt``, or the build's own ground truth; refused when there is none."""
+    gt_path = gt if gt is not None else dataset.ground_truth()
+    if gt_path is None:
+        raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
+                              "NYU and builds with --depth); build it with ground truth, run "
+                              "robodepth gt, or pass --gt")
+    return Path(gt_path)
 
 
 def _kind_read(setup: Setup, found: Sequence[tuple[Variant, Predictions]]) -> Setup:
@@ -372,3 +386,35 @@ def write_results(path: Path, text: str) -> None:
         write_atomic(path, text.encode("utf-8"))
     except OSError as exc:
         raise EvaluationError(cannot_write(path, exc)) from None
+
+
+def check_values(m: np.ndarray, where: str, kind: str = "depth",
+                 allow_negative: bool = False) -> None:
+    """Refuse a map that cannot give finite metrics (the rule is :data:`ZERO_AND_INF`):
+    NaN, inf, negative values (unless ``allow_negative``: a prediction aligned by a scale
+    and a shift may have them), a sigmoid output outside [0, 1], or (disp, depth) no
+    positive value at all, a dead map."""
+    low = np.min(m)
+    if np.isnan(low):
+        raise EvaluationError(f"{where} contains NaN")
+    if low < 0 and not allow_negative:
+        raise EvaluationError(f"{where} has negative values (min {float(low):g})")
+    high = np.max(m)
+    if np.isinf(high):
+        raise EvaluationError(f"{where} contains inf ({int(np.isinf(m).sum())} pixels); give "
+                              "finite values (a far pixel as a large depth or a 0 disparity)")
+    if kind == "sigmoid":
+        if high > 1:
+            raise EvaluationError(f"{where}: values up to {float(high):g}; --kind sigmoid is a "
+                                  "network's sigmoid output, in [0, 1] (a disparity or a depth? "
+                                  "give --kind disp or --kind depth)")
+    elif high == 0:
+        raise EvaluationError(f"{where}: no positive finite value (all 0); a dead map cannot be "
+                              "evaluated")
+
+
+ZERO_AND_INF = ("0 and inf: a disparity (--kind disp) of 0 is infinitely far, a depth of 0 is "
+                "distance 0; either is clamped to the protocol's depth range (1e-3 to 80 m kitti, "
+                "10 m nyu) as the reference evaluators clamp. inf and NaN are refused, as are "
+                "negative values, sigmoid outputs outside [0, 1], a map with no positive value "
+                "and (median scaling) a map that is 0 at half of the valid pixels or more.")

@@ -20,7 +20,7 @@ def csv_lines(depth: dict | None, pred_record: dict | None) -> str:
     """The comment lines for a build whose record's ``depth`` entry is ``depth``, evaluated
     with the predictions whose ``predictions.json`` is ``pred_record``; "" unless the
     build's depth came from predictions."""
-    from ..sources.predicted import model_identity
+    from ..predictions import model_identity
 
     if not isinstance(depth, dict) or depth.get("kind") != "predictions":
         return ""

@@ -28,9 +28,9 @@ import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Mapping
+from typing import Iterable, Iterator, Mapping
 
-from ..benchmarks import BENCHMARKS, CATEGORY, CLEAN, DEPTH_AWARE, Baseline, Benchmark
+from ..benchmarks import ALL_CORRUPTIONS, BENCHMARKS, CATEGORY, CLEAN, DEPTH_AWARE, Baseline, Benchmark
 from ..errors import os_reason
 from .csvrows import ScoreError, data_rows, level as _level, normalise_name, number
 
@@ -105,65 +105,81 @@ class Results:
                 if lv not in self.dee.get(n, {})]
 
 
+def checked_rows(text: str, source: str, benchmark: Benchmark | None,
+                 needs_clean: str) -> Iterator[tuple[int, str, str, int | float | None, float]]:
+    """The one check of a results CSV's rows: ``(line, where, name, level, dee)`` for each,
+    in file order; :class:`ScoreError` for the first row that fails.
+
+    Each row is a known corruption (of ``benchmark``, or a depth-aware one: a
+    :class:`FitError` otherwise; any corruption, depth-aware ones included, when ``benchmark`` is None,
+    a dataset beyond the benchmarks), a level in range (0 for clean; ``1..n_levels`` of
+    ``benchmark``, at least 1 without one), its numbers finite and in range, and no
+    (corruption, level) twice. With a ``benchmark``, a chain's row is allowed too (its
+    canonical text as the name, level None). After the last row, a file without the clean
+    row is refused, ``needs_clean`` saying what needs it."""
+    seen: dict[tuple[str, int | float | None], int] = {}
+    for line, where, cells, use_dee in data_rows(text, source):
+        if benchmark is not None and (":" in cells["corruption"] or "+" in cells["corruption"]):
+            name, level = _chain(cells, benchmark, where), None
+        else:
+            name = normalise_name(cells["corruption"])
+            if not name:
+                raise ScoreError(f"{where}: empty corruption")
+            level = _level(cells["level"], where)
+            _check_variant(name, level, cells, where, benchmark)
+        if (name, level) in seen:
+            what = f"chain {name}" if level is None else f"{name} level {level}"
+            raise ScoreError(f"{where}: duplicate row for {what} (first on line {seen[name, level]})")
+        seen[name, level] = line
+        yield line, where, name, level, row_dee(cells, use_dee, where)
+    if (CLEAN, 0) not in seen:
+        raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); {needs_clean}")
+
+
+def _check_variant(name: str, level: int | float, cells: Mapping[str, str], where: str,
+                   benchmark: Benchmark | None) -> None:
+    if name == CLEAN:
+        if level != 0:
+            raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
+    elif benchmark is None:
+        if name not in ALL_CORRUPTIONS:
+            raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
+                             f"valid: clean, {', '.join(ALL_CORRUPTIONS)}")
+        if not level >= 1:
+            raise ScoreError(f"{where}: level {level} of {name}: corruption levels start at 1")
+    elif name not in benchmark.corruptions and name not in DEPTH_AWARE:
+        if name in CATEGORY:
+            raise FitError(f"{where}: {name} is not a corruption of {benchmark.name}")
+        raise FitError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
+                       f"valid: clean, {', '.join(benchmark.corruptions)}")
+    elif not 1 <= level <= benchmark.n_levels:
+        raise FitError(f"{where}: level {level} of {name} is outside "
+                       f"1..{benchmark.n_levels} for {benchmark.name}")
+
+
 def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
     """Parse a results CSV (format in the module docstring) for ``benchmark``.
 
-    Every row is checked: known corruption of this benchmark, level in range (0 for clean),
-    numbers finite and in range, no duplicate (corruption, level). Completeness is not
-    checked here: see :meth:`Results.missing`. Raises :class:`ScoreError`.
+    Every row is checked (:func:`checked_rows`), and the clean DEE is below 1.
+    Completeness is not checked here: see :meth:`Results.missing`. Raises
+    :class:`ScoreError`.
     """
-    seen: dict[tuple[str, int], int] = {}
     clean: float | None = None
     table: dict[str, dict[int, float]] = {}
     decimal: dict[str, dict[float, float]] = {}
     chains: dict[str, float] = {}
-    chain_lines: dict[str, int] = {}
-    for line, where, cells, use_dee in data_rows(text, source):
-        if ":" in cells["corruption"] or "+" in cells["corruption"]:  # a chain
-            chain = _chain(cells, benchmark, where)
-            if chain in chains:
-                raise ScoreError(f"{where}: duplicate row for chain {chain} "
-                                 f"(first on line {chain_lines[chain]})")
-            chain_lines[chain] = line
-            chains[chain] = row_dee(cells, use_dee, where)
-            continue
-        name = normalise_name(cells["corruption"])
-        if not name:
-            raise ScoreError(f"{where}: empty corruption")
-        level = _level(cells["level"], where)
-        if name == CLEAN:
-            if level != 0:
-                raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
-        elif name not in benchmark.corruptions and name not in DEPTH_AWARE:
-            if name in CATEGORY:
-                raise FitError(f"{where}: {name} is not a corruption of {benchmark.name}")
-            raise FitError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
-                             f"valid: clean, {', '.join(benchmark.corruptions)}")
-        elif not 1 <= level <= benchmark.n_levels:
-            raise FitError(f"{where}: level {level} of {name} is outside "
-                             f"1..{benchmark.n_levels} for {benchmark.name}")
-        if isinstance(level, float) or name in DEPTH_AWARE:  # a severity curve
-            if (name, level) in seen:
-                raise ScoreError(f"{where}: duplicate row for {name} level {level} "
-                                 f"(first on line {seen[name, level]})")
-            seen[name, level] = line
-            decimal.setdefault(name, {})[level] = row_dee(cells, use_dee, where)
-            continue
-        if (name, level) in seen:
-            raise ScoreError(f"{where}: duplicate row for {name} level {level} "
-                             f"(first on line {seen[name, level]})")
-        seen[name, level] = line
-        value = row_dee(cells, use_dee, where)
-        if name == CLEAN:
+    for _, where, name, level, value in checked_rows(text, source, benchmark, "RR needs the clean DEE"):
+        if level is None:  # a chain
+            chains[name] = value
+        elif name == CLEAN:
             if value >= 1.0:
                 raise ScoreError(f"{where}: clean DEE {value:g} must be below 1 "
                                  "(RR divides by 1 - clean DEE)")
             clean = value
+        elif isinstance(level, float) or name in DEPTH_AWARE:  # a severity curve
+            decimal.setdefault(name, {})[level] = value
         else:
             table.setdefault(name, {})[level] = value
-    if clean is None:
-        raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); "
-                         "RR needs the clean DEE")
     if not table and not decimal and not chains:
         raise ScoreError(f"{source}: no corruption rows, only the clean one")
     return Results(source, clean, {n: dict(sorted(table[n].items()))

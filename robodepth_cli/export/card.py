@@ -51,7 +51,7 @@ def holdings(shards, rows: dict) -> dict[str, dict]:
     ``seeds`` and ``engines`` (``numpy``, ``torch``; none for the clean images and the
     ground truth), from the manifest ``rows`` of its files: every build request into the
     build counts, not only the last."""
-    from ..sources.engines import TORCH_FINGERPRINT
+    from ..output.layout import TORCH_FINGERPRINT
 
     held: dict[str, dict] = {}
     for s in shards:
@@ -68,7 +68,7 @@ def holdings(shards, rows: dict) -> dict[str, dict]:
 
 def _held_lines(held: dict[str, dict]) -> list[str]:
     """One line per configuration: its levels, seeds and engines."""
-    from ..corruptions.severity import level_text
+    from ..keys import level_text
 
     lines = []
     for config, h in held.items():
@@ -94,7 +94,7 @@ def _yaml(record, configs: dict[str, list[str]], ext: str) -> list[str]:
 def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dict]) -> str:
     """The card's text for an export of the build ``record`` made of ``shards`` (the
     export record's entries) holding ``held`` (:func:`holdings`)."""
-    from ..report.published import BIBTEX
+    from ..benchmarks import BIBTEX
 
     configs: dict[str, list[str]] = {}
     for s in shards:

@@ -55,12 +55,12 @@ def read_maps(file: Path, path: str, parts) -> dict[int, np.ndarray]:
     """The maps ``parts`` (indices; 0 for a file of one map) of the build's ground-truth file
     ``file`` (its path in the build: ``path``) in metres, NaN where there is no measurement.
     Only those maps are kept: KITTI's 1.3 GB of maps are never in memory together."""
-    from ..evaluation.groundtruth import _read_gt_file, read_png16
+    from ..groundtruth.read import read_gt_file, read_png16
 
     try:
         if path == GT_FILE:
             maps = _Some(parts)
-            _read_gt_file(file, maps)
+            read_gt_file(file, maps)
             lacking = set(parts) - set(maps.kept)
             if lacking:
                 raise ExportError(f"{file}: holds no map {min(lacking)}; rerun the build command")
@@ -104,8 +104,8 @@ def write_back(root: Path, maps: dict[str, list[np.ndarray]], keys: dict[str, li
     path in the build, in order; ``keys``: their images), with the values the build's files
     hold: KITTI's 0 for no measurement, NYU's millimetres."""
     from ..files import write_atomic
-    from ..sources.kitti_raw import frame_key, save_object_npz
-    from ..sources.nyu_labeled import encode_depth_png
+    from ..groundtruth.kitti import frame_key, save_object_npz
+    from ..groundtruth.nyu import encode_depth_png
 
     for path, ms in maps.items():
         target = root / path

@@ -42,8 +42,7 @@ def _inside(a: Path, b: Path) -> bool:
     return a == b or b in a.parents
 
 
-def _open_build(out: Path):
-    from ..api import open_dataset
+def _open_build(out: Path, open_dataset):
     from ..output.manifest import lock_holder, read_manifest
 
     dataset = open_dataset(out, warn=False)
@@ -65,7 +64,7 @@ def _open_build(out: Path):
 
 def _unexplained(dataset, rows: dict) -> list[str]:
     """The failed rows of the build that an unusable depth map does not explain."""
-    from ..api import depth_aware_variant
+    from ..corruptions import depth_aware_variant
     from ..output.layout import GT_DIR, depth_gt_name, variant_dir
 
     lacking = {f"{GT_DIR}/{depth_gt_name(k)}" for k in dataset.no_depth}
@@ -82,9 +81,10 @@ def _entry(shard: Shard, fmt: str) -> dict:
             **({"maps": None} if shard.config == GT_CONFIG else {})}
 
 
-def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = True,
+def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, open_dataset, progress: bool = True,
            version: str = "") -> ExportSummary:
-    """Export the finished build ``out`` into ``to`` as ``fmt`` shards (see the module)."""
+    """Export the finished build ``out`` into ``to`` as ``fmt`` shards (see the module);
+    ``open_dataset``: :func:`robodepth_cli.api.open_dataset`, which reads the build."""
     from ..files import sha256_bytes
     from ..progress import bar
 
@@ -92,27 +92,14 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
     if _inside(to.resolve(), out.resolve()) or _inside(out.resolve(), to.resolve()):
         raise ExportError(f"--to {to}: must be outside the build {out} (and not hold it): the "
                           "build stays as it is")
-    dataset, rows = _open_build(out)
+    dataset, rows = _open_build(out, open_dataset)
     check_writable(to / CARD, "--to")
     manifest = (out / MANIFEST).read_bytes()
     shards = plan(out, dataset, rows, shard_bytes)
     entries = [_entry(s, fmt) for s in shards]
     header = {"export": EXPORT_VERSION, "format": fmt, "shard_size": shard_bytes,
               "dataset": dataset.name, "build_manifest_sha256": sha256_bytes(manifest)}
-    previous = read_export_record(to)
-    if previous is None and to.is_dir() and any(to.iterdir()):
-        raise ExportError(f"--to {to}: not empty and not an export; choose a new or empty folder")
-    if previous is not None:
-        same = ({k: previous.get(k) for k in header} == header
-                and [e["file"] for e in previous.get("shards", [])] == [e["file"] for e in entries])
-        if not same:
-            raise ExportError(f"--to {to}: holds an export of another build or with other options "
-                              "(--format, --shard-size); choose a new or empty folder")
-        done = {e["file"]: e for e in previous["shards"] if e.get("sha256")}
-        done.update(_journal(to))
-        for e in entries:
-            if e["file"] in done:
-                e.update({k: done[e["file"]].get(k) for k in _DONE if k in e})
+    _resume(to, header, entries)
     record = {**header, "robodepth": version, "status": "running", "shards": entries}
     try:
         write_atomic(to / META / MANIFEST, manifest)
@@ -149,6 +136,26 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, progress: bool = 
     _finish(to, dataset, record, fmt, version, holdings(shards, rows))
     summary.size = sum(e["bytes"] for e in entries)
     return summary
+
+
+def _resume(to: Path, header: dict, entries: list[dict]) -> None:
+    """Take the shards a stopped export of the same build and options finished in ``to``
+    (into ``entries``); refused for a folder that holds something else."""
+    previous = read_export_record(to)
+    if previous is None and to.is_dir() and any(to.iterdir()):
+        raise ExportError(f"--to {to}: not empty and not an export; choose a new or empty folder")
+    if previous is None:
+        return
+    same = ({k: previous.get(k) for k in header} == header
+            and [e["file"] for e in previous.get("shards", [])] == [e["file"] for e in entries])
+    if not same:
+        raise ExportError(f"--to {to}: holds an export of another build or with other options "
+                          "(--format, --shard-size); choose a new or empty folder")
+    done = {e["file"]: e for e in previous["shards"] if e.get("sha256")}
+    done.update(_journal(to))
+    for e in entries:
+        if e["file"] in done:
+            e.update({k: done[e["file"]].get(k) for k in _DONE if k in e})
 
 
 def _finish(to: Path, dataset, record: dict, fmt: str, version: str, held: dict) -> None:

@@ -36,11 +36,47 @@ def load(arg: str, spec: str, *, device: str = "auto", kind: str | None = None,
     """The transformers model ``arg`` (a folder, or a name in the local cache)."""
     import torch
     import transformers
-    from transformers import AutoConfig, AutoImageProcessor, AutoModelForDepthEstimation
 
     transformers.utils.logging.set_verbosity_error()
     transformers.utils.logging.disable_progress_bar()
     source, where = _source(arg, spec)
+    config, model, processor = _load_parts(source, where, arg, spec)
+    model_type = getattr(config, "model_type", "?")
+    kind, metric = _output(config, model_type, kind, metric, spec)
+    dev = torch_device(device)
+    model = model.to(dev).eval()
+    post = getattr(processor, "post_process_depth_estimation", None)
+    post_args = set(inspect.signature(post).parameters) if post is not None else set()
+
+    def run(images: np.ndarray):
+        sizes = [tuple(img.shape[:2]) for img in images]
+        inputs = processor(images=list(images), return_tensors="pt")
+        inputs = {k: v.to(dev) if hasattr(v, "to") else v for k, v in inputs.items()}
+        with torch.no_grad():
+            outputs = model(**inputs)
+        if post is None:
+            return _resize_bicubic(outputs.predicted_depth, sizes)
+        kwargs = {"target_sizes": sizes}
+        if "source_sizes" in post_args:
+            kwargs["source_sizes"] = sizes
+        maps = [r["predicted_depth"] for r in post(outputs, **kwargs)]
+        return [m.reshape(size) for m, size in zip(maps, sizes)]
+
+    align, space = default_alignment(metric)
+    identity = {"source": str(source), "model_type": model_type,
+                "commit": getattr(config, "_commit_hash", None)}
+    if where == "folder":
+        identity["files"] = _files(Path(source))
+    return Model(spec=spec, adapter="hf", kind=kind, metric=metric, align=align,
+                 align_space=space, input_size=_input_size(processor), identity=identity,
+                 run=run, device=dev, options={"model_type": model_type})
+
+
+def _load_parts(source, where: str, arg: str, spec: str):
+    """(config, model, image processor) of the transformers model at ``source``, from local
+    files only; :class:`ModelError` saying which part is missing or unusable."""
+    from transformers import AutoConfig, AutoImageProcessor, AutoModelForDepthEstimation
+
     try:
         config = AutoConfig.from_pretrained(source, local_files_only=True)
     except OSError:
@@ -70,34 +106,7 @@ def load(arg: str, spec: str, *, device: str = "auto", kind: str | None = None,
     except (OSError, ValueError) as exc:
         raise ModelError(f"{spec}: no usable image processor beside the model "
                          f"(preprocessor_config.json; {_first_line(exc)})") from None
-    kind, metric = _output(config, model_type, kind, metric, spec)
-    dev = torch_device(device)
-    model = model.to(dev).eval()
-    post = getattr(processor, "post_process_depth_estimation", None)
-    post_args = set(inspect.signature(post).parameters) if post is not None else set()
-
-    def run(images: np.ndarray):
-        sizes = [tuple(img.shape[:2]) for img in images]
-        inputs = processor(images=list(images), return_tensors="pt")
-        inputs = {k: v.to(dev) if hasattr(v, "to") else v for k, v in inputs.items()}
-        with torch.no_grad():
-            outputs = model(**inputs)
-        if post is None:
-            return _resize_bicubic(outputs.predicted_depth, sizes)
-        kwargs = {"target_sizes": sizes}
-        if "source_sizes" in post_args:
-            kwargs["source_sizes"] = sizes
-        maps = [r["predicted_depth"] for r in post(outputs, **kwargs)]
-        return [m.reshape(size) for m, size in zip(maps, sizes)]
-
-    align, space = default_alignment(metric)
-    identity = {"source": str(source), "model_type": model_type,
-                "commit": getattr(config, "_commit_hash", None)}
-    if where == "folder":
-        identity["files"] = _files(Path(source))
-    return Model(spec=spec, adapter="hf", kind=kind, metric=metric, align=align,
-                 align_space=space, input_size=_input_size(processor), identity=identity,
-                 run=run, device=dev, options={"model_type": model_type})
+    return config, model, processor
 
 
 def _source(arg: str, spec: str) -> tuple[str, str]:

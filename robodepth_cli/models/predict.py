@@ -41,12 +41,13 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .. import __version__
-from ..api import BuiltDataset, PredictionWriter, Variant
+from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
-from ..errors import cannot_write, os_reason
+from ..errors import cannot_write
+from ..predictions import (RECORD, ImageFilesWriter, PredictionWriter, finished, read_record,
+                           remove_leftovers, split_digest)
 from .errors import ModelError
 
-RECORD = "predictions.json"
 # The most pixels one forward pass holds: the memory of a batch (its images, the model's
 # float copies and activations) grows with its pixels. 2**22: 34 images of 192 x 640, 9 of
 # 375 x 1242, 13 of 480 x 640, so the default 8 is never lowered on the benchmarks; a
@@ -86,32 +87,6 @@ def select_variants(dataset: BuiltDataset, value: str | None) -> list[Variant]:
     if not chosen:
         raise ModelError(f"--variants {value!r}: names no variant")
     return [v for v in variants if v in chosen]
-
-
-def read_record(pred: Path) -> dict | None:
-    """``PRED/predictions.json``, or None when there is none; :class:`ModelError` naming
-    the file when it is unreadable or not a robodepth predictions record."""
-    path = Path(pred) / RECORD
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        return None
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = os_reason(exc) if isinstance(exc, OSError) else "not UTF-8 text"
-        raise ModelError(f"{path}: cannot read ({reason})") from None
-    try:
-        record = json.loads(text)
-    except ValueError as exc:
-        raise ModelError(f"{path}: not valid JSON ({exc})") from None
-    if not isinstance(record, dict) or not isinstance(record.get("evaluate"), dict):
-        raise ModelError(f"{path}: not a robodepth predictions record (no 'evaluate' entry)")
-    return record
-
-
-def split_digest(keys: Sequence[str]) -> str:
-    import hashlib
-
-    return hashlib.sha256("\n".join(keys).encode("utf-8")).hexdigest()
 
 
 def make_record(dataset: BuiltDataset, model) -> dict:
@@ -208,102 +183,6 @@ def prepare_output(pred: Path, record: dict) -> bool:
     except OSError as exc:
         raise ModelError(cannot_write(pred, exc, "--out")) from None
     return created
-
-
-def _image_files(folder: Path, variant: Variant) -> list[Path]:
-    """Where the per-image form puts each image's map: ``<image path>.npy`` in ``folder``."""
-    from pathlib import PurePosixPath
-
-    return [folder / str(PurePosixPath(k).with_suffix(".npy")) for k in variant.keys]
-
-
-def finished(pred: Path, variant: Variant) -> bool:
-    """Whether ``variant``'s predictions are there whole: its ``.npy`` (one map per image),
-    or its folder of one ``.npy`` per image."""
-    path = variant.prediction_file(pred)
-    folder = Path(pred) / variant.relpath
-    if folder.is_dir() and not path.is_file():
-        return all(p.is_file() for p in _image_files(folder, variant))
-    if not path.is_file():
-        return False
-    try:
-        shape = np.load(path, mmap_mode="r", allow_pickle=False).shape
-    except (OSError, ValueError, EOFError):
-        return False
-    return len(shape) == 3 and shape[0] == len(variant)
-
-
-def remove_leftovers(pred: Path, variants: Sequence[Variant]) -> None:
-    """Delete the temporary files (and folders) a killed run left beside the variants'."""
-    import shutil
-
-    from ..files import is_temporary
-
-    for folder in {v.prediction_file(pred).parent for v in variants}:
-        if folder.is_dir():
-            for p in folder.iterdir():
-                if not is_temporary(p.name):
-                    continue
-                if p.is_dir():
-                    shutil.rmtree(p)
-                else:
-                    p.unlink()
-
-
-class ImageFilesWriter:
-    """The per-image form for one variant: each map as ``<image path>.npy`` in a temporary
-    folder beside ``PRED/<variant>``, renamed to it when all are written (removed on
-    failure), so the folder is whole or absent. Same ``write`` as
-    :class:`~robodepth_cli.api.PredictionWriter`."""
-
-    def __init__(self, pred: Path, variant: Variant):
-        self.target = Path(pred) / variant.relpath
-        self.variant = variant
-        self.count = 0
-        self._tmp = None
-        self._files: list[Path] = []
-
-    def __enter__(self) -> "ImageFilesWriter":
-        import secrets
-
-        if self.target.exists():
-            raise ModelError(f"{self.target}: exists but is not complete predictions of "
-                             f"{self.variant.label}; delete it")
-        try:
-            self.target.parent.mkdir(parents=True, exist_ok=True)
-            # os.mkdir, not mkdtemp: the folder gets the usual 0777 & ~umask once renamed
-            self._tmp = self.target.parent / f".{self.target.name}.{secrets.token_hex(6)}.part"
-            self._tmp.mkdir()
-        except OSError as exc:
-            raise ModelError(cannot_write(self.target, exc)) from None
-        self._files = _image_files(self._tmp, self.variant)
-        return self
-
-    def write(self, m: np.ndarray) -> None:
-        path = self._files[self.count]
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            np.save(path, m if m.dtype.kind == "f" else m.astype(np.float32))
-        except OSError as exc:
-            raise ModelError(cannot_write(path, exc)) from None
-        self.count += 1
-
-    def __exit__(self, exc_type, exc, tb):
-        import shutil
-
-        try:
-            if exc_type is None:
-                if self.count != len(self._files):
-                    raise ModelError(f"{self.target}: {self.count} predictions written of the "
-                                     f"{len(self._files)} expected")
-                try:
-                    os.replace(self._tmp, self.target)
-                except OSError as err:
-                    raise ModelError(cannot_write(self.target, err)) from None
-        finally:
-            if self._tmp is not None and self._tmp.exists():
-                shutil.rmtree(self._tmp)
-        return False
 
 
 def _read_images(variant: Variant, indices: range) -> list[np.ndarray]:
@@ -415,11 +294,11 @@ def _lacking(dataset: BuiltDataset, v: Variant, run: PredictRun) -> set[int]:
     (a rerun makes it)."""
     if not v.missing:
         return set()
-    from ..api import _failed_text
+    from ..api import failed_text
 
     other = {k: why for k, why in v.missing.items() if not dataset.lacks_depth(v, k)}
     if other:
-        raise ModelError(f"{dataset.path / v.relpath}: {_failed_text(other, len(v))}; rerun the "
+        raise ModelError(f"{dataset.path / v.relpath}: {failed_text(other, len(v))}; rerun the "
                          "build command to make them, or leave this variant out with --variants")
     run.no_depth.update({k: dataset.no_depth[k] for k in v.missing})
     return {i for i, k in enumerate(v.keys) if k in v.missing}

@@ -36,9 +36,11 @@ GT_FILE = "gt_depths.npz"
 GT_DIR = "gt"
 # A neighbour frame's manifest params begin with it and its test frame's key (--frames).
 NEIGHBOUR_OF = "neighbour_of="
+# A torch-engine output's manifest params hold it, so the two engines' files never mix.
+TORCH_FINGERPRINT = "engine=torch"
 
 __all__ = ["MANIFEST", "RECORD", "LOCK", "JOURNAL", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
-           "NEIGHBOUR_OF",
+           "NEIGHBOUR_OF", "TORCH_FINGERPRINT",
            "variant_dir", "output_path", "depth_gt_name",
            "variant_order"]
 

@@ -61,12 +61,14 @@ def tree_files(out: Path) -> set[str]:
     return found
 
 
-def verify(out: Path, *, threads: int = 4, progress=None, on_total=None) -> VerifyReport:
+def verify(out: Path, *, planned_outputs, threads: int = 4, progress=None,
+           on_total=None) -> VerifyReport:
     """Re-hash every file of ``out`` against its manifest. ``on_total(n)`` is called once
-    with the number of files to hash, then ``progress(n)`` as files are checked."""
+    with the number of files to hash, then ``progress(n)`` as files are checked.
+    ``planned_outputs(record)``: every output the build record's plans ask for (None when
+    it keeps none): :func:`robodepth_cli.building.checks.planned_outputs`, which knows the
+    datasets."""
     from concurrent.futures import ThreadPoolExecutor
-
-    from ..building.checks import planned_outputs
 
     out = Path(out)
     if not out.exists():

@@ -17,7 +17,7 @@ from typing import Sequence
 
 from .. import benchmarks as B
 from ..evaluation import results as R, scores as S
-from ..evaluation.csvrows import ScoreError, data_rows, level as parse_level, normalise_name
+from ..evaluation.csvrows import ScoreError
 from . import inputs as I
 from . import synreal as X
 from . import tables as T
@@ -131,25 +131,8 @@ def _corrupted(e: Entry) -> bool:
 def _check(text: str, source: str) -> None:
     """Every number checked (as ``score`` checks them), corruptions known, one row per
     variant, a clean row."""
-    seen: dict[tuple, int] = {}
-    for line, where, cells, use_dee in data_rows(text, source):
-        name = normalise_name(cells["corruption"])
-        if name != B.CLEAN and name not in B.ALL_CORRUPTIONS:
-            raise ScoreError(f"{where}: unknown corruption {cells['corruption'].strip()!r}; "
-                             f"valid: clean, {', '.join(B.ALL_CORRUPTIONS)}")
-        level = parse_level(cells["level"], where)
-        if name == B.CLEAN and level != 0:
-            raise ScoreError(f"{where}: the clean row must have level 0, not {level}")
-        if name != B.CLEAN and not level >= 1:
-            raise ScoreError(f"{where}: level {level} of {name}: corruption levels start at 1")
-        if (name, level) in seen:
-            raise ScoreError(f"{where}: duplicate row for {name} level {level} "
-                             f"(first on line {seen[name, level]})")
-        seen[name, level] = line
-        R.row_dee(cells, use_dee, where)
-    if (B.CLEAN, 0) not in seen:
-        raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); the report "
-                         "needs the clean error")
+    for _ in R.checked_rows(text, source, None, "the report needs the clean error"):
+        pass
 
 
 def _results(e: Entry) -> tuple[R.Results, B.Benchmark]:

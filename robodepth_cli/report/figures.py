@@ -1,7 +1,7 @@
 """The figures of ``robodepth report`` beyond the CE chart: DEE per corruption (radar),
 DEE per level, mCE and mRR against clean DEE, the KITTI-S figures and the one-frame
 qualitative figure. They use the palette, set-up and label placement of
-:mod:`robodepth_cli.evaluation.plot` (imported with it, so matplotlib loads only here)."""
+:mod:`robodepth_cli.report.plot` (imported with it, so matplotlib loads only here)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
-from ..evaluation.plot import (CONTEXT, INK, MUTED, Model, _bar_axes, _figure, _freeze_layout,
-                               _legend, _title, bench_title, place_labels, pretty, style)
+from .plot import (CONTEXT, INK, MUTED, Model, bar_axes, new_figure, freeze_layout,
+                               figure_legend, figure_title, bench_title, place_labels, pretty, style)
 
 # --------------------------------------------------------------------------- radar
 
@@ -24,7 +24,7 @@ def radar_figure(series: Sequence[tuple[str, dict]], benchmark: str,
     names = list(series[0][1])
     angles = np.linspace(0, 2 * np.pi, len(names), endpoint=False)
     closed = np.concatenate([angles, angles[:1]])
-    fig = _figure(7.2, 7.6)
+    fig = new_figure(7.2, 7.6)
     ax = fig.add_subplot(projection="polar")
     ax.set_theta_offset(np.pi / 2)
     ax.set_theta_direction(-1)
@@ -64,10 +64,10 @@ def radar_figure(series: Sequence[tuple[str, dict]], benchmark: str,
                     ha="center", va="center", zorder=5,
                     bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.8})
     ax.grid(color="#dddddd")
-    _title(fig, f"Depth estimation error (DEE) per {what} on {bench_title(benchmark)}",
-           ("mean over the levels; " if what == "corruption" else "")
-           + "lower (nearer the centre) is better")
-    _legend(fig)
+    figure_title(fig, f"Depth estimation error (DEE) per {what} on {bench_title(benchmark)}",
+                 ("mean over the levels; " if what == "corruption" else "")
+                 + "lower (nearer the centre) is better")
+    figure_legend(fig)
     return fig
 
 
@@ -102,7 +102,7 @@ def levels_figure(models: Sequence[Model], benchmark: str, baseline: tuple[str, 
     names = [c.name for c in first.corruptions]
     ncols = 6 if len(names) > 15 else 5
     nrows = math.ceil(len(names) / ncols)
-    fig = _figure(1.75 * ncols + 0.6, 1.55 * nrows + 1.4)
+    fig = new_figure(1.75 * ncols + 0.6, 1.55 * nrows + 1.4)
     axes = fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False)
     levels = list(range(1, first.n_levels + 1))
     top = 0.0
@@ -138,8 +138,8 @@ def levels_figure(models: Sequence[Model], benchmark: str, baseline: tuple[str, 
         if k >= 0 and k + ncols >= len(names) and k // ncols < nrows - 1:
             axes[k // ncols][k % ncols].xaxis.set_tick_params(labelbottom=True)
             axes[k // ncols][k % ncols].set_xlabel("level")
-    _title(fig, f"DEE against corruption level on {bench_title(benchmark)}", "lower is better")
-    _legend(fig)
+    figure_title(fig, f"DEE against corruption level on {bench_title(benchmark)}", "lower is better")
+    figure_legend(fig)
     return fig
 
 
@@ -152,7 +152,7 @@ def severity_figure(models: Sequence[Model], benchmark: str):
     names = list(dict.fromkeys(n for m in models for n in m.scores.curves))
     ncols = min(len(names), 4)
     nrows = math.ceil(len(names) / ncols)
-    fig = _figure(2.3 * ncols + 0.6, 1.9 * nrows + 1.4)
+    fig = new_figure(2.3 * ncols + 0.6, 1.9 * nrows + 1.4)
     axes = fig.subplots(nrows, ncols, sharey=True, squeeze=False)
     top = models[0].scores.n_levels
     for k, name in enumerate(names):
@@ -175,9 +175,9 @@ def severity_figure(models: Sequence[Model], benchmark: str):
         axes[k // ncols][k % ncols].set_visible(False)
     for row in axes:
         row[0].set_ylabel("DEE")
-    _title(fig, f"DEE against continuous severity on {bench_title(benchmark)}",
-           "beyond the benchmark: not in mCE or mRR; lower is better")
-    _legend(fig)
+    figure_title(fig, f"DEE against continuous severity on {bench_title(benchmark)}",
+                 "beyond the benchmark: not in mCE or mRR; lower is better")
+    figure_legend(fig)
     return fig
 
 
@@ -196,7 +196,7 @@ def summary_figure(models: Sequence[Point], published: Sequence[Point], benchmar
     (named where a label fits), the user's models coloured, marked and always named."""
     from matplotlib.ticker import MaxNLocator
 
-    fig = _figure(11.0, 5.4)
+    fig = new_figure(11.0, 5.4)
     axes = fig.subplots(1, 2)
     for ax, key, label, ref in ((axes[0], "mce", "mCE (%), lower is better", 100.0),
                                 (axes[1], "mrr", "mRR (%), higher is better", None)):
@@ -221,10 +221,10 @@ def summary_figure(models: Sequence[Point], published: Sequence[Point], benchmar
         ax.set_axisbelow(True)
         if ref is not None:
             ax.axhline(ref, color=MUTED, linestyle=":", linewidth=1.0, zorder=1)
-    _title(fig, f"Robustness against clean error on {bench_title(benchmark)}",
-           "grey: the paper's models; the baseline has mCE 100 by definition")
-    _legend(fig)
-    renderer = _freeze_layout(fig)
+    figure_title(fig, f"Robustness against clean error on {bench_title(benchmark)}",
+                 "grey: the paper's models; the baseline has mCE 100 by definition")
+    figure_legend(fig)
+    renderer = freeze_layout(fig)
     for ax, key in ((axes[0], "mce"), (axes[1], "mrr")):
         obstacles = [line.get_window_extent(renderer) for line in ax.get_lines()]
         labels = [(p.clean, getattr(p, key), p.name,
@@ -247,7 +247,7 @@ def styles_figure(models: Sequence[tuple[str, dict]], benchmark: str = "kitti-s"
     entries += [(name, dee, style(i)["color"]) for i, (name, dee) in enumerate(models)]
     band = 0.8
     bar_h = band / len(entries)
-    fig = _figure(8.0, 1.6 + 0.2 * len(styles) * max(1.0, 0.5 * len(entries)))
+    fig = new_figure(8.0, 1.6 + 0.2 * len(styles) * max(1.0, 0.5 * len(entries)))
     ax = fig.add_subplot()
     for i, (name, dee, colour) in enumerate(entries):
         ys = [k - band / 2 + bar_h * (i + 0.5) for k in range(len(styles))]
@@ -257,9 +257,9 @@ def styles_figure(models: Sequence[tuple[str, dict]], benchmark: str = "kitti-s"
     ax.set_yticks(range(len(styles)), [pretty(s) for s in styles])
     ax.set_ylim(len(styles) - 0.5, -0.5)
     ax.set_xlabel("DEE, lower is better")
-    _bar_axes(ax)
-    _title(fig, f"Depth estimation error per style on {bench_title(benchmark)}")
-    _legend(fig)
+    bar_axes(ax)
+    figure_title(fig, f"Depth estimation error per style on {bench_title(benchmark)}")
+    figure_legend(fig)
     return fig
 
 
@@ -269,7 +269,7 @@ def ranking_figure(models: Sequence[tuple[str, float]], published: Sequence[tupl
     user's coloured and in bold."""
     rows = [(n, v, True) for n, v in models] + [(n, v, False) for n, v in published]
     rows.sort(key=lambda r: r[1])
-    fig = _figure(7.0, 1.3 + 0.2 * len(rows))
+    fig = new_figure(7.0, 1.3 + 0.2 * len(rows))
     ax = fig.add_subplot()
     ours = {n: i for i, (n, _) in enumerate(models)}
     for k, (name, value, mine) in enumerate(rows):
@@ -284,9 +284,9 @@ def ranking_figure(models: Sequence[tuple[str, float]], published: Sequence[tupl
     ax.set_ylim(len(rows) - 0.4, -0.6)
     ax.set_xlim(0, max(v for _, v, _ in rows) * 1.15)
     ax.set_xlabel(f"{metric}, lower is better")
-    _bar_axes(ax, grid=False)
-    _title(fig, f"{metric} on {bench_title(benchmark)}: your models and the paper's",
-           "grey: published; coloured and bold: yours")
+    bar_axes(ax, grid=False)
+    figure_title(fig, f"{metric} on {bench_title(benchmark)}: your models and the paper's",
+                 "grey: published; coloured and bold: yours")
     return fig
 
 
@@ -306,8 +306,8 @@ def qualitative_figure(labels: Sequence[str], images: Sequence, rows: Sequence[t
     panel_w = 2.7
     names = [_wrap(name, panel_w * cols) for name, _ in rows]
     extra_lines = sum(name.count("\n") for name in names)
-    fig = _figure(panel_w * cols + 1.2,
-                  panel_w * h / w * nrows + 0.35 * nrows + 0.9 + 0.17 * extra_lines)
+    fig = new_figure(panel_w * cols + 1.2,
+                     panel_w * h / w * nrows + 0.35 * nrows + 0.9 + 0.17 * extra_lines)
     axes = fig.subplots(nrows, cols, squeeze=False)
     for k, (label, image) in enumerate(zip(labels, images)):
         axes[0][k].imshow(image, extent=(0, w, h, 0))
@@ -337,8 +337,8 @@ def qualitative_figure(labels: Sequence[str], images: Sequence, rows: Sequence[t
         for ax in row:
             ax.set_xticks([])
             ax.set_yticks([])
-    _title(fig, f"One frame of {bench_title(benchmark)}: {frame}",
-           "top: the input; below: each model's prediction (inverse depth, bright is near)")
+    figure_title(fig, f"One frame of {bench_title(benchmark)}: {frame}",
+                 "top: the input; below: each model's prediction (inverse depth, bright is near)")
     return fig
 
 
@@ -366,7 +366,7 @@ def synreal_figure(comparisons: Sequence, metric: str = "DEE"):
     models = list(dict.fromkeys(m for c in comparisons for m in c.models))
     ncols = min(len(comparisons), 3)
     nrows = math.ceil(len(comparisons) / ncols)
-    fig = _figure(4.3 * ncols + 0.4, 4.0 * nrows + 0.9)
+    fig = new_figure(4.3 * ncols + 0.4, 4.0 * nrows + 0.9)
     axes = fig.subplots(nrows, ncols, squeeze=False)
     for k in range(len(comparisons), nrows * ncols):
         axes[k // ncols][k % ncols].set_visible(False)
@@ -395,10 +395,10 @@ def synreal_figure(comparisons: Sequence, metric: str = "DEE"):
         ax.grid(color="#ececec", linewidth=0.7)
         ax.set_axisbelow(True)
         ax.tick_params(labelsize=8)
-    _title(fig, "Synthetic against real: does the corruption rank the models as the real "
+    figure_title(fig, "Synthetic against real: does the corruption rank the models as the real "
                 "condition does?", f"{metric}, lower is better; one point per model; ρ and τ: "
                 "rank correlations, 95% bootstrap interval over the models")
-    renderer = _freeze_layout(fig)
+    renderer = freeze_layout(fig)
     for k, c in enumerate(comparisons):
         ax = axes[k // ncols][k % ncols]
         place_labels(ax, [(x, y, m, {"fontsize": 8.5, "color": style(models.index(m))["color"],

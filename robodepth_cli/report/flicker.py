@@ -102,12 +102,12 @@ def figure(flicker: Sequence[Flicker], benchmark: str):
     """Two panels (flicker_scale, flicker_abs_rel): a bar per model for the clean images
     and each corruption, and each model's clean value as a dotted line of its colour, the
     reference a corruption's bar is read against."""
-    from ..evaluation.plot import _bar_axes, _figure, _legend, _title, bench_title, pretty, style
+    from .plot import bar_axes, new_figure, figure_legend, figure_title, bench_title, pretty, style
 
     names = [CLEAN, *corruption_names(flicker)]
     band = 0.8
     bar_h = band / len(flicker)
-    fig = _figure(10.0, 1.8 + 0.2 * len(names) * max(1.0, 0.5 * len(flicker)))
+    fig = new_figure(10.0, 1.8 + 0.2 * len(names) * max(1.0, 0.5 * len(flicker)))
     axes = fig.subplots(1, 2, sharey=True)
     for ax, col in zip(axes, COLUMNS):
         top = 0.0
@@ -127,12 +127,12 @@ def figure(flicker: Sequence[Flicker], benchmark: str):
                 ax.axvline(f.clean[col], color=colour, linestyle=":", linewidth=1.2, zorder=3)
         ax.set_xlim(0, top * 1.08 if top > 0 else 1.0)
         ax.set_xlabel(f"{col} ({LABEL[col]}), lower is steadier", fontsize=9)
-        _bar_axes(ax)
+        bar_axes(ax)
     axes[0].set_yticks(range(len(names)), [pretty(n) for n in names])
     axes[0].set_ylim(len(names) - 0.5, -0.5)
-    _title(fig, f"Flicker on consecutive frames of {bench_title(benchmark)}",
-           "clean and each corruption (mean over the levels); dotted: each model's clean value")
-    _legend(fig)
+    figure_title(fig, f"Flicker on consecutive frames of {bench_title(benchmark)}",
+                 "clean and each corruption (mean over the levels); dotted: each model's clean value")
+    figure_legend(fig)
     return fig
 
 

@@ -93,11 +93,7 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
              f"file{'s' if n_files != 1 else ''}. Your models are shaded; grey rows are the "
              "RoboDepth paper's published models, for context.</p>",
              '<ul class="models">']
-    for m in models:
-        clean = "" if m.row.clean is None else f", clean DEE {m.row.clean:.3f}"
-        parts.append(f"<li><strong>{e(m.name)}</strong>: <code>{e(str(m.path))}</code>{clean}</li>")
-        if getattr(m, "own_depth", ""):
-            parts.append(f'<li class="note">Warning: {e(m.own_depth)}.</li>')
+    parts += _model_items(models)
     parts.append("</ul>")
     if dataset:
         parts.append(f'<p class="meta">Dataset build: <code>{e(dataset["path"])}</code> '
@@ -112,13 +108,7 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
             parts.append(f'<p class="note">Published rows shown: {e(context)} (--published).</p>')
     if figures:
         parts.append("<h2>Figures</h2>")
-    for f in figures:
-        links = " ".join(f'<a href="figures/{e(f.stem)}.{ext}">{ext.upper()}</a>'
-                         for ext in ("svg", "pdf", "png"))
-        parts.append(f'<figure id="fig-{e(f.stem)}" class="figure">'
-                     f'<div class="svg">{inline_svg(f.svg, "fig-" + f.stem, f.title)}</div>'
-                     f"<figcaption><strong>{e(f.title)}.</strong> {e(f.caption)} ({links})</figcaption>"
-                     "</figure>")
+    parts += [_figure_html(f) for f in figures]
     if len(tables) > 1:
         parts.append("<h2>Per corruption</h2>" if benchmark != "kitti-s" else "<h2>Per style</h2>")
         for t in tables[1:]:
@@ -137,6 +127,29 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
               "<h2>Cite</h2>", f"<p>{e(P.CITATION)}. {e(P.CITATION_URL)}</p>",
               f'<pre class="bib">{e(P.BIBTEX)}</pre>', "</main>", "</body>", "</html>"]
     return "\n".join(parts) + "\n"
+
+
+def _model_items(models: Sequence) -> list[str]:
+    """Each model's list item: its results file and clean DEE, and its warning if any."""
+    e = html.escape
+    items = []
+    for m in models:
+        clean = "" if m.row.clean is None else f", clean DEE {m.row.clean:.3f}"
+        items.append(f"<li><strong>{e(m.name)}</strong>: <code>{e(str(m.path))}</code>{clean}</li>")
+        if getattr(m, "own_depth", ""):
+            items.append(f'<li class="note">Warning: {e(m.own_depth)}.</li>')
+    return items
+
+
+def _figure_html(f: PageFigure) -> str:
+    """A figure inline, with links to its SVG, PDF and PNG files."""
+    e = html.escape
+    links = " ".join(f'<a href="figures/{e(f.stem)}.{ext}">{ext.upper()}</a>'
+                     for ext in ("svg", "pdf", "png"))
+    return (f'<figure id="fig-{e(f.stem)}" class="figure">'
+            f'<div class="svg">{inline_svg(f.svg, "fig-" + f.stem, f.title)}</div>'
+            f"<figcaption><strong>{e(f.title)}.</strong> {e(f.caption)} ({links})</figcaption>"
+            "</figure>")
 
 
 NOTES = html.escape(

@@ -23,20 +23,12 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from ..benchmarks import Benchmark, get_benchmark
+from ..benchmarks import BIBTEX, Benchmark, get_benchmark  # noqa: F401 (the page's citation)
 from ..evaluation.results import Results
 
 CITATION = ("Kong, Xie, Hu, Ng, Cottereau, Ooi. RoboDepth: Robust Out-of-Distribution Depth "
             "Estimation under Corruptions. NeurIPS 2023 (Datasets and Benchmarks)")
 CITATION_URL = "https://github.com/ldkong1205/RoboDepth"
-BIBTEX = """@inproceedings{kong2023robodepth,
-  title     = {RoboDepth: Robust Out-of-Distribution Depth Estimation under Corruptions},
-  author    = {Kong, Lingdong and Xie, Shaoyuan and Hu, Hanjiang and Ng, Lai Xing and
-               Cottereau, Benoit R. and Ooi, Wei Tsang},
-  booktitle = {Advances in Neural Information Processing Systems (NeurIPS), Datasets and Benchmarks Track},
-  year      = {2023}
-}"""
-
 DATA = Path(__file__).resolve().parent / "published"
 FILES = {"kitti-c": "kitti-c.csv", "nyudepth2-c": "nyudepth2-c.csv", "kitti-s": "kitti-s.csv"}
 # The summary columns of kitti-c.csv and nyudepth2-c.csv: (prefix, category name or None).

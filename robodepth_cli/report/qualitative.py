@@ -64,7 +64,7 @@ def pred_kinds(preds: Sequence[Path], kinds: Sequence[str], dataset_name: str) -
     ``--kind``, ``predictions.json`` (what robodepth predict recorded) or ``default`` (the
     dataset's evaluation default: disp for KITTI, depth for NYU). ``kinds`` is ``--kind``
     as given: not at all, once for every ``--pred``, or once per ``--pred`` in order."""
-    from ..models.predict import read_record
+    from ..predictions import read_record
 
     check_kinds(kinds, preds)
     default = "depth" if dataset_name == "nyudepth2-c" else "disp"
@@ -83,7 +83,7 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
     """The figure entry (stem, title, caption, Figure) for ``report``'s page, and the
     ``(pred, kind)`` of each ``--pred`` drawn with the dataset's default kind because
     neither ``--kind`` nor a ``predictions.json`` said what it holds."""
-    from ..evaluation.predictions import find_predictions
+    from ..predictions import find_predictions
     from .figures import qualitative_figure
 
     dataset = open_dataset(dataset_dir)

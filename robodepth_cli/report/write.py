@@ -165,7 +165,7 @@ def draw(report: Report) -> None:
 
 
 def _draw_main(report: Report) -> None:
-    from ..evaluation import plot
+    from . import plot
     from . import figures as F
 
     bench, models = report.benchmark, report.models
@@ -395,7 +395,7 @@ class _Publishing:
 def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> list[str]:
     """Write every output of ``report`` into the empty folder ``out``; return their paths
     relative to it."""
-    from ..evaluation import plot
+    from . import plot
     from ..files import write_atomic
 
     written: list[str] = []

@@ -18,7 +18,8 @@ from ..building.config import BuildConfig
 from ..building.gather import check_root, gather_sources
 from ..building.tasks import Source, load_source
 from ..errors import RobodepthError
-from ..sources.datasets import Dataset, Job, Renderer, get_dataset
+from ..building.renderers import Renderer
+from ..sources.datasets import Dataset, Job, get_dataset
 
 ENGINES = ("numpy", "torch")
 
@@ -109,12 +110,12 @@ def ground_truth(inputs: RunInputs, setup):
     """The ground truth of the run's images, read from the root into memory with the readers
     of ``robodepth gt`` and ``evaluate``: the same maps a build writes beside its images
     (KITTI: from the velodyne scans; NYU: the split's depth PNGs, or the labeled file)."""
-    from ..evaluation.groundtruth import GroundTruth, load_ground_truth
+    from ..groundtruth.read import GroundTruth, load_ground_truth
 
     split_path = Path(inputs.split["path"])
     n = len(inputs.sources)
     if inputs.ds.split_format == "eigen":
-        from ..sources import kitti_raw
+        from ..groundtruth import kitti as kitti_raw
 
         frames = kitti_raw.read_frames(split_path)[:n]
         missing = kitti_raw.missing_velodyne(inputs.root, frames)
@@ -126,7 +127,7 @@ def ground_truth(inputs: RunInputs, setup):
         for depth in kitti_raw.depth_maps(inputs.root, frames, str(split_path)):
             truth.add(depth)
         return truth
-    from ..sources import nyu_labeled
+    from ..groundtruth import nyu as nyu_labeled
 
     frames = nyu_labeled.read_frames(split_path)[:n]
     if inputs.root.is_file():

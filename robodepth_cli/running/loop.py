@@ -20,11 +20,13 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..api import PredictionWriter, Variant
+from ..api import Variant
 from ..benchmarks import CLEAN
 from ..evaluation.evaluate import Evaluation, VariantResult, image_errors, variant_result
 from ..models import predict as P
-from ..sources.datasets import Job, Renderer
+from ..predictions import PredictionWriter, finished, remove_leftovers, split_digest
+from ..building.renderers import Renderer
+from ..sources.datasets import Job
 from .inputs import RunError, RunInputs
 from .state import RunState
 
@@ -36,7 +38,7 @@ def settings(inputs: RunInputs, model, setup, batch: int, engine: str) -> dict:
     record = model.record()
     cfg = inputs.cfg
     return {"dataset": inputs.ds.name, "root": str(inputs.root), "split": inputs.split["sha256"],
-            "keys": P.split_digest(inputs.keys), "size": list(cfg.size) if cfg.size else None,
+            "keys": split_digest(inputs.keys), "size": list(cfg.size) if cfg.size else None,
             "seed": cfg.seed, "engine": engine, "batch": batch,
             "model": {k: record[k] for k in ("model", "adapter", "identity", "options", "evaluate")},
             "setup": asdict(setup)}
@@ -76,12 +78,12 @@ def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, 
     todo, earlier = [], 0
     for variant, _ in inputs.variants:
         done = state.get(variant.relpath)
-        if done is not None and (keep is None or P.finished(keep, variant)):
+        if done is not None and (keep is None or finished(keep, variant)):
             earlier += 1
         else:
             todo.append(variant)
     if keep is not None:
-        P.remove_leftovers(keep, todo)
+        remove_leftovers(keep, todo)
     if on_total:
         on_total(n * len(todo))
     with (_Inline() if model.device == "cpu" else ThreadPoolExecutor(1)) as painter:

@@ -7,7 +7,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from . import DATA, SelftestError, absent, build_all, record, version_differences
+from .check import DATA, SelftestError, absent, build_all, record, version_differences
 
 
 def main(argv: list[str]) -> int:

@@ -1,5 +1,5 @@
 """What each dataset is: its split format, where its source images live, how its outputs are
-named, which variants and levels it has and how they are rendered.
+named, which variants and levels it has (their renderers are :mod:`robodepth_cli.building.renderers`).
 
 A split entry becomes an :class:`Entry` with a *key*: the dataset-relative path of the
 image with the extension ``.png`` (``kitti_data/<date>/<drive>/image_02/data/<frame>.png``
@@ -11,14 +11,12 @@ job's generator, so a PNG and a JPEG copy of a frame get the same noise.
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Iterator, Protocol, Sequence
+from typing import Sequence
 
-import numpy as np
 
-from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, DEPTH_AWARE, N_LEVELS, TEMPORAL
+from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, DEPTH_AWARE, N_LEVELS
 from ..errors import InvalidValueError, os_reason
 from ..imageio import ImageError
 # SOURCE_EXTS: tried in this order when a split names no extension.
@@ -26,6 +24,11 @@ from ..keys import KITTI_PREFIX, PRESET_EXTS as SOURCE_EXTS, relative_parts
 from .splits import SplitError
 
 KITTI_SIDES = {"l": "image_02", "r": "image_03"}
+# The corruption datasets' engine options (config keys and flags --engine, --device): which
+# engine renders a build, and where (building/renderers.py).
+ENGINE_OPTIONS = ("engine", "device")
+ENGINES = ("numpy", "torch")
+DEVICES = ("auto", "cpu", "cuda")
 
 
 @dataclass(frozen=True)
@@ -52,20 +55,6 @@ class Job:
         from ..output.layout import output_path
 
         return output_path(self.variant, self.level, key)
-
-
-class Renderer(Protocol):
-    """Renders the non-clean jobs of one source image. Must pickle small (it is sent to the
-    workers) and load anything heavy lazily, once per process."""
-
-    def render(self, clean: np.ndarray, key: str,
-               jobs: Sequence[Job]) -> Iterator[tuple[Job, np.ndarray | Exception]]:
-        """Yield ``(job, image)`` for every job, or ``(job, exception)`` for a job that failed
-        on its own; ``clean`` is read-only."""
-
-    def fingerprint(self, variant: str) -> str:
-        """What, besides the seed and the size, decides ``variant``'s pixels ("" if nothing).
-        A manifest row made with another fingerprint is redone."""
 
 
 def _with_exts(stem: str, first: str | None = None) -> tuple[str, ...]:
@@ -179,79 +168,6 @@ def locate(root: Path, entry: Entry) -> tuple[str, Path]:
     raise ImageError(f"{root / entry.candidates[0]}: no such file (tried {tried})")
 
 
-# The corrupted sequences of the last test frame rendered in this process (see
-# CorruptionRenderer._over_time): test frame key -> {key: frames}.
-_SEQUENCES: dict[str, dict] = {}
-_SEQUENCES_LOCK = threading.Lock()
-
-
-class CorruptionRenderer:
-    """Applies the corruptions, each job with its own generator (see :mod:`.seeding`);
-    the depth-aware ones get the source's depth from ``depth`` (a
-    :class:`~.scenedepth.DepthSource`), read once per source and only when a job needs it."""
-
-    def __init__(self, dataset: str, seed: int, depth=None):
-        self.dataset = dataset
-        self.seed = seed
-        self.depth = depth
-
-    def render(self, clean, key, jobs, anchor=None, sequence=None):
-        """``anchor``: the key of the test frame whose sequence ``key`` is in (``--frames``);
-        ``sequence``: (its clean frames, this frame's index, the test frame's index), for
-        the corruptions over time."""
-        from ..corruptions import needs_depth, render
-
-        depth: object = None
-        for job in jobs:
-            try:
-                if sequence is not None and job.variant in TEMPORAL:
-                    yield job, self._over_time(job, anchor, *sequence)
-                    continue
-                if depth is None and self.depth is not None and needs_depth(job.variant):
-                    depth = self.depth.depth(key, clean.shape[:2])
-                yield job, render(clean, job.variant, job.level, seed=self.seed, dataset=self.dataset,
-                                  key=key, depth=depth, anchor=None if anchor == key else anchor)
-            except Exception as exc:  # one broken variant must not sink the other outputs
-                yield job, exc
-
-    def _over_time(self, job, anchor, frames, position, center):
-        """Frame ``position`` of the sequence ``frames`` under a corruption over time. The
-        other frames of a sequence usually come next to the same worker, so the corrupted
-        sequences of the last test frame are kept (keyed by everything they depend on)."""
-        import hashlib
-
-        from ..corruptions.temporal import corrupt_sequence
-        from ..seeding import job_rng
-
-        digest = hashlib.sha256()
-        for f in frames:
-            digest.update(b"-" if f is None else f.tobytes() + str(f.shape).encode())
-        key = (self.seed, self.dataset, job.variant, job.level, anchor, center, digest.hexdigest())
-        with _SEQUENCES_LOCK:  # a Dask worker runs tasks in threads
-            for other in [a for a in _SEQUENCES if a != anchor]:
-                del _SEQUENCES[other]  # another test frame's sequence: the last one is done with
-            done = _SEQUENCES.setdefault(anchor, {}).get(key)
-        if done is None:
-            rng = job_rng(self.seed, self.dataset, job.variant, job.level, anchor)
-            done = corrupt_sequence(job.variant, frames, center, job.level, rng)
-            with _SEQUENCES_LOCK:
-                _SEQUENCES.setdefault(anchor, {})[key] = done
-        return done[position]
-
-    def fingerprint(self, variant: str) -> str:
-        # A corruption's output depends only on the seed, the size and the source, and a
-        # depth-aware one's on the depth source too.
-        if self.depth is None:
-            return ""
-        from ..corruptions import needs_depth
-
-        return self.depth.fingerprint if needs_depth(variant) else ""
-
-    def depth_stamp(self, key: str) -> str:
-        """What identifies source ``key``'s depth (:meth:`.scenedepth.DepthSource.stamp`)."""
-        return self.depth.stamp(key) if self.depth is not None else ""
-
-
 @dataclass(frozen=True)
 class Dataset:
     """A dataset with corruptions as variants and numbered levels (KITTI-C, NYUDepth2-C).
@@ -266,7 +182,9 @@ class Dataset:
     n_levels: int = N_LEVELS  # levels 1..n_levels
     discovers_sources: bool = False  # True: images found under the root, no split (custom)
     depth_in_root: bool = False  # True: a zero-shot preset, its depth maps under the root
-    evaluation: tuple = ()  # (key, value) defaults of `robodepth evaluate` beyond the protocol's
+    # (key, value) defaults of `robodepth evaluate`: protocol (kitti unless given), crop,
+    # min_depth, max_depth (the protocol's unless given)
+    evaluation: tuple = ()
 
     def variant_names(self) -> tuple[str, ...]:
         """The variants this dataset has; ``all`` in a configuration means these."""
@@ -304,33 +222,21 @@ class Dataset:
 
     def options(self) -> tuple[str, ...]:
         """Config keys of this dataset beyond the common ones: the engine and its device."""
-        from .engines import OPTIONS
-
-        return OPTIONS + ("scene_depth",)
+        return ENGINE_OPTIONS + ("scene_depth",)
 
     def check_option(self, key: str, value, base: Path):
         """The checked value of option ``key``; :class:`InvalidValueError` saying what is wrong.
         ``base`` is the directory relative paths are resolved against."""
-        from . import engines
-
         if key == "scene_depth":
             from .predicted import check_option
 
             return check_option(value, base)
-        if key in engines.OPTIONS:
-            return engines.check_option(key, value)
+        if key in ENGINE_OPTIONS:
+            choices = ENGINES if key == "engine" else DEVICES
+            if value is not None and value not in choices:
+                raise InvalidValueError(f"expected one of {', '.join(choices)}, got {value!r}")
+            return value
         raise InvalidValueError(f"{self.name} has no option {key!r}")
-
-    def renderer(self, config, depth=None) -> Renderer:
-        """The renderer of a build; ``depth`` the :meth:`depth_source` when the build has
-        depth-aware variants."""
-        numpy_engine = CorruptionRenderer(self.name, config.seed, depth)
-        if config.extra.get("engine") == "torch":
-            from .engines import TorchCorruptionRenderer
-
-            return TorchCorruptionRenderer(self.name, config.seed, config.extra["device"], config.jobs,
-                                           numpy_engine)
-        return numpy_engine
 
     def libraries(self) -> tuple[str, ...]:
         """Distributions whose versions the build record keeps (``verify`` compares those
@@ -367,19 +273,15 @@ class StyleDataset(Dataset):
 
         return check_option(key, value, base)
 
-    def renderer(self, config, depth=None) -> Renderer:
-        from ..styles.inputs import make_renderer
-
-        return make_renderer(config)
-
     def libraries(self) -> tuple[str, ...]:
         return super().libraries() + ("torch",)
 
 
-def _benchmark_dataset(name: str, split_format: str) -> Dataset:
+def _benchmark_dataset(name: str, split_format: str, evaluation: tuple = ()) -> Dataset:
     """The dataset of corruption benchmark ``name``: its corruptions and levels."""
     b = BENCHMARKS[name]
-    return Dataset(name, split_format, corruptions=b.corruptions, n_levels=b.n_levels)
+    return Dataset(name, split_format, corruptions=b.corruptions, n_levels=b.n_levels,
+                   evaluation=evaluation)
 
 
 @dataclass(frozen=True)
@@ -412,7 +314,7 @@ _WEATHER_SPLITS = tuple((w, f"{w}/left-image-full-size/*.jpg,{w}/left-image-full
 
 DATASETS: dict[str, Dataset] = {
     "kitti-c": _benchmark_dataset("kitti-c", "eigen"),
-    "nyudepth2-c": _benchmark_dataset("nyudepth2-c", "nyu"),
+    "nyudepth2-c": _benchmark_dataset("nyudepth2-c", "nyu", (("protocol", "nyu"),)),
     "kitti-s": StyleDataset("kitti-s", "eigen"),
     "custom": CustomDataset("custom", ""),
     # The zero-shot sets: custom builds whose pairing rule and reader are the preset's

@@ -45,7 +45,7 @@ import numpy as np
 
 # One DepthError for reading a map and for handing it to a corruption: catching the
 # exported robodepth_cli.corruptions.DepthError catches both.
-from ..corruptions._depth import DepthError
+from ..corruptions.depth import DepthError
 from ..errors import os_reason
 
 FORMATS = ("png", "npy", "npz", "pfm", "exr", "dpt", "raw", "cityscapes")
@@ -143,17 +143,18 @@ def _two_d(values: np.ndarray, path: Path) -> np.ndarray:
 
 
 def _png(path: Path, shape) -> np.ndarray:
-    from PIL import Image
+    from ..imageio import Png16Error, read_png16
 
     try:
-        with Image.open(path) as im:
-            if im.mode not in ("I;16", "I;16B", "I;16L", "I"):
-                raise DepthError(f"{path}: a {im.mode} PNG; depth PNGs are 16-bit, one channel")
-            return np.asarray(im).astype(np.int64)
+        return read_png16(path).astype(np.int64)
+    except Png16Error as exc:
+        if not exc.got:
+            raise DepthError(f"{path}: not a readable PNG (truncated or damaged)") from None
+        raise DepthError(f"{path}: {exc.got}; depth PNGs are 16-bit, one channel") from None
     except OSError as exc:
         if isinstance(exc, FileNotFoundError):
             raise
-        raise DepthError(f"{path}: not a readable PNG ({exc})") from None
+        raise DepthError(f"{path}: not a readable PNG ({os_reason(exc)})") from None
 
 
 def _npy(path: Path, shape) -> np.ndarray:

@@ -17,48 +17,32 @@ hold. They become metres by this rule:
   and raw sigmoid outputs, are refused: no rule turns them into metres.
 
 Then a depth of 0 or less is missing (the corruptions fill it from the nearest valid
-pixel), a disparity of 0 or less is infinitely far (:data:`~..corruptions._depth.FAR`), and
-the map is brought to the output size as a depth folder's (:func:`.scenedepth.at_size`);
-:class:`.scenedepth.PredictedDepth` reads the maps.
-The build record keeps the model and its identity (:func:`model_identity`), each depth-aware
+pixel), a disparity of 0 or less is infinitely far (:data:`~..corruptions.depth.FAR`), and
+the map is brought to the output size as a depth folder's (:func:`robodepth_cli.building.scenedepth.at_size`);
+:class:`~robodepth_cli.building.scenedepth.PredictedDepth` reads the maps.
+The build record keeps the model and its identity (:func:`~..predictions.model_identity`), each depth-aware
 output's manifest row ``depth=predictions:<identity>``.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 from pathlib import Path
 
-from ..errors import InvalidValueError, os_reason
-
-RECORD = "predictions.json"  # robodepth predict's record (models/predict.py)
-
-
-def model_identity(record: dict) -> str:
-    """What tells a model's maps apart, short enough for a manifest cell: the adapter and 16
-    hex digits of the sha256 of its weights' identity and options. ``robodepth evaluate``
-    writes the same for the predictions it reads."""
-    text = json.dumps({k: record.get(k) for k in ("adapter", "identity", "options")},
-                      sort_keys=True, default=str)
-    return f"{record.get('adapter')}:{hashlib.sha256(text.encode('utf-8')).hexdigest()[:16]}"
+from .. import predictions
+from ..errors import InvalidValueError
 
 
 def read_record(pred: Path) -> dict:
     """``PRED/predictions.json``; :class:`InvalidValueError` saying why it cannot be used."""
-    path = Path(pred) / RECORD
     if not Path(pred).is_dir():
         raise InvalidValueError(f"{pred}: not a folder of robodepth predict's output")
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InvalidValueError(f"{pred}: no {RECORD} (not written by robodepth predict), so what "
-                                "its maps hold (depth or disparity, metres or relative) is unknown") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
-        raise InvalidValueError(f"{path}: cannot read ({reason})") from None
-    if not isinstance(record, dict) or not isinstance(record.get("evaluate"), dict):
-        raise InvalidValueError(f"{path}: not a robodepth predictions record (no 'evaluate' entry)")
+        record = predictions.read_record(pred)
+    except predictions.PredictionsError as exc:
+        raise InvalidValueError(str(exc)) from None
+    if record is None:
+        raise InvalidValueError(f"{pred}: no {predictions.RECORD} (not written by robodepth predict), so "
+                                "what its maps hold (depth or disparity, metres or relative) is unknown")
     return record
 
 

@@ -14,16 +14,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .protocols import EvaluationError
+from ..files import read_npy_header
+from .kitti import GroundTruthError
 
 
-class NoValidPixel(EvaluationError):
+class NoValidPixel(GroundTruthError):
     """A map without a pixel to judge a prediction on (in another unit than metres, say):
     its image is left out of the evaluation."""
 
 
 class DepthMaps:
-    """The interface of :class:`~.groundtruth.GroundTruth` that evaluation uses (``len``,
+    """The interface of :class:`~.read.GroundTruth` that evaluation uses (``len``,
     ``get``, ``shapes``, ``share``/``open``), over one ``.npy`` file per image."""
 
     keys = None  # no frame keys to check the order against: the names are the keys
@@ -46,12 +47,12 @@ class DepthMaps:
             with open(path, "rb") as fh:
                 shape, _, dtype = read_npy_header(fh)
         except FileNotFoundError:
-            raise EvaluationError(f"{path}: no such ground-truth file (image {i}); rerun the build "
+            raise GroundTruthError(f"{path}: no such ground-truth file (image {i}); rerun the build "
                                   "to make it") from None
         except (OSError, ValueError) as exc:
-            raise EvaluationError(f"{path}: not a ground-truth .npy map ({exc})") from None
+            raise GroundTruthError(f"{path}: not a ground-truth .npy map ({exc})") from None
         if len(shape) != 2 or dtype.kind != "f":
-            raise EvaluationError(f"{path}: ground truth of shape {shape} and dtype {dtype}; "
+            raise GroundTruthError(f"{path}: ground truth of shape {shape} and dtype {dtype}; "
                                   "expected one 2-D float map")
         return tuple(shape)
 
@@ -67,9 +68,9 @@ class DepthMaps:
         try:
             depth = np.load(path, mmap_mode="r", allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise EvaluationError(f"{path}: cannot read the ground truth ({exc})") from None
+            raise GroundTruthError(f"{path}: cannot read the ground truth ({exc})") from None
         if depth.shape != self.shapes[i]:
-            raise EvaluationError(f"{path}: changed while it was evaluated")
+            raise GroundTruthError(f"{path}: changed while it was evaluated")
         index = self.valid(depth)
         if not index.size:
             raise NoValidPixel(f"{path} (ground truth of image {i}) has no valid pixel inside "
@@ -81,15 +82,3 @@ class DepthMaps:
 
     def open(self) -> DepthMaps:
         return self
-
-
-def read_npy_header(fh) -> tuple[tuple[int, ...], bool, np.dtype]:
-    """Shape, Fortran order and dtype of the ``.npy`` stream ``fh``, which is left at the
-    first byte of the data."""
-    fmt = np.lib.format
-    version = fmt.read_magic(fh)
-    if version == (1, 0):
-        shape, fortran, dtype = fmt.read_array_header_1_0(fh)
-    else:
-        shape, fortran, dtype = fmt.read_array_header_2_0(fh)
-    return tuple(shape), fortran, dtype

@@ -13,15 +13,13 @@ import numpy as np
 import torch
 from PIL import Image
 
-from . import corruptions, seeding, transforms_batch
-from .corruptions.severity import LevelError
-from .errors import InvalidValueError, RobodepthError
-from .imageio import ImageError
-from .keys import seed_key
-
-class TorchAPIError(RobodepthError):
-    """A bad argument to a transform or dataset of :mod:`robodepth_cli.torch`."""
-
+from .. import corruptions, seeding
+from . import batch as transforms_batch
+from ..corruptions.severity import LevelError
+from ..errors import InvalidValueError
+from ..imageio import ImageError
+from ..keys import seed_key
+from .errors import TorchAPIError
 
 # --- image types ---------------------------------------------------------------------------
 
@@ -127,11 +125,11 @@ class Corrupt:
     draws from the transform's own generator.
 
     An ``N x 3 x H x W`` batch (on any device) is corrupted there by the torch engine, item
-    ``i`` with ``key[i]`` when ``key`` is a sequence of keys (see :mod:`.transforms_batch`).
+    ``i`` with ``key[i]`` when ``key`` is a sequence of keys (see :mod:`.batch`).
     """
 
     def __init__(self, name: str, level=None, seed: int | None = 0, dataset: str = "custom"):
-        from .corruptions.chains import ChainError, looks_like_chain, parse_chain
+        from ..corruptions.chains import ChainError, looks_like_chain, parse_chain
 
         if looks_like_chain(name):
             try:
@@ -170,7 +168,7 @@ class Corrupt:
 
     def __call__(self, img, key: str | None = None):
         if transforms_batch.is_batch(img):  # key: one per item, or None
-            return transforms_batch.corrupt(self, img, key, TorchAPIError)
+            return transforms_batch.corrupt(self, img, key)
         arr, back = _to_array(img)
         try:
             out = self._apply(arr, key)
@@ -193,7 +191,7 @@ class RandomCorrupt:
 
     ``t(batch, keys=None, epoch=0)`` on an ``N x 3 x H x W`` batch returns ``(batch,
     applied)``, ``applied[i]`` the ``name:level`` item ``i`` got or ``""``; with ``keys`` each
-    item draws from its own generator (seed, key, epoch) (see :mod:`.transforms_batch`).
+    item draws from its own generator (seed, key, epoch) (see :mod:`.batch`).
     """
 
     def __init__(self, names: Sequence[str] | None = None, levels: Sequence[int] | None = None,
@@ -212,7 +210,7 @@ class RandomCorrupt:
 
     def __call__(self, img, keys=None, epoch: int = 0):
         if transforms_batch.is_batch(img):
-            return transforms_batch.random_corrupt(self, img, keys, int(epoch), TorchAPIError)
+            return transforms_batch.random_corrupt(self, img, keys, int(epoch))
         if keys is not None:
             raise TorchAPIError("keys= is for a batch (an N x 3 x H x W tensor), one key per item")
         rng = self._gen.get()
@@ -263,7 +261,7 @@ class RandomChain:
 
     def __init__(self, names: Sequence[str] | None = None, steps=(1, 3), severity=(1.0, 5.0),
                  distinct: bool = True, p: float = 1.0, seed: int = 0):
-        from .corruptions.chains import MAX_STEPS
+        from ..corruptions.chains import MAX_STEPS
 
         self.names = tuple(corruptions.NAMES if names is None else names)
         if not self.names:
@@ -315,8 +313,8 @@ class RandomChain:
         """The training side of a held-out protocol file (``configs/protocols/``): its
         ``train`` mapping's corruptions, steps and severity range (as a build checks them),
         so training never draws the corruptions the file builds for testing."""
-        from .building.config import ConfigError, check_train, load_yaml
-        from .sources.datasets import get_dataset
+        from ..building.config import ConfigError, check_train, load_yaml
+        from ..sources.datasets import get_dataset
 
         data = load_yaml(Path(path))
         try:
@@ -335,7 +333,7 @@ class RandomChain:
     def draw(self, key, epoch: int | None = None):
         """The :class:`~robodepth_cli.corruptions.chains.Chain` drawn for sample ``key`` in
         ``epoch``, or None when the draw (probability ``1 - p``) applies nothing."""
-        from .corruptions.chains import Chain, Step
+        from ..corruptions.chains import Chain, Step
 
         rng = seeding.sample_rng(self.seed, "random-chain", self._epoch(epoch), str(key))
         if rng.random() >= self.p:
@@ -352,7 +350,7 @@ class RandomChain:
 
     def __call__(self, img, key, epoch: int | None = None):
         if transforms_batch.is_batch(img):  # key: one per item
-            return transforms_batch.random_chain(self, img, key, epoch, TorchAPIError)
+            return transforms_batch.random_chain(self, img, key, epoch)
         chain = self.draw(key, epoch)
         if chain is None:
             return img, ""

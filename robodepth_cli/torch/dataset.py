@@ -1,25 +1,4 @@
-"""On-the-fly corruption for PyTorch: transforms and a dataset of a built benchmark.
-
-Importing it imports torch; nothing else in a build or an evaluation does.
-
-* :class:`Corrupt` applies one corruption at one level. Given ``key=`` (the source path as
-  a build's manifest records it) it draws exactly what ``robodepth build`` draws for that
-  image, so the pixels equal the built file's; without a key it draws from its own
-  generator.
-* :class:`RandomCorrupt` picks a corruption and a level at random, for augmentation-style
-  experiments; :class:`RandomChain` draws a whole chain at decimal severities,
-  reproducibly per sample and epoch, and says what it applied. The RoboDepth challenge rules forbid training on the benchmark's
-  corruptions for results submitted to it: this is for research on robustness, not for
-  leaderboard entries.
-* :func:`collate` batches :class:`KittiC` items whose ground truth (or images) differ in
-  size, zero-padded, with each item's own size.
-* :class:`KittiC` reads one corruption and level of a build (KITTI-C, NYUDepth2-C or a
-  custom build) in split order, from disk or computed from the build's clean images.
-
-Every generator is per process: a transform copied into ``DataLoader`` workers gives each
-worker its own stream (derived from the seed and the worker's seed), and keyed draws do
-not depend on any state at all. Nothing uses numpy's or torch's global random state.
-"""
+"""The :class:`KittiC` dataset of a built benchmark, and :func:`collate` for its items."""
 
 from __future__ import annotations
 
@@ -28,11 +7,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .api import _failed_text, open_dataset
-from .output.layout import CLEAN, GT_FILE, variant_dir
-from .transforms import Corrupt, RandomChain, RandomCorrupt, TorchAPIError
-
-__all__ = ["Corrupt", "RandomCorrupt", "RandomChain", "KittiC", "collate", "TorchAPIError"]
+from ..api import failed_text, open_dataset
+from ..output.layout import CLEAN, GT_FILE, variant_dir
+from .errors import TorchAPIError
+from .transforms import Corrupt
 
 
 # --- a built dataset -----------------------------------------------------------------------
@@ -89,7 +67,7 @@ class KittiC(torch.utils.data.Dataset):
         if variant is not None and variant.missing:
             if missing == "raise":
                 raise TorchAPIError(f"{self.root / variant.relpath}: "
-                                    f"{_failed_text(variant.missing, len(self.keys))}; rerun the "
+                                    f"{failed_text(variant.missing, len(self.keys))}; rerun the "
                                     f"build command to make them, or KittiC(..., missing='skip') "
                                     f"for the {len(self.keys) - len(variant.missing)} that exist")
             self._index = [i for i, k in enumerate(self.keys) if k not in variant.missing]
@@ -131,7 +109,7 @@ class KittiC(torch.utils.data.Dataset):
         if self._gt is None:
             if self._gt_path is None or not self._gt_path.is_file():
                 return None
-            from .evaluation.groundtruth import read_depth_maps
+            from ..groundtruth.read import read_depth_maps
 
             # Read lazily in each process (a DataLoader worker reads its own copy).
             self._gt = read_depth_maps(self._gt_path)
@@ -140,7 +118,7 @@ class KittiC(torch.utils.data.Dataset):
     def __getitem__(self, i: int) -> dict:
         if not 0 <= i < len(self.keys):
             raise IndexError(i)
-        from .imageio import read_rgb
+        from ..imageio import read_rgb
 
         if self._store is None:
             img = np.asarray(read_rgb(self._path(i)))
@@ -165,8 +143,8 @@ class KittiC(torch.utils.data.Dataset):
     def _neighbours(self, i: int, img: np.ndarray) -> list[np.ndarray]:
         import io
 
-        from .imageio import read_rgb
-        from .keys import neighbour_key
+        from ..imageio import read_rgb
+        from ..keys import neighbour_key
 
         out = []
         for o in self.frames:

@@ -12,37 +12,38 @@ from collections.abc import Sequence
 
 import torch
 
-from . import seeding
-from .corruptions import torch_engine
-from .errors import InvalidValueError
+from .. import seeding
+from ..corruptions import torch_engine
+from ..errors import InvalidValueError
+from .errors import TorchAPIError
 
 
 def is_batch(img) -> bool:
     return isinstance(img, torch.Tensor) and img.ndim == 4
 
 
-def _as_uint8(batch: torch.Tensor, error) -> tuple[torch.Tensor, object]:
+def _as_uint8(batch: torch.Tensor) -> tuple[torch.Tensor, object]:
     """``(uint8 N x 3 x H x W on batch's device, function turning a result back)``: a
     floating batch in [0, 1] is rounded to uint8 levels and returned as floats again."""
     if batch.shape[1] != 3:
-        raise error(f"expected an N x 3 x H x W batch, got shape {tuple(batch.shape)}")
+        raise TorchAPIError(f"expected an N x 3 x H x W batch, got shape {tuple(batch.shape)}")
     if batch.dtype == torch.uint8:
         return batch, lambda out: out
     if batch.is_floating_point():
         levels = (batch.detach().clamp(0, 1) * 255).round().to(torch.uint8)
         return levels, lambda out: out.to(batch.dtype) / 255
-    raise error(f"expected a uint8 or floating-point batch, got {batch.dtype}")
+    raise TorchAPIError(f"expected a uint8 or floating-point batch, got {batch.dtype}")
 
 
-def _keys(keys, n: int, error) -> list | None:
+def _keys(keys, n: int) -> list | None:
     if keys is None:
         return None
     if isinstance(keys, (str, bytes)) or not isinstance(keys, Sequence) or len(keys) != n:
-        raise error(f"a batch of {n} needs a sequence of {n} keys (one per item), got {keys!r}")
+        raise TorchAPIError(f"a batch of {n} needs a sequence of {n} keys (one per item), got {keys!r}")
     return list(keys)
 
 
-def _run(batch: torch.Tensor, groups: dict, error) -> torch.Tensor:
+def _run(batch: torch.Tensor, groups: dict) -> torch.Tensor:
     """``groups`` maps a variant (a corruption and level, or a chain) to its items and
     their generators; each group runs as one batch; the other items are left as they are."""
     out = batch.clone()
@@ -56,43 +57,43 @@ def _run(batch: torch.Tensor, groups: dict, error) -> torch.Tensor:
                 done = torch_engine.corrupt_batch(part, name, level, rngs)
             out.index_copy_(0, idx, done)
     except InvalidValueError as exc:  # e.g. images below 32 x 32
-        raise error(str(exc)) from None
+        raise TorchAPIError(str(exc)) from None
     return out
 
 
-def corrupt(t, batch: torch.Tensor, keys, error) -> torch.Tensor:
-    """:class:`~robodepth_cli.transforms.Corrupt` on a batch: with ``keys`` (one per item),
+def corrupt(t, batch: torch.Tensor, keys) -> torch.Tensor:
+    """:class:`~robodepth_cli.torch.Corrupt` on a batch: with ``keys`` (one per item),
     item ``i`` draws what a build draws for ``keys[i]``, so it equals the single-image
     call with that key; without, the items draw in turn from the transform's generator."""
-    from .keys import seed_key
+    from ..keys import seed_key
 
-    x, back = _as_uint8(batch, error)
-    keys = _keys(keys, len(x), error)
+    x, back = _as_uint8(batch)
+    keys = _keys(keys, len(x))
     if keys is not None:
         t.rng_for(keys[0])  # the refusal without a seed
     n = len(x)
     if t.chain is None:
         rngs = ([t.rng_for(k) for k in keys] if keys is not None else [t.rng_for(None)] * n)
-        return back(_run(x, {(t.name, t.level, None): (list(range(n)), rngs)}, error))
+        return back(_run(x, {(t.name, t.level, None): (list(range(n)), rngs)}))
     if keys is None:
         rngs = [[t.rng_for(None)] * len(t.chain.steps)] * n
     else:
         rngs = [seeding.chain_rngs(t.seed, t.dataset, t.chain, seed_key(t.dataset, k)) for k in keys]
-    return back(_run(x, {(t.name, None, t.chain): (list(range(n)), rngs)}, error))
+    return back(_run(x, {(t.name, None, t.chain): (list(range(n)), rngs)}))
 
 
-def random_corrupt(t, batch: torch.Tensor, keys, epoch: int, error):
-    """:class:`~robodepth_cli.transforms.RandomCorrupt` on a batch: ``(batch, applied)``,
+def random_corrupt(t, batch: torch.Tensor, keys, epoch: int):
+    """:class:`~robodepth_cli.torch.RandomCorrupt` on a batch: ``(batch, applied)``,
     ``applied[i]`` the ``name:level`` item ``i`` got ("" when none). With ``keys`` item
     ``i``'s draws (whether, which, and the corruption's own) come from the generator of
     ``(seed, keys[i], epoch)``, the same in any process; without, from the transform's
     generator in turn."""
-    from .corruptions.chains import Step
+    from ..corruptions.chains import Step
 
-    x, back = _as_uint8(batch, error)
-    keys = _keys(keys, len(x), error)
+    x, back = _as_uint8(batch)
+    keys = _keys(keys, len(x))
     if keys is not None and t._gen.seed is None:
-        raise error("keys= needs a seed: create the transform with seed=N")
+        raise TorchAPIError("keys= needs a seed: create the transform with seed=N")
     groups: dict = {}
     applied = []
     for i in range(len(x)):
@@ -107,17 +108,17 @@ def random_corrupt(t, batch: torch.Tensor, keys, epoch: int, error):
         index, rngs = groups.setdefault((name, level, None), ([], []))
         index.append(i)
         rngs.append(rng)
-    return back(_run(x, groups, error)), applied
+    return back(_run(x, groups)), applied
 
 
-def random_chain(t, batch: torch.Tensor, keys, epoch, error):
-    """:class:`~robodepth_cli.transforms.RandomChain` on a batch: ``(batch, chains)``, item
+def random_chain(t, batch: torch.Tensor, keys, epoch):
+    """:class:`~robodepth_cli.torch.RandomChain` on a batch: ``(batch, chains)``, item
     ``i`` corrupted exactly as ``t(item, keys[i], epoch)`` would corrupt it, ``chains[i]``
     the canonical text of its chain ("" when none)."""
-    x, back = _as_uint8(batch, error)
-    keys = _keys(keys, len(x), error)
+    x, back = _as_uint8(batch)
+    keys = _keys(keys, len(x))
     if keys is None:
-        raise error("RandomChain needs one key per item of a batch (keys=[...])")
+        raise TorchAPIError("RandomChain needs one key per item of a batch (keys=[...])")
     e = t._epoch(epoch)
     groups: dict = {}
     applied = []
@@ -129,5 +130,5 @@ def random_chain(t, batch: torch.Tensor, keys, epoch, error):
         index, rngs = groups.setdefault((chain.text, None, chain), ([], []))
         index.append(i)
         rngs.append(seeding.chain_rngs(t.seed, f"random-chain epoch {e}", chain, str(key)))
-    return back(_run(x, groups, error)), applied
+    return back(_run(x, groups)), applied
 

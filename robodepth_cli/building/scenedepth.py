@@ -2,7 +2,7 @@
 
 A :class:`DepthSource` gives the depth of one source (by its key) in metres, NaN where
 missing, at the build's output size or at its own with the same aspect ratio (the
-corruption engine fills and resizes it: :mod:`robodepth_cli.corruptions._depth`). It is
+corruption engine fills and resizes it: :mod:`robodepth_cli.corruptions.depth`). It is
 small and picklable (the renderer carries it to the workers) and reads its files lazily.
 The renderer asks it for a source's depth only when a job needs it; :func:`depth_for`
 chooses it for a build.
@@ -19,19 +19,19 @@ chooses it for a build.
   truth, paired and read as its ground truth is (:mod:`.depth_pairs`), turned upright with
   its image (EXIF orientation), then brought to the output size by :func:`at_size`.
 - :class:`PredictedDepth` (``--scene-depth PRED``): a model's predictions for
-  the clean images, in metres by the rule of :mod:`.predicted`.
+  the clean images, in metres by the rule of :mod:`robodepth_cli.sources.predicted`.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import InvalidValueError, RobodepthError, os_reason
-from .depth_io import DepthError
+from ..sources.depth_io import DepthError
 
 _VERSION = "1"  # bump when a source gives other depths for the same files
 DEPTH = "depth="  # the start of a depth source's fingerprint in a manifest row's params
@@ -88,7 +88,7 @@ class NyuDepth(DepthSource):
         self.paths = depth_paths  # key -> (RGB path, depth path) as the split lists them
 
     def depth(self, key, shape):
-        from . import nyu_labeled
+        from ..groundtruth import nyu as nyu_labeled
 
         rgb, rel = self.paths[key]
         root = Path(self.root)
@@ -96,7 +96,7 @@ class NyuDepth(DepthSource):
             labeled = nyu_labeled.opened(root)
             d = labeled.depth(nyu_labeled.frame_index(labeled, rgb)).astype(np.float64)
         else:
-            from .depthfile import read_depth
+            from ..sources.depthfile import read_depth
 
             return read_depth(root / rel, nyu_labeled.DEPTH_SCALE)
         d[~(d > 0)] = np.nan
@@ -122,7 +122,7 @@ class KittiLidarDepth(DepthSource):
         return {"root": self.root, "_calibs": {}}
 
     def depth(self, key, shape):
-        from . import kitti_raw
+        from ..groundtruth import kitti as kitti_raw
 
         frame = kitti_raw.frame_key(key)
         if frame is None or "/image_02/" not in key:
@@ -157,7 +157,7 @@ class FolderDepth(DepthSource):
 
     def __init__(self, kind: str, extra: dict, root: Path, in_root: bool,
                  sources: dict[str, tuple[str, int]]):
-        from .depth_pairs import rule_of
+        from ..sources.depth_pairs import rule_of
 
         self.kind = kind
         self.rule = rule_of(extra, Path(root), in_root)
@@ -189,8 +189,8 @@ class FolderDepth(DepthSource):
     def depth(self, key, shape):
         from PIL import Image
 
-        from .depth_io import DepthError
-        from .depth_pairs import pair, read_pair
+        from ..sources.depth_io import DepthError
+        from ..sources.depth_pairs import pair, read_pair
 
         rel, orientation = self.sources[key]
         found = pair(self.rule, rel)
@@ -228,7 +228,7 @@ def at_size(d: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     own rule), then each output pixel the depth under its centre, whatever the aspect ratio."""
     if d.shape == tuple(shape):
         return d
-    from ..corruptions._depth import fill_missing, nearest_resize
+    from ..corruptions.depth import fill_missing, nearest_resize
 
     return nearest_resize(fill_missing(d), shape)
 
@@ -237,11 +237,12 @@ class PredictedDepth(DepthSource):
     kind = "predictions"
 
     def __init__(self, pred: Path, record: dict, keys: dict[str, int], own: DepthSource | None):
-        from . import predicted as P
+        from ..predictions import model_identity
+        from ..sources import predicted as P
 
         self.pred = str(pred)
         self.model = str(record.get("model"))
-        self.identity = P.model_identity(record)
+        self.identity = model_identity(record)
         self.disparity = record["evaluate"]["kind"] == "disp"
         self.rule = P.conversion(record, pred)
         self.keys = keys  # key -> index in the predicting build's split order
@@ -256,7 +257,8 @@ class PredictedDepth(DepthSource):
     def open(cls, pred: Path, own: DepthSource | None) -> PredictedDepth:
         """The depth of ``PRED``, checked before any work; ``own``: the dataset's own depth,
         which relative maps are scaled to. :class:`RobodepthError` naming ``--scene-depth``."""
-        from . import predicted as P
+        from .. import predictions
+        from ..sources import predicted as P
 
         try:
             record = P.read_record(pred)
@@ -271,10 +273,9 @@ class PredictedDepth(DepthSource):
         try:
             keys = json.loads((built / "build.json").read_text(encoding="utf-8"))["split"]["keys"]
         except (OSError, ValueError, KeyError, TypeError):
-            raise RobodepthError(f"--scene-depth: {pred}: the build its {P.RECORD} names ({built}) has no "
+            raise RobodepthError(f"--scene-depth: {pred}: the build its {predictions.RECORD} names ({built}) has no "
                                  "readable build.json listing its images (moved or deleted?)") from None
-        digest = hashlib.sha256("\n".join(keys).encode("utf-8")).hexdigest()
-        if digest != record.get("split_sha256"):
+        if predictions.split_digest(keys) != record.get("split_sha256"):
             raise RobodepthError(f"--scene-depth: {pred}: {built} holds other images than when the "
                                  "predictions were made; predict again")
         src = cls(pred, record, {k: i for i, k in enumerate(keys)}, own)
@@ -305,11 +306,9 @@ class PredictedDepth(DepthSource):
                 "predictions": self.pred, "rule": self.rule}
 
     def _source(self) -> Path | None:
-        base = Path(self.pred)
-        for p in (base / "clean.npy", base / "clean.npz", base / "clean"):
-            if p.exists():
-                return p
-        return None
+        from ..predictions import clean_source
+
+        return clean_source(Path(self.pred))
 
     def _read(self, key: str) -> np.ndarray:
         if key not in self.keys:
@@ -317,7 +316,9 @@ class PredictedDepth(DepthSource):
                              "build's images)")
         i, src = self.keys[key], self._source()
         if src is not None and src.is_dir():
-            path = src / str(PurePosixPath(key).with_suffix(".npy"))
+            from ..predictions import image_files
+
+            path = image_files(src, [key])[0]
             try:
                 return np.load(path, allow_pickle=False)
             except (OSError, ValueError, EOFError) as exc:
@@ -336,7 +337,7 @@ class PredictedDepth(DepthSource):
             raise DepthError(f"{src}: cannot read prediction {i} ({reason})") from None
 
     def depth(self, key, shape):
-        from ..corruptions._depth import FAR, nearest_resize
+        from ..corruptions.depth import FAR, nearest_resize
 
         m = self._read(key)
         if m.ndim != 2 or m.dtype.kind not in "fiu" or not np.isfinite(m).all():
@@ -414,7 +415,7 @@ def own_depth(ds, cfg, root: Path, split_path: str | None, sources) -> DepthSour
     if ds.split_format == "eigen":
         return KittiLidarDepth(Path(root))
     if ds.split_format == "nyu":
-        from .datasets import read_split
+        from ..sources.datasets import read_split
 
         entries = read_split(Path(split_path or ""), "nyu")
         return NyuDepth(Path(root), {e.key: (e.fields[0], e.fields[1]) for e in entries})

@@ -1,11 +1,11 @@
 """The ground truth a build writes beside its images, so the dataset can be evaluated as it is.
 
 - KITTI-C, KITTI-C-HR, KITTI-S (Eigen-format splits): ``OUT/gt_depths.npz``, the depth maps
-  of the built frames in split order (:mod:`robodepth_cli.sources.kitti_raw`), one manifest row.
+  of the built frames in split order (:mod:`robodepth_cli.groundtruth.kitti`), one manifest row.
   Made only when every frame has its velodyne file; otherwise a note says which is missing
   and that rerunning the same build adds it (a manifest row, so ``verify`` still passes).
 - NYUDepth2-C (NYU-format splits): ``OUT/gt/<depth path of the split line>``, e.g.
-  ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.sources.nyu_labeled`), one row each:
+  ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.groundtruth.nyu`), one row each:
   made from the labeled ``.mat`` when that is the root, copied from a BTS test folder
   otherwise (when every listed depth file is there; else a note).
 
@@ -59,6 +59,14 @@ class GtPlan:
     note: str = ""  # why there is no ground truth, when there is none
     # Depth maps written whose values look like another unit than metres: "path (median X m)".
     implausible: list[str] = field(default_factory=list)
+
+    def unit_warning(self) -> str:
+        """The build's warning about :attr:`implausible` maps."""
+        shown = ", ".join(self.implausible[:2]) + (", ..." if len(self.implausible) > 2 else "")
+        return (f"warning: {len(self.implausible)} depth map(s) have a median depth above "
+                f"{PLAUSIBLE_MEDIAN_M:g} m, no plausible distance in metres ({shown}): are they in "
+                "another unit? The evaluation leaves out images without a valid pixel in its "
+                "depth range")
 
 
 def _stat(path: Path) -> str:
@@ -124,7 +132,7 @@ def _later(what: str, rerun: str | None) -> str:
 
 
 def _plan_kitti(root: Path, split_path: Path, limit: int | None, rerun: str | None) -> GtPlan:
-    from ..sources import kitti_raw as gt_kitti
+    from . import kitti as gt_kitti
 
     frames = gt_kitti.read_frames(split_path)[:limit]
     plan = GtPlan("kitti", root, str(split_path), [])
@@ -144,7 +152,7 @@ def _plan_kitti(root: Path, split_path: Path, limit: int | None, rerun: str | No
 
 
 def _plan_nyu(root: Path, split_path: Path, limit: int | None, rerun: str | None) -> GtPlan:
-    from ..sources import nyu_labeled as gt_nyu
+    from . import nyu as gt_nyu
 
     frames = gt_nyu.read_frames(split_path)[:limit]
     plan = GtPlan("nyu", root, str(split_path), [])
@@ -216,7 +224,7 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
     from threadpoolctl import threadpool_limits
     from ..progress import bar as progress_bar
 
-    from ..sources import kitti_raw as gt_kitti
+    from . import kitti as gt_kitti
 
     target = out / job.output
     with progress_bar("frame", len(job.frames), progress=progress, desc="ground truth") as bar:
@@ -239,7 +247,7 @@ def _run_kitti(plan: GtPlan, job: GtJob, out: Path, progress: bool):
 
 
 def _run_nyu(plan: GtPlan, job: GtJob, out: Path):
-    from ..sources import nyu_labeled as gt_nyu
+    from . import nyu as gt_nyu
     from ..files import write_atomic
     from ..files import sha256_bytes
 
@@ -272,6 +280,7 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
     import numpy as np
 
     from ..files import sha256_bytes, write_atomic
+    from ..imageio import stored_size
     from ..sources.depth_pairs import read_pair
 
     target = out / job.output
@@ -280,7 +289,7 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
         if job.error:
             raise RobodepthError(job.error)
         base = Path(rule.directory)
-        size = _image_size(src)
+        size = stored_size(src.path)  # the depth map is the stored image's
         if size is None and (rule.same_size or rule.fmt == "raw"):
             raise RobodepthError(f"{src.path}: cannot read the image's size")
         depth = read_pair(rule, found, size)
@@ -305,14 +314,3 @@ def _run_depth(plan: GtPlan, job: GtJob, out: Path):
     except OSError as exc:
         return "fatal", _row(job, error=cannot_write(target, exc))
     return "written", _row(job, sha256_bytes(data), size=depth.shape)
-
-
-def _image_size(src) -> tuple[int, int] | None:
-    """(H, W) of a source image as stored: the depth map is the stored image's."""
-    from PIL import Image
-
-    try:
-        with Image.open(src.path) as im:
-            return im.height, im.width
-    except Exception:  # unreadable: the caller says so
-        return None

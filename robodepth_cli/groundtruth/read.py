@@ -16,20 +16,16 @@ ground truth with ``allow_pickle=True``.
 
 from __future__ import annotations
 
-import os
-import sys
 import zipfile
 import zlib
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from ..errors import os_reason
-from ..sources.kitti_raw import KEYS_MEMBER, frame_key
-from .depthmaps import read_npy_header
-from .protocols import VALID, EvaluationError
+from .kitti import KEYS_MEMBER, GroundTruthError, frame_key
+from ..files import read_npy_header
 
 
 class GroundTruth:
@@ -39,11 +35,11 @@ class GroundTruth:
     than the map itself, else as read and prepared again on each use.
     """
 
-    def __init__(self, source: str, protocol: str, valid=None):
+    def __init__(self, source: str, protocol: str, valid):
         self.source = source
         self.protocol = protocol
-        # valid: a setup's own rule (crop, depth range); by default the protocol's
-        self._valid = valid or VALID[protocol]
+        # valid: the evaluation setup's rule of valid pixels (its protocol's crop, depth range)
+        self._valid = valid
         self._items: list = []
         self.shapes: list[tuple[int, int]] = []
         self.keys: list[str] | None = None  # the frame of each map, when the file says
@@ -61,7 +57,7 @@ class GroundTruth:
         index = self._valid(depth).astype(np.int32 if depth.size < 2 ** 31 else np.int64)
         if not index.size:
             # The reference would average a NaN into every metric; say which map instead.
-            raise EvaluationError(f"{where} has no valid pixel inside the protocol's crop and "
+            raise GroundTruthError(f"{where} has no valid pixel inside the protocol's crop and "
                                   "depth range")
         values = depth.reshape(-1)[index]
         kept = raw if raw is not None else depth
@@ -131,12 +127,12 @@ class SharedGroundTruth:
         return gt
 
 
-def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
-                      valid=None, absent=frozenset()) -> GroundTruth:
+def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
+                      absent=frozenset()) -> GroundTruth:
     """Read the ground truth of a split's images from ``path``: a ``.npz``/``.npy`` file of
     depth maps in metres, one per image in split order (monodepth2's ``gt_depths.npz``), or
     a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
-    image, in split order). Raises :class:`EvaluationError` naming the file (and map index)
+    image, in split order). Raises :class:`GroundTruthError` naming the file (and map index)
     for a missing, unreadable or malformed map, and when the file holds another number of
     maps than the split has images.
 
@@ -151,7 +147,7 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
     if path.is_dir() and names and all(n.endswith(".npy") for n in names):
         from .depthmaps import DepthMaps  # a build with depth: one float map per image
 
-        return DepthMaps(path, names, protocol, valid or VALID[protocol], absent)
+        return DepthMaps(path, names, protocol, valid, absent)
     gt = GroundTruth(str(path), protocol, valid)
     if path.is_dir():
         for i, name in enumerate(names):
@@ -160,9 +156,9 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str,
             gt.add(raw.astype(np.float32) / 1000.0, raw, 1000.0,
                    f"{file} (ground truth of image {i})")
         return gt
-    count = _read_gt_file(path, gt)
+    count = read_gt_file(path, gt)
     if count != len(names):
-        raise EvaluationError(f"{path}: {count} ground-truth maps, but the dataset's split has "
+        raise GroundTruthError(f"{path}: {count} ground-truth maps, but the dataset's split has "
                               f"{len(names)} images; ground truth and split must match one to one")
     _check_order(path, gt.keys, names)
     return gt
@@ -174,11 +170,11 @@ def _check_order(path: Path, keys: Sequence[str] | None, names: Sequence[str]) -
     if keys is None:
         return
     if len(keys) != len(names):
-        raise EvaluationError(f"{path}: {len(keys)} frame keys for its maps; the file is damaged")
+        raise GroundTruthError(f"{path}: {len(keys)} frame keys for its maps; the file is damaged")
     for i, (have, name) in enumerate(zip(keys, names)):
         want = frame_key(name)
         if want is not None and have != want:
-            raise EvaluationError(f"{path}: map {i} is the ground truth of {have}, but image {i} of "
+            raise GroundTruthError(f"{path}: map {i} is the ground truth of {have}, but image {i} of "
                                   f"the split is {want} ({name}); ground truth and split must be "
                                   "in the same order")
 
@@ -187,7 +183,7 @@ def read_depth_maps(path: Path) -> list[np.ndarray]:
     """Every depth map of a ``.npz``/``.npy`` ground-truth file, as stored (metres), in order;
     read with the same safe unpickler as :func:`load_ground_truth`."""
     maps = _Maps()
-    _read_gt_file(Path(path), maps)
+    read_gt_file(Path(path), maps)
     return maps
 
 
@@ -205,11 +201,11 @@ def _check_gt_map(m, path: Path, i: int) -> np.ndarray:
     if not isinstance(m, np.ndarray) or m.ndim != 2 or m.dtype.kind not in "fiu" or 0 in m.shape:
         what = (f"shape {m.shape} and dtype {m.dtype}" if isinstance(m, np.ndarray)
                 else f"a {type(m).__name__}")
-        raise EvaluationError(f"{path}: ground-truth map {i} has {what}; expected a 2-D depth map")
+        raise GroundTruthError(f"{path}: ground-truth map {i} has {what}; expected a 2-D depth map")
     return m
 
 
-def _read_gt_file(path: Path, gt: GroundTruth) -> int:
+def read_gt_file(path: Path, gt: GroundTruth) -> int:
     """Add every map of a ``.npz``/``.npy`` ground-truth file to ``gt``; return how many.
 
     monodepth2's file is an object array of differently sized maps, which numpy stores as
@@ -219,7 +215,7 @@ def _read_gt_file(path: Path, gt: GroundTruth) -> int:
     memory together. A plain N x H x W array is read as it is.
     """
     if not path.exists():
-        raise EvaluationError(f"{path}: no such ground-truth file")
+        raise GroundTruthError(f"{path}: no such ground-truth file")
     try:
         with open(path, "rb") as raw:
             if zipfile.is_zipfile(raw):
@@ -229,7 +225,7 @@ def _read_gt_file(path: Path, gt: GroundTruth) -> int:
                     member = ("data.npy" if "data.npy" in names
                               else names[0] if len(names) == 1 else None)
                     if member is None:
-                        raise EvaluationError(f"{path}: holds {', '.join(names)}; expected 'data' "
+                        raise GroundTruthError(f"{path}: holds {', '.join(names)}; expected 'data' "
                                               "(monodepth2's gt_depths.npz) or a single array")
                     with zf.open(member) as fh:
                         count = _read_gt_stream(fh, path, gt)
@@ -237,34 +233,34 @@ def _read_gt_file(path: Path, gt: GroundTruth) -> int:
                         with zf.open(KEYS_MEMBER) as fh:
                             keys = np.lib.format.read_array(fh, allow_pickle=False)
                         if keys.ndim != 1 or keys.dtype.kind != "U":
-                            raise EvaluationError(f"{path}: {KEYS_MEMBER} is not a list of frame keys")
+                            raise GroundTruthError(f"{path}: {KEYS_MEMBER} is not a list of frame keys")
                         gt.keys = [str(k) for k in keys]
                     return count
             raw.seek(0)
             return _read_gt_stream(raw, path, gt)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
-        if isinstance(exc, EvaluationError):
+        if isinstance(exc, GroundTruthError):
             raise
         reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
-        raise EvaluationError(f"{path}: not a numpy .npz/.npy ground-truth file ({reason})") from None
+        raise GroundTruthError(f"{path}: not a numpy .npz/.npy ground-truth file ({reason})") from None
 
 
 def _read_gt_stream(fh, path: Path, gt: GroundTruth) -> int:
     shape, fortran, dtype = read_npy_header(fh)
     if not dtype.hasobject:
         if len(shape) != 3:
-            raise EvaluationError(f"{path}: ground truth of shape {shape}; expected N depth maps "
+            raise GroundTruthError(f"{path}: ground truth of shape {shape}; expected N depth maps "
                                   "(an object array of 2-D maps, or N x H x W)")
         nbytes = int(np.prod(shape)) * dtype.itemsize
         buf = fh.read(nbytes)
         if len(buf) != nbytes:
-            raise EvaluationError(f"{path}: the array ends early (truncated?)")
+            raise GroundTruthError(f"{path}: the array ends early (truncated?)")
         data = np.frombuffer(buf, dtype).reshape(shape, order="F" if fortran else "C")
         for i in range(len(data)):
             gt.add(_check_gt_map(data[i], path, i))
         return len(data)
     if len(shape) != 1:
-        raise EvaluationError(f"{path}: ground truth of shape {shape}; expected a 1-D object "
+        raise GroundTruthError(f"{path}: ground truth of shape {shape}; expected a 1-D object "
                               "array of 2-D depth maps")
     counter = iter(range(1 << 62))
 
@@ -275,7 +271,7 @@ def _read_gt_stream(fh, path: Path, gt: GroundTruth) -> int:
 
     data = _MapUnpickler(fh, path, reduce).load()
     if not isinstance(data, np.ndarray) or data.ndim != 1:
-        raise EvaluationError(f"{path}: does not hold a 1-D array of depth maps")
+        raise GroundTruthError(f"{path}: does not hold a 1-D array of depth maps")
     for i, m in enumerate(data):
         prepared = m if isinstance(m, _Prepared) else getattr(m, "prepared", None)
         if prepared is None:
@@ -346,7 +342,7 @@ class _MapUnpickler:
                 if (module, name) == ("_codecs", "encode"):
                     return super().find_class(module, name)
                 if module not in _NUMPY_MODULES or name not in _ALLOWED:
-                    raise EvaluationError(f"{path}: holds a pickled {module}.{name}; ground truth "
+                    raise GroundTruthError(f"{path}: holds a pickled {module}.{name}; ground truth "
                                           "may hold only numpy arrays (refused, not loaded)")
                 if name == "ndarray":
                     return Map
@@ -372,34 +368,9 @@ class _MapUnpickler:
             memo[k] = None  # not deleted: new entries are numbered by the memo's length
 
 
-@contextmanager
-def _native_stderr_silenced():
-    """File descriptor 2 sent to /dev/null: libpng prints ``libpng error: Read Error`` there
-    for a truncated file before OpenCV returns None; the one-line error says it instead."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(devnull)
-
-
 def read_png16(file: Path, what: str) -> np.ndarray:
-    """A 16-bit single-channel PNG (depth maps of BTS's test set and of PNG predictions);
-    ``what`` says in messages whose file it is."""
-    import cv2
+    """A 16-bit single-channel PNG of the ground truth; ``what`` says in messages whose
+    file it is."""
+    from ..imageio import read_depth_png
 
-    if not file.is_file():
-        raise EvaluationError(f"{file}: no such file ({what})")
-    with _native_stderr_silenced():
-        raw = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
-    if raw is None:
-        raise EvaluationError(f"{file}: not a readable PNG, truncated or damaged ({what})")
-    if raw.ndim != 2 or raw.dtype != np.uint16:
-        got = f"{raw.dtype.itemsize * 8}-bit" + (f", {raw.shape[2]} channels" if raw.ndim == 3 else "")
-        raise EvaluationError(f"{file}: {got}; expected a 16-bit single-channel PNG ({what})")
-    return raw
+    return read_depth_png(file, what, GroundTruthError)

@@ -49,7 +49,8 @@ KEYS_MEMBER = "keys.npy"
 
 
 class GroundTruthError(RobodepthError):
-    """Input that ground truth cannot be made from; the message names the file."""
+    """Input that ground truth cannot be made from, or ground truth that cannot be read
+    for an evaluation; the message names the file."""
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,7 @@ def frame_key(image_key: str) -> str | None:
 def read_frames(split: Path) -> list[KittiFrame]:
     """The frames of an Eigen-format split file (``DATE/DRIVE FRAME SIDE`` per line), with
     the checks every split gets (:func:`robodepth_cli.sources.datasets.read_split`)."""
-    from .datasets import read_split
+    from ..sources.datasets import read_split
 
     return [KittiFrame(e.line, e.fields[0], int(e.fields[1])) for e in read_split(split, "eigen")]
 

@@ -71,7 +71,7 @@ class NyuFrame:
 def read_frames(split: Path) -> list[NyuFrame]:
     """The frames of a NYU-format split file, with the checks every split gets
     (:func:`robodepth_cli.sources.datasets.read_split`)."""
-    from .datasets import read_split
+    from ..sources.datasets import read_split
 
     return [NyuFrame(e.line, e.fields[0], e.fields[1]) for e in read_split(split, "nyu")]
 
@@ -210,7 +210,7 @@ def encode_depth_png(depth_mm: np.ndarray) -> bytes:
 def read_depth_png(path: Path) -> tuple[bytes, tuple[int, int]]:
     """The bytes of a BTS ``sync_depth`` file, checked to be a single-channel 16-bit PNG,
     and its size (H, W)."""
-    import cv2
+    from ..imageio import Png16Error, read_png16
 
     path = Path(path)
     try:
@@ -219,12 +219,13 @@ def read_depth_png(path: Path) -> tuple[bytes, tuple[int, int]]:
         raise NyuError(f"{path}: no such depth file") from None
     except OSError as exc:
         raise NyuError(f"{path}: cannot read ({os_reason(exc)})") from None
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) if data[:8] == b"\x89PNG\r\n\x1a\n" else None
-    if img is None:
-        raise NyuError(f"{path}: not a PNG file OpenCV can read")
-    if img.dtype != np.uint16 or img.ndim != 2:
-        raise NyuError(f"{path}: a {img.dtype} PNG with {1 if img.ndim == 2 else img.shape[2]} channel(s); "
-                       f"depth is a 16-bit single-channel PNG")
+    try:
+        img = read_png16(data)
+    except Png16Error as exc:
+        if exc.raw is None:
+            raise NyuError(f"{path}: not a PNG file OpenCV can read") from None
+        raise NyuError(f"{path}: a {exc.raw.dtype} PNG with {1 if exc.raw.ndim == 2 else exc.raw.shape[2]} channel(s); "
+                       f"depth is a 16-bit single-channel PNG") from None
     return data, img.shape
 
 

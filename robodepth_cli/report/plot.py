@@ -26,7 +26,7 @@ from typing import Sequence
 
 from ..benchmarks import CATEGORIES
 from ..errors import RobodepthError
-from .scores import Scores
+from ..evaluation.scores import Scores
 
 # Okabe & Ito (2008), "Color Universal Design"; the yellow is last, it is faint on white.
 OKABE_ITO = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000",
@@ -48,7 +48,7 @@ class FiguresUnavailable(RobodepthError):
     """matplotlib (the ``figures`` extra) is not installed."""
 
 
-def _mpl():
+def load_matplotlib():
     try:
         import matplotlib
     except ImportError:
@@ -62,8 +62,8 @@ def _mpl():
     return matplotlib
 
 
-def _figure(width: float, height: float):
-    _mpl()
+def new_figure(width: float, height: float):
+    load_matplotlib()
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -217,7 +217,7 @@ def _leader_label(ax, x, y, text, kwargs, taken, marker, fits, renderer):
     return None
 
 
-def _freeze_layout(fig):
+def freeze_layout(fig):
     """Run the constrained layout once and keep it: labels placed afterwards are measured
     where they will be drawn."""
     fig.canvas.draw()
@@ -225,7 +225,7 @@ def _freeze_layout(fig):
     return fig.canvas.get_renderer()
 
 
-def _legend(fig, handles=None, labels=None):
+def figure_legend(fig, handles=None, labels=None):
     """A legend under the plot with as many columns as fit the figure's width (a legend
     wider than the figure would be cut off at both sides)."""
     if handles is None:
@@ -241,7 +241,7 @@ def _legend(fig, handles=None, labels=None):
     return fig.legend(handles, labels, loc="outside lower center", ncols=ncols, frameon=False)
 
 
-def _title(fig, title: str, subtitle: str = ""):
+def figure_title(fig, title: str, subtitle: str = ""):
     fig.suptitle(title + (f"\n{subtitle}" if subtitle else ""), fontsize=11, color=INK)
 
 
@@ -257,20 +257,9 @@ def ce_figure(models: Sequence[Model], benchmark: str):
     per_group = len(models)
     band = 0.8
     bar_h = band / per_group
-    # y positions: corruptions top to bottom, a gap and a heading row between categories.
-    rows, y, cat_heads = {}, 0.0, []
-    for cat in CATEGORIES:
-        members = [c.name for c in first.corruptions if c.category == cat]
-        if not members:
-            continue
-        cat_heads.append((cat, y))
-        y += 1.0
-        for n in members:
-            rows[n] = y
-            y += 1.0
-        y += 0.4
+    rows, y, cat_heads = _category_rows(first)
     height = 1.4 + 0.19 * y * max(1.0, 0.55 * per_group)
-    fig = _figure(8.0, height)
+    fig = new_figure(8.0, height)
     ax = fig.add_subplot()
     values = [c.ce for m in models for c in m.scores.corruptions if c.ce is not None]
     xmax = max(125.0, 25.0 * (math.floor(max(values, default=0.0) / 25.0) + 1))
@@ -302,32 +291,54 @@ def ce_figure(models: Sequence[Model], benchmark: str):
     ax.set_ylim(y - 0.2, -0.8)
     ax.set_xlim(0, xmax * (1.12 if single else 1.0))
     ax.set_xlabel("CE (%), lower is better; the dashed line is the baseline (100%)")
-    _bar_axes(ax)
+    bar_axes(ax)
     base = first.baseline.name
     if single:
         o = first.overall
         summary = "   ".join(f"{k} {v:.2f}" for k, v in (("mCE", o.ce), ("mRR", o.rr)) if v is not None)
-        _title(fig, f"Corruption error per corruption: {models[0].name} on {bench_title(benchmark)}",
-               f"baseline {base} = 100%   {summary}" + ("   (partial)" if first.missing else ""))
+        figure_title(fig, f"Corruption error per corruption: {models[0].name} on {bench_title(benchmark)}",
+                     f"baseline {base} = 100%   {summary}" + ("   (partial)" if first.missing else ""))
     else:
-        _title(fig, f"Corruption error per corruption on {bench_title(benchmark)}",
-               f"baseline {base} = 100%")
-        _legend(fig)
+        figure_title(fig, f"Corruption error per corruption on {bench_title(benchmark)}",
+                     f"baseline {base} = 100%")
+        figure_legend(fig)
     if notes:
-        renderer = _freeze_layout(fig)
-        x100 = ax.transData.transform((100.0, 0))[0]
-        for ce, yc, note, colour in notes:
-            text = ax.text(ce + xmax * 0.008, yc, note, va="center", fontsize=8, color=INK)
-            box = text.get_window_extent(renderer)
-            if box.x0 - 3 <= x100 <= box.x1 + 3:
-                # It would cross the 100% line: inside the bar's end instead, in whichever
-                # of black and white reads better on the bar's colour.
-                text.set(x=ce - xmax * 0.008, ha="right",
-                         color=INK if _luminance(colour) > 0.2 else "white")
+        _write_bar_ends(fig, ax, notes, xmax)
     return fig
 
 
-def _bar_axes(ax, grid: bool = True) -> None:
+def _category_rows(first: Scores) -> tuple[dict[str, float], float, list]:
+    """The y positions of the CE chart: corruptions top to bottom, a gap and a heading row
+    between categories; ``(row of each corruption, the end, (category, heading row)s)``."""
+    rows, y, cat_heads = {}, 0.0, []
+    for cat in CATEGORIES:
+        members = [c.name for c in first.corruptions if c.category == cat]
+        if not members:
+            continue
+        cat_heads.append((cat, y))
+        y += 1.0
+        for n in members:
+            rows[n] = y
+            y += 1.0
+        y += 0.4
+    return rows, y, cat_heads
+
+
+def _write_bar_ends(fig, ax, notes, xmax: float) -> None:
+    """Each bar's value at its end, ``notes`` (CE, y, text, bar colour)."""
+    renderer = freeze_layout(fig)
+    x100 = ax.transData.transform((100.0, 0))[0]
+    for ce, yc, note, colour in notes:
+        text = ax.text(ce + xmax * 0.008, yc, note, va="center", fontsize=8, color=INK)
+        box = text.get_window_extent(renderer)
+        if box.x0 - 3 <= x100 <= box.x1 + 3:
+            # It would cross the 100% line: inside the bar's end instead, in whichever
+            # of black and white reads better on the bar's colour.
+            text.set(x=ce - xmax * 0.008, ha="right",
+                     color=INK if _luminance(colour) > 0.2 else "white")
+
+
+def bar_axes(ax, grid: bool = True) -> None:
     """Horizontal bar charts: names without tick marks, no box on the top and right, and
     (``grid``) faint vertical lines behind the bars."""
     if grid:

@@ -1,0 +1,66 @@
+"""One ``robodepth run`` from its settings to its results CSV: the configuration, the
+sources decoded once, the model, the evaluation setup, the resumable state and the loop
+(:mod:`.loop`); the command only parses the flags and prints."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+
+def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: str, engine: str,
+        batch_size: int, device: str, post_process: bool, kind, metric, evaluation: dict,
+        keep: Path | None, progress: bool, note: Callable[[str], None],
+        on_state: Callable[[Path], None]):
+    """Judge model ``spec`` on ``dataset`` made in memory from ``root``; write the results CSV
+    ``out`` and return ``(result, its CSV text, the benchmark scored, whether out was
+    replaced)``. ``evaluation``: the evaluate flags (stereo, align, align_space, crop,
+    min_depth, max_depth); ``note`` prints a line for the user; ``on_state`` is told the
+    state file once the decoding is done (the run then resumes from it)."""
+    from ..building.config import resolve
+    from ..evaluation import evaluate as E
+    from ..evaluation.setup import evaluation_setup, scored_benchmark
+    from ..files import check_writable
+    from ..models import load_model
+    from ..models.predict import BATCH_PIXELS, batch_limit
+    from ..progress import bar as progress_bar
+    from . import inputs as I, loop
+    from .state import RunState
+
+    check_writable(out, "--out")
+    if keep is not None:
+        check_writable(keep / "predictions.json", "--keep-predictions")
+    cfg = resolve(dataset, config_file, {**flags, **I.engine_flags(engine, device)})
+    inputs = I.gather(cfg, root, out)
+    bench = scored_benchmark(cfg.dataset, [v for v, _ in inputs.variants])
+    model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
+    setup, _ = evaluation_setup(cfg.dataset, model.record()["evaluate"], None, kind, png_scale=None,
+                                **evaluation)
+    renderer = I.renderer(inputs)
+    step = batch_limit(batch_size, cfg.size, model.input_size)
+    if step < batch_size:
+        note(f"robodepth: --batch-size {batch_size}: {step} images per batch (a batch "
+             f"holds at most {BATCH_PIXELS:,} pixels)")
+    state = RunState.open(out, loop.settings(inputs, model, setup, step, engine))
+    state.check_writable()
+    if state.note:
+        note(f"robodepth: {state.note}")
+    with progress_bar("img", len(inputs.sources), progress=progress, desc="decoding") as bar:
+        cleans = I.decode(inputs, bar.update)
+    truth = I.ground_truth(inputs, setup)
+    on_state(state.path)
+    with progress_bar("img", progress=progress, desc="run") as bar:
+        def set_total(n):
+            bar.reset(total=n)
+
+        result, earlier = loop.run(inputs, cleans, renderer, model, truth, setup, state,
+                                   batch_size=batch_size, keep=keep,
+                                   progress=bar.update, on_total=set_total)
+    if earlier:
+        note(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
+             f"{state.path} (finished by an earlier run)")
+    replacing = out.exists()
+    text = result.csv_text()
+    E.write_results(out, text)
+    state.remove()
+    return result, text, bench, replacing
