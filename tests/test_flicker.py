@@ -84,7 +84,7 @@ def test_a_model_drifting_in_scale_gives_that_drift(sequence_build, tmp_path, cl
               tmp_path / "r.csv", "--jobs", jobs, "--no-progress")
     assert res.exit_code == 0, res.output
     got = rows(tmp_path / "r.csv")
-    assert list(got[0])[-2:] == ["flicker_scale", "flicker_abs_rel"]
+    assert list(got[0])[-4:] == ["flicker_scale", "flicker_abs_rel", "dataset", "split"]
     for r in got:
         # exp(|log drift|) - 1 per frame, whichever way the scale drifts
         assert float(r["flicker_scale"]) == pytest.approx(max(drift, 1 / drift) - 1, rel=1e-4)

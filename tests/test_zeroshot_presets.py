@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from _depth_files import png16
 from _trees import random_image, save
+from test_report import _one_line_error
 
 H, W = 48, 64
 PREDICTED = 2.0  # metres: the model below predicts this everywhere
@@ -227,9 +228,15 @@ def test_whole_loop(preset, tmp_path, cli):
     for r in rows:
         assert float(r["abs_rel"]) == pytest.approx(np.mean(abs_rel), rel=1e-5)
         assert float(r["a1"]) == pytest.approx(np.mean(a1), rel=1e-6)
-    res = cli("score", tmp_path / "r.csv", "--benchmark", preset)
+    # the results name their dataset (and split): score needs no --benchmark
+    assert {(r["dataset"], r["split"]) for r in rows} == {(preset, "foggy" if "--split" in flags else "")}
+    res = cli("score", tmp_path / "r.csv")
     assert res.exit_code == 0, res.output
     assert f"baseline: none ({preset} has no published one" in res.output
+    _one_line_error(cli("score", tmp_path / "r.csv", "--benchmark", "kitti-c"),
+                    f"--benchmark kitti-c: {tmp_path / 'r.csv'} says its results are on {preset}")
+    res = cli("score", tmp_path / "r.csv", "--benchmark", preset)
+    assert res.exit_code == 0, res.output
     assert "mRR 100.00" in res.output and "mCE n/a" in res.output
 
 

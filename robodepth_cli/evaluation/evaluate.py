@@ -22,6 +22,7 @@ import numpy as np
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
 from ..errors import cannot_write
+from .csvrows import DATASET_COLUMNS
 from .groundtruth import GroundTruth, load_ground_truth
 from .predictions import Predictions, check_values, find_predictions
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
@@ -60,6 +61,7 @@ class Evaluation:
     results: list[VariantResult] = field(default_factory=list)
     missing: list[Variant] = field(default_factory=list)  # no predictions (--allow-partial)
     pairs: int = 0  # consecutive frame pairs the flicker is measured on (0: not measured)
+    split: str = ""  # the build's named subset (drivingstereo-c's weather), else ""
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -70,14 +72,15 @@ class Evaluation:
 
     def csv_text(self) -> str:
         """The results CSV: ``corruption,level`` then the metrics (and the flicker
-        measures), one row per variant, full float precision (``repr``)."""
+        measures), full float precision (``repr``), then the ``dataset`` and ``split`` the
+        results are on; one row per variant."""
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
-        w.writerow(("corruption", "level") + self.columns)
+        w.writerow(("corruption", "level") + self.columns + DATASET_COLUMNS)
         for r in self.results:
             name, level = r.csv_key
             values = {**r.metrics, **(r.flicker or {})}
-            w.writerow([name, level] + [repr(values[m]) for m in self.columns])
+            w.writerow([name, level] + [repr(values[m]) for m in self.columns] + [self.dataset, self.split])
         return buf.getvalue()
 
     def to_json(self) -> dict:
@@ -89,7 +92,7 @@ class Evaluation:
             if summary:
                 row["scaling_ratio"] = {"median": summary[0], "std": summary[1]}
             rows.append(row)
-        return {"dataset": self.dataset, "protocol": self.setup.protocol,
+        return {"dataset": self.dataset, "split": self.split, "protocol": self.setup.protocol,
                 "kind": self.setup.kind, "stereo": self.setup.stereo,
                 "median_scaling": self.setup.median_scaling, "align": self.setup.alignment,
                 "align_space": self.setup.align_space, "crop": self.setup.crop_name,
@@ -123,6 +126,16 @@ class Evaluation:
             lines.append(f"partial: no predictions for {len(self.missing)} variants: "
                          f"{_list(self.missing)}")
         return "\n".join(lines) + "\n"
+
+
+def split_name(dataset: BuiltDataset) -> str:
+    """The named subset a build of a preset with several was made of (drivingstereo-c's
+    ``foggy``), "" for every other build: what ``report --on DATASET:SPLIT`` calls a split."""
+    from ..sources.datasets import DATASETS
+
+    named = dict(getattr(DATASETS.get(dataset.name), "splits", ()))
+    split = dataset.record.config.get("split")
+    return split if isinstance(split, str) and split in named else ""
 
 
 def _list(variants: Sequence[Variant], most: int = 12) -> str:
@@ -188,7 +201,7 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     if on_total:
         on_total(n * len(found))
     result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing,
-                        pairs=len(pairs or ()))
+                        pairs=len(pairs or ()), split=split_name(dataset))
     jobs = min(jobs, len(found), -(-n * len(found) // MAPS_PER_WORKER))
     if jobs > 1:
         import tempfile
