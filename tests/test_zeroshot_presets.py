@@ -240,6 +240,18 @@ def test_whole_loop(preset, tmp_path, cli):
     assert "mRR 100.00" in res.output and "mCE n/a" in res.output
 
 
+@pytest.mark.parametrize("preset", PRESETS)
+def test_a_tree_of_another_dataset_is_refused_before_any_work(preset, tmp_path, cli):
+    root, out = tmp_path / "root", tmp_path / "out"
+    for name in ("a/x.png", "b/c/y.png", "z.png"):  # images, but not the preset's layout
+        save(root / name, random_image(H, W, seed=0))
+    (tmp_path / "depth").mkdir()  # vkitti2-c's --depth
+    flags = [f.format(tmp=tmp_path) for f in PRESETS[preset][4]]
+    res = cli("build", preset, "--root", root, "--out", out, "--corruptions", "fog", "--levels", "1", *flags)
+    _one_line_error(res, f"{root}: no file matches")
+    assert not out.exists()
+
+
 def test_the_datasets_without_a_published_baseline_are_the_builds_with_depth():
     from robodepth_cli.benchmarks import UNPUBLISHED
     from robodepth_cli.sources.datasets import DATASETS
