@@ -252,6 +252,16 @@ def test_a_tree_of_another_dataset_is_refused_before_any_work(preset, tmp_path, 
     assert not out.exists()
 
 
+def test_a_scale_on_float_depth_is_refused_before_any_work(tmp_path, cli):
+    # Sintel's .dpt holds metres: --depth-scale 100 made its ground truth 100 times too near
+    root, out = tmp_path / "root", tmp_path / "out"
+    sintel_tree(root)
+    res = cli("build", "sintel-c", "--root", root, "--out", out, "--corruptions", "fog", "--levels", "1",
+              "--depth-scale", "100")
+    _one_line_error(res, "float depth values are metres")
+    assert not out.exists()
+
+
 def test_the_datasets_without_a_published_baseline_are_the_builds_with_depth():
     from robodepth_cli.benchmarks import UNPUBLISHED
     from robodepth_cli.sources.datasets import DATASETS
