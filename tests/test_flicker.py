@@ -91,6 +91,11 @@ def test_a_model_drifting_in_scale_gives_that_drift(sequence_build, tmp_path, cl
         # Median scaling takes the drift out, so the error does not change between frames.
         assert float(r["flicker_abs_rel"]) < 1e-6
     assert "flicker over 3 pairs of consecutive frames" in res.output
+    # the table's header: each column name apart (flicker_abs_rel is wider than a number)
+    head = next(ln for ln in res.output.splitlines() if ln.startswith("variant"))
+    assert head.split() == ["variant", *list(got[0])[2:-2], "ratio", "med", "std"]
+    row = next(ln for ln in res.output.splitlines() if ln.startswith("clean"))
+    assert len(row.split()) == len(head.split()) - 1  # "ratio med" is two words, one value
 
 
 def test_error_change_without_alignment(tmp_path, cli, build_kitti):

@@ -108,14 +108,16 @@ class Evaluation:
         ratios' median and spread per variant as monodepth2 prints them."""
         metrics = self.columns
         width = max([len("variant")] + [len(r.variant.label) for r in self.results]) + 2
-        head = f"{'variant':<{width}}" + "".join(f"{m:>10}" for m in metrics)
+        widths = [max(10, len(m) + 2) for m in metrics]  # flicker_abs_rel is longer than a number
+        head = f"{'variant':<{width}}" + "".join(f"{m:>{w}}" for m, w in zip(metrics, widths))
         if self.setup.median_scaling:
             head += f"{'ratio med':>11}{'std':>7}"
         lines = [f"{self.dataset}: {len(self.results)} variants x {self.images} images, "
                  f"{self.setup.describe()}", head]
         for r in self.results:
             values = {**r.metrics, **(r.flicker or {})}
-            line = f"{r.variant.label:<{width}}" + "".join(f"{values[m]:>10.3f}" for m in metrics)
+            line = f"{r.variant.label:<{width}}" + "".join(f"{values[m]:>{w}.3f}"
+                                                           for m, w in zip(metrics, widths))
             summary = r.ratio_summary()
             if summary:
                 line += f"{summary[0]:>11.3f}{summary[1]:>7.3f}"
