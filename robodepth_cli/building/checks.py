@@ -86,7 +86,9 @@ def png_method(out: Path, requested: str | None, previous: BuildRecord | None) -
 
 
 def _size_text(size) -> str:
-    return f"{size[0]}x{size[1]}" if isinstance(size, (list, tuple)) and len(size) == 2 else str(size)
+    if isinstance(size, (list, tuple)) and len(size) == 2:
+        return f"{size[0]}x{size[1]}"
+    return "not given (each image at its own size)" if not size else str(size)
 
 
 def check_same_build(out: Path, dataset: str, size: tuple[int, int] | None, seed: int,

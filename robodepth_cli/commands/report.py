@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ..errors import RobodepthError
+from ..errors import RobodepthError, counted
 from . import common
 
 
@@ -84,7 +84,8 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     if preds and dataset is None:
         raise RobodepthError("--pred needs --dataset (the build the predictions were made on)")
     if len(preds) > len(results):
-        raise RobodepthError(f"--pred given {len(preds)} times for {len(results)} results files; "
+        raise RobodepthError(f"--pred given {counted(len(preds), 'time')} for "
+                             f"{counted(len(results), 'results file')}; "
                              "give it at most once per file, in the same order")
     from ..evaluation.plot import _mpl
     from ..report.qualitative import check_kinds

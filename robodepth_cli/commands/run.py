@@ -106,7 +106,8 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
 
         result, earlier = loop.run(inputs, cleans, renderer, model, truth, setup, state,
                                    batch_size=batch_size, keep=keep_predictions,
-                                   progress=bar.update, on_total=set_total)
+                                   progress=bar.update, on_total=set_total,
+                                   on_clean=_early_warning(bench, setup))
     if earlier:
         click.echo(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
                    f"{state.path} (finished by an earlier run)", err=True)
@@ -116,3 +117,17 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
     state.remove()
     show_results(result, text, out, bench, as_json, replacing)
 
+
+
+def _early_warning(bench, setup):
+    """What to do with the clean variant's metrics as soon as they are known: with scores
+    to come, warn at once when its DEE is implausible, so that a mixed-up --kind or
+    --stereo can be stopped (Ctrl-C) before the other variants are computed."""
+    from .evaluate import implausible_dee
+
+    def check(metrics: dict) -> None:
+        text = implausible_dee(metrics, setup) if bench is not None else ""
+        if text:
+            click.echo(f"robodepth: warning: {text}; if one of them is wrong, Ctrl-C now and "
+                       "rerun with it right (the finished variants are kept)", err=True)
+    return check

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
-from ..errors import cannot_write
+from ..errors import cannot_write, counted
 from .csvrows import DATASET_COLUMNS
 from .groundtruth import GroundTruth, load_ground_truth
 from .predictions import Predictions, check_values, find_predictions
@@ -112,7 +112,7 @@ class Evaluation:
         head = f"{'variant':<{width}}" + "".join(f"{m:>{w}}" for m, w in zip(metrics, widths))
         if self.setup.median_scaling:
             head += f"{'ratio med':>11}{'std':>7}"
-        lines = [f"{self.dataset}: {len(self.results)} variants x {self.images} images, "
+        lines = [f"{self.dataset}: {counted(len(self.results), 'variant')} x {counted(self.images, 'image')}, "
                  f"{self.setup.describe()}", head]
         for r in self.results:
             values = {**r.metrics, **(r.flicker or {})}
@@ -125,7 +125,7 @@ class Evaluation:
         if self.pairs:
             lines.append(f"flicker over {self.pairs} pairs of consecutive frames")
         if self.missing:
-            lines.append(f"partial: no predictions for {len(self.missing)} variants: "
+            lines.append(f"partial: no predictions for {counted(len(self.missing), 'variant')}: "
                          f"{_list(self.missing)}")
         return "\n".join(lines) + "\n"
 

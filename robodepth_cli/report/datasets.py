@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Sequence
 
 from .. import benchmarks as B
+from ..errors import counted
 from ..evaluation import results as R, scores as S
 from ..evaluation.csvrows import ScoreError, data_rows, dataset_of, level as parse_level, normalise_name
 from . import inputs as I
@@ -63,7 +64,8 @@ def keys_of(paths: Sequence[Path], on: Sequence[str], benchmark: str | None) -> 
     the one the file names, else its benchmark as inferred from its rows. A file that names
     another than ``--on`` (or ``--benchmark``) is refused."""
     if on and len(on) not in (1, len(paths)):
-        raise I.ReportError(f"--on given {len(on)} times for {len(paths)} results files; give it "
+        raise I.ReportError(f"--on given {counted(len(on), 'time')} for "
+                            f"{counted(len(paths), 'results file')}; give it "
                             "once per file, in the same order, or once for all")
     given = [X.parse_key(t) for t in (on * len(paths) if len(on) == 1 else on)]
     for text, key in zip(on, given):
@@ -98,7 +100,8 @@ def load(paths: Sequence[Path], names: Sequence[str], keys: Sequence[tuple[str, 
 
     chosen = list(names) if names else [p.stem for p in paths]
     if names and len(names) != len(paths):
-        raise I.ReportError(f"--name given {len(names)} times for {len(paths)} results files; "
+        raise I.ReportError(f"--name given {counted(len(names), 'time')} for "
+                            f"{counted(len(paths), 'results file')}; "
                             "give it once per file, in the same order, or not at all")
     seen: dict[tuple, Path] = {}
     for n, p, k in zip(chosen, paths, keys):
