@@ -190,7 +190,7 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     if flicker:
         from .flicker import check_pairs
 
-        pairs = check_pairs(dataset.keys, setup.protocol)
+        pairs = check_pairs(dataset.keys, setup.protocol, dataset.record.split.get("frames"))
     gt_path = gt if gt is not None else dataset.ground_truth()
     if gt_path is None:
         raise EvaluationError(f"{dataset.path}: no ground truth (gt_depths.npz for KITTI, gt/ for "
