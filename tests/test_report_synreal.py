@@ -288,7 +288,7 @@ def test_refusals(tmp_path, cli):
                         "--out", out), "--baseline f: has no results with corruption rows on x")
     _one_line_error(cli("report", k, f, "--on", "kitti-c", "--on", "x:foggy", "--dataset", tmp_path,
                         "--pred", tmp_path, "--pred", tmp_path, "--out", out),
-                    "--pred given 2 times for 1 results files on kitti-c")
+                    "--pred given 2 times for 1 results file on kitti-c")
     _one_line_error(cli("report", f, "--on", "x:foggy", "--pred", tmp_path, "--out", out),
                     "--pred needs --dataset")
     missing = cli("report", tmp_path / "nope.csv", "--out", out)
