@@ -14,17 +14,31 @@ atomically, so nothing is left half-written; the line says which outputs are the
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 
-import click
-
-from . import __version__
-from .commands import COMMANDS
-from .commands.common import ARGV, interrupt_note
-from .errors import RobodepthError
-
 INTERRUPTED = 130  # the shell's status for a SIGINT death; used for SIGTERM too
+
+
+def _stopped_while_starting(signum, frame):
+    # Before the group's own handler (imports take a while): nothing has been written yet.
+    os.write(2, b"robodepth: interrupted; nothing was written\n")
+    os._exit(INTERRUPTED)
+
+
+if __name__ == "__main__" or os.path.basename(sys.argv[0]) in ("robodepth", "robodepth.exe"):
+    # Run as the command, not imported: Ctrl-C and SIGTERM give exit 130 from the start.
+    for _sig in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(_sig) in (signal.SIG_DFL, signal.default_int_handler):  # not ignored
+            signal.signal(_sig, _stopped_while_starting)
+
+import click  # noqa: E402
+
+from . import __version__  # noqa: E402
+from .commands import COMMANDS  # noqa: E402
+from .commands.common import ARGV, interrupt_note  # noqa: E402
+from .errors import RobodepthError  # noqa: E402
 
 
 class UserError(click.ClickException):
@@ -119,9 +133,12 @@ def _stop_on_sigterm():
     """Make SIGTERM stop a command as Ctrl-C does (cleanly, through the same handler);
     the previous handler, or None where none can be set (not the main thread)."""
     try:
-        return signal.signal(signal.SIGTERM, _interrupt)
+        if signal.getsignal(signal.SIGINT) is _stopped_while_starting:
+            signal.signal(signal.SIGINT, signal.default_int_handler)  # Ctrl-C: KeyboardInterrupt again
+        previous = signal.signal(signal.SIGTERM, _interrupt)
     except ValueError:
         return None
+    return signal.SIG_DFL if previous is _stopped_while_starting else previous
 
 
 def _interrupt(signum, frame):

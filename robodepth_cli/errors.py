@@ -11,6 +11,9 @@ It derives from ``ValueError`` so that library callers catching ``ValueError`` k
 
 from __future__ import annotations
 
+import errno
+import os
+
 
 class RobodepthError(ValueError):
     """A problem with the user's input or environment; the message is one line."""
@@ -29,10 +32,41 @@ def os_reason(exc: OSError) -> str:
     return exc.strerror or str(exc)
 
 
+def refused_entry(directory, exc: OSError) -> str:
+    """Why an entry could not be made in ``directory``: "No such file or directory" from a
+    folder that exists (/proc, /sys refuse new entries so) would read as if it did not."""
+    if exc.errno == errno.ENOENT and os.path.isdir(directory):
+        return f"{directory} exists but takes no new files or folders: {os_reason(exc)}"
+    return f"{directory}: {os_reason(exc)}"
+
+
+def _nearest_refusing(path) -> str | None:
+    """The nearest existing folder above ``path`` when it refuses a new entry with ENOENT
+    (tried: a temporary folder made and removed), else None."""
+    import tempfile
+
+    folder = os.path.dirname(os.path.abspath(path))
+    while not os.path.exists(folder) and folder != os.path.dirname(folder):
+        folder = os.path.dirname(folder)
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".robodepth-probe.", dir=folder))
+    except FileNotFoundError:
+        return folder
+    except OSError:
+        return None
+    return None
+
+
+def counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``"1 variant"``, ``"2 variants"``: ``n`` and ``noun``, in the plural unless n is 1."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
 def cannot_write(path, reason: OSError | str, flag: str | None = None, what: str = "") -> str:
     """The one message for an output that cannot be written:
     ``[FLAG ]PATH: cannot write[ WHAT] (REASON)``, ``what`` naming the thing when the path
     alone does not (``"the output directory"``)."""
     if isinstance(reason, OSError):
-        reason = os_reason(reason)
+        folder = _nearest_refusing(path) if reason.errno == errno.ENOENT else None
+        reason = refused_entry(folder, reason) if folder else os_reason(reason)
     return f"{flag + ' ' if flag else ''}{path}: cannot write{' ' + what if what else ''} ({reason})"

@@ -95,7 +95,7 @@ def check_writable(path: str | os.PathLike, flag: str | None = None) -> None:
     :func:`~robodepth_cli.errors.cannot_write`'s message when a parent is not a directory
     or the nearest existing parent does not let us create an entry. Leaves nothing behind.
     """
-    from .errors import RobodepthError, cannot_write, os_reason
+    from .errors import RobodepthError, cannot_write, refused_entry
 
     path = Path(path)
     parent = path.parent
@@ -110,7 +110,7 @@ def check_writable(path: str | os.PathLike, flag: str | None = None) -> None:
         try:
             made = tempfile.mkdtemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=existing)
         except OSError as exc:
-            raise RobodepthError(cannot_write(path, f"{existing}: {os_reason(exc)}", flag)) from None
+            raise RobodepthError(cannot_write(path, refused_entry(existing, exc), flag)) from None
         os.rmdir(made)
         return
     try:

@@ -100,7 +100,7 @@ def test_missing_invalid_and_unreadable_maps_are_listed(folder, cli):
     rows = _rows(tmp_path / "out")
     assert "no depth file" in rows["gt/park/c.npy"]["error"]
     assert "no valid depth" in rows["gt/park/d.npy"]["error"]
-    assert "not a npy depth map" in rows["gt/park/e.npy"]["error"]
+    assert "not a depth array" in rows["gt/park/e.npy"]["error"]
     assert rows["gt/park/b.npy"]["error"] == rows["gt/street/a.npy"]["error"] == ""
     res = cli("verify", tmp_path / "out")
     assert "no depth file" in res.output
@@ -115,6 +115,29 @@ def test_refused_before_any_work(folder, cli):
     assert res.exit_code == 2 and "unknown field {colour}" in res.output
     res = _build(cli, tmp_path, "--depth", tmp_path / "depth", "--depth-scale", "-3")
     assert res.exit_code == 2 and "--depth-scale" in res.output
+
+
+def test_a_scale_on_float_depth_is_refused_before_any_work(folder, cli):
+    # Float maps are metres: a scale is refused, never applied. Integer maps need one.
+    tmp_path, maps = folder
+    out = tmp_path / "out"
+    res = _build(cli, tmp_path, "--depth", tmp_path / "depth", "--depth-scale", "100")
+    assert res.exit_code == 2 and "float depth values are metres" in res.output, res.output
+    assert "--depth-scale" in res.output and not out.exists()
+
+
+def test_16_bit_depth_without_a_scale_is_refused_before_any_work(folder, cli):
+    tmp_path, maps = folder
+    out = tmp_path / "out"
+    for rel, d in maps.items():
+        png16(tmp_path / "d16" / f"{rel}.png", np.round(d * 256).astype(np.uint16))
+    res = _build(cli, tmp_path, "--depth", tmp_path / "d16")
+    assert res.exit_code == 2 and "integer depth values need a scale, --depth-scale" in res.output, res.output
+    assert res.output.count("\n") == 1 and not out.exists()
+    res = _build(cli, tmp_path, "--depth", tmp_path / "d16", "--depth-scale", "256")
+    assert res.exit_code == 0, res.output
+    np.testing.assert_allclose(np.load(out / "gt" / "street" / "a.npy")[5:, 8:], maps["street/a"][5:, 8:],
+                               atol=1 / 512)
 
 
 MODEL = '''

@@ -157,6 +157,19 @@ def test_damaged_manifest_row_is_named_with_a_way_out(kitti, tmp_path, cli, buil
 
 # --- defect 4: one build per OUT -------------------------------------------------------------
 
+def test_a_custom_build_at_its_own_sizes_into_one_at_a_size_says_so(tmp_path, cli):
+    from _trees import random_image, save
+
+    save(tmp_path / "img" / "a.png", random_image(96, 128, seed=0))
+    args = ("build", "custom", "--root", tmp_path / "img", "--out", tmp_path / "out", "--corruptions",
+            "fog", "--levels", "1")
+    res = cli(*args, "--size", "48x64")
+    assert res.exit_code == 0, res.output
+    res = cli(*args)
+    one_line_error(res, "holds another build (--size not given (each image at its own size) (it holds 48x64))")
+    assert "()" not in res.output
+
+
 def test_another_dataset_size_or_seed_into_the_same_out_is_refused(kitti, tmp_path, cli, build_kitti):
     root, split = kitti
     out = tmp_path / "out"

@@ -85,3 +85,39 @@ def test_refusals(tmp_path, cli):
                    "none.npy")
     one_line_error(cli("corrupt", src, "-c", "fog", "-l", "1", "--depth-scale", "256", "--out", out), "--depth-scale")
     assert not out.exists()
+
+
+def test_depth_files_follow_one_scale_rule(tmp_path, cli):
+    src, arr = image(tmp_path)
+    out = tmp_path / "f.png"
+    args = ("corrupt", src, "-c", "fog_3d", "-l", "2", "--out", out)
+    np.save(tmp_path / "m.npy", np.full((48, 64), 30.0, np.float32))  # metres
+    one_line_error(cli(*args, "--depth", tmp_path / "m.npy", "--depth-scale", "256"),
+                   "m.npy", "float depth values are metres", "--depth-scale")
+    np.save(tmp_path / "i.npy", np.full((48, 64), 7680, np.uint16))  # 30 m at 256 per metre
+    one_line_error(cli(*args, "--depth", tmp_path / "i.npy"), "i.npy", "need a scale, --depth-scale")
+    res = cli(*args, "--depth", tmp_path / "i.npy", "--depth-scale", "256")
+    assert res.exit_code == 0, res.output
+    np.testing.assert_array_equal(np.asarray(Image.open(out)), fog_by_hand(arr, 30.0, 150.0))
+
+
+def test_a_garbage_npy_is_not_a_depth_array(tmp_path, cli):
+    src, _ = image(tmp_path)
+    out = tmp_path / "f.png"
+    args = ("corrupt", src, "-c", "fog_3d", "-l", "2", "--out", out)
+    (tmp_path / "g.npy").write_bytes(b"not numpy at all")
+    res = cli(*args, "--depth", tmp_path / "g.npy")
+    one_line_error(res, "g.npy", "not a depth array")
+    assert "pickle" not in res.output
+    np.save(tmp_path / "o.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    one_line_error(cli(*args, "--depth", tmp_path / "o.npy"), "o.npy", "not a depth array")
+    assert not out.exists()
+
+
+def test_an_all_nan_depth_map_is_refused_as_a_build_fails_it(tmp_path, cli):
+    src, _ = image(tmp_path)
+    out = tmp_path / "f.png"
+    args = ("corrupt", src, "-c", "fog_3d", "-l", "2", "--out", out)
+    np.save(tmp_path / "nan.npy", np.full((48, 64), np.nan, np.float32))  # a build fails this map
+    one_line_error(cli(*args, "--depth", tmp_path / "nan.npy"), "nan.npy", "no valid depth")
+    assert not out.exists()

@@ -122,9 +122,18 @@ def bilinear(x: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
                      for c in range(3)], axis=-1)
 
 
-def frames_for(span_px: float) -> int:
-    """The documented frame count: one per pixel of the nearest motion, 8..32."""
-    return int(min(32, max(8, math.ceil(span_px) + 1)))
+def frames_for(ends0: np.ndarray, ends1: np.ndarray, h: int, w: int) -> int:
+    """The documented frame count: one per pixel of the longest path any pixel travels
+    inside the image (its straight path between the end positions ``ends0``, ``ends1``,
+    (..., 2) arrays of (x, y), measured here by dense sampling), at least 9, odd."""
+    t = np.linspace(0.0, 1.0, 4001)[:, None, None]
+    longest = 0.0
+    for (x0, y0), (x1, y1) in zip(ends0.reshape(-1, 2), ends1.reshape(-1, 2)):
+        xs, ys = x0 + t * (x1 - x0), y0 + t * (y1 - y0)
+        inside = ((xs >= 0) & (xs <= w - 1) & (ys >= 0) & (ys <= h - 1)).mean()
+        longest = max(longest, inside * math.hypot(x1 - x0, y1 - y0))
+    n = max(9, math.ceil(longest) + 1)
+    return n if n % 2 else n + 1
 
 
 def test_forward_motion_of_a_fronto_parallel_plane_is_a_pure_zoom():
@@ -132,10 +141,11 @@ def test_forward_motion_of_a_fronto_parallel_plane_is_a_pure_zoom():
     x = smooth_image(h, w)
     out = corrupt(x, "zoom_3d", 3, RNG(0), depth=np.full((h, w), z))
     travel = 0.10 * z  # level 3: 0.10 of the median depth
-    corner = math.hypot(w / 2, h / 2)
-    n = frames_for(corner * (z / (z - travel / 2) - z / (z + travel / 2)))
     cy, cx = (h - 1) / 2, (w - 1) / 2
     rows, cols = np.mgrid[0:h, 0:w].astype(np.float64)
+    ends = [np.stack([cx + (cols - cx) * z / (z - o * travel), cy + (rows - cy) * z / (z - o * travel)], -1)
+            for o in (-0.5, 0.5)]
+    n = frames_for(*ends, h, w)
     acc = np.zeros((h, w, 3))
     for i in range(n):
         scale = z / (z - (i / (n - 1) - 0.5) * travel)  # a plane at z seen from tz nearer
@@ -152,8 +162,8 @@ def test_sideways_motion_of_a_plane_is_a_pure_shift():
     x = smooth_image(h, w)
     out = corrupt(x, "motion_3d", 2, RNG(0), depth=np.full((h, w), z))
     shift = 10.0 * w / 640  # level 2: 10 px at the median depth, at 640 wide
-    n = frames_for(shift)
     rows, cols = np.mgrid[0:h, 0:w].astype(np.float64)
+    n = frames_for(*[np.stack([cols - o * shift, rows], -1) for o in (-0.5, 0.5)], h, w)
     acc = sum(bilinear(x, rows, cols + (i / (n - 1) - 0.5) * shift) for i in range(n))
     want = np.floor(acc / n + 0.5)
     diff = np.abs(out[:, 3:-3].astype(np.float64) - want[:, 3:-3])
@@ -167,6 +177,61 @@ def test_nearer_things_move_more_under_sideways_motion():
     out = corrupt(x, "motion_3d", 5, RNG(0), depth=depth)
     # far wall: 28 * 96/640 = 4.2 px of motion; pillar 10x as much: far more smeared
     assert sharpness(out[:, 40:56]) < 0.6 * sharpness(out[:, 4:24])
+
+
+def bands(h: int, w: int, across: bool) -> np.ndarray:
+    """Three bands of depth, 2, 20 and 200 m: side by side (left to right) or stacked
+    (bottom to top, as a road, a street and the sky are)."""
+    depth = np.full((h, w), 200.0)
+    if across:
+        depth[:, : w // 3], depth[:, w // 3: 2 * w // 3] = 2.0, 20.0
+    else:
+        depth[2 * h // 3:], depth[h // 3: 2 * h // 3] = 2.0, 20.0
+    return depth
+
+
+@pytest.mark.parametrize("across", [True, False])
+def test_sideways_motion_of_bands_smears_only_along_rows(across):
+    # The near band moves 10x as far as the median: it uncovers background the source never
+    # saw. Whatever fills that, sideways motion keeps every row to itself: changing one row
+    # of the image changes only that row of the result.
+    h, w = 96, 320
+    depth = bands(h, w, across)
+    x = noise_image(h, w)
+    other = x.copy()
+    other[70] = noise_image(1, w, seed=1)[0]  # a row of the near band (or beside it)
+    diff = np.abs(corrupt(x, "motion_3d", 5, RNG(0), depth=depth).astype(int)
+                  - corrupt(other, "motion_3d", 5, RNG(0), depth=depth).astype(int)).max(axis=(1, 2))
+    assert diff[70] > 0
+    assert np.flatnonzero(diff).tolist() == [70]
+
+
+def test_forward_motion_of_bands_draws_one_unbroken_radial_streak():
+    # A white 4 x 4 patch on the 2 m band, level 5: travel 0.16 x 20 m, so over the path
+    # the patch is seen from 3.6 m down to 0.4 m: 0.56 to 5 times its distance from the
+    # centre. Its streak must follow the ray from the centre through it, without gaps (no
+    # separate copies) and without lines across it.
+    h, w = 96, 320
+    depth = bands(h, w, across=True)
+    x = np.zeros((h, w, 3), np.uint8)
+    x[28:32, 60:64] = 255
+    out = corrupt(x, "zoom_3d", 5, RNG(0), depth=depth)[:, :, 0].astype(float)
+    cy, cx = (h - 1) / 2, (w - 1) / 2
+    py, px = 29.5 - cy, 61.5 - cx  # the patch's centre, from the image centre
+    r0 = math.hypot(px, py)
+    uy, ux = py / r0, px / r0
+    rows, cols = np.mgrid[0:h, 0:w]
+    along = (cols - cx) * ux + (rows - cy) * uy
+    across = np.abs((cols - cx) * uy - (rows - cy) * ux)
+    lit = out > 0
+    # the patch, magnified s = along / r0 times, reaches 2 sqrt(2) s from the ray (its
+    # half-diagonal), +1.5 for interpolation
+    assert (across[lit] <= 2 * math.sqrt(2) * along[lit] / r0 + 1.5).all()
+    assert along[lit].min() >= r0 * 2 / 3.6 - 3
+    # unbroken: every pixel on the ray from the streak's inner end to the image edge is lit
+    edge = min((cx + 0.5) / abs(ux), (cy + 0.5) / abs(uy))
+    for r in np.arange(math.ceil(r0 * 2 / 3.6) + 2, edge - 2):
+        assert out[int(round(cy + r * uy)), int(round(cx + r * ux))] > 0, r
 
 
 @pytest.mark.parametrize("name", DEPTH_NAMES)

@@ -154,7 +154,7 @@ def test_masks_and_errors(tmp_path):
     with pytest.raises(DepthError, match="no such file|cannot read"):
         read_depth(tmp_path / "none.npy")
     (tmp_path / "junk.npy").write_bytes(b"not numpy")
-    with pytest.raises(DepthError, match="not a npy depth map"):
+    with pytest.raises(DepthError, match="not a depth array"):
         read_depth(tmp_path / "junk.npy")
     with pytest.raises(DepthError, match="unknown depth file extension"):
         depth_format(tmp_path / "d.tif")

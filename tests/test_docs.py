@@ -142,3 +142,14 @@ def test_development_names_modules_that_exist():
     known |= {p.name for p in pkg.rglob("*.py")} | {p.relative_to(pkg).as_posix() + "/"
                                                      for p in pkg.iterdir() if p.is_dir()}
     assert sorted(names - known) == []
+
+
+def test_pages_name_every_depth_aware_corruption_and_what_video_covers():
+    from robodepth_cli.corruptions import DEPTH_NAMES
+
+    torch_page = (REPO / "docs" / "torch-engine.md").read_text(encoding="utf-8")
+    row = next(ln for ln in torch_page.splitlines() if "[depth-aware]" in ln and ln.startswith("|"))
+    assert [n for n in DEPTH_NAMES if n not in row] == []
+    index = (REPO / "docs" / "README.md").read_text(encoding="utf-8")
+    video = next(ln for ln in index.splitlines() if ln.startswith("| [video.md]"))
+    assert "over time" in video and "flicker" in video

@@ -194,7 +194,8 @@ def test_kitti_matches_monodepth2_rules(kitti_c, kitti_pred, tmp_path, flags, ki
         arr = np.load(pred / f"{v}.npy")
         expected[v] = ref_kitti(gts, list(arr), kind, stereo)[0]
     rows = read_csv(tmp_path / "r.csv")
-    assert list(rows[0]) == ["corruption", "level"] + KITTI_COLS
+    assert list(rows[0]) == ["corruption", "level"] + KITTI_COLS + ["dataset", "split"]
+    assert {(r["dataset"], r["split"]) for r in rows} == {("kitti-c", "")}
     check_rows(rows, expected, KITTI_COLS)
     # The summary prints monodepth2's scaling-ratio line figures, only with median scaling.
     clean_ratios = ref_kitti(gts, list(np.load(pred / "clean.npy")), kind, stereo)[1]
@@ -331,7 +332,8 @@ def test_nyu_matches_bts_adabins_rules(nyu_c, tmp_path, cli):
     res = cli("evaluate", out, "--pred", pngs, "--out", tmp_path / "bts.csv")
     assert res.exit_code == 0, res.stderr
     rows = read_csv(tmp_path / "bts.csv")
-    assert list(rows[0]) == ["corruption", "level"] + NYU_COLS
+    assert list(rows[0]) == ["corruption", "level"] + NYU_COLS + ["dataset", "split"]
+    assert {(r["dataset"], r["split"]) for r in rows} == {("nyudepth2-c", "")}
     check_rows(rows, {v: ref_nyu(gts, d) for v, d in depths.items()}, NYU_COLS)
 
     # AdaBins style: arrays at half the size, upsampled with corners aligned.

@@ -21,13 +21,13 @@ def smooth(shape, seed):
     return (8 + 30 * y + 5 * np.sin(6 * x + rng.uniform(0, 3))).astype(np.float32)
 
 
-def build_with_gt(tmp_path, build_kitti, frames, gt_map):
+def build_with_gt(tmp_path, build_kitti, frames, gt_map, *flags):
     """A build of ``frames`` of one drive of 6 with ``gt_map`` as every frame's ground truth."""
     root = tmp_path / "raw"
     split = kitti_drive(root, range(6), frames)
     out = tmp_path / "OUT"
     res = build_kitti(root, split, out, "--size", "48x64", "--corruptions", "brightness",
-                      "--levels", "1", "--jobs", "1", "--no-gt")
+                      "--levels", "1", "--jobs", "1", "--no-gt", *flags)
     assert res.exit_code == 0, res.output
     gts = np.empty(len(frames), object)
     for i in range(len(frames)):
@@ -84,13 +84,18 @@ def test_a_model_drifting_in_scale_gives_that_drift(sequence_build, tmp_path, cl
               tmp_path / "r.csv", "--jobs", jobs, "--no-progress")
     assert res.exit_code == 0, res.output
     got = rows(tmp_path / "r.csv")
-    assert list(got[0])[-2:] == ["flicker_scale", "flicker_abs_rel"]
+    assert list(got[0])[-4:] == ["flicker_scale", "flicker_abs_rel", "dataset", "split"]
     for r in got:
         # exp(|log drift|) - 1 per frame, whichever way the scale drifts
         assert float(r["flicker_scale"]) == pytest.approx(max(drift, 1 / drift) - 1, rel=1e-4)
         # Median scaling takes the drift out, so the error does not change between frames.
         assert float(r["flicker_abs_rel"]) < 1e-6
     assert "flicker over 3 pairs of consecutive frames" in res.output
+    # the table's header: each column name apart (flicker_abs_rel is wider than a number)
+    head = next(ln for ln in res.output.splitlines() if ln.startswith("variant"))
+    assert head.split() == ["variant", *list(got[0])[2:-2], "ratio", "med", "std"]
+    row = next(ln for ln in res.output.splitlines() if ln.startswith("clean"))
+    assert len(row.split()) == len(head.split()) - 1  # "ratio med" is two words, one value
 
 
 def test_error_change_without_alignment(tmp_path, cli, build_kitti):
@@ -119,7 +124,20 @@ def test_flicker_needs_consecutive_frames(tmp_path, cli, build_kitti):
               tmp_path / "r.csv", "--no-progress")
     assert res.exit_code == 2
     assert "--flicker: the split has no consecutive frames" in res.output
+    assert "--split kitti_sequences" in res.output  # the way to a split that has them
     assert not (tmp_path / "r.csv").exists()
+
+
+def test_flicker_on_a_frames_build_says_what_it_measures_and_where_to_go(tmp_path, cli, build_kitti):
+    # Neighbour frames on disk are not the split's frames: flicker is measured on these
+    out = build_with_gt(tmp_path, build_kitti, [1, 3], smooth(GT_SHAPE, 0), "--frames", "-1,1")
+    pred = tmp_path / "PRED"
+    write_preds(pred, [1, 3], 1.0)
+    res = cli("evaluate", out, "--pred", pred, "--kind", "depth", "--flicker", "--out",
+              tmp_path / "r.csv", "--no-progress")
+    assert res.exit_code == 2 and res.output.count("\n") == 1, res.output
+    assert "neighbour frames (--frames -1,1) are not evaluated" in res.output
+    assert "--split kitti_sequences" in res.output
 
 
 def test_score_reports_the_flicker_beside_the_scores(tmp_path, cli):

@@ -206,3 +206,15 @@ def test_an_interrupt_after_the_output_is_written_says_so(inputs, tmp_path, name
     assert err.strip().splitlines()[-1] == \
         f"robodepth: interrupted; {out / output} was written (complete) before the interrupt", err
     assert (out / output).exists() and not no_temporaries(out)
+
+
+def test_sigterm_while_the_command_starts_exits_130_as_later():
+    # The group's handler comes after the imports; a scheduler's SIGTERM before it (export
+    # was seen exiting 143 there) gets the same line and status as one during the work.
+    code = ("import os, signal, sys, time; sys.argv = ['robodepth']; import robodepth_cli.cli; "
+            "os.kill(os.getpid(), signal.SIGTERM); time.sleep(30)")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 130, (proc.returncode, proc.stderr)
+    assert proc.stderr == "robodepth: interrupted; nothing was written\n"

@@ -382,6 +382,23 @@ def test_python_module_by_name(dataset, tmp_path, cli, user_module, monkeypatch)
     assert (tmp_path / "P" / "clean.npy").is_file()
 
 
+def test_python_file_imports_a_module_beside_it(dataset, tmp_path, cli, monkeypatch):
+    # Run from elsewhere: the file's own folder is searched, as for a script.
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "helper_beside_35.py").write_text("OFFSET = 3.0\n")
+    (tmp_path / "m" / "net.py").write_text("import numpy as np\nfrom helper_beside_35 import OFFSET\n\n"
+                                           "def predict(images):\n"
+                                           "    return np.full((len(images), 4, 4), OFFSET, np.float32)\n")
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    monkeypatch.delitem(sys.modules, "helper_beside_35", raising=False)
+    monkeypatch.setattr(sys, "path", list(sys.path))  # what the import adds goes with the test
+    res = cli("predict", dataset, "-m", f"python:{tmp_path / 'm' / 'net.py'}:predict", "--kind", "depth",
+              "--metric", "-o", tmp_path / "P", "--variants", "clean")
+    assert res.exit_code == 0, res.output
+    assert (np.load(tmp_path / "P" / "clean.npy") == 3.0).all()
+
+
 @pytest.mark.parametrize("spec_tail,flags,message", [
     ("wrong_shape", ["--kind", "disp"], "returned shape (3, 4, 4) for a batch of 2 images; expected 2 x h x w"),
     ("wrong_dtype", ["--kind", "disp"], "returned dtype int64; expected floating-point maps"),

@@ -367,7 +367,7 @@ def test_refusals(tmp_path, cli):
     out = tmp_path / "out"
     # (k and n together: a report of two datasets, test_report_synreal.py)
     _one_line_error(cli("report", k, k, "--out", out), "model name 'k' is also the name of")
-    _one_line_error(cli("report", k, n, "--name", "x", "--out", out), "--name given 1 times for 2")
+    _one_line_error(cli("report", k, n, "--name", "x", "--out", out), "--name given 1 time for 2 results files")
     _one_line_error(cli("report", tmp_path / "nope.csv", "--out", out), "cannot read")
     partial = tmp_path / "p.csv"
     partial.write_text("\n".join(k.read_text().splitlines()[:-5]) + "\n")

@@ -68,7 +68,7 @@ def test_kind_of_a_folder_without_record_is_said(small_build, tmp_path, cli):  #
             "as disp (the kitti-c default); give --kind if wrong") in res.output
     res = cli("report", a, "--dataset", small_build, "--pred", plain, "--kind", "disp",
               "--kind", "depth", "--out", out)
-    assert res.exit_code == 2 and "--kind given 2 times for 1 --pred folders" in res.output
+    assert res.exit_code == 2 and "--kind given 2 times for 1 --pred folder;" in res.output
     res = cli("report", a, "--kind", "disp", "--out", out)
     assert res.exit_code == 2 and "--kind needs --pred" in res.output
 

@@ -230,6 +230,40 @@ def test_datasets_side_by_side(tmp_path, cli):
     assert sec["models"][1]["scores"]["baseline"] == "A"
 
 
+def _named(path: Path, dataset: str, split: str = "") -> Path:
+    """``path`` with the dataset and split columns robodepth evaluate writes."""
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join([lines[0] + ",dataset,split"] + [f"{ln},{dataset},{split}" for ln in lines[1:]])
+                    + "\n")
+    return path
+
+
+def test_results_that_name_their_dataset_need_no_on(tmp_path, cli):
+    """Six models on KITTI-C and six on DrivingStereo foggy, each file saying which (as
+    evaluate writes them): no --on at all; --on still names a file that says nothing, and
+    one that contradicts its file is refused."""
+    args = []
+    for i, (m, real) in enumerate(zip(MODELS, FOGGY)):
+        args += [_named(evaluate_csv(tmp_path / f"k{i}.csv", "kitti-c", m), "kitti-c"),
+                 _named(_clean(tmp_path / f"f{i}.csv", real), "drivingstereo-c", "foggy")]
+    for name in NAMES:
+        args += ["--name", name, "--name", name]
+    res = cli("report", *args, "--bootstrap", "100", "--out", tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "out" / "scores.json").read_text())
+    assert [(d["dataset"], d["split"]) for d in doc["datasets"]] == [("drivingstereo-c", "foggy")]
+    assert "drivingstereo-c:foggy" in res.output
+    old = _clean(tmp_path / "old.csv", 0.1)  # results from elsewhere: no dataset column
+    res = cli("report", args[0], old, "--name", "A", "--name", "A", "--on", "kitti-c",
+              "--on", "drivingstereo-c:foggy", "--bootstrap", "100", "--out", tmp_path / "out2")
+    assert res.exit_code == 0, res.output
+    _one_line_error(cli("report", args[1], "--on", "drivingstereo-c:rainy", "--out", tmp_path / "o3"),
+                    "--on drivingstereo-c:rainy: " + str(args[1]) + " says its results are on drivingstereo-c:foggy")
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text(args[1].read_text() + "fog,1,0.2,0.9,kitti-c,\n")
+    _one_line_error(cli("score", mixed), "rows are on different datasets (drivingstereo-c:foggy, kitti-c)")
+
+
 def test_refusals(tmp_path, cli):
     k = evaluate_csv(tmp_path / "k.csv", "kitti-c", "MonoViT")
     f = _clean(tmp_path / "f.csv", 0.1)
@@ -254,7 +288,7 @@ def test_refusals(tmp_path, cli):
                         "--out", out), "--baseline f: has no results with corruption rows on x")
     _one_line_error(cli("report", k, f, "--on", "kitti-c", "--on", "x:foggy", "--dataset", tmp_path,
                         "--pred", tmp_path, "--pred", tmp_path, "--out", out),
-                    "--pred given 2 times for 1 results files on kitti-c")
+                    "--pred given 2 times for 1 results file on kitti-c")
     _one_line_error(cli("report", f, "--on", "x:foggy", "--pred", tmp_path, "--out", out),
                     "--pred needs --dataset")
     missing = cli("report", tmp_path / "nope.csv", "--out", out)

@@ -107,6 +107,23 @@ def test_nyu_run_writes_the_csv_of_build_predict_evaluate(tmp_path, cli, py_mode
     assert sorted(p.name for p in tmp_path.iterdir()) == ["B", "P", "e.csv", "r.csv"]
 
 
+def test_a_weak_model_gets_warnings_and_its_csv_not_a_refusal(tmp_path, cli):
+    # Every depth 50 m (capped at NYU's 10 m) in rooms 1 to 5 m deep: clean DEE above 1.
+    # The work done, the CSV is written and the exit is 0; the warning comes twice: when the
+    # clean variant is done (a mixed-up --kind can be stopped there) and at the end.
+    model = tmp_path / "far.py"
+    model.write_text("import numpy as np\ndef predict(images):\n"
+                     "    return np.full(images.shape[:3], 50.0, np.float32)\n")
+    res = cli("run", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", FIXTURES / "nyu_split.txt",
+              "-m", f"python:{model}:predict", "--kind", "depth", "--metric", "--align", "none",
+              "--out", tmp_path / "r.csv", *NYU_FLAGS, "--no-progress")
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "r.csv").read_text().count("\n") == 6
+    warnings = [ln for ln in res.stderr.splitlines() if "is implausible" in ln]
+    assert len(warnings) == 2 and all(w.startswith("robodepth: warning: clean DEE ") for w in warnings)
+    assert "Ctrl-C now" in warnings[0] and "written, not scored" in warnings[1]
+
+
 def test_nyu_run_from_the_labeled_file(tmp_path, cli, py_model):
     from _gt_trees import write_labeled, write_split
 
@@ -124,9 +141,8 @@ def test_nyu_run_from_the_labeled_file(tmp_path, cli, py_model):
     assert res.exit_code == 0, res.output
     res = cli("run", "nyudepth2-c", "--root", mat, "-m", *model, "--out", tmp_path / "r.csv",
               *flags, "--no-progress")
-    # The file's depths are noise, so no model scores: the CSV is written, then the one-line
-    # refusal of evaluate --score.
-    assert res.exit_code == 2 and "robodepth: error: clean DEE" in res.output, res.output
+    # The file's depths are noise, so no model scores: the CSV is written, with a warning.
+    assert res.exit_code == 0 and "robodepth: warning: clean DEE" in res.output, res.output
     assert (tmp_path / "r.csv").read_bytes() == (tmp_path / "e.csv").read_bytes()
 
 
@@ -159,7 +175,7 @@ def test_a_run_killed_after_one_variant_resumes(tmp_path, cli, py_model):
     (tmp_path / "r.csv.state.json").write_text(json.dumps(state))
     res = cli(*[a if a != "48x64" else "40x56" for a in args], "--out", out)
     assert res.exit_code == 0, res.output
-    assert "other settings (size differ); starting afresh" in res.output
+    assert "other settings (size differs); starting afresh" in res.output
     assert "variants taken from" not in res.output
 
 

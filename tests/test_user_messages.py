@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import socket
 
@@ -213,3 +214,21 @@ def test_root_made_of_symlinked_date_folders_builds(cli, tmp_path):
     for key in (kitti_key(1), kitti_key(2, "r")):
         assert (out / "contrast/1" / key).read_bytes() == (reference / "contrast/1" / key).read_bytes()
     shutil.rmtree(reference)
+
+
+def test_an_output_under_proc_is_not_said_not_to_exist(tmp_path, cli):
+    from _paths import FIXTURES
+
+    if not os.path.isdir("/proc/self"):
+        pytest.skip("this system has no /proc")
+    img = FIXTURES / "kitti_raw" / "2011_09_26" / "2011_09_26_drive_0002_sync" / "image_02" / "data" / "0000000069.png"
+    for out in ("/proc/x/f.png", "/proc/f.png"):
+        res = cli("corrupt", img, "-c", "fog", "-l", "1", "--out", out)
+        one_line_error(res, f"{out}: cannot write (/proc exists but takes no new files or folders: ")
+
+
+def test_counts_are_worded_in_the_singular_and_plural():
+    from robodepth_cli.errors import counted
+
+    assert counted(1, "variant") == "1 variant" and counted(2, "variant") == "2 variants"
+    assert counted(0, "time") == "0 times" and counted(1, "results file") == "1 results file"

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from _depth_files import png16
 from _trees import random_image, save
+from test_report import _one_line_error
 
 H, W = 48, 64
 PREDICTED = 2.0  # metres: the model below predicts this everywhere
@@ -227,10 +228,38 @@ def test_whole_loop(preset, tmp_path, cli):
     for r in rows:
         assert float(r["abs_rel"]) == pytest.approx(np.mean(abs_rel), rel=1e-5)
         assert float(r["a1"]) == pytest.approx(np.mean(a1), rel=1e-6)
-    res = cli("score", tmp_path / "r.csv", "--benchmark", preset)
+    # the results name their dataset (and split): score needs no --benchmark
+    assert {(r["dataset"], r["split"]) for r in rows} == {(preset, "foggy" if "--split" in flags else "")}
+    res = cli("score", tmp_path / "r.csv")
     assert res.exit_code == 0, res.output
     assert f"baseline: none ({preset} has no published one" in res.output
+    _one_line_error(cli("score", tmp_path / "r.csv", "--benchmark", "kitti-c"),
+                    f"--benchmark kitti-c: {tmp_path / 'r.csv'} says its results are on {preset}")
+    res = cli("score", tmp_path / "r.csv", "--benchmark", preset)
+    assert res.exit_code == 0, res.output
     assert "mRR 100.00" in res.output and "mCE n/a" in res.output
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_a_tree_of_another_dataset_is_refused_before_any_work(preset, tmp_path, cli):
+    root, out = tmp_path / "root", tmp_path / "out"
+    for name in ("a/x.png", "b/c/y.png", "z.png"):  # images, but not the preset's layout
+        save(root / name, random_image(H, W, seed=0))
+    (tmp_path / "depth").mkdir()  # vkitti2-c's --depth
+    flags = [f.format(tmp=tmp_path) for f in PRESETS[preset][4]]
+    res = cli("build", preset, "--root", root, "--out", out, "--corruptions", "fog", "--levels", "1", *flags)
+    _one_line_error(res, f"{root}: no file matches")
+    assert not out.exists()
+
+
+def test_a_scale_on_float_depth_is_refused_before_any_work(tmp_path, cli):
+    # Sintel's .dpt holds metres: --depth-scale 100 made its ground truth 100 times too near
+    root, out = tmp_path / "root", tmp_path / "out"
+    sintel_tree(root)
+    res = cli("build", "sintel-c", "--root", root, "--out", out, "--corruptions", "fog", "--levels", "1",
+              "--depth-scale", "100")
+    _one_line_error(res, "float depth values are metres")
+    assert not out.exists()
 
 
 def test_the_datasets_without_a_published_baseline_are_the_builds_with_depth():

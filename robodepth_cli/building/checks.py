@@ -86,7 +86,9 @@ def png_method(out: Path, requested: str | None, previous: BuildRecord | None) -
 
 
 def _size_text(size) -> str:
-    return f"{size[0]}x{size[1]}" if isinstance(size, (list, tuple)) and len(size) == 2 else str(size)
+    if isinstance(size, (list, tuple)) and len(size) == 2:
+        return f"{size[0]}x{size[1]}"
+    return "not given (each image at its own size)" if not size else str(size)
 
 
 def check_same_build(out: Path, dataset: str, size: tuple[int, int] | None, seed: int,
@@ -143,3 +145,28 @@ def planned_outputs(record: BuildRecord | None) -> set[str] | None:
 class BuildError(RobodepthError):
     """A problem that makes the whole build impossible; nothing was written because of it
     (or, for a write error mid-build, everything finished so far is kept)."""
+
+
+def check_depth_scale(ds, extra: dict, root: Path, sources) -> None:
+    """A build with depth maps: the scale rule (an integer map needs ``--depth-scale``, a
+    float map refuses it) checked on the first map that pairs, before any work, rather
+    than failing every image after the build. Later maps follow the same rule as they are
+    read."""
+    from ..sources.depth_io import DepthError, check_scale, value_kind
+    from ..sources.depth_pairs import pair, rule_of
+
+    rule = rule_of(extra, root, getattr(ds, "depth_in_root", False)) if ds.discovers_sources else None
+    if rule is None or rule.fmt == "cityscapes":
+        return
+    for src in sources:
+        found = pair(rule, src.rel) if not src.error else None
+        if found is None or found.error:
+            continue
+        path = Path(rule.directory) / found.depth
+        kind = value_kind(path, rule.fmt)
+        if kind is not None:
+            try:
+                check_scale(path, kind, rule.scale)
+            except DepthError as exc:
+                raise RobodepthError(f"{exc} (the first depth map of the build)") from None
+        return

@@ -174,6 +174,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     buildchecks.check_apart(typed_root, out)
     sources, split = gather_sources(ds, cfg, root, Path(out), typed_root)
     buildchecks.check_sources_outside((s.path for s in sources), out)
+    buildchecks.check_depth_scale(ds, cfg.extra, root, sources)
     previous = build_record.read_record(out) if Path(out).is_dir() else None
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
     png = buildchecks.png_method(out, cfg.png, previous)

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ..errors import RobodepthError, cannot_write
+from ..errors import RobodepthError, cannot_write, counted
 
 
 ARGV = "robodepth.argv"  # ctx.meta: the arguments as typed (set by the group)
@@ -276,7 +276,7 @@ def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: 
                    "for a stereo model's depths in monodepth2's units (1 / its disparity), wrong "
                    f"for depths in metres ({STEREO_SCALE} times too far; drop --stereo)", err=True)
     if result.missing:
-        click.echo(f"robodepth: warning: no predictions for {len(result.missing)} variants; "
+        click.echo(f"robodepth: warning: no predictions for {counted(len(result.missing), 'variant')}; "
                    "evaluated the rest", err=True)
     if result.left_out:
         n, reasons = len(result.left_out), list(result.left_out.items())[:2]
@@ -299,8 +299,8 @@ def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: 
     else:
         click.echo(result.summary(), nl=False)
     wrote(f"{out} (replaced)" if replacing else out)
-    if implausible:
-        raise RobodepthError(implausible)
+    if implausible:  # the work is done and written: a warning, not a refusal
+        click.echo(f"robodepth: warning: {implausible}", err=True)
     if scored is not None and not as_json:
         click.echo()
         click.echo(S.format_table(scored), nl=False)
@@ -310,13 +310,10 @@ def _implausible_clean(result) -> str:
     """Why the clean DEE cannot be scored (at least 1: every rate divides by 1 - DEE), as
     a wrong --kind, --stereo or --png-scale gives it; "" when it is plausible."""
     from ..benchmarks import CLEAN
-    from ..evaluation.results import dee
+    from ..evaluation.results import implausible_dee
 
     for r in result.results:
         if r.variant.name == CLEAN:
-            value = dee(r.metrics["abs_rel"], r.metrics["a1"])
-            if value >= 1:
-                return (f"clean DEE {value:.3f} is implausible (at least 1, with "
-                        f"{result.setup.describe()}); check --kind, --stereo and --png-scale; "
-                        "the metrics above are written, not scored")
+            text = implausible_dee(r.metrics, result.setup)
+            return f"{text}; the metrics above are written, not scored" if text else ""
     return ""

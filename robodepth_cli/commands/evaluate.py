@@ -110,6 +110,18 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     common.show_results(result, text, out, bench, as_json, replacing)
 
 
+def implausible_dee(metrics: dict, setup) -> str:
+    """``"clean DEE 1.234 is implausible (...); check --kind, ..."`` for clean metrics whose
+    DEE is at least 1, else ""."""
+    from ..evaluation.results import dee
+
+    value = dee(metrics["abs_rel"], metrics["a1"])
+    if value < 1:
+        return ""
+    return (f"clean DEE {value:.3f} is implausible (at least 1, with {setup.describe()}); "
+            "check --kind, --stereo and --png-scale")
+
+
 def _own_depth_lines(dataset, pred: Path) -> str:
     """The results CSV's comment lines naming the scene depth's model and this one, for a
     build whose depth-aware corruptions took a model's depth (evaluation/owndepth.py)."""

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ..errors import RobodepthError
+from ..errors import RobodepthError, counted
 from . import common
 
 
@@ -42,8 +42,10 @@ from . import common
                    "records, else disp for KITTI and depth for NYU.")
 @click.option("--on", "on", multiple=True, metavar="DATASET[:SPLIT]",
               help="The dataset (and split) of each RESULTS file, once per file in order or once "
-                   "for all (drivingstereo-c:foggy, diode-c, custom:night); default: inferred "
-                   "from the rows (kitti-c, nyudepth2-c, kitti-s). Each dataset gets its table.")
+                   "for all (drivingstereo-c:foggy, diode-c, custom:night), for results that do "
+                   "not name it; default: what the file names (evaluate writes it), else "
+                   "inferred from the rows (kitti-c, nyudepth2-c, kitti-s). Each dataset gets "
+                   "its table.")
 @click.option("--baseline", "baseline", metavar="NAME",
               help="The model (a --name) whose results are the baseline of mCE on datasets "
                    "without a published one; without it they show DEE and RR.")
@@ -65,7 +67,7 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     them), each complete. The page and tables show your models and the RoboDepth paper's
     published models as context; figures: DEE per corruption (radar), CE per corruption,
     DEE against level, mCE and mRR against clean DEE (KITTI-S: DEE per style and the mDEE
-    ranking). Results on other datasets (--on) add a table per dataset, one across them
+    ranking). Results on other datasets add a table per dataset, one across them
     and, where a synthetic corruption and a real condition of the pairs table both have
     results, the rank correlation of the models between them with a scatter.
 
@@ -75,16 +77,15 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
       robodepth report a.csv b.csv --name "Ours" --name "Ours + aug" --out report/
       robodepth report ours.csv --dataset KITTI_C --pred PRED --out report/
       robodepth report a.csv b.csv c.csv a_fog.csv b_fog.csv c_fog.csv --name A --name B
-          --name C --name A --name B --name C --on kitti-c --on kitti-c --on kitti-c
-          --on drivingstereo-c:foggy --on drivingstereo-c:foggy --on drivingstereo-c:foggy
-          --out report/
+          --name C --name A --name B --name C --out report/
     """
     from ..report import write as W
 
     if preds and dataset is None:
         raise RobodepthError("--pred needs --dataset (the build the predictions were made on)")
     if len(preds) > len(results):
-        raise RobodepthError(f"--pred given {len(preds)} times for {len(results)} results files; "
+        raise RobodepthError(f"--pred given {counted(len(preds), 'time')} for "
+                             f"{counted(len(results), 'results file')}; "
                              "give it at most once per file, in the same order")
     from ..report.plot import load_matplotlib
     from ..report.qualitative import check_kinds

@@ -14,7 +14,8 @@ from . import common
 @click.argument("results", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--benchmark", "-b", type=click.Choice(["kitti-c", "nyudepth2-c", *UNPUBLISHED]),
               help="Which benchmark the results are on (sets corruptions, levels, baseline); "
-                   "default: inferred from the rows (the benchmark they are a complete set of). "
+                   "default: the dataset the CSV names (robodepth evaluate writes it), else "
+                   "inferred from the rows (the benchmark they are a complete set of). "
                    "A dataset without a published baseline (custom, diode-c, ...) must be named: "
                    "its corruptions and levels are those of the rows, CE needs --baseline.")
 @click.option("--baseline", "baseline_file", type=click.Path(dir_okay=False, path_type=Path),
@@ -71,18 +72,19 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 
 
 def _benchmark(results, benchmark: str | None):
-    """The benchmark the results are scored on: ``--benchmark``, or the one their rows
-    name; KITTI-S results are refused (no CE or RR)."""
+    """The benchmark the results are scored on: ``--benchmark``, or the dataset the CSV
+    names, or the one their rows name; KITTI-S results are refused (no CE or RR)."""
     from .. import benchmarks as B
     from ..evaluation import results as R
 
+    benchmark = _benchmark_of(results, benchmark)
     if benchmark is None:
         from ..report.inputs import style_names
 
         benchmark = R.infer_benchmark(results, style_names())
-        if benchmark not in B.BENCHMARKS:
-            raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
-                                 "robodepth report shows their DEE per style and mDEE")
+    if benchmark not in B.BENCHMARKS and benchmark not in UNPUBLISHED:
+        raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
+                             "robodepth report shows their DEE per style and mDEE")
     if benchmark in UNPUBLISHED:
         return _unpublished(benchmark, R.read_results(results, B.unpublished(benchmark)))
     return B.get_benchmark(benchmark)
@@ -104,6 +106,27 @@ def _show(results, result, as_json: bool) -> None:
         click.echo(S.format_table(result), nl=False)
         if flicker:
             click.echo(format_flicker(flicker), nl=False)
+
+
+def _benchmark_of(path: Path, given: str | None) -> str | None:
+    """``given``, or the dataset RESULTS name in their dataset column (None: neither);
+    refused when the two differ."""
+    from ..evaluation import results as R
+    from ..evaluation.csvrows import dataset_of
+
+    from .. import benchmarks as B
+    from ..report.inputs import KITTI_S
+
+    own = dataset_of(R.read_text(path), str(path))
+    if own is None:
+        return given
+    if own[0] not in (*B.BENCHMARKS, *UNPUBLISHED, KITTI_S):
+        raise RobodepthError(f"{path}: dataset {own[0]!r} (its dataset column) is none robodepth "
+                             f"scores; valid: {', '.join((*B.BENCHMARKS, *UNPUBLISHED))}")
+    if given is not None and given != own[0]:
+        raise RobodepthError(f"--benchmark {given}: {path} says its results are on {own[0]} "
+                             "(its dataset column)")
+    return own[0]
 
 
 def _unpublished(name: str, res):

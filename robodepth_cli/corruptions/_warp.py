@@ -12,15 +12,20 @@ and NYU's room by the same amount at their median distance, nearer things more.
 
 One frame: every source pixel is splatted to its nearest target pixel, the nearest surface
 winning (z-buffer); points that would reach the camera (``Z - tz < 0.05 Z``) leave the view.
-Target pixels nobody reached are holes: each takes the depth of its farthest reached
-neighbour, pass by pass (uncovered background continues the background, not the object that
-uncovered it). Every target pixel is then traced back to the source with its depth and
-sampled bilinearly; a hole whose trace lands outside the image or on a nearer surface (a
-disocclusion: the source never saw it) instead takes the colour of its farthest coloured
-neighbour. The exposure is the mean of ``n`` frames on a path centred on the captured
-position (offsets ``i / (n - 1) - 1/2`` of the path, ``i = 0..n-1``), so the blurred image
-stays aligned with the scene's depth; ``n`` (8..32) gives about one pixel of motion per
-frame at the 2nd percentile of the depth.
+A target pixel nobody reached inside a stretched surface (a crack, at most ``m / 2 + 1``
+pixels from a reached one, ``m`` the largest magnification of the path) takes the depth
+of its farthest reached neighbour. Every target pixel with a depth is traced back to the
+source and sampled bilinearly; a filled one whose trace lands outside the image or on a
+surface more than 5 % nearer or farther (a disocclusion: the source never saw it) is not
+seen in that frame.
+
+The exposure: at each pixel, the mean of the frames that see it, over ``n`` frames on a
+path centred on the captured position (offsets ``i / (n - 1) - 1/2`` of the path, ``i =
+0..n-1``; ``n`` odd, so the captured frame, which sees every pixel, is one of them). ``n``
+follows the largest motion: one frame per pixel of the longest path any pixel travels
+inside the image, at least 9. Fewer frames would draw a fast near
+object as separate copies; filling what the source never saw from a neighbour would draw
+streaks across the direction of motion.
 """
 
 from __future__ import annotations
@@ -31,17 +36,19 @@ import numpy as np
 
 from ._jit import njit
 
-MIN_FRAMES, MAX_FRAMES = 8, 32
+MIN_FRAMES = 9
+LEAVE = 0.05  # a point nearer than this share of its depth after the move has passed the camera
 
 
 @njit
 def _splat(depth, a, tz, cx, cy, zbuf):
     h, w = depth.shape
+    zbuf[:, :] = np.inf
     for y in range(h):
         for x in range(w):
             z = depth[y, x]
             zn = z - tz
-            if zn < 0.05 * z:
+            if zn < LEAVE * z:
                 continue
             xt = cx + ((x - cx) * z - a) / zn
             yt = cy + (y - cy) * z / zn
@@ -52,125 +59,150 @@ def _splat(depth, a, tz, cx, cy, zbuf):
 
 
 @njit
-def _grow(values, known, key):
-    """Fill the unknown pixels of ``values`` (H x W x C), pass by pass, each from its known
-    8-neighbour with the largest ``key`` (known before the pass); ``known`` is updated."""
-    h, w, ch = values.shape
+def _sample(img, w, h, xs, ys, total, o):
+    """Add the bilinear sample at ``(xs, ys)``, clamped to the W x H image, of ``img``
+    (that image with a row and a column more, flattened) to ``total[o:o + 3]``."""
+    xs = 0.0 if xs < 0.0 else (w - 1.0 if xs > w - 1.0 else xs)
+    ys = 0.0 if ys < 0.0 else (h - 1.0 if ys > h - 1.0 else ys)
+    x0 = min(int(xs), max(w - 2, 0))
+    y0 = min(int(ys), max(h - 2, 0))
+    fx, fy = xs - x0, ys - y0
+    p00 = (y0 * (w + 1) + x0) * 3
+    p10 = p00 + 3 * (w + 1)
+    w00, w01, w10, w11 = (1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy
+    for c in range(3):
+        total[o + c] += img[p00 + c] * w00 + img[p00 + 3 + c] * w01 + img[p10 + c] * w10 + img[p10 + 3 + c] * w11
+
+
+@njit
+def _add_reached(img, zbuf, a, tz, cx, cy, total, ty, tx):
+    """Add every reached pixel's sample; list the others in ``ty, tx``; return their count."""
+    h, w = zbuf.shape
     n = 0
     for y in range(h):
         for x in range(w):
-            if not known[y, x]:
-                n += 1
-    ty = np.empty(n, np.int64)
-    tx = np.empty(n, np.int64)
-    n = 0
-    for y in range(h):
-        for x in range(w):
-            if not known[y, x]:
+            zn = zbuf[y, x]
+            if zn < np.inf:
+                inv = 1.0 / (zn + tz)
+                _sample(img, w, h, cx + ((x - cx) * zn + a) * inv, cy + (y - cy) * zn * inv, total, (y * w + x) * 3)
+            else:
                 ty[n], tx[n] = y, x
                 n += 1
-    src = np.empty(n, np.int64)
-    while n > 0:
-        for i in range(n):
+    return n
+
+
+@njit
+def _fill_cracks(zbuf, n, passes, ty, tx, src):
+    """Give the ``n`` unreached pixels ``ty, tx`` of ``zbuf``, pass by pass (at most
+    ``passes``), the depth of their farthest 8-neighbour that has one (before the pass);
+    return how many were filled, listed first in ``ty, tx``."""
+    h, w = zbuf.shape
+    done = 0
+    for _ in range(passes):
+        for i in range(done, n):
             y, x = ty[i], tx[i]
             best, found = -1.0, -1
             for dy in range(-1, 2):
                 for dx in range(-1, 2):
                     yy, xx = y + dy, x + dx
-                    if 0 <= yy < h and 0 <= xx < w and known[yy, xx] and key[yy, xx] > best:
-                        best, found = key[yy, xx], yy * w + xx
+                    if 0 <= yy < h and 0 <= xx < w and best < zbuf[yy, xx] < np.inf:
+                        best, found = zbuf[yy, xx], yy * w + xx
             src[i] = found
-        left = 0
-        for i in range(n):
-            y, x = ty[i], tx[i]
+        first = done
+        for i in range(first, n):
             if src[i] >= 0:
-                by, bx = src[i] // w, src[i] % w
-                for c in range(ch):
-                    values[y, x, c] = values[by, bx, c]
-                known[y, x] = True  # the search of this pass is over: no one reads it now
-            else:
-                ty[left], tx[left] = y, x  # still to fill: kept, in order, at the front
-                left += 1
-        if left == n:
+                zbuf[ty[i], tx[i]] = zbuf[src[i] // w, src[i] % w]
+                ty[done], ty[i] = ty[i], ty[done]  # filled: moved to the front
+                tx[done], tx[i] = tx[i], tx[done]
+                done += 1
+        if done == first:
             break
-        n = left
+    return done
 
 
 @njit
-def _shade(img, depth, zbuf, hole, a, tz, cx, cy, out, coloured):
+def _add_cracks(img, depth, zbuf, n, holes, a, tz, cx, cy, total, missed, ty, tx):
+    """Add the samples of the ``n`` filled pixels whose trace lands on the source surface
+    they were given (within 5 % of its depth); count the other ``holes`` in ``missed``."""
     h, w = zbuf.shape
-    for y in range(h):
-        for x in range(w):
-            zn = zbuf[y, x]
-            z = zn + tz
-            xs = cx + ((x - cx) * zn + a) / z
-            ys = cy + (y - cy) * zn / z
-            if hole[y, x]:
-                if not (0.0 <= xs <= w - 1 and 0.0 <= ys <= h - 1):
-                    continue
-                zs = depth[int(math.floor(ys + 0.5)), int(math.floor(xs + 0.5))]
-                if abs(zs - z) > 0.05 * z:
-                    continue
-            xs = min(max(xs, 0.0), w - 1.0)
-            ys = min(max(ys, 0.0), h - 1.0)
-            x0 = min(int(xs), w - 2) if w > 1 else 0
-            y0 = min(int(ys), h - 2) if h > 1 else 0
-            fx, fy = xs - x0, ys - y0
-            for c in range(3):
-                top = img[y0, x0, c] * (1 - fx) + img[y0, x0 + 1, c] * fx
-                bot = img[y0 + 1, x0, c] * (1 - fx) + img[y0 + 1, x0 + 1, c] * fx
-                out[y, x, c] = top * (1 - fy) + bot * fy
-            coloured[y, x] = True
+    for i in range(n, holes):
+        missed[ty[i], tx[i]] += 1
+    for i in range(n):
+        y, x = ty[i], tx[i]
+        zn = zbuf[y, x]
+        z = zn + tz
+        xs = cx + ((x - cx) * zn + a) / z
+        ys = cy + (y - cy) * zn / z
+        if 0.0 <= xs <= w - 1 and 0.0 <= ys <= h - 1:
+            if abs(depth[int(math.floor(ys + 0.5)), int(math.floor(xs + 0.5))] - z) <= 0.05 * z:
+                _sample(img, w, h, xs, ys, total, (y * w + x) * 3)
+                continue
+        missed[y, x] += 1
 
 
-def frame(img: np.ndarray, depth: np.ndarray, a: float, tz: float) -> np.ndarray:
-    """What the camera moved by ``a`` (focal x sideways metres) and ``tz`` (forward metres)
-    sees: float32 H x W x 3."""
+@njit
+def _expose(img, depth, a, tz, n, passes, total, missed):
     h, w = depth.shape
     cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
-    zbuf = np.full((h, w), np.inf, np.float32)
-    _splat(depth, float(a), float(tz), cx, cy, zbuf)
-    hole = ~np.isfinite(zbuf)
-    if hole.all():  # everything passed the camera: nothing to see but the nearest colour
-        return np.broadcast_to(img.mean(axis=(0, 1)), img.shape).astype(np.float32)
-    if hole.any():
-        filled = np.where(hole, 0, zbuf).astype(np.float32)
-        _grow(filled[:, :, None], ~hole, filled)
-        zbuf = filled
-    out = np.zeros(img.shape, np.float32)
-    coloured = np.zeros((h, w), np.bool_)
-    _shade(img, depth, zbuf, hole, float(a), float(tz), cx, cy, out, coloured)
-    if not coloured.all():
-        _grow(out, coloured, zbuf)
-    return out
+    zbuf = np.empty((h, w), np.float32)
+    ty = np.empty(h * w, np.int64)
+    tx = np.empty(h * w, np.int64)
+    src = np.empty(h * w, np.int64)
+    for i in range(n):
+        o = i / (n - 1) - 0.5
+        _splat(depth, o * a, o * tz, cx, cy, zbuf)
+        holes = _add_reached(img, zbuf, o * a, o * tz, cx, cy, total, ty, tx)
+        filled = _fill_cracks(zbuf, holes, passes, ty, tx, src)
+        _add_cracks(img, depth, zbuf, filled, holes, o * a, o * tz, cx, cy, total, missed, ty, tx)
 
 
-def offsets(n: int) -> np.ndarray:
-    """The ``n`` positions of an exposure along a path of length 1 centred on 0."""
-    return np.arange(n) / (n - 1) - 0.5
+def path_lengths(depth: np.ndarray, a: float, tz: float) -> np.ndarray:
+    """How far each pixel travels inside the image along the whole path (offsets -1/2 to
+    1/2): the straight line between its two end points, clipped to the image (it is
+    straight: the motion is sideways or radial). H x W, pixels."""
+    h, w = depth.shape
+    cy, cx = (h - 1) / 2.0, (w - 1) / 2.0
+    z = depth.astype(np.float64)
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    ends = []
+    for o in (-0.5, 0.5):
+        zn = np.maximum(z - o * tz, LEAVE * z)
+        ends.append((cx + ((xs - cx) * z - o * a) / zn, cy + (ys - cy) * z / zn))
+    (x0, y0), (x1, y1) = ends
+    lo, hi = np.zeros_like(z), np.ones_like(z)
+    for p0, p1, top in ((x0, x1, w - 1.0), (y0, y1, h - 1.0)):
+        d = p1 - p0
+        moving = d != 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta, tb = -p0 / d, (top - p0) / d
+        lo = np.where(moving, np.maximum(lo, np.minimum(ta, tb)), lo)
+        hi = np.where(moving, np.minimum(hi, np.maximum(ta, tb)), hi)
+    return np.maximum(hi - lo, 0.0) * np.hypot(x1 - x0, y1 - y0)
 
 
-def frame_count(span_px: float) -> int:
-    """Frames for a path moving the nearest things ``span_px`` pixels: about one per pixel."""
-    return int(min(MAX_FRAMES, max(MIN_FRAMES, math.ceil(span_px) + 1)))
+def frame_count(depth: np.ndarray, a: float, tz: float) -> int:
+    """One frame per pixel of the longest path inside the image, at least 9, odd."""
+    n = max(MIN_FRAMES, math.ceil(float(path_lengths(depth, a, tz).max())) + 1)
+    return n + 1 - n % 2
+
+
+def crack_passes(depth: np.ndarray, tz: float) -> int:
+    """Passes that fill the cracks of a surface magnified up to ``m`` times: ``m / 2 + 1``."""
+    z = float(depth.min())
+    m = z / max(z - abs(tz) / 2, LEAVE * z)
+    return math.ceil(m / 2) + 1
 
 
 def exposure(x: np.ndarray, depth: np.ndarray, *, shift_px: float = 0.0, travel: float = 0.0) -> np.ndarray:
     """The mean of the frames along a path centred on the capture: sideways by
     ``shift_px`` pixels at the median depth, forward by ``travel`` times the median depth."""
-    img = x.astype(np.float32)
+    # a row and a column more, so that an image 1 pixel wide or high has two to interpolate
+    img = np.pad(x.astype(np.float32), ((0, 1), (0, 1), (0, 0)), mode="edge").ravel()
     depth = np.ascontiguousarray(depth, dtype=np.float32)
     zm = float(np.median(depth))
-    near = float(np.percentile(depth, 2))
-    h, w = depth.shape
-    if travel:
-        half = travel * zm / 2
-        corner = math.hypot(w / 2, h / 2)
-        span = corner * (near / max(near - half, 0.05 * near) - near / (near + half))
-    else:
-        span = shift_px * zm / near
-    n = frame_count(span)
-    total = np.zeros(img.shape, np.float64)
-    for o in offsets(n):
-        total += frame(img, depth, o * shift_px * zm, o * travel * zm)
-    return total / n
+    a, tz = shift_px * zm, travel * zm
+    total = np.zeros(x.size, np.float64)
+    missed = np.zeros(depth.shape, np.int64)
+    n = frame_count(depth, a, tz)
+    _expose(img, depth, float(a), float(tz), n, crack_passes(depth, tz), total, missed)
+    return total.reshape(x.shape) / (n - missed)[:, :, None]

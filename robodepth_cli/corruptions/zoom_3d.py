@@ -18,11 +18,11 @@ TRAVEL = (0.04, 0.07, 0.10, 0.13, 0.16)
 
 @register(("travel",), TRAVEL, deterministic=True, depth=True)
 def zoom_3d(x: np.ndarray, depth: np.ndarray, level, rng: np.random.Generator) -> np.ndarray:
-    """Forward motion: the mean of the frames (8..32) seen by a camera moving along its
+    """Forward motion: the mean of the frames seen by a camera moving along its
     axis by ``o T Zm`` for offsets ``o`` in [-1/2, 1/2] (``Zm`` the median depth), each a
     z-buffered forward warp ``x' = c + (x - c) Z / (Z - o T Zm)`` about the image centre;
-    points reaching the camera leave the view; holes filled from the farther neighbour;
-    rounded to the nearest level.
+    points reaching the camera leave the view; each pixel the mean of the frames that see
+    it (one frame per pixel of the longest path); rounded to the nearest level.
 
     Between integer levels: ``T`` linear."""
     return round_to_uint8(exposure(x, depth, travel=interpolate(TRAVEL, level)))

@@ -23,6 +23,7 @@ from ..errors import RobodepthError
 from .protocols import NYU_METRICS
 
 ERROR_LIMIT = 1e6
+DATASET_COLUMNS = ("dataset", "split")  # what results are on, as robodepth evaluate writes it
 FRACTIONS = ("a1", "a2", "a3", "dee")  # fractions of pixels, or DEE
 ERRORS = tuple(m for m in NYU_METRICS if m not in FRACTIONS)  # non-negative, at most ERROR_LIMIT
 
@@ -34,6 +35,27 @@ class ScoreError(RobodepthError):
 def normalise_name(text: str) -> str:
     """A corruption cell as a name: ``Motion-Blur `` -> ``motion_blur``."""
     return text.strip().lower().replace("-", "_").replace(" ", "_")
+
+
+def dataset_of(text: str, source: str) -> tuple[str, str] | None:
+    """The (dataset, split) a results CSV's ``dataset`` and ``split`` columns name (lower
+    case; split "" when absent or empty), or None when it has no ``dataset`` column (results
+    from elsewhere, or written before evaluate wrote it). ScoreError when its rows name
+    more than one."""
+    rows = [r for r in csv.reader(io.StringIO(text)) if any(c.strip() for c in r)
+            and not r[0].lstrip().startswith("#")]
+    header = [c.strip().lower() for c in rows[0]] if rows else []
+    if "dataset" not in header:
+        return None
+    at = [header.index(c) if c in header else None for c in DATASET_COLUMNS]
+    found = {tuple(r[i].strip().lower() if i is not None and i < len(r) else "" for i in at)
+             for r in rows[1:]}
+    if len(found) > 1:
+        names = sorted(f"{d}:{s}" if s else d for d, s in found)
+        raise ScoreError(f"{source}: its rows are on different datasets ({', '.join(names)}); "
+                         "one results file holds one dataset's results")
+    key = found.pop() if found else ("", "")
+    return key if key[0] else None
 
 
 def number(text: str, column: str, where: str) -> float:

@@ -21,10 +21,11 @@ import numpy as np
 
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
-from ..errors import cannot_write
+from ..errors import cannot_write, counted
 from ..groundtruth.depthmaps import NoValidPixel
 from ..groundtruth.read import GroundTruth, load_ground_truth
 from ..predictions import Predictions, find_predictions
+from .csvrows import DATASET_COLUMNS
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
 
 # A worker takes about a second to start (a fresh interpreter importing numpy and OpenCV),
@@ -66,6 +67,7 @@ class Evaluation:
     # Images left out of every variant: no ground truth, their depth map being unusable
     # (key -> the build's reason); the metrics are the means over the others.
     left_out: dict[str, str] = field(default_factory=dict)
+    split: str = ""  # the build's named subset (drivingstereo-c's weather), else ""
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -76,14 +78,15 @@ class Evaluation:
 
     def csv_text(self) -> str:
         """The results CSV: ``corruption,level`` then the metrics (and the flicker
-        measures), one row per variant, full float precision (``repr``)."""
+        measures), full float precision (``repr``), then the ``dataset`` and ``split`` the
+        results are on; one row per variant."""
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
-        w.writerow(("corruption", "level") + self.columns)
+        w.writerow(("corruption", "level") + self.columns + DATASET_COLUMNS)
         for r in self.results:
             name, level = r.csv_key
             values = {**r.metrics, **(r.flicker or {})}
-            w.writerow([name, level] + [repr(values[m]) for m in self.columns])
+            w.writerow([name, level] + [repr(values[m]) for m in self.columns] + [self.dataset, self.split])
         return buf.getvalue()
 
     def to_json(self) -> dict:
@@ -95,7 +98,7 @@ class Evaluation:
             if summary:
                 row["scaling_ratio"] = {"median": summary[0], "std": summary[1]}
             rows.append(row)
-        return {"dataset": self.dataset, "protocol": self.setup.protocol,
+        return {"dataset": self.dataset, "split": self.split, "protocol": self.setup.protocol,
                 "kind": self.setup.kind, "stereo": self.setup.stereo,
                 "median_scaling": self.setup.median_scaling, "align": self.setup.alignment,
                 "align_space": self.setup.align_space, "crop": self.setup.crop_name,
@@ -111,14 +114,16 @@ class Evaluation:
         ratios' median and spread per variant as monodepth2 prints them."""
         metrics = self.columns
         width = max([len("variant")] + [len(r.variant.label) for r in self.results]) + 2
-        head = f"{'variant':<{width}}" + "".join(f"{m:>10}" for m in metrics)
+        widths = [max(10, len(m) + 2) for m in metrics]  # flicker_abs_rel is longer than a number
+        head = f"{'variant':<{width}}" + "".join(f"{m:>{w}}" for m, w in zip(metrics, widths))
         if self.setup.median_scaling:
             head += f"{'ratio med':>11}{'std':>7}"
-        lines = [f"{self.dataset}: {len(self.results)} variants x {self.images} images, "
+        lines = [f"{self.dataset}: {counted(len(self.results), 'variant')} x {counted(self.images, 'image')}, "
                  f"{self.setup.describe()}", head]
         for r in self.results:
             values = {**r.metrics, **(r.flicker or {})}
-            line = f"{r.variant.label:<{width}}" + "".join(f"{values[m]:>10.3f}" for m in metrics)
+            line = f"{r.variant.label:<{width}}" + "".join(f"{values[m]:>{w}.3f}"
+                                                           for m, w in zip(metrics, widths))
             summary = r.ratio_summary()
             if summary:
                 line += f"{summary[0]:>11.3f}{summary[1]:>7.3f}"
@@ -126,9 +131,19 @@ class Evaluation:
         if self.pairs:
             lines.append(f"flicker over {self.pairs} pairs of consecutive frames")
         if self.missing:
-            lines.append(f"partial: no predictions for {len(self.missing)} variants: "
+            lines.append(f"partial: no predictions for {counted(len(self.missing), 'variant')}: "
                          f"{_list(self.missing)}")
         return "\n".join(lines) + "\n"
+
+
+def split_name(dataset: BuiltDataset) -> str:
+    """The named subset a build of a preset with several was made of (drivingstereo-c's
+    ``foggy``), "" for every other build: what ``report --on DATASET:SPLIT`` calls a split."""
+    from ..sources.datasets import DATASETS
+
+    named = dict(getattr(DATASETS.get(dataset.name), "splits", ()))
+    split = dataset.record.config.get("split")
+    return split if isinstance(split, str) and split in named else ""
 
 
 def _list(variants: Sequence[Variant], most: int = 12) -> str:
@@ -164,18 +179,29 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     if flicker:
         from .flicker import check_pairs
 
-        pairs = check_pairs(dataset.keys, setup.protocol)
+        pairs = check_pairs(dataset.keys, setup.protocol, dataset.record.split.get("frames"))
     gt_path = _ground_truth_path(dataset, gt)
     names = dataset.depth_names() if gt_path.is_dir() else dataset.keys
     absent = {i for i, k in enumerate(dataset.keys) if k in dataset.no_depth} if gt is None else set()
-    truth = load_ground_truth(gt_path, names, setup.protocol, setup.valid, absent=absent)
+    # Handed over in a list that the callee empties: with workers, it drops the maps once
+    # shared, and nothing here keeps a second copy.
+    truth = [load_ground_truth(gt_path, names, setup.protocol, setup.valid, absent=absent)]
     n = len(dataset.keys)
     if on_total:
         on_total(n * len(found))
     result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing,
-                        pairs=len(pairs or ()),
+                        pairs=len(pairs or ()), split=split_name(dataset),
                         left_out={dataset.keys[i]: dataset.no_depth[dataset.keys[i]] for i in sorted(absent)})
     jobs = min(jobs, len(found), -(-n * len(found) // MAPS_PER_WORKER))
+    result.results = _evaluate_all(found, truth, setup, dataset.size, progress, pairs, jobs)
+    return _with_left_out(result, dataset)
+
+
+def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTruth], setup: Setup,
+                  image_size, progress, pairs, jobs: int) -> list[VariantResult]:
+    """Every variant's result, in ``jobs`` worker processes (1: here); the ground truth is
+    taken out of ``held``."""
+    truth = held.pop()
     if jobs > 1:
         import tempfile
 
@@ -183,16 +209,14 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
             shared = truth.share(Path(tmp) / "ground_truth.bin")
             # The workers map the file: keeping the maps here too would hold them twice.
             del truth
-            result.results = _evaluate_in_workers(found, shared, setup, dataset.size, progress,
-                                                  pairs, jobs)
-        return _with_left_out(result, dataset)
+            return _evaluate_in_workers(found, shared, setup, image_size, progress, pairs, jobs)
+    results = []
     for v, p in found:
         try:
-            result.results.append(_evaluate_variant(v, p, truth, setup, dataset.size, progress,
-                                                    pairs))
+            results.append(_evaluate_variant(v, p, truth, setup, image_size, progress, pairs))
         finally:
             p.close()
-    return _with_left_out(result, dataset)
+    return results
 
 
 def _with_left_out(result: Evaluation, dataset: BuiltDataset) -> Evaluation:

@@ -66,16 +66,20 @@ def measure(scales, abs_rel, pairs) -> dict[str, float]:
             "flicker_abs_rel": float(np.abs(e[j] - e[i]).mean())}
 
 
-def check_pairs(keys, protocol: str) -> list[tuple[int, int]]:
+def check_pairs(keys, protocol: str, frames=None) -> list[tuple[int, int]]:
     """The consecutive pairs of ``keys``; :class:`EvaluationError` saying why flicker cannot
-    be measured otherwise."""
+    be measured otherwise. ``frames``: the build's ``--frames`` offsets, if it has any."""
     if protocol != "kitti":
         raise EvaluationError("--flicker: flicker is measured under the kitti protocol (NYU's "
                               "test frames are no sequence)")
     pairs = consecutive_pairs(keys)
     if not pairs:
+        # A build's neighbour frames have neither predictions nor ground truth of the split.
+        extra = (f"; the build's neighbour frames (--frames {','.join(map(str, frames))}) are not "
+                 "evaluated, only its test frames" if frames else "")
         raise EvaluationError("--flicker: the split has no consecutive frames (frame n and n + 1 "
-                              "of one drive); evaluate a build of a split that lists a sequence")
+                              f"of one drive){extra}; build a split that lists a sequence, such as "
+                              "--split kitti_sequences, and evaluate that")
     return pairs
 
 

@@ -392,3 +392,13 @@ def baseline_from_results(results: Results, benchmark: Benchmark) -> Baseline:
     check_complete(results, benchmark)
     return Baseline(results.source, results.clean,
                     {n: mean(results.dee[n].values()) for n in benchmark.corruptions})
+
+
+def implausible_dee(metrics: dict, setup) -> str:
+    """``"clean DEE 1.234 is implausible (...); check --kind, ..."`` for clean metrics whose
+    DEE is at least 1 (every rate divides by 1 - DEE), else ""."""
+    value = dee(metrics["abs_rel"], metrics["a1"])
+    if value < 1:
+        return ""
+    return (f"clean DEE {value:.3f} is implausible (at least 1, with {setup.describe()}); "
+            "check --kind, --stereo and --png-scale")

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..benchmarks import CATEGORIES, CATEGORY, CORRUPTIONS, Baseline, Benchmark
+from ..errors import counted
 from .results import Results, ScoreError, check_complete, corruption_error, mean, resilience_rate
 
 
@@ -184,7 +185,7 @@ def format_table(s: Scores) -> str:
     lines.append(f"mCE {_cell(o.ce, '.2f', 0)}   mRR {_cell(o.rr, '.2f', 0)}   "
                  f"mDEE {_cell(o.dee, '.3f', 0)}")
     if s.missing:
-        lines.append(f"partial: {len(s.missing)} variants missing, scores average the "
+        lines.append(f"partial: {counted(len(s.missing), 'variant')} missing, scores average the "
                      f"{o.n} corruptions present")
     return "\n".join(lines + _beyond(s)) + "\n"
 

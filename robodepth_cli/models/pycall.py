@@ -99,6 +99,9 @@ def _import(name: str, spec: str):
         path = Path(name).expanduser()
         if not path.is_file():
             raise ModelError(f"{spec}: {path}: no such file")
+        here = str(path.resolve().parent)
+        if here not in sys.path:  # the modules beside the file, as for a script
+            sys.path.insert(0, here)
         mod_spec = importlib.util.spec_from_file_location(path.stem, path)
         module = importlib.util.module_from_spec(mod_spec)
         loader = mod_spec.loader.exec_module

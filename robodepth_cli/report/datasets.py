@@ -2,9 +2,10 @@
 on, the files of a dataset without a published baseline read and scored, one table per
 such dataset and a summary across all of them.
 
-A results CSV does not say which dataset it came from: the rows of KITTI-C, NYUDepth2-C and
-KITTI-S tell them apart (as ``score`` infers them), and ``report --on DATASET[:SPLIT]`` names
-any other (``drivingstereo-c:foggy``, ``diode-c``, ``custom:night``). A dataset without a
+A results CSV of ``robodepth evaluate`` names its dataset and split (its ``dataset`` and
+``split`` columns). For results from elsewhere, the rows of KITTI-C, NYUDepth2-C and KITTI-S
+tell them apart (as ``score`` infers them), and ``report --on DATASET[:SPLIT]`` names any
+other (``drivingstereo-c:foggy``, ``diode-c``, ``custom:night``). A dataset without a
 published baseline is scored against the results of the model ``--baseline`` names on the
 same dataset, so its mCE means what it means on KITTI-C; without one, DEE and RR only.
 """
@@ -16,8 +17,9 @@ from pathlib import Path
 from typing import Sequence
 
 from .. import benchmarks as B
+from ..errors import counted
 from ..evaluation import results as R, scores as S
-from ..evaluation.csvrows import ScoreError
+from ..evaluation.csvrows import ScoreError, dataset_of
 from . import inputs as I
 from . import synreal as X
 from . import tables as T
@@ -59,24 +61,33 @@ def _error(row: dict, metric: str) -> float:
 
 def keys_of(paths: Sequence[Path], on: Sequence[str], benchmark: str | None) -> list[tuple[str, str]]:
     """Each file's (dataset, split): from ``--on`` (once per file, or once for all), else
-    its benchmark as inferred from its rows."""
+    the one the file names, else its benchmark as inferred from its rows. A file that names
+    another than ``--on`` (or ``--benchmark``) is refused."""
     if on and len(on) not in (1, len(paths)):
-        raise I.ReportError(f"--on given {len(on)} times for {len(paths)} results files; give it "
+        raise I.ReportError(f"--on given {counted(len(on), 'time')} for "
+                            f"{counted(len(paths), 'results file')}; give it "
                             "once per file, in the same order, or once for all")
-    if on:
-        keys = [X.parse_key(t) for t in (on * len(paths) if len(on) == 1 else on)]
-        for text, key in zip(on, keys):
-            if not key[0]:
-                raise I.ReportError(f"--on {text!r}: expected DATASET or DATASET:SPLIT")
-        return keys
+    given = [X.parse_key(t) for t in (on * len(paths) if len(on) == 1 else on)]
+    for text, key in zip(on, given):
+        if not key[0]:
+            raise I.ReportError(f"--on {text!r}: expected DATASET or DATASET:SPLIT")
     out = []
-    for p in paths:
-        R.read_text(p)  # an unreadable file says so, without the hint below
-        try:
-            out.append((I.infer([p], benchmark), ""))
-        except ScoreError as exc:
-            raise I.ReportError(f"{exc} (results on another dataset: name it with --on "
-                                "DATASET[:SPLIT])") from None
+    for i, p in enumerate(paths):
+        own = dataset_of(R.read_text(p), str(p))  # an unreadable file says so first
+        key = given[i] if given else own
+        if own is not None and own != key:
+            raise I.ReportError(f"--on {X.key_text(key)}: {p} says its results are on "
+                                f"{X.key_text(own)} (its dataset column)")
+        if own is not None and benchmark and not given and own != (benchmark, ""):
+            raise I.ReportError(f"--benchmark {benchmark}: {p} says its results are on "
+                                f"{X.key_text(own)} (its dataset column)")
+        if key is None:
+            try:
+                key = (I.infer([p], benchmark), "")
+            except ScoreError as exc:
+                raise I.ReportError(f"{exc} (results on another dataset: name it with --on "
+                                    "DATASET[:SPLIT])") from None
+        out.append(key)
     return out
 
 
@@ -89,7 +100,8 @@ def load(paths: Sequence[Path], names: Sequence[str], keys: Sequence[tuple[str, 
 
     chosen = list(names) if names else [p.stem for p in paths]
     if names and len(names) != len(paths):
-        raise I.ReportError(f"--name given {len(names)} times for {len(paths)} results files; "
+        raise I.ReportError(f"--name given {counted(len(names), 'time')} for "
+                            f"{counted(len(paths), 'results file')}; "
                             "give it once per file, in the same order, or not at all")
     seen: dict[tuple, Path] = {}
     for n, p, k in zip(chosen, paths, keys):

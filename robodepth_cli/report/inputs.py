@@ -16,7 +16,7 @@ from typing import Sequence
 from .. import benchmarks as B
 from ..evaluation import results as R, scores as S
 from ..evaluation.csvrows import normalise_name
-from ..errors import RobodepthError
+from ..errors import RobodepthError, counted
 from . import published as P
 
 KITTI_S = "kitti-s"
@@ -70,7 +70,8 @@ class Model:
 def model_names(paths: Sequence[Path], names: Sequence[str]) -> list[str]:
     """``--name`` per file (in order) or the file stems; duplicates refused."""
     if names and len(names) != len(paths):
-        raise ReportError(f"--name given {len(names)} times for {len(paths)} results files; "
+        raise ReportError(f"--name given {counted(len(names), 'time')} for "
+                          f"{counted(len(paths), 'results file')}; "
                           "give it once per file, in the same order, or not at all")
     chosen = list(names) if names else [p.stem for p in paths]
     for n in chosen:

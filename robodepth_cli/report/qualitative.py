@@ -10,6 +10,7 @@ import numpy as np
 
 from ..api import open_dataset
 from ..benchmarks import CLEAN
+from ..errors import counted
 from .inputs import KITTI_S, ReportError
 
 # Shown when the build has them: one corruption of each category and one more, at level 3
@@ -54,7 +55,8 @@ def check_kinds(kinds: Sequence[str], preds: Sequence[Path]) -> None:
     if kinds and not preds:
         raise ReportError("--kind needs --pred (it says what the predictions hold)")
     if kinds and len(kinds) not in (1, len(preds)):
-        raise ReportError(f"--kind given {len(kinds)} times for {len(preds)} --pred folders; give "
+        raise ReportError(f"--kind given {counted(len(kinds), 'time')} for "
+                          f"{counted(len(preds), '--pred folder')}; give "
                           "it once per --pred in the same order, once for all, or not at all "
                           "(each folder's predictions.json says it)")
 

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from .. import __version__
+from ..errors import counted
 from . import inputs as I
 from . import published as P
 from . import flicker as FL
@@ -93,7 +94,8 @@ def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None,
         raise I.ReportError("--pred: the report has no results on kitti-c, nyudepth2-c or "
                             "kitti-s for its qualitative figure")
     if main is not None and n_pred > len(by_key[main]):
-        raise I.ReportError(f"--pred given {n_pred} times for {len(by_key[main])} results files on "
+        raise I.ReportError(f"--pred given {counted(n_pred, 'time')} for "
+                            f"{counted(len(by_key[main]), 'results file')} on "
                             f"{main[0]}; give it at most once per file on it, in the same order")
     if main is not None:
         report = _main(main[0], [e.model for e in by_key[main]], context,

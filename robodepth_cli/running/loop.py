@@ -62,10 +62,12 @@ def render_batch(renderer: Renderer, cleans: Sequence[np.ndarray], keys: Sequenc
 def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, truth, setup,
         state: RunState, *, batch_size: int = 8, keep: Path | None = None,
         progress: Callable[[int], None] | None = None,
-        on_total: Callable[[int], None] | None = None) -> tuple[Evaluation, int]:
+        on_total: Callable[[int], None] | None = None,
+        on_clean: Callable[[dict], None] | None = None) -> tuple[Evaluation, int]:
     """Judge ``model`` on every variant of ``inputs``; the evaluation (as
     ``robodepth evaluate`` makes it) and how many variants an earlier run had finished.
-    ``keep``: also write the predictions there, in ``robodepth predict``'s layout."""
+    ``keep``: also write the predictions there, in ``robodepth predict``'s layout;
+    ``on_clean``: called with the clean variant's metrics when it is computed."""
     n = len(cleans)
     keys = inputs.keys
     paths = [s.path or s.rel for s in inputs.sources]
@@ -102,6 +104,8 @@ def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, 
             record = None  # written with the first batch
             state.add(variant.relpath, r.metrics, r.ratios)
             result.results.append(r)
+            if on_clean is not None and variant.name == CLEAN:
+                on_clean(r.metrics)
     return result, earlier
 
 

@@ -55,7 +55,8 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
 
         result, earlier = loop.run(inputs, cleans, renderer, model, truth, setup, state,
                                    batch_size=batch_size, keep=keep,
-                                   progress=bar.update, on_total=set_total)
+                                   progress=bar.update, on_total=set_total,
+                                   on_clean=_early_warning(bench, setup, note))
     if earlier:
         note(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
              f"{state.path} (finished by an earlier run)")
@@ -64,3 +65,17 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
     E.write_results(out, text)
     state.remove()
     return result, text, bench, replacing
+
+
+def _early_warning(bench, setup, note: Callable[[str], None]):
+    """What to do with the clean variant's metrics as soon as they are known: with scores
+    to come, warn at once when its DEE is implausible, so that a mixed-up --kind or
+    --stereo can be stopped (Ctrl-C) before the other variants are computed."""
+    from ..evaluation.results import implausible_dee
+
+    def check(metrics: dict) -> None:
+        text = implausible_dee(metrics, setup) if bench is not None else ""
+        if text:
+            note(f"robodepth: warning: {text}; if one of them is wrong, Ctrl-C now and rerun "
+                 "with it right (the finished variants are kept)")
+    return check

@@ -54,7 +54,7 @@ class RunState:
             differ = sorted(k for k in set(theirs) | set(state.settings)
                             if theirs.get(k) != state.settings.get(k))
             state.note = (f"{state.path}: from a run with other settings ({', '.join(differ)} "
-                          "differ); starting afresh")
+                          f"{'differs' if len(differ) == 1 else 'differ'}); starting afresh")
         else:
             state.rows = doc["variants"]
         return state

@@ -9,8 +9,7 @@ unless ``fmt`` names one:
     benchmark; 1000: millimetres, NYU and ScanNet; 100: centimetres, Virtual KITTI 2).
     ``scale`` is required: an integer file has no unit of its own.
 ``npy``
-    a 2-D array, or H x W x 1 (DIODE); floats are metres (divided by ``scale`` if given),
-    integers need ``scale`` as PNGs do.
+    a 2-D array, or H x W x 1 (DIODE); floats are metres, integers need ``scale`` as PNGs do.
 ``npz``
     an ``.npz`` holding one array, or several of which one is named ``depth``; then as npy.
 ``pfm``
@@ -29,6 +28,10 @@ unless ``fmt`` names one:
     Cityscapes' disparity: a 16-bit PNG whose pixel ``p > 0`` is the disparity
     ``(p - 1) / 256`` (``p = 0``: none), turned into depth ``baseline x fx / disparity``
     with ``extrinsic.baseline`` and ``intrinsic.fx`` of the frame's ``camera`` JSON file.
+
+The scale rule, the same in every command: a scale is for integer maps (16-bit PNG, integer
+``.npy``/``.npz``) and they need one; a float map holds metres, and a scale given with it is
+refused rather than applied.
 
 Invalid everywhere: 0, negative values, NaN and infinity (ETH3D marks its holes with
 infinity, KITTI and the PNG forms with 0), and where ``mask`` (a second map of the same size:
@@ -94,12 +97,8 @@ def read_depth(path: str | Path, *, fmt: str | None = None, scale: float | None 
     except (ValueError, EOFError, zipfile.BadZipFile, struct.error) as exc:
         raise DepthError(f"{path}: not a {form} depth map ({exc})") from None
     values = _two_d(values, path)
-    if values.dtype.kind in "iu" or values.dtype == bool:
-        if scale is None:
-            raise DepthError(f"{path}: integer depth values need a scale (the file holds depth x "
-                             "scale: 256 for KITTI, 1000 for millimetres)")
-    elif values.dtype.kind != "f":
-        raise DepthError(f"{path}: depth values of dtype {values.dtype}; expected numbers")
+    if form != "cityscapes":
+        check_scale(path, _kind(values.dtype, path), scale)
     depth = values.astype(np.float32)
     if form == "cityscapes":
         with np.errstate(divide="ignore"):  # p <= 1: no disparity, made NaN below
@@ -115,6 +114,55 @@ def read_depth(path: str | Path, *, fmt: str | None = None, scale: float | None 
                              f"map {path} is {depth.shape[0]} x {depth.shape[1]}")
         depth[~keep] = np.nan
     return depth
+
+
+INTEGER_NEEDS_SCALE = ("integer depth values need a scale, --depth-scale (the file holds depth x "
+                      "scale: 256 for KITTI, 1000 for millimetres)")
+FLOAT_HAS_NO_SCALE = ("float depth values are metres; a scale (--depth-scale) is for integer maps "
+                      "(16-bit PNG, integer .npy), so it is refused rather than applied")
+
+
+def check_scale(path: str | Path, kind: str, scale: float | None) -> None:
+    """The scale rule (module docstring) for a map of ``kind`` (``integer`` or ``float``)."""
+    if kind == "integer" and scale is None:
+        raise DepthError(f"{path}: {INTEGER_NEEDS_SCALE}")
+    if kind == "float" and scale is not None:
+        raise DepthError(f"{path}: {FLOAT_HAS_NO_SCALE}")
+
+
+def _kind(dtype: np.dtype, path: Path) -> str:
+    if dtype.kind in "iub":
+        return "integer"
+    if dtype.kind == "f":
+        return "float"
+    raise DepthError(f"{path}: depth values of dtype {dtype}; expected numbers")
+
+
+def value_kind(path: str | Path, fmt: str | None = None) -> str | None:
+    """Whether the map at ``path`` holds ``integer`` or ``float`` values, read from its
+    header where it has one (the check before a build's work); None when that cannot be
+    told cheaply or the file is unreadable (its own reading then says why)."""
+    path = Path(path)
+    try:
+        form = depth_format(path, fmt)
+        if form in ("pfm", "exr", "dpt", "raw"):
+            return "float"
+        if form == "png":
+            from PIL import Image
+
+            with Image.open(path) as im:
+                return "integer" if im.mode.startswith("I") else None
+        if form == "npy":
+            with open(path, "rb") as fh:
+                version = np.lib.format.read_magic(fh)
+                read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0)
+                return _kind(read(fh)[2], path)
+        if form == "npz":
+            return _kind(_npz(path, None).dtype, path)
+    except (DepthError, OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return None
+    return None
 
 
 def read_mask(path: str | Path) -> np.ndarray:
@@ -157,8 +205,20 @@ def _png(path: Path, shape) -> np.ndarray:
         raise DepthError(f"{path}: not a readable PNG ({os_reason(exc)})") from None
 
 
+NPY_MAGIC = b"\x93NUMPY"
+
+
 def _npy(path: Path, shape) -> np.ndarray:
-    return np.load(path, allow_pickle=False)
+    with open(path, "rb") as fh:
+        if fh.read(len(NPY_MAGIC)) != NPY_MAGIC:
+            raise DepthError(f"{path}: not a depth array (not a .npy file: it does not start as "
+                             "one)")
+    try:
+        return np.load(path, allow_pickle=False)
+    except ValueError as exc:
+        if "pickle" in str(exc):  # an array of Python objects: numpy would unpickle them
+            raise DepthError(f"{path}: not a depth array (it holds Python objects)") from None
+        raise
 
 
 def _npz(path: Path, shape) -> np.ndarray:

@@ -2,9 +2,13 @@
 ``preview`` (``--depth FILE``) and a build's scene depth: :func:`.depth_io.read_depth`, with
 the two flags' rules.
 
-- ``.npy``: a 2-D array of metres (float), read without pickles; ``--depth-scale`` is refused;
+- ``.npy``: a 2-D array, read without pickles: floats are metres, integers are divided by
+  ``--depth-scale``;
 - ``.png``: a 16-bit single-channel PNG whose values divided by ``--depth-scale`` are metres
   (256 for KITTI's depth maps, 1000 for millimetres as NYU's ``sync_depth`` files).
+
+``--depth-scale`` follows the scale rule of :mod:`.depth_io`: required for integer maps,
+refused for float ones.
 
 Zero, NaN and inf mark missing values and come back as NaN; the corruption fills them
 (docs/depth-aware-corruptions.md).
@@ -28,12 +32,12 @@ def read_depth(path: str | Path, scale: float | None = None) -> np.ndarray:
     :class:`DepthFileError` (or :class:`DepthError`) naming the file otherwise."""
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix == ".npy" and scale is not None:
-        raise DepthFileError(f"{path}: --depth-scale is for 16-bit PNGs; a .npy holds metres")
-    if suffix == ".png" and scale is None:
-        raise DepthFileError(f"{path}: a 16-bit PNG needs --depth-scale (256 for KITTI, "
-                             f"1000 for millimetres)")
     if suffix not in (".npy", ".png"):
         raise DepthFileError(f"{path}: a depth map is a .npy of metres or a 16-bit .png "
                              f"(with --depth-scale)")
-    return read_any(path, scale=scale).astype(np.float64)
+    depth = read_any(path, scale=scale).astype(np.float64)
+    if not np.isfinite(depth).any():
+        # A build fails such a map's image; a corruption would take it as 1 km away.
+        raise DepthFileError(f"{path}: no valid depth (every pixel is 0, negative, NaN or "
+                             "infinite)")
+    return depth
