@@ -49,9 +49,10 @@ def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np
 
     The uniforms are drawn on [0, 1) and mapped to [-m, m) after the smoothing, which is
     linear and keeps constants: ``alpha * gaussian(U(-m, m)) = 2 m alpha * gaussian(U(0, 1))
-    - m alpha``, folded into the sampling coordinates. The resampling takes the float32
-    coordinates and lerps the 0..255 values in float64 (:func:`~._exact.remap_reflect`),
-    the same bits on any CPU.
+    - m alpha``, folded into the sampling coordinates. The resampling lerps the 0..255
+    values at the float32 coordinates in float32 with fused multiply-adds, as OpenCV's
+    ``remap`` does on a CPU with FMA (:func:`~._exact.remap_reflect`, the same bits on any
+    CPU).
 
     Between integer levels: ``k`` linear.
     """
