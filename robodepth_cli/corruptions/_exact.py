@@ -4,8 +4,10 @@ OpenCV and numpy pick SIMD code at run time from the CPU (and OpenCV may hand a 
 IPP): the same call sums in another order, or fuses a multiply-add, on another machine,
 and a value near an integer truncates to the other level. The kernels here are plain
 sequential numba loops compiled without fast-math, so LLVM keeps every sum in the order
-written and fuses nothing: it may only vectorise across independent output pixels, which
-changes no result. Integer arithmetic is used where it is exact.
+written and fuses only the multiply-adds written as :func:`fma`: it may only vectorise
+across independent output pixels, which changes no result. Where it is known, the order
+and fusing are those OpenCV's code takes on this project's AVX-512 machine, so the bytes
+made there before stay. Integer arithmetic is used where it is exact.
 """
 
 from __future__ import annotations
@@ -62,6 +64,57 @@ def border_index(n: int, r: int, mode: str) -> np.ndarray:
 # Inner loops index a row view by the loop variable itself: numba then needs no
 # negative-index wrap-around, and LLVM vectorises across output pixels (which changes no
 # sum: each pixel's terms are still added one at a time, in order).
+
+
+@njit
+def _filter_rows(src, k, idx, ch, out):
+    """Along each row of ``ch``-channel pixels: ``k[0] x[j]``, then for each later tap
+    ``t`` in order ``fma(x[j + t], k[t], acc)``, ``x`` the row with its border (``idx``:
+    the source pixel of each position, the identity inside the row, -1 for a zero)."""
+    h, m = out.shape
+    n = k.size
+    r = n // 2
+    w = m // ch
+    buf = np.empty(idx.size * ch, src.dtype)
+    for i in range(h):
+        row = src[i]
+        inner = buf[r * ch:r * ch + m]
+        for q in range(m):
+            inner[q] = row[q]
+        for b in range(r):
+            for j in (b, r + w + b):
+                for c in range(ch):
+                    buf[j * ch + c] = row[idx[j] * ch + c] if idx[j] >= 0 else 0.0
+        line = out[i]
+        first = k[0]
+        for q in range(m):
+            line[q] = buf[q] * first
+        for t in range(1, n):
+            wt = k[t]
+            seg = buf[t * ch:t * ch + m]
+            for q in range(m):
+                line[q] = fma(seg[q], wt, line[q])
+
+
+@njit
+def _filter_columns(src, k, idx, out):
+    """Down the columns with a symmetric kernel of radius ``r``: ``k[r] x[i]``, then for
+    ``t = 1..r`` (nearest pair first) ``fma(x[i - t] + x[i + t], k[r + t], acc)``."""
+    n, m = out.shape
+    r = k.size // 2
+    zero = np.zeros_like(src[0])
+    for i in range(n):
+        line = out[i]
+        centre = src[idx[i + r]]
+        w = k[r]
+        for j in range(m):
+            line[j] = centre[j] * w
+        for t in range(1, r + 1):
+            up = src[idx[i + r - t]] if idx[i + r - t] >= 0 else zero
+            down = src[idx[i + r + t]] if idx[i + r + t] >= 0 else zero
+            w = k[r + t]
+            for j in range(m):
+                line[j] = fma(up[j] + down[j], w, line[j])
 
 
 @njit
@@ -126,19 +179,29 @@ def _correlate_axis1(src, k, idx, out):
 
 
 def separable(img: np.ndarray, ky: np.ndarray, kx: np.ndarray, mode: str) -> np.ndarray:
-    """Correlate float ``img`` (H x W or H x W x C) with ``ky`` down the columns, then with
-    ``kx`` along the rows (symmetric, odd lengths, centred), as scipy.ndimage does: each
-    pass sums in float64 and stores in ``img``'s dtype; ``mode`` names the border as scipy
-    does."""
+    """Correlate float ``img`` (H x W or H x W x C) with the symmetric, odd-length, centred
+    kernels ``kx`` along the rows and ``ky`` down the columns; ``mode`` names the border as
+    scipy.ndimage does. The same bits on every CPU:
+
+    - float64, as scipy.ndimage sums (the benchmark's scikit-image blur, whose flat areas
+      land a rounding error off a whole level): columns first, each pass in float64, the
+      centre tap and then the pairs from the farthest in;
+    - float32 (displacement fields, kernels), in float32 with the arithmetic of OpenCV's
+      sepFilter2D on a CPU with AVX-512: rows first, tap by tap in fused multiply-adds,
+      then columns a pair at a time, nearest first, fused (that machine's bytes stay)."""
     src = np.ascontiguousarray(img if img.ndim == 3 else img[:, :, None])
     h, w, ch = src.shape
-    ky, kx = np.asarray(ky, np.float64), np.asarray(kx, np.float64)
+    ky, kx = np.asarray(ky, src.dtype), np.asarray(kx, src.dtype)
     if not (np.array_equal(ky, ky[::-1]) and np.array_equal(kx, kx[::-1])):
         raise ValueError("separable() takes symmetric kernels")
-    mid = np.empty_like(src)
-    _correlate_axis0(src.reshape(h, w * ch), ky, border_index(h, ky.size // 2, mode), mid.reshape(h, w * ch))
-    out = np.empty_like(src)
-    _correlate_axis1(mid, kx, border_index(w, kx.size // 2, mode), out)
+    flat = (h, w * ch)
+    mid, out = np.empty_like(src), np.empty_like(src)
+    if src.dtype == np.float32:
+        _filter_rows(src.reshape(flat), kx, border_index(w, kx.size // 2, mode), ch, mid.reshape(flat))
+        _filter_columns(mid.reshape(flat), ky, border_index(h, ky.size // 2, mode), out.reshape(flat))
+    else:
+        _correlate_axis0(src.reshape(flat), ky, border_index(h, ky.size // 2, mode), mid.reshape(flat))
+        _correlate_axis1(mid, kx, border_index(w, kx.size // 2, mode), out)
     return out if img.ndim == 3 else out[:, :, 0]
 
 

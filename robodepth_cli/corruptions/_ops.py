@@ -53,8 +53,8 @@ def gaussian_kernel_1d(sigma: float, truncate: float) -> np.ndarray:
 
 def gaussian(img: np.ndarray, sigma, *, truncate: float = 4.0, mode: str = "nearest") -> np.ndarray:
     """``skimage.filters.gaussian`` (= ``scipy.ndimage.gaussian_filter`` per channel) on a
-    float H x W or H x W x C array: each pass sums in float64 in tap order and stores in
-    the array's dtype (:func:`~._exact.separable`, the same bits on any CPU).
+    float H x W or H x W x C array, in the array's dtype with OpenCV's sepFilter2D
+    arithmetic (:func:`~._exact.separable`, the same bits on any CPU).
 
     ``sigma`` is a scalar or a (row, column) pair; channels are never mixed.
     """
