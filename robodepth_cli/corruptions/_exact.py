@@ -307,8 +307,15 @@ def _remap_reflect(src, ch, coords, out):
             x, y = line[j, 0], line[j, 1]
             fx, fy = np.float32(math.floor(x)), np.float32(math.floor(y))
             ax, ay = x - fx, y - fy
-            x0, x1 = _fold(int(fx), w) * ch, _fold(int(fx) + 1, w) * ch
-            row0, row1 = src[_fold(int(fy), h)], src[_fold(int(fy) + 1, h)]
+            ix, iy = int(fx), int(fy)
+            if 0 <= ix and ix + 1 < w:  # inside: no folding (most pixels)
+                x0, x1 = ix * ch, (ix + 1) * ch
+            else:
+                x0, x1 = _fold(ix, w) * ch, _fold(ix + 1, w) * ch
+            if 0 <= iy and iy + 1 < h:
+                row0, row1 = src[iy], src[iy + 1]
+            else:
+                row0, row1 = src[_fold(iy, h)], src[_fold(iy + 1, h)]
             for c in range(ch):
                 a, b = np.float32(row0[x0 + c]), np.float32(row0[x1 + c])
                 d0, d1 = np.float32(row1[x0 + c]), np.float32(row1[x1 + c])
