@@ -22,8 +22,8 @@ def disk_kernel(radius: float, alias: float) -> np.ndarray:
     Coordinates ``-8..8`` with a 3 x 3 Gaussian if ``radius <= 8``, else
     ``-ceil(radius)..ceil(radius)`` with 5 x 5; disk = ``X^2 + Y^2 <= radius^2`` (a
     fractional radius, from a decimal level, is used as it is) normalised to sum 1 in float32, then ``cv2.GaussianBlur`` of that size with sigma ``alias`` (its own
-    reflect-101 border included): OpenCV's float32 Gaussian taps, each pass summed in
-    float64 and stored in float32 (:func:`~._exact.separable`, the same bits on any CPU).
+    reflect-101 border included): OpenCV's float32 Gaussian taps and its float32
+    separable arithmetic (:func:`~._exact.separable`, the same bits on any CPU).
     Trimming exact zeros changes no convolution result.
     """
     if radius <= 8:
