@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SCRIPTS = ("corruptions.py", "depth.py", "png.py", "build.py", "stylize.py", "cluster.py", "gt.py",
+SCRIPTS = ("corruptions.py", "exact.py", "depth.py", "png.py", "build.py", "stylize.py", "cluster.py", "gt.py",
            "evaluate.py", "source_hash.py", "large.py", "severity.py", "predict.py", "torch_engine.py",
            "export.py", "frames.py", "run_cmd.py")
 

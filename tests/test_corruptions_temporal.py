@@ -3,13 +3,18 @@ trips at increasing CRF, bit errors in the coded stream."""
 
 from __future__ import annotations
 
+import concurrent.futures
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from PIL import Image
 
 from robodepth_cli.corruptions import codec, temporal
 
-from _paths import FIXTURES
+from _paths import FIXTURES, REPO
 
 
 @pytest.fixture(scope="module")
@@ -98,3 +103,58 @@ def test_levels_between_integers_interpolate():
     assert temporal.parameter("h264_crf", 1) == 18 and temporal.parameter("h264_crf", 5) == 51
     assert temporal.parameter("h264_crf", 2.5) == 30
     assert temporal.parameter("frame_lost", 4.5) == pytest.approx(0.9)
+
+
+# A child process: encodes and decodes one tiny sequence, prints the digests. Some children
+# switch FFmpeg's SIMD off (as a CPU without it runs) or run on one CPU only.
+_CHILD = """
+import ctypes, glob, hashlib, os, sys
+import numpy as np
+import av
+if sys.argv[1] == "no-simd":
+    libs = os.path.join(os.path.dirname(av.__file__), os.pardir, "av.libs")
+    ctypes.CDLL(glob.glob(os.path.join(libs, "libavutil-*.so*"))[0]).av_force_cpu_flags(0)
+if sys.argv[1] == "one-cpu":
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+from robodepth_cli.corruptions import codec
+rng = np.random.default_rng(3)
+base = np.kron(rng.integers(0, 256, (5, 9, 3)), np.ones((8, 8, 1))).astype(np.uint8)
+frames = [np.ascontiguousarray(base[:, 2 * i:2 * i + 64]) for i in range(3)]
+data = codec.encode(frames, "h264", 30)
+shown = codec.decode(data, "h264", 3, (40, 64))
+print(hashlib.sha256(data).hexdigest(), hashlib.sha256(b"".join(f.tobytes() for f in shown)).hexdigest())
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="needs Linux's sched_setaffinity")
+def test_h264_gives_the_same_bytes_in_any_process():
+    """20 processes, some with FFmpeg's SIMD switched off and some on one CPU: one stream
+    and one decoded sequence. (With FFmpeg's colour conversion, switching its SIMD off
+    changed the stream.)"""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    modes = ["plain", "no-simd", "one-cpu", "plain"] * 5
+    with concurrent.futures.ThreadPoolExecutor(4) as pool:
+        runs = list(pool.map(lambda mode: subprocess.run([sys.executable, "-c", _CHILD, mode], env=env,
+                                                         capture_output=True, text=True, timeout=120), modes))
+    assert all(r.returncode == 0 for r in runs), [r.stderr[-500:] for r in runs if r.returncode]
+    results = {mode: set() for mode in modes}
+    for mode, r in zip(modes, runs):
+        results[mode].add(r.stdout.strip())
+    assert len(set().union(*results.values())) == 1, results
+
+
+def test_colour_conversion_by_hand():
+    """BT.601 limited range: grey v has Y = 16 + 219 v / 255 (200: 187.8) and chroma 128,
+    and comes back within a level; pure red has Y = 16 + 65.481 = 81.5, U = 128 - 37.797
+    = 90.2, V = 128 + 112 = 240."""
+    grey = np.full((2, 4, 3), 200, np.uint8)
+    yuv = codec.rgb_to_yuv420p(grey)
+    assert yuv.shape == (3, 4)
+    assert (yuv[:2] == 188).all() and (yuv[2:] == 128).all()
+    assert np.abs(codec.yuv420p_to_rgb(yuv).astype(int) - 200).max() <= 1
+    red = np.zeros((2, 2, 3), np.uint8)
+    red[..., 0] = 255
+    y, u, v = codec.rgb_to_yuv420p(red).reshape(-1)[[0, 4, 5]]
+    assert abs(int(y) - 81.5) <= 1 and (u, v) == (90, 240)
+    back = codec.yuv420p_to_rgb(codec.rgb_to_yuv420p(red))
+    assert np.abs(back.astype(int) - red).max() <= 2

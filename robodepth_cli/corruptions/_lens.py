@@ -21,8 +21,9 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-import cv2
 import numpy as np
+
+from ._exact import correlate2d
 
 STEP = 0.5  # pixels of blur radius between neighbouring layers (R / 2 for R under a pixel)
 U_CAP = 2.0  # f/d beyond this (d < f/2) has the full radius R: one layer
@@ -80,7 +81,7 @@ def lens_blur(x: np.ndarray, depth: np.ndarray, focus: float, radius: float) -> 
         np.multiply(img[box], mask[:, :, None], out=part[:, :, :3])
         part[:, :, 3] = mask
         if r > STEP:
-            part = cv2.filter2D(part, -1, disk(r), borderType=cv2.BORDER_REFLECT_101)
+            part = correlate2d(part, disk(r))
         alpha = part[:, :, 3]
         behind = 1.0 - alpha
         colour[box] *= behind[:, :, None]

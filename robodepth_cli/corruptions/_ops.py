@@ -2,18 +2,12 @@
 
 from __future__ import annotations
 
-import cv2
+import math
+
 import numpy as np
 
+from ._exact import separable
 from ._jit import njit
-
-_BORDERS = {
-    # scipy.ndimage / scikit-image mode -> OpenCV border
-    "reflect": cv2.BORDER_REFLECT,      # d c b a | a b c d | d c b a
-    "mirror": cv2.BORDER_REFLECT_101,   # d c b | a b c d | c b a
-    "nearest": cv2.BORDER_REPLICATE,
-    "constant": cv2.BORDER_CONSTANT,
-}
 
 
 def truncate_to_uint8(v: np.ndarray, scale: float = 255.0) -> np.ndarray:
@@ -48,27 +42,25 @@ def _truncate(v, scale, out):
 
 
 def gaussian_kernel_1d(sigma: float, truncate: float) -> np.ndarray:
-    """The 1-D kernel of ``scipy.ndimage.gaussian_filter``: radius ``int(truncate * sigma + 0.5)``."""
+    """The 1-D kernel of ``scipy.ndimage.gaussian_filter``: radius ``int(truncate * sigma + 0.5)``.
+
+    Each tap from the C library's ``exp`` and the sum correctly rounded (``math.fsum``):
+    numpy's vectorised ``exp`` and its summation order depend on the CPU."""
     radius = int(truncate * float(sigma) + 0.5)
-    x = np.arange(-radius, radius + 1, dtype=np.float64)
-    k = np.exp(-0.5 * (x / sigma) ** 2)
-    return k / k.sum()
+    k = np.array([math.exp(-0.5 * (x / sigma) ** 2) for x in range(-radius, radius + 1)])
+    return k / math.fsum(k)
 
 
 def gaussian(img: np.ndarray, sigma, *, truncate: float = 4.0, mode: str = "nearest") -> np.ndarray:
     """``skimage.filters.gaussian`` (= ``scipy.ndimage.gaussian_filter`` per channel) on a
-    float H x W or H x W x C array, with OpenCV's separable filter doing the work.
+    float H x W or H x W x C array, in the array's dtype with OpenCV's sepFilter2D
+    arithmetic (:func:`~._exact.separable`, the same bits on any CPU).
 
     ``sigma`` is a scalar or a (row, column) pair; channels are never mixed.
     """
     sy, sx = (sigma, sigma) if np.isscalar(sigma) else sigma
     ky = gaussian_kernel_1d(sy, truncate)
     kx = gaussian_kernel_1d(sx, truncate)
-    border = _BORDERS[mode]
     src = img if img.dtype in (np.float32, np.float64) else img.astype(np.float64)
-    if src.ndim == 3 and src.shape[2] > 4:
-        return np.stack([gaussian(src[..., c], sigma, truncate=truncate, mode=mode)
-                         for c in range(src.shape[2])], axis=-1)
-    # OpenCV reflects repeatedly when the kernel is longer than the image, as SciPy does.
-    return cv2.sepFilter2D(src, -1, kx.astype(src.dtype), ky.astype(src.dtype), borderType=border)
+    return separable(src, ky, kx, mode)
 

@@ -2,10 +2,15 @@
 H.264, libx265 for H.265/HEVC), and bit errors in the encoded stream, decoded as a player
 would. PyAV (the ``video`` extra) is imported here only, when a sequence is encoded.
 
-Encoding: RGB frames -> yuv420p (FFmpeg's default BT.601 conversion, as a camera's encoder
-stores video) at 10 frames per second (KITTI's rate), constant rate factor ``crf``, preset
-``medium``, one thread (the same bytes on every machine with the same library versions).
+Encoding: RGB frames -> yuv420p (BT.601 limited range, as a camera's encoder stores video)
+at 10 frames per second (KITTI's rate), constant rate factor ``crf``, preset ``medium``.
 Odd sizes are padded by repeating the last row/column and cropped back after decoding.
+
+Same bytes in any process and on any CPU with the same library versions: the colour
+conversions both ways are exact integer arithmetic here (:func:`rgb_to_yuv420p`,
+:func:`yuv420p_to_rgb`), not FFmpeg's swscale, whose SIMD code differs with the CPU
+(with FFmpeg's SIMD switched off, its conversion changed the stream); the encoder runs one
+thread with no sliced threads and its lookahead in that thread, the decoder one thread.
 """
 
 from __future__ import annotations
@@ -28,6 +33,42 @@ def _av():
     return av
 
 
+# BT.601 limited range in 1/256 (Y) and 1/1024 (chroma of a 2 x 2 sum) fixed point.
+_Y = np.array([66, 129, 25], np.int32)
+_U = np.array([-38, -74, 112], np.int32)
+_V = np.array([112, -94, -18], np.int32)
+
+
+def rgb_to_yuv420p(img: np.ndarray) -> np.ndarray:
+    """uint8 RGB (even H x W) as a yuv420p picture in PyAV's layout (3H/2 rows of W: the Y,
+    U and V planes one after the other, flat): ``Y = ((66 R + 129 G + 25 B + 128) >> 8)
+    + 16``; U and V the same with (-38, -74, 112) and (112, -94, -18) on the sum of each
+    2 x 2 block, ``(... + 512) >> 10``, + 128. Exact integers."""
+    h, w = img.shape[:2]
+    rgb = img.astype(np.int32)
+    y = ((rgb @ _Y + 128) >> 8) + 16
+    block = rgb.reshape(h // 2, 2, w // 2, 2, 3).sum(axis=(1, 3))
+    u = ((block @ _U + 512) >> 10) + 128
+    v = ((block @ _V + 512) >> 10) + 128
+    flat = np.concatenate([y.reshape(-1), u.reshape(-1), v.reshape(-1)])
+    return np.clip(flat, 0, 255).astype(np.uint8).reshape(h * 3 // 2, w)
+
+
+def yuv420p_to_rgb(yuv: np.ndarray) -> np.ndarray:
+    """The inverse conversion of a PyAV yuv420p array (3H/2 x W) to uint8 RGB H x W, each
+    chroma sample covering its 2 x 2 block: with ``C = 298 (Y - 16)``, ``D = U - 128``,
+    ``E = V - 128``: ``R = (C + 409 E + 128) >> 8``, ``G = (C - 100 D - 208 E + 128) >> 8``,
+    ``B = (C + 516 D + 128) >> 8``, clipped to 0..255. Exact integers."""
+    h, w = yuv.shape[0] * 2 // 3, yuv.shape[1]
+    flat = yuv.reshape(-1).astype(np.int32)
+    c = 298 * (flat[:h * w].reshape(h, w) - 16)
+    n = h * w // 4
+    d, e = (flat[h * w + i * n:h * w + (i + 1) * n].reshape(h // 2, w // 2) - 128 for i in range(2))
+    d, e = (np.repeat(np.repeat(p, 2, axis=0), 2, axis=1) for p in (d, e))
+    rgb = np.stack([c + 409 * e, c - 100 * d - 208 * e, c + 516 * d], axis=-1)
+    return np.clip((rgb + 128) >> 8, 0, 255).astype(np.uint8)
+
+
 def encode(frames: list[np.ndarray], codec: str, crf: int) -> bytes:
     """``frames`` (uint8 H x W x 3, same size) as an Annex B elementary stream."""
     av = _av()
@@ -38,11 +79,13 @@ def encode(frames: list[np.ndarray], codec: str, crf: int) -> bytes:
         stream = container.add_stream(encoder, rate=FPS)
         stream.width, stream.height = w + w % 2, h + h % 2
         stream.pix_fmt = "yuv420p"
-        quiet = {"x265-params": "log-level=none:pools=1:frame-threads=1"} if codec == "h265" else {}
-        stream.options = {"crf": str(int(crf)), "preset": "medium", "threads": "1", **quiet}
+        params = {"h264": {"x264-params": "threads=1:lookahead-threads=1:sliced-threads=0"},
+                  "h265": {"x265-params": "log-level=none:pools=1:frame-threads=1"}}[codec]
+        stream.options = {"crf": str(int(crf)), "preset": "medium", "threads": "1", **params}
         for img in frames:
             img = np.pad(img, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
-            for packet in stream.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(img), format="rgb24")):
+            frame = av.VideoFrame.from_ndarray(rgb_to_yuv420p(img), format="yuv420p")
+            for packet in stream.encode(frame):
                 container.mux(packet)
         for packet in stream.encode():
             container.mux(packet)
@@ -60,7 +103,7 @@ def decode(data: bytes, codec: str, n: int, size: tuple[int, int]) -> list[np.nd
 
     def take(packet):
         try:
-            pictures.extend(f.to_ndarray(format="rgb24") for f in ctx.decode(packet))
+            pictures.extend(yuv420p_to_rgb(f.to_ndarray(format="yuv420p")) for f in ctx.decode(packet))
         except (av.error.FFmpegError, ValueError):
             pass  # a packet the decoder refuses: its picture is not shown
 

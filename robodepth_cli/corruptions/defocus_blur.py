@@ -6,19 +6,14 @@ from functools import lru_cache
 
 import math
 
-import cv2
 import numpy as np
-import scipy.fft
 
+from ._exact import correlate2d, opencv_gaussian_kernel, separable
 from ._ops import truncate_to_uint8
 from .registry import register
 from .severity import interpolate
 
 LEVELS = ((3, 0.1), (4, 0.5), (6, 0.5), (8, 0.5), (10, 0.5))
-
-# Up to this kernel side OpenCV's direct filter2D is faster than the FFT below.
-_DIRECT_MAX = 11
-
 
 @lru_cache(maxsize=None)
 def disk_kernel(radius: float, alias: float) -> np.ndarray:
@@ -27,7 +22,9 @@ def disk_kernel(radius: float, alias: float) -> np.ndarray:
     Coordinates ``-8..8`` with a 3 x 3 Gaussian if ``radius <= 8``, else
     ``-ceil(radius)..ceil(radius)`` with 5 x 5; disk = ``X^2 + Y^2 <= radius^2`` (a
     fractional radius, from a decimal level, is used as it is) normalised to sum 1 in float32, then ``cv2.GaussianBlur`` of that size with sigma ``alias`` (its own
-    reflect-101 border included). Trimming exact zeros changes no convolution result.
+    reflect-101 border included): OpenCV's float32 Gaussian taps and its float32
+    separable arithmetic (:func:`~._exact.separable`, the same bits on any CPU).
+    Trimming exact zeros changes no convolution result.
     """
     if radius <= 8:
         coords, ksize = np.arange(-8, 9), (3, 3)
@@ -37,7 +34,8 @@ def disk_kernel(radius: float, alias: float) -> np.ndarray:
     xx, yy = np.meshgrid(coords, coords)
     d = np.asarray(xx ** 2 + yy ** 2 <= radius ** 2, dtype=np.float32)
     d /= np.sum(d)
-    k = cv2.GaussianBlur(d, ksize=ksize, sigmaX=alias)
+    g = opencv_gaussian_kernel(ksize[0], alias)
+    k = separable(d, g, g, "mirror")
     keep = np.flatnonzero(k.any(axis=0))
     # The kernel is symmetric, so the same span serves rows and columns and stays centred.
     k = np.ascontiguousarray(k[keep[0]:keep[-1] + 1, keep[0]:keep[-1] + 1])
@@ -47,11 +45,11 @@ def disk_kernel(radius: float, alias: float) -> np.ndarray:
 
 @lru_cache(maxsize=16)
 def direct_kernel(radius: float, alias: float) -> np.ndarray:
-    """:func:`disk_kernel` for ``cv2.filter2D`` on the 0..255 integer values, its subnormal
+    """:func:`disk_kernel` for the direct float32 sum on the 0..255 integer values, its subnormal
     entries (level 1's alias 0.1 leaves a dozen, ~1e-45) raised to the least normal float32.
 
     Why: x86 multiplies subnormals ~30x slower (level 1 took 20 ms a 192 x 640 image,
-    level 2 1.3 ms). Why the bytes stay: OpenCV uses the same taps in the same order (it
+    level 2 1.3 ms). Why the bytes stay: the sum takes the same taps in the same order (it
     skips only zeros); every tap is >= 0 and every pixel an integer 0..255, so a partial sum
     holding any normal term is at least ``m``, the least normal entry, while all the
     subnormal taps together, either way, stay below ``m * 2**-33``: too small to change a
@@ -69,36 +67,12 @@ def direct_kernel(radius: float, alias: float) -> np.ndarray:
     return k
 
 
-@lru_cache(maxsize=6)  # ~9 MB each at 1024 x 2048; three FFT levels per image size
-def _kernel_spectrum(radius: float, alias: float, shape: tuple[int, int]) -> np.ndarray:
-    k = disk_kernel(radius, alias).astype(np.float64)
-    spec = scipy.fft.rfft2(k, s=shape)[:, :, None].astype(np.complex64)
-    spec.flags.writeable = False
-    return spec
-
-
-def filter2d_fft(x: np.ndarray, radius: float, alias: float) -> np.ndarray:
-    """``cv2.filter2D(x, CV_32F, disk_kernel(radius, alias))`` (reflect-101 border) on the
-    channels of uint8 ``x`` through a float32 FFT of the border-padded image. The disk is
-    symmetric, so correlation and convolution coincide."""
-    h, w = x.shape[:2]
-    r = disk_kernel(radius, alias).shape[0] // 2
-    padded = cv2.copyMakeBorder(np.ascontiguousarray(x), r, r, r, r, cv2.BORDER_REFLECT_101)
-    shape = (scipy.fft.next_fast_len(h + 2 * r, real=True),
-             scipy.fft.next_fast_len(w + 2 * r, real=True))
-    spec = scipy.fft.rfft2(padded.astype(np.float32), s=shape, axes=(0, 1), workers=1)
-    spec *= _kernel_spectrum(radius, alias, shape)
-    # Circular wrap-around only reaches the first 2r rows and columns, which are dropped.
-    out = scipy.fft.irfft2(spec, s=shape, axes=(0, 1), workers=1)
-    return out[2 * r:2 * r + h, 2 * r:2 * r + w]
-
-
 @register(("radius", "alias"), LEVELS, deterministic=True)
 def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     """Convolve each channel with :func:`disk_kernel` ``(radius, alias)`` with OpenCV
     ``filter2D`` semantics (reflect-101 border): ``clip01(filter2D(f, disk))``, truncated
-    to uint8. Computed on the 0..255 values in float32 (direct for small kernels, FFT for
-    large ones), which matches the float64 formula to about 1e-4 of a level. Where the
+    to uint8. Computed on the 0..255 values in float32 (:func:`~._exact.correlate2d`: a
+    direct sum in a fixed order for small kernels, an FFT for large ones), which matches the float64 formula to about 1e-4 of a level. Where the
     float64 kernel sums to just under 1 (levels 1-3, by ~1e-8) the formula puts flat areas
     a hair below an integer, which truncates one level lower than float32 resolves; that
     accounts for the 0.02-0.05 mean difference seen at level 1.
@@ -107,11 +81,5 @@ def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndar
     within the fractional radius, so it grows by whole rings of pixels as ``radius``
     passes each distance ``sqrt(X^2 + Y^2)``."""
     radius, alias = interpolate(LEVELS, level)
-    k = disk_kernel(radius, alias)
-    if k.shape[0] <= _DIRECT_MAX:
-        # float32 in, not uint8 in with a float32 output: OpenCV's mixed-type path is far slower.
-        out = cv2.filter2D(x.astype(np.float32), -1, direct_kernel(radius, alias),
-                           borderType=cv2.BORDER_REFLECT_101)
-    else:
-        out = filter2d_fft(x, radius, alias)
+    out = correlate2d(x, direct_kernel(radius, alias), spectrum_kernel=disk_kernel(radius, alias))
     return truncate_to_uint8(out, 1.0)

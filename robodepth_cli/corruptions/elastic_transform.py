@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-import cv2
 import numpy as np
 
-from ._ops import gaussian, truncate_to_uint8
+from ._exact import remap_reflect
+from ._ops import gaussian
 from .registry import register
 from .severity import interpolate
 
@@ -16,8 +16,8 @@ LEVELS = (0.05, 0.065, 0.085, 0.1, 0.12)
 
 @lru_cache(maxsize=4)  # 64 MB at 2048 x 4096: a few sizes only
 def _offset_grid(h: int, w: int, shift: float) -> np.ndarray:
-    """H x W x 2 float32 of ``(column - shift, row - shift)``: the identity map of
-    ``cv2.remap`` moved by a constant."""
+    """H x W x 2 float32 of ``(column - shift, row - shift)``: the identity map moved by a
+    constant."""
     g = np.empty((h, w, 2), np.float32)
     g[..., 0] = np.arange(w, dtype=np.float64) - shift
     g[..., 1] = np.arange(h, dtype=np.float64)[:, None] - shift
@@ -30,7 +30,7 @@ def smoothed_uniforms(shape: tuple[int, int], rng: np.random.Generator) -> np.nd
     ``gaussian(sigma=(0.01 H, 0.01 W), mode='reflect', truncate=3)``: float32 H x W x 2."""
     h, w = shape
     u = rng.random((2, h, w), dtype=np.float32)
-    return gaussian(cv2.merge([u[0], u[1]]), (0.01 * h, 0.01 * w), truncate=3, mode="reflect")
+    return gaussian(np.stack([u[0], u[1]], axis=-1), (0.01 * h, 0.01 * w), truncate=3, mode="reflect")
 
 
 @register(("k",), LEVELS)
@@ -49,8 +49,10 @@ def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np
 
     The uniforms are drawn on [0, 1) and mapped to [-m, m) after the smoothing, which is
     linear and keeps constants: ``alpha * gaussian(U(-m, m)) = 2 m alpha * gaussian(U(0, 1))
-    - m alpha``, folded into the sampling coordinates. The resampling is
-    ``cv2.remap`` with float coordinates on the 0..255 values in float32.
+    - m alpha``, folded into the sampling coordinates. The resampling lerps the 0..255
+    values at the float32 coordinates in float32 with fused multiply-adds, as OpenCV's
+    ``remap`` does on a CPU with FMA (:func:`~._exact.remap_reflect`, the same bits on any
+    CPU).
 
     Between integer levels: ``k`` linear.
     """
@@ -59,5 +61,4 @@ def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np
     coords = smoothed_uniforms((h, w), rng)
     coords *= np.float32(2 * m_alpha)
     coords += _offset_grid(h, w, m_alpha)
-    out = cv2.remap(x.astype(np.float32), coords, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-    return truncate_to_uint8(out, 1.0)
+    return remap_reflect(x, coords)

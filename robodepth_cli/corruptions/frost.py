@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ._exact import resize_cubic
 from ._jit import njit
 from .registry import register
 from .severity import interpolate
@@ -74,13 +75,14 @@ def scaled_size(texture_hw, image_hw) -> tuple[int, int]:
 
 
 # One image size's five textures: a preset build has one size (one resize per process);
-# a build of mixed sizes re-resizes (~10 ms) instead of holding ~30 MB per large texture.
+# a build of mixed sizes re-resizes (~15 ms) instead of holding ~30 MB per large texture.
 @lru_cache(maxsize=5)
 def scaled_texture(index: int, image_hw: tuple[int, int]) -> np.ndarray:
-    """Texture ``index`` resized for an image of ``image_hw`` (bicubic, OpenCV) and
-    converted to RGB (channel order does not affect the resize). Read-only."""
+    """Texture ``index`` resized for an image of ``image_hw`` (OpenCV's bicubic, by its exact
+    fixed-point formula: :func:`~._exact.resize_cubic`) and converted to RGB (channel order
+    does not affect the resize). Read-only."""
     bgr = texture_bgr(index)
-    resized = cv2.resize(bgr, scaled_size(bgr.shape[:2], image_hw), interpolation=cv2.INTER_CUBIC)
+    resized = resize_cubic(bgr, scaled_size(bgr.shape[:2], image_hw))
     rgb = np.ascontiguousarray(resized[..., ::-1])
     rgb.flags.writeable = False
     return rgb
