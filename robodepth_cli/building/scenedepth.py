@@ -138,7 +138,7 @@ class KittiLidarDepth(DepthSource):
         return densify_grid(sparse, shape)
 
     def stamp(self, key):
-        from . import kitti_raw
+        from ..groundtruth import kitti as kitti_raw
 
         frame = kitti_raw.frame_key(key)
         if frame is None:
@@ -178,7 +178,7 @@ class FolderDepth(DepthSource):
         return super().fingerprint + (f"({given})" if given else "")
 
     def stamp(self, key):
-        from .depth_pairs import pair
+        from ..sources.depth_pairs import pair
 
         found = pair(self.rule, self.sources[key][0])
         if found.error:
