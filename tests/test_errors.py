@@ -59,12 +59,12 @@ def _tiny_kitti(tmp_path, fixtures_dir):
 
 def test_a_bug_in_a_renderer_stays_a_traceback(tmp_path, fixtures_dir, cli, monkeypatch):
     """Before, the builder turned any ValueError of a renderer into 'robodepth: error: ...'."""
-    from robodepth_cli.sources.datasets import Dataset
+    from robodepth_cli.building import pipeline
 
-    def broken(self, config, depth=None):
+    def broken(ds, config, depth=None):
         raise ValueError("a bug, not the user's doing")
 
-    monkeypatch.setattr(Dataset, "renderer", broken)
+    monkeypatch.setattr(pipeline, "renderer_of", broken)
     with pytest.raises(ValueError, match="a bug") as info:
         cli(*_tiny_kitti(tmp_path, fixtures_dir))
     assert not isinstance(info.value, RobodepthError)
