@@ -19,7 +19,7 @@ from ..benchmarks import ALL_CATEGORY, CATEGORIES, DATA, SENSOR, WEATHER
 from .severity import LevelError, level_text, parse_level
 
 _ENGINE = ("REGISTRY", "NAMES", "DEPTH_NAMES", "DepthError", "Corruption", "corrupt",
-           "corrupt_chain", "render", "get", "check_level", "needs_depth")
+           "corrupt_chain", "render", "get", "check_level", "needs_depth", "is_scaled")
 
 __all__ = ["CATEGORIES", "WEATHER", "SENSOR", "DATA", "LevelError", "level_text", "parse_level",
            *_ENGINE]

@@ -93,8 +93,8 @@ def filter2d_fft(x: np.ndarray, radius: float, alias: float) -> np.ndarray:
     return out[2 * r:2 * r + h, 2 * r:2 * r + w]
 
 
-@register(("radius", "alias"), LEVELS, deterministic=True)
-def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
+@register(("radius", "alias"), LEVELS, deterministic=True, scaled=True)
+def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | None = None) -> np.ndarray:
     """Convolve each channel with :func:`disk_kernel` ``(radius, alias)`` with OpenCV
     ``filter2D`` semantics (reflect-101 border): ``clip01(filter2D(f, disk))``, truncated
     to uint8. Computed on the 0..255 values in float32 (direct for small kernels, FFT for
@@ -105,8 +105,12 @@ def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndar
 
     Between integer levels: ``radius`` and ``alias`` linear; the disk takes the pixels
     within the fractional radius, so it grows by whole rings of pixels as ``radius``
-    passes each distance ``sqrt(X^2 + Y^2)``."""
+    passes each distance ``sqrt(X^2 + Y^2)``.
+
+    With a severity size, ``radius`` and ``alias`` are multiplied by its ``scale``."""
     radius, alias = interpolate(LEVELS, level)
+    if scale is not None:
+        radius, alias = radius * scale, alias * scale
     k = disk_kernel(radius, alias)
     if k.shape[0] <= _DIRECT_MAX:
         # float32 in, not uint8 in with a float32 output: OpenCV's mixed-type path is far slower.
