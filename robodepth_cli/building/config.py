@@ -18,7 +18,9 @@ source images, or null for all), ``scheduler`` (a Dask scheduler address such as
 ``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
 layer's choice replaces an earlier layer's), ``png`` (``fast`` or ``compact``: how the PNGs
 are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``),
-``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame). A corruption or level the dataset does not
+``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame),
+``severity_size`` (``HxW`` or ``none``: the size at which the levels' spatial parameters are
+defined, :mod:`robodepth_cli.corruptions.scaling`; unset: ``none``). A corruption or level the dataset does not
 have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
@@ -407,6 +409,8 @@ class _Resolver:
                               f"pip install 'robodepth-cli[video]'")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
+        if "severity_size" in ds.options():  # recorded either way: build.json says which
+            extra.setdefault("severity_size", "none")
         lacking = missing_depth(ds, self.values, extra)  # (key, why): a depth-aware variant without depth
         if lacking:
             raise ConfigError(f"{_loc(self.origin[lacking[0]], lacking[0])}: {lacking[1]}")
@@ -420,6 +424,11 @@ class _Resolver:
             if extra["engine"] == "torch" and self.values.get("frames"):
                 raise ConfigError(f"{_loc(self.origin['engine'], 'engine')}: the torch engine does not "
                                   f"render neighbour frames (--frames); use --engine numpy")
+            if extra["engine"] == "torch" and extra.get("severity_size", "none") != "none":
+                raise ConfigError(f"{_loc(self.origin['engine'], 'engine')}: the torch engine does not "
+                                  f"scale the levels to a severity size ({extra['severity_size']}, "
+                                  f"from {_loc(self.origin['severity_size'], 'severity_size')}); use "
+                                  f"--engine numpy, or --severity-size none")
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),
                            size=self.values["size"], variants=tuple(variants), levels=tuple(levels),
                            seed=self.values["seed"], jobs=self.values["jobs"],

@@ -190,10 +190,11 @@ class CorruptionRenderer:
     the depth-aware ones get the source's depth from ``depth`` (a
     :class:`~.scenedepth.DepthSource`), read once per source and only when a job needs it."""
 
-    def __init__(self, dataset: str, seed: int, depth=None):
+    def __init__(self, dataset: str, seed: int, depth=None, severity_size: tuple[int, int] | None = None):
         self.dataset = dataset
         self.seed = seed
         self.depth = depth
+        self.severity_size = severity_size  # (H0, W0): see corruptions.scaling; None: as tabulated
 
     def render(self, clean, key, jobs, anchor=None, sequence=None):
         """``anchor``: the key of the test frame whose sequence ``key`` is in (``--frames``);
@@ -210,7 +211,8 @@ class CorruptionRenderer:
                 if depth is None and self.depth is not None and needs_depth(job.variant):
                     depth = self.depth.depth(key, clean.shape[:2])
                 yield job, render(clean, job.variant, job.level, seed=self.seed, dataset=self.dataset,
-                                  key=key, depth=depth, anchor=None if anchor == key else anchor)
+                                  key=key, depth=depth, anchor=None if anchor == key else anchor,
+                                  severity_size=self.severity_size)
             except Exception as exc:  # one broken variant must not sink the other outputs
                 yield job, exc
 
@@ -239,13 +241,15 @@ class CorruptionRenderer:
         return done[position]
 
     def fingerprint(self, variant: str) -> str:
-        # A corruption's output depends only on the seed, the size and the source, and a
-        # depth-aware one's on the depth source too.
-        if self.depth is None:
-            return ""
-        from ..corruptions import needs_depth
+        # A corruption's output depends only on the seed, the size and the source, a
+        # depth-aware one's on the depth source too, a spatial one's on the severity size.
+        from ..corruptions import is_scaled, needs_depth
+        from ..corruptions.scaling import size_text
 
-        return self.depth.fingerprint if needs_depth(variant) else ""
+        parts = [self.depth.fingerprint] if self.depth is not None and needs_depth(variant) else []
+        if self.severity_size is not None and is_scaled(variant):
+            parts.append(f"severity_size={size_text(self.severity_size)}")
+        return ";".join(parts)
 
 
 @dataclass(frozen=True)
@@ -299,10 +303,11 @@ class Dataset:
         return out
 
     def options(self) -> tuple[str, ...]:
-        """Config keys of this dataset beyond the common ones: the engine and its device."""
+        """Config keys of this dataset beyond the common ones: the engine and its device,
+        the depth of the depth-aware corruptions, the severity size."""
         from .engines import OPTIONS
 
-        return OPTIONS + ("scene_depth",)
+        return OPTIONS + ("scene_depth", "severity_size")
 
     def check_option(self, key: str, value, base: Path):
         """The checked value of option ``key``; :class:`InvalidValueError` saying what is wrong.
@@ -313,6 +318,10 @@ class Dataset:
             from .predicted import check_option
 
             return check_option(value, base)
+        if key == "severity_size":  # kept as its text (build.json, the manifest, the card)
+            from ..corruptions.scaling import parse_severity_size, size_text
+
+            return size_text(parse_severity_size(value))
         if key in engines.OPTIONS:
             return engines.check_option(key, value)
         raise InvalidValueError(f"{self.name} has no option {key!r}")
@@ -320,7 +329,10 @@ class Dataset:
     def renderer(self, config, depth=None) -> Renderer:
         """The renderer of a build; ``depth`` the :meth:`depth_source` when the build has
         depth-aware variants."""
-        numpy_engine = CorruptionRenderer(self.name, config.seed, depth)
+        from ..corruptions.scaling import parse_severity_size
+
+        numpy_engine = CorruptionRenderer(self.name, config.seed, depth,
+                                          parse_severity_size(config.extra.get("severity_size")))
         if config.extra.get("engine") == "torch":
             from .engines import TorchCorruptionRenderer
 
