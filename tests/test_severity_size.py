@@ -1,0 +1,235 @@
+"""A severity that means the same at every resolution (``--severity-size``), measured on
+images: a scene rendered at the severity size and at 3x it, each corrupted with the
+severity size set, the 3x result shrunk 3x by area; an effect taken as a share of the
+image must agree within 15 %.
+
+* Blurs, warps and blocks (defocus, motion, glass, zoom, pixelate, elastic, the
+  depth-aware lens and motion): a slanted step edge; its spread is the 10-90 % rise of
+  its edge spread function (all rows' profiles, placed by their distance from the ideal
+  edge line: a warp's jitter widens it as a blur does).
+* Textures (frost, fog): on a flat image, the distance at which the horizontal
+  autocorrelation falls to 1/2 (above a pixel of the severity size, both images blurred
+  by one such pixel).
+* Random ones by statistics: glass blur's mean displacement (of a coordinate image through
+  its shuffle), snow's flakes (their mean area and their share of the image).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from robodepth_cli.corruptions import REGISTRY, corrupt
+from robodepth_cli.corruptions.scaling import parse_severity_size, scale_factor
+from robodepth_cli.errors import InvalidValueError
+
+REF = (192, 640)
+K = 3
+LEVELS = (1, 3, 5)
+EDGE_AT = 0.7  # the edge's place across the width (off-centre: zoom blur moves it there)
+LO, HI = 60.0, 190.0
+
+
+def edge_scene(h: int, w: int) -> np.ndarray:
+    """A step from LO to HI along the line ``u = EDGE_AT + 0.08 (v - 1/2)`` (u, v the
+    pixel centre's place as a share of the width and height), each pixel the share of it
+    on the bright side: the same scene at every size."""
+    e = edge_column(h, w)
+    x = np.arange(w)[None, :] + 0.5
+    cover = np.clip(x - e[:, None] + 0.5, 0.0, 1.0)
+    img = LO + (HI - LO) * cover
+    return np.repeat(np.rint(img)[:, :, None], 3, axis=2).astype(np.uint8)
+
+
+def edge_column(h: int, w: int) -> np.ndarray:
+    v = (np.arange(h) + 0.5) / h
+    return (EDGE_AT + 0.08 * (v - 0.5)) * w
+
+
+def shrink(img: np.ndarray, k: int = K) -> np.ndarray:
+    h, w = img.shape[:2]
+    return cv2.resize(img.astype(np.float32), (w // k, h // k), interpolation=cv2.INTER_AREA)
+
+
+def edge_spread(img: np.ndarray) -> float:
+    """The 10-90 % rise of the edge as a share of the width: the pixels of the middle 60 %
+    of the rows within a quarter width of the edge, binned by their distance from the
+    ideal edge line (quarter pixels; the slant samples every phase), averaged per bin (the
+    edge spread function; a jitter of the edge from row to row widens it too)."""
+    img = np.asarray(img, np.float64).mean(axis=2)
+    h, w = img.shape
+    rows = slice(int(0.2 * h), int(0.8 * h))
+    dist = (np.arange(w)[None, :] + 0.5 - edge_column(h, w)[rows, None]).ravel()
+    near = np.abs(dist) < w / 4
+    bins = np.floor(dist[near] * 4).astype(np.int64)
+    bins -= bins.min()
+    esf = np.bincount(bins, img[rows].ravel()[near]) / np.maximum(np.bincount(bins), 1)
+    esf = (esf - LO) / (HI - LO)
+    x10, x90 = (_crossing(esf, q) for q in (0.1, 0.9))
+    return (x90 - x10) / 4 / w
+
+
+def _crossing(esf: np.ndarray, q: float) -> float:
+    k = int(np.argmax(esf >= q))
+    return k - 1 + (q - esf[k - 1]) / (esf[k] - esf[k - 1])
+
+
+def flat_scene(h: int, w: int, value: int = 128) -> np.ndarray:
+    return np.full((h, w, 3), value, np.uint8)
+
+
+def above_a_pixel(img: np.ndarray) -> np.ndarray:
+    """The channel-averaged image blurred by one pixel (Gaussian sigma 1): the structure
+    above a pixel of the severity size, where the 3x image shrunk and the image made at
+    that size can agree (pixel by pixel, a flake a few pixels wide is sampled differently)."""
+    g = np.asarray(img, np.float64).mean(axis=2)
+    return cv2.GaussianBlur(g, (0, 0), 1.0)
+
+
+def correlation_length(img: np.ndarray) -> float:
+    """Where the horizontal autocorrelation of the (centred) image :func:`above_a_pixel`
+    falls to 1/2, as a share of the width."""
+    g = above_a_pixel(img)
+    g = g - g.mean(axis=1, keepdims=True)
+    h, w = g.shape
+    spec = np.fft.rfft(g, n=2 * w, axis=1)
+    r = np.fft.irfft(np.abs(spec) ** 2, axis=1)[:, :w].sum(axis=0)
+    r /= r[0]
+    k = int(np.argmax(r < 0.5))
+    assert k > 0, "no fall to 1/2 within the width"
+    return (k - 1 + (r[k - 1] - 0.5) / (r[k - 1] - r[k])) / w
+
+
+DEPTH_FAR, DEPTH_NEAR = 40.0, 4.0
+
+
+def depth_of(h: int, w: int) -> np.ndarray:
+    """Far everywhere but the bottom fifth (near): the lens focused near blurs the edge."""
+    d = np.full((h, w), DEPTH_FAR, np.float32)
+    d[int(0.8 * h):] = DEPTH_NEAR
+    return d
+
+
+def run(img, name, level, size=REF, seed=0):
+    h, w = img.shape[:2]
+    return corrupt(img, name, level, np.random.default_rng(seed), depth_of(h, w), severity_size=size)
+
+
+def ratio(measure, scene, name, level, size=REF, seeds=(0,)):
+    """The measure at 3x (shrunk) over the measure at the severity size, averaged over seeds."""
+    small = scene(*REF)
+    big = scene(REF[0] * K, REF[1] * K)
+    a = np.mean([measure(run(small, name, level, size, s)) for s in seeds])
+    b = np.mean([measure(shrink(run(big, name, level, size, s))) for s in seeds])
+    return b / a
+
+
+EDGES = ("defocus_blur", "motion_blur", "glass_blur", "zoom_blur", "pixelate", "elastic_transform",
+         "near_focus", "far_focus", "motion_3d")
+
+
+@pytest.mark.parametrize("level", LEVELS)
+@pytest.mark.parametrize("name", EDGES)
+def test_an_edge_spreads_over_the_same_share_of_the_image(name, level):
+    # The warp's field is smooth over ~2 % of the image: a few dozen independent bumps.
+    seeds = range(8) if name == "elastic_transform" else (0, 1, 2) if name == "glass_blur" else (0,)
+    assert ratio(edge_spread, edge_scene, name, level, seeds=seeds) == pytest.approx(1.0, abs=0.15)
+
+
+@pytest.mark.parametrize("name", ["defocus_blur", "motion_blur", "glass_blur", "pixelate", "elastic_transform"])
+def test_without_a_severity_size_the_spread_stays_in_pixels(name):
+    # What the option changes: as tabulated, 3x the image gets about a third of the spread.
+    r = ratio(edge_spread, edge_scene, name, 5, size=None, seeds=(0, 1))
+    assert r < 0.6
+
+
+@pytest.mark.parametrize("level", LEVELS)
+@pytest.mark.parametrize("name", ["frost", "fog"])
+def test_a_texture_keeps_its_grain(name, level):
+    seeds = (0, 1, 2)
+    assert ratio(correlation_length, flat_scene, name, level, seeds=seeds) == pytest.approx(1.0, abs=0.15)
+
+
+def _shuffle_displacement(shape, delta, iterations, scale, seed):
+    from robodepth_cli.corruptions.glass_blur import scaled_delta, shuffle_pixels, swap_offsets
+
+    h, w = shape
+    img = np.zeros((h, w, 2), np.int32)
+    img[..., 0] = np.arange(h)[:, None]
+    img[..., 1] = np.arange(w)[None, :]
+    moved = shuffle_pixels(img.copy(), swap_offsets(shape, delta, iterations, np.random.default_rng(seed), scale),
+                           scaled_delta(delta, scale))
+    d = (moved - img).astype(np.float64)
+    m = 4 * scaled_delta(delta, scale) + 2  # the unwritten margin and its neighbours
+    return np.hypot(d[m:-m, m:-m, 0], d[m:-m, m:-m, 1]).mean() / w
+
+
+@pytest.mark.parametrize("level", [1, 2, 3, 4, 5])
+def test_glass_blur_mean_displacement_is_a_share_of_the_image(level):
+    from robodepth_cli.corruptions.glass_blur import LEVELS as GLASS
+
+    _, delta, iterations = GLASS[level - 1]
+    small = (96, 320)
+    a = _shuffle_displacement(small, delta, iterations, None, 0)
+    b = _shuffle_displacement((small[0] * K, small[1] * K), delta, iterations, float(K), 0)
+    assert b / a == pytest.approx(1.0, abs=0.05)
+
+
+def _flakes(img: np.ndarray):
+    """(mean flake area, share of the image in flakes), areas as shares of the image: a
+    flake is a connected region (8 neighbours) of the image :func:`above_a_pixel` brighter
+    than the whitened background by 40 levels."""
+    from scipy import ndimage
+
+    g = above_a_pixel(img)
+    bright = g > np.median(g) + 40
+    labels, n = ndimage.label(bright, structure=np.ones((3, 3)))
+    return bright.sum() / max(n, 1) / g.size, bright.mean()
+
+
+@pytest.mark.parametrize("level", LEVELS)
+def test_snow_flakes_keep_their_size_and_their_share(level):
+    seeds = range(4)
+    small = flat_scene(*REF, 20)
+    big = flat_scene(REF[0] * K, REF[1] * K, 20)
+    a = np.mean([_flakes(run(small, "snow", level, seed=s)) for s in seeds], axis=0)
+    b = np.mean([_flakes(shrink(run(big, "snow", level, seed=s))) for s in seeds], axis=0)
+    assert b[0] / a[0] == pytest.approx(1.0, abs=0.15)  # flake size
+    assert b[1] / a[1] == pytest.approx(1.0, abs=0.15)  # area fraction
+
+
+@pytest.mark.parametrize("name", [n for n, c in REGISTRY.items() if c.scaled])
+@pytest.mark.parametrize("level", [1, 3, 5, 2.5])
+def test_at_the_severity_size_itself_the_bytes_are_the_tabulated_ones(name, level):
+    rng = np.random.default_rng(7)
+    img = (rng.random((48, 160, 3)) * 255).astype(np.uint8)
+    depth = np.linspace(1.0, 30.0, 48 * 160, dtype=np.float32).reshape(48, 160)
+    plain = corrupt(img, name, level, np.random.default_rng(3), depth)
+    assert (corrupt(img, name, level, np.random.default_rng(3), depth, severity_size=(48, 160)) == plain).all()
+    # The function itself, handed a factor of exactly 1, takes the same path.
+    c = REGISTRY[name]
+    x = img.copy()
+    x.flags.writeable = False
+    args = (x, depth, level) if c.needs_depth else (x, level)
+    if not c.needs_depth:
+        assert (c.fn(*args, np.random.default_rng(3), scale=1.0) == plain).all()
+
+
+def test_per_pixel_corruptions_do_not_scale():
+    assert {n for n, c in REGISTRY.items() if not c.scaled} == {
+        "brightness", "dark", "contrast", "color_quant", "gaussian_noise", "impulse_noise", "shot_noise",
+        "iso_noise", "jpeg_compression", "zoom_blur", "fog_3d", "zoom_3d", "rain_3d"}
+    img = edge_scene(64, 96)
+    for name in ("gaussian_noise", "jpeg_compression", "contrast"):
+        assert (run(img, name, 3, size=(8, 8)) == run(img, name, 3, size=None)).all()
+
+
+def test_the_rule_is_the_square_root_of_the_area_ratio():
+    assert scale_factor((576, 1920), (192, 640)) == 3.0
+    assert scale_factor((1024, 2048), (192, 640)) == pytest.approx((1024 * 2048 / (192 * 640)) ** 0.5)
+    assert scale_factor((1024, 2048), None) is None
+    assert parse_severity_size("none") is None and parse_severity_size("480x640") == (480, 640)
+    assert parse_severity_size([192, 640]) == (192, 640)
+    with pytest.raises(InvalidValueError, match="HxW"):
+        parse_severity_size("640")
