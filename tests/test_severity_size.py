@@ -233,3 +233,62 @@ def test_the_rule_is_the_square_root_of_the_area_ratio():
     assert parse_severity_size([192, 640]) == (192, 640)
     with pytest.raises(InvalidValueError, match="HxW"):
         parse_severity_size("640")
+
+
+def _manifest(out):
+    import csv
+
+    with open(out / "manifest.csv", newline="") as f:
+        return {r["variant"]: r for r in csv.DictReader(f)}
+
+
+def test_a_build_records_its_severity_size_and_redoes_the_scaled_files_for_another(cli, fixtures_dir, tmp_path):
+    import json
+
+    root = fixtures_dir / "kitti_raw"
+    args = ("build", "custom", "--root", root, "--corruptions", "defocus_blur,gaussian_noise", "--levels", "3",
+            "--limit", "1")
+    out = tmp_path / "c"
+    assert cli(*args, "--out", out).exit_code == 0
+    config = json.loads((out / "build.json").read_text())["config"]
+    assert config["extra"]["severity_size"] == "192x640"  # build custom's default
+    rows = _manifest(out)
+    assert rows["defocus_blur"]["params"] == "severity_size=192x640" and rows["gaussian_noise"]["params"] == ""
+    again = cli(*args, "--out", out, "--severity-size", "none")
+    assert again.exit_code == 0 and "1 written, 2 skipped" in again.output
+    rows_none = _manifest(out)
+    assert rows_none["defocus_blur"]["params"] == "" and rows_none["defocus_blur"]["sha256"] != rows["defocus_blur"]["sha256"]
+    assert rows_none["gaussian_noise"]["sha256"] == rows["gaussian_noise"]["sha256"]
+    assert json.loads((out / "build.json").read_text())["config"]["extra"]["severity_size"] == "none"
+
+
+def test_kitti_c_keeps_no_severity_size(cli, fixtures_dir, tmp_path):
+    import json
+
+    out = tmp_path / "k"
+    r = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split", fixtures_dir / "kitti_split.txt",
+            "--out", out, "--corruptions", "defocus_blur", "--levels", "3", "--limit", "1")
+    assert r.exit_code == 0, r.output
+    assert json.loads((out / "build.json").read_text())["config"]["extra"]["severity_size"] == "none"
+    assert _manifest(out)["defocus_blur"]["params"] == ""
+
+
+def test_a_bad_severity_size_is_refused_naming_the_flag(cli, fixtures_dir, tmp_path):
+    r = cli("corrupt", fixtures_dir / "styles" / next(p.name for p in (fixtures_dir / "styles").iterdir()),
+            "-c", "defocus_blur", "-l", "3", "--severity-size", "640", "--out", tmp_path / "x.png")
+    assert r.exit_code == 2 and "--severity-size: size '640' is not of the form HxW" in r.output
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_the_dataset_card_states_the_severity_size():
+    from types import SimpleNamespace
+
+    from robodepth_cli.export.card import card
+
+    def record(extra):
+        return SimpleNamespace(dataset="custom", keys=["a.png"], seed=0, robodepth="x", command=[],
+                               config={"levels": [3], "size": None, "extra": extra})
+
+    shards = [{"config": "defocus_blur", "split": "level_3"}]
+    assert "Severity size: 192x640 (HxW)" in card(record({"severity_size": "192x640"}), shards, "parquet", "x")
+    assert "Severity size: none" in card(record({}), shards, "parquet", "x")

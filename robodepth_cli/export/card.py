@@ -43,6 +43,18 @@ def _parameters(variants: list[str]) -> list[str]:
             corruption_table(markdown=True, names=names), ""]
 
 
+def _severity_line(conf: dict) -> str:
+    """The card's line on the severity size (build.json's ``extra.severity_size``; a build
+    record without it predates the option: none)."""
+    size = (conf.get("extra") or {}).get("severity_size") or "none"
+    if size == "none":
+        return ("- Severity size: none: each level's blur radii, streaks and flakes are the "
+                "tabulated pixels at any image size.")
+    return (f"- Severity size: {size} (HxW): each level's spatial parameters (blur radii, streaks, "
+            "flakes, warps) are those of an image of that size, scaled to each image by the "
+            "square root of the area ratio.")
+
+
 def card(record, shards: list[dict], fmt: str, version: str) -> str:
     """The card's text for an export of the build ``record`` made of ``shards`` (the
     export record's entries)."""
@@ -81,6 +93,7 @@ def card(record, shards: list[dict], fmt: str, version: str) -> str:
         f"- robodepth {record.robodepth or 'unknown'} built it; robodepth {version} exported it.",
         f"- Seed {record.seed}; levels {conf.get('levels')}; size "
         f"{'x'.join(map(str, size)) + ' (HxW)' if size else 'each image its own'}.",
+        _severity_line(conf),
         f"- Corruption parameters: the RoboDepth benchmark's, as robodepth {record.robodepth} "
         "states them (`robodepth list`); the build's whole configuration and command are in "
         "`robodepth/build.json`, and `robodepth/manifest.csv` lists every file with its sha256 "
