@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._jit import njit
-from ._ops import gaussian, gaussian_kernel_1d, truncate_to_uint8
+from ._ops import gaussian, truncate_to_uint8
 from .registry import register
 from .severity import LINEAR, NEAREST, interpolate
 
@@ -29,7 +29,8 @@ def swap_offsets(shape, delta: int, iterations: int, rng: np.random.Generator,
     offsets = rng.integers(-delta, delta, size=(iterations, rows, cols, 2), dtype=np.int8)
     if scale is None:
         return offsets
-    return np.rint(offsets * np.float32(scale)).astype(np.int16)
+    stretched = np.rint(np.arange(-delta, delta) * scale).astype(np.int16)  # by table: fast
+    return stretched[offsets + np.int8(delta)]
 
 
 def scaled_delta(delta: int, scale: float | None) -> int:
@@ -40,17 +41,15 @@ def scaled_delta(delta: int, scale: float | None) -> int:
 
 def _gaussian(img: np.ndarray, sigma: float) -> np.ndarray:
     """``gaussian(img, sigma, truncate=4, mode='nearest')``; a kernel that only a severity
-    size makes this wide (over 41 taps) by a float64 FFT, whose error (~1e-12) leaves the
-    truncation to uint8 as it is."""
-    radius = int(4.0 * sigma + 0.5)
-    if radius <= 20:
+    size makes this wide (over 41 taps) by three box blurs of the same variance
+    (:func:`~._large.box_gaussian`)."""
+    if int(4.0 * sigma + 0.5) <= 20:
         return gaussian(img, sigma, truncate=4.0, mode="nearest")
     import cv2
 
-    from ._fft import correlate
+    from ._large import box_gaussian
 
-    k = gaussian_kernel_1d(sigma, 4.0)
-    return correlate(img, np.outer(k, k), (radius, radius), cv2.BORDER_REPLICATE, np.float64)
+    return box_gaussian(img, sigma, cv2.BORDER_REPLICATE)
 
 
 @njit

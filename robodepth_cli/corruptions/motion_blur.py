@@ -91,8 +91,8 @@ def _shift_sum(img, dys, dxs, ks, out):
     return out
 
 
-# More taps than any tabulated level has (41): only a severity size's longer streaks take the FFT.
-FFT_TAPS = 64
+# More taps than any tabulated level has (41): only a severity size's longer streaks are split.
+LONG_TAPS = 64
 
 
 def shift_blur(img: np.ndarray, radius: int, sigma: float, angle: float) -> np.ndarray:
@@ -102,22 +102,22 @@ def shift_blur(img: np.ndarray, radius: int, sigma: float, angle: float) -> np.n
     nearest row or column moved in.
 
     ``img`` is H x W or H x W x C of any real dtype; returns float32 of the same shape,
-    unclipped. Beyond :data:`FFT_TAPS` taps the same sum is computed by FFT (to ~1e-5 of
-    its range).
+    unclipped. A streak of more than :data:`LONG_TAPS` taps is applied as two shorter
+    ones (:func:`~._large.split_streak`): the shifts all lead one way, so the replicated
+    border of the first is the border of the whole.
     """
     src = np.ascontiguousarray(img)
-    dys, dxs, ks = motion_taps(radius, sigma, angle, src.shape[:2])
-    if len(ks) > FFT_TAPS:
-        import cv2
-
-        from ._fft import correlate, taps_kernel
-
-        kernel, anchor = taps_kernel(dys, dxs, ks)
-        return correlate(src, kernel, anchor, cv2.BORDER_REPLICATE)
     flat = src.ndim == 2
     if flat:
         src = src[..., None]
-    out = _shift_sum(src, dys, dxs, ks, np.zeros(src.shape, np.float32))
+    taps = motion_taps(radius, sigma, angle, src.shape[:2])
+    if len(taps[2]) > LONG_TAPS:
+        from ._large import split_streak
+
+        first, second = split_streak(*taps)
+        src = _shift_sum(src, *first, np.zeros(src.shape, np.float32))
+        taps = second
+    out = _shift_sum(src, *taps, np.zeros(src.shape, np.float32))
     return out[..., 0] if flat else out
 
 
