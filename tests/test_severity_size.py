@@ -292,3 +292,40 @@ def test_the_dataset_card_states_the_severity_size():
     shards = [{"config": "defocus_blur", "split": "level_3"}]
     assert "Severity size: 192x640 (HxW)" in card(record({"severity_size": "192x640"}), shards, "parquet", "x")
     assert "Severity size: none" in card(record({}), shards, "parquet", "x")
+
+
+def test_the_report_names_each_files_severity_size_and_a_mixed_table_says_so(tmp_path, cli):
+    import json
+
+    files = []
+    for m, size in (("A", "192x640"), ("B", None)):
+        p = tmp_path / f"ds_{m}.csv"
+        head = f"# severity size: {size}\n" if size else ""
+        p.write_text(head + "corruption,level,dee\nclean,0,0.1\nfog,1,0.2\nfog,2,0.25\n")
+        files.append(p)
+    res = cli("report", *files, "--name", "A", "--name", "B", "--on", "diode-c", "--out", tmp_path / "r")
+    assert res.exit_code == 0, res.output
+    page = (tmp_path / "r" / "index.html").read_text(encoding="utf-8")
+    assert "severity size 192x640" in page and "severity size none" in page
+    assert page.count("made at different severity sizes (192x640, none)") == 1
+    doc = json.loads((tmp_path / "r" / "scores.json").read_text())
+    assert [m["severity_size"] for m in doc["datasets"][0]["models"]] == ["192x640", "none"]
+    files[1].write_text(files[0].read_text())
+    res = cli("report", *files, "--name", "A", "--name", "B", "--on", "diode-c", "--out", tmp_path / "s")
+    assert "different severity sizes" not in (tmp_path / "s" / "index.html").read_text(encoding="utf-8")
+
+
+def test_evaluate_writes_the_builds_severity_size_into_the_results():
+    from types import SimpleNamespace
+
+    from robodepth_cli.commands.evaluate import _severity_line
+    from robodepth_cli.corruptions.scaling import in_results
+
+    def built(extra):
+        return SimpleNamespace(record=SimpleNamespace(config={"extra": extra}))
+
+    line = _severity_line(built({"severity_size": "192x640"}))
+    assert line == "# severity size: 192x640\n"
+    assert in_results(line + "corruption,level,dee\nclean,0,0.1\n") == "192x640"
+    assert _severity_line(built({"severity_size": "none"})) == "" == _severity_line(built({}))
+    assert in_results("corruption,level,dee\n# severity size: 1x1\n") == "none"  # above the header only

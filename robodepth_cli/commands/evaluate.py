@@ -103,7 +103,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs(), flicker=flicker)
     text = result.csv_text()
-    E.write_results(out, _own_depth_lines(dataset, pred) + text)
+    E.write_results(out, _severity_line(dataset) + _own_depth_lines(dataset, pred) + text)
     show_results(result, text, out, bench, as_json, replacing)
 
 
@@ -202,6 +202,13 @@ def _implausible_clean(result) -> str:
                         f"{result.setup.describe()}); check --kind, --stereo and --png-scale; "
                         "the metrics above are written, not scored")
     return ""
+
+
+def _severity_line(dataset) -> str:
+    """The results CSV's comment line naming the build's severity size (none: no line)."""
+    from ..corruptions.scaling import csv_line
+
+    return csv_line(((dataset.record.config or {}).get("extra") or {}).get("severity_size"))
 
 
 def _own_depth_lines(dataset, pred: Path) -> str:

@@ -36,6 +36,7 @@ from . import common
               help="What the maps hold: required for python:, overrides an hf model's own.")
 @click.option("--metric/--relative", default=None,
               help="The maps are in metres or relative, as for predict.")
+@common.severity_size_option("default: none, the benchmark's pixels")
 @common.evaluation_options
 @click.option("--keep-predictions", type=click.Path(file_okay=False, path_type=Path), metavar="DIR",
               help="Also write the predictions to DIR, in predict's layout (DIR/clean.npy, "
@@ -112,7 +113,9 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
                    f"{state.path} (finished by an earlier run)", err=True)
     replacing = out.exists()
     text = result.csv_text()
-    E.write_results(out, text)
+    from ..corruptions.scaling import csv_line
+
+    E.write_results(out, csv_line(cfg.extra.get("severity_size")) + text)
     state.remove()
     show_results(result, text, out, bench, as_json, replacing)
 

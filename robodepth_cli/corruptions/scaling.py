@@ -55,3 +55,35 @@ def scale_factor(shape: tuple[int, int], size: tuple[int, int] | None) -> float 
         return None
     h, w = shape[:2]
     return math.sqrt((h * w) / (size[0] * size[1]))
+
+
+# A results CSV made on a build with a severity size says so in a comment line at its top
+# (every reader skips comment lines); one without it was made with none, or before the option.
+CSV_PREFIX = "# severity size: "
+
+
+def csv_line(size: str | None) -> str:
+    """The results CSV's comment line for a build whose ``severity_size`` is ``size`` (its
+    text); "" for none (the CSV stays as it always was)."""
+    return "" if size in (None, NONE) else f"{CSV_PREFIX}{size}\n"
+
+
+def in_results(text: str) -> str:
+    """The severity size a results CSV (its ``text``) was made at: its comment line's, else
+    ``none``."""
+    for line in text.splitlines():
+        if line.startswith(CSV_PREFIX):
+            return line[len(CSV_PREFIX):].strip()
+        if line.strip() and not line.startswith("#"):
+            break  # the header: the comment lines are above it
+    return NONE
+
+
+def mixed_note(sizes) -> str:
+    """One line when results made at different severity sizes meet in one table; ""
+    otherwise."""
+    distinct = sorted(set(sizes))
+    if len(distinct) < 2:
+        return ""
+    return (f"These results were made at different severity sizes ({', '.join(distinct)}): a level "
+            "is not the same corruption across them")
