@@ -152,17 +152,24 @@ def test_a_texture_keeps_its_grain(name, level):
 
 
 def _shuffle_displacement(shape, delta, iterations, scale, seed):
-    from robodepth_cli.corruptions.glass_blur import scaled_delta, shuffle_pixels, swap_offsets
+    """Glass blur's shuffle on a coordinate image: the mean distance each pixel's value
+    comes from, as a share of the width (away from the unwritten margin)."""
+    from robodepth_cli.corruptions.glass_blur import block_sources, shuffle_pixels, swap_offsets
 
     h, w = shape
-    img = np.zeros((h, w, 2), np.int32)
-    img[..., 0] = np.arange(h)[:, None]
-    img[..., 1] = np.arange(w)[None, :]
-    moved = shuffle_pixels(img.copy(), swap_offsets(shape, delta, iterations, np.random.default_rng(seed), scale),
-                           scaled_delta(delta, scale))
-    d = (moved - img).astype(np.float64)
-    m = 4 * scaled_delta(delta, scale) + 2  # the unwritten margin and its neighbours
-    return np.hypot(d[m:-m, m:-m, 0], d[m:-m, m:-m, 1]).mean() / w
+    rng = np.random.default_rng(seed)
+    if scale is None:
+        img = np.zeros((h, w, 2), np.int32)
+        img[..., 0] = np.arange(h)[:, None]
+        img[..., 1] = np.arange(w)[None, :]
+        moved = shuffle_pixels(img, swap_offsets(shape, delta, iterations, rng), delta)
+        rows, cols = moved[..., 0], moved[..., 1]
+    else:
+        rows, cols = block_sources(shape, scale, delta, iterations, rng)
+    dy = rows - np.arange(h)[:, None]
+    dx = cols - np.arange(w)[None, :]
+    m = int(4 * delta * (scale or 1)) + 2
+    return np.hypot(dy[m:-m, m:-m], dx[m:-m, m:-m]).mean() / w
 
 
 @pytest.mark.parametrize("level", [1, 2, 3, 4, 5])

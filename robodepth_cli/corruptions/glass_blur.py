@@ -13,30 +13,14 @@ from .severity import LINEAR, NEAREST, interpolate
 LEVELS = ((0.7, 1, 2), (0.9, 2, 1), (1.0, 2, 3), (1.1, 3, 2), (1.5, 4, 2))
 
 
-def swap_offsets(shape, delta: int, iterations: int, rng: np.random.Generator,
-                 scale: float | None = None) -> np.ndarray:
+def swap_offsets(shape, delta: int, iterations: int, rng: np.random.Generator) -> np.ndarray:
     """All the random offsets of the shuffle, in the order they are used:
     ``offsets[i, a, b] = (dx, dy)`` for pass ``i`` and the ``a``-th row and ``b``-th column
     of the descending scan (``h = H - delta - a``, ``w = W - delta - b``), each drawn
-    uniformly from ``[-delta, delta)``; one ``rng.integers`` call, dx before dy.
-
-    With a severity size's ``scale``: the scan's margin is :func:`scaled_delta`, the
-    offsets are drawn from ``[-delta, delta)`` as at the severity size and multiplied by
-    ``scale`` (rounded, halves to even), int16."""
+    uniformly from ``[-delta, delta)``; one ``rng.integers`` call, dx before dy."""
     height, width = shape[:2]
-    margin = scaled_delta(delta, scale)
-    rows, cols = max(height - 2 * margin, 0), max(width - 2 * margin, 0)
-    offsets = rng.integers(-delta, delta, size=(iterations, rows, cols, 2), dtype=np.int8)
-    if scale is None:
-        return offsets
-    stretched = np.rint(np.arange(-delta, delta) * scale).astype(np.int16)  # by table: fast
-    return stretched[offsets + np.int8(delta)]
-
-
-def scaled_delta(delta: int, scale: float | None) -> int:
-    """The scan's margin at a severity size's ``scale``: ``round(delta * scale)`` for a
-    larger image (the largest offset's size), ``delta`` for a smaller one."""
-    return delta if scale is None or scale < 1 else int(round(delta * scale))
+    rows, cols = max(height - 2 * delta, 0), max(width - 2 * delta, 0)
+    return rng.integers(-delta, delta, size=(iterations, rows, cols, 2), dtype=np.int8)
 
 
 def _gaussian(img: np.ndarray, sigma: float) -> np.ndarray:
@@ -50,6 +34,28 @@ def _gaussian(img: np.ndarray, sigma: float) -> np.ndarray:
     from ._large import box_gaussian
 
     return box_gaussian(img, sigma, cv2.BORDER_REPLICATE)
+
+
+def block_sources(shape, scale: float, delta: int, iterations: int, rng: np.random.Generator):
+    """The shuffle of an image of ``shape`` at a severity size's ``scale``: the shuffle of
+    the severity size's grid (``round(H / scale)`` x ``round(W / scale)`` cells, its offsets
+    drawn by :func:`swap_offsets` as at that size), each cell a block of about ``scale``
+    pixels a side that moves whole. Returns int32 H x W ``(rows, cols)``: the pixel each
+    pixel takes its value from (the block's displacement, in pixels, clipped to the image)."""
+    h, w = shape[:2]
+    gh, gw = max(round(h / scale), 1), max(round(w / scale), 1)
+    cells = np.empty((gh, gw, 2), np.int32)
+    cells[..., 0] = np.arange(gh, dtype=np.int32)[:, None]
+    cells[..., 1] = np.arange(gw, dtype=np.int32)[None, :]
+    shuffle_pixels(cells, swap_offsets((gh, gw), delta, iterations, rng), delta)
+    cy = (np.arange(h, dtype=np.int64) * gh // h).astype(np.int32)
+    cx = (np.arange(w, dtype=np.int64) * gw // w).astype(np.int32)
+    moved = cells[cy[:, None], cx[None, :]]
+    rows = np.rint((moved[..., 0] - cy[:, None]) * (h / gh)).astype(np.int32) + np.arange(h, dtype=np.int32)[:, None]
+    cols = np.rint((moved[..., 1] - cx[None, :]) * (w / gw)).astype(np.int32) + np.arange(w, dtype=np.int32)[None, :]
+    np.clip(rows, 0, h - 1, out=rows)
+    np.clip(cols, 0, w - 1, out=cols)
+    return rows, cols
 
 
 @njit
@@ -98,13 +104,12 @@ def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator, scale: float
     are in pixels at any size; the scan writes rows ``delta + 1 .. H - delta`` and the same
     span of columns, leaving the first ``delta + 1`` and the last ``delta - 1`` unwritten;
     ``iterations * (H - 2 delta) * (W - 2 delta)`` offset pairs are drawn. With a severity
-    size, ``sigma`` is multiplied by its ``scale`` and so is every offset, drawn as at the
-    severity size (:func:`swap_offsets`); the passes stay. Widening the range of the draw
-    instead (``[-delta s, delta s)``) over-spreads: the pixel copied from has already
-    been written in this pass more often (a longer chain of copies), which at 3x the
-    severity size widens the scatter (the displacements' RMS) by 10-33 % while the drift
-    (their mean, -1/2 per pass and axis) does not grow at all; the stretched draw keeps
-    both a fixed share of the image (within 2 %).
+    size, ``sigma`` is multiplied by its ``scale`` and the shuffle is that of the severity
+    size's grid, moving blocks of ``scale`` pixels (:func:`block_sources`): the same
+    passes and chains of copies, each displacement and each shuffled piece ``scale`` times
+    larger. (Widening the draw to ``[-delta s, delta s)`` instead over-spreads, since a
+    pixel then copies one already moved in this pass more often; and moving single pixels
+    leaves a grain ``s`` times finer than at the severity size.)
 
     All offsets are drawn up front (:func:`swap_offsets`) and the swaps run in a numba
     kernel (:func:`shuffle_pixels`). The blurs run in float64 on ``x / 255`` as the
@@ -117,8 +122,10 @@ def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator, scale: float
     """
     sigma, delta, iterations = interpolate(LEVELS, level, RULES)
     if scale is not None:
-        sigma = sigma * scale
-    offsets = swap_offsets(x.shape, delta, iterations, rng, scale)
-    y = truncate_to_uint8(_gaussian(x / 255.0, sigma))
-    shuffle_pixels(y, offsets, scaled_delta(delta, scale))
-    return truncate_to_uint8(_gaussian(y / 255.0, sigma))
+        rows, cols = block_sources(x.shape, scale, delta, iterations, rng)
+        y = truncate_to_uint8(_gaussian(x / 255.0, sigma * scale))
+        return truncate_to_uint8(_gaussian(y[rows, cols] / 255.0, sigma * scale))
+    offsets = swap_offsets(x.shape, delta, iterations, rng)
+    y = truncate_to_uint8(gaussian(x / 255.0, sigma, truncate=4.0, mode="nearest"))
+    shuffle_pixels(y, offsets, delta)
+    return truncate_to_uint8(gaussian(y / 255.0, sigma, truncate=4.0, mode="nearest"))
