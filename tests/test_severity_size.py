@@ -336,3 +336,19 @@ def test_evaluate_writes_the_builds_severity_size_into_the_results():
     assert in_results(line + "corruption,level,dee\nclean,0,0.1\n") == "192x640"
     assert _severity_line(built({"severity_size": "none"})) == "" == _severity_line(built({}))
     assert in_results("corruption,level,dee\n# severity size: 1x1\n") == "none"  # above the header only
+
+
+def test_the_transforms_take_the_severity_size():
+    import torch
+    from robodepth_cli.torch import Corrupt, RandomCorrupt, TorchAPIError
+
+    img = edge_scene(96, 320)
+    scaled = Corrupt("defocus_blur", 3, seed=0, severity_size=(32, 96))(img, key="a.png")
+    assert (scaled == run(img, "defocus_blur", 3, size=(32, 96), seed=0)).all()
+    assert not (scaled == Corrupt("defocus_blur", 3, seed=0)(img, key="a.png")).all()
+    one = RandomCorrupt(["motion_blur"], [4], p=1.0, seed=3, severity_size="96x320")
+    assert (one(img) == RandomCorrupt(["motion_blur"], [4], p=1.0, seed=3)(img)).all()  # its own size
+    with pytest.raises(TorchAPIError, match="severity_size"):
+        Corrupt("fog", 3, severity_size="wide")
+    with pytest.raises(TorchAPIError, match="torch engine"):
+        Corrupt("fog", 3, severity_size="96x320")(torch.zeros((2, 3, 96, 320), dtype=torch.uint8))
