@@ -307,8 +307,8 @@ def test_the_report_names_each_files_severity_size_and_a_mixed_table_says_so(tmp
     files = []
     for m, size in (("A", "192x640"), ("B", None)):
         p = tmp_path / f"ds_{m}.csv"
-        head = f"# severity size: {size}\n" if size else ""
-        p.write_text(head + "corruption,level,dee\nclean,0,0.1\nfog,1,0.2\nfog,2,0.25\n")
+        col, val = (",severity_size", f",{size}") if size else ("", "")
+        p.write_text(f"corruption,level,dee{col}\nclean,0,0.1{val}\nfog,1,0.2{val}\nfog,2,0.25{val}\n")
         files.append(p)
     res = cli("report", *files, "--name", "A", "--name", "B", "--on", "diode-c", "--out", tmp_path / "r")
     assert res.exit_code == 0, res.output
@@ -323,19 +323,22 @@ def test_the_report_names_each_files_severity_size_and_a_mixed_table_says_so(tmp
 
 
 def test_evaluate_writes_the_builds_severity_size_into_the_results():
+    import csv
+    import io
     from types import SimpleNamespace
 
-    from robodepth_cli.commands.evaluate import _severity_line
+    from robodepth_cli.commands.evaluate import _with_severity
     from robodepth_cli.corruptions.scaling import in_results
 
     def built(extra):
         return SimpleNamespace(record=SimpleNamespace(config={"extra": extra}))
 
-    line = _severity_line(built({"severity_size": "192x640"}))
-    assert line == "# severity size: 192x640\n"
-    assert in_results(line + "corruption,level,dee\nclean,0,0.1\n") == "192x640"
-    assert _severity_line(built({"severity_size": "none"})) == "" == _severity_line(built({}))
-    assert in_results("corruption,level,dee\n# severity size: 1x1\n") == "none"  # above the header only
+    text = "corruption,level,abs_rel,a1\nclean,0,0.1,0.9\nfog,1,0.2,0.8\n"
+    scaled = _with_severity(built({"severity_size": "192x640"}), text)
+    rows = list(csv.DictReader(io.StringIO(scaled)))  # any CSV reader still reads it
+    assert [r["severity_size"] for r in rows] == ["192x640", "192x640"] and rows[1]["a1"] == "0.8"
+    assert in_results(scaled) == "192x640" and in_results(text) == "none"
+    assert _with_severity(built({"severity_size": "none"}), text) == text == _with_severity(built({}), text)
 
 
 def test_the_transforms_take_the_severity_size():
@@ -352,3 +355,16 @@ def test_the_transforms_take_the_severity_size():
         Corrupt("fog", 3, severity_size="wide")
     with pytest.raises(TorchAPIError, match="torch engine"):
         Corrupt("fog", 3, severity_size="96x320")(torch.zeros((2, 3, 96, 320), dtype=torch.uint8))
+
+
+def test_the_torch_engine_takes_none_from_a_preset_and_refuses_an_asked_size(cli, fixtures_dir, tmp_path):
+    import json
+
+    args = ("build", "custom", "--root", fixtures_dir / "kitti_raw", "--corruptions", "fog", "--levels", "1",
+            "--limit", "1", "--engine", "torch", "--device", "cpu")
+    r = cli(*args, "--out", tmp_path / "t")
+    assert r.exit_code == 0, r.output
+    assert json.loads((tmp_path / "t" / "build.json").read_text())["config"]["extra"]["severity_size"] == "none"
+    r = cli(*args, "--out", tmp_path / "u", "--severity-size", "192x640")
+    assert r.exit_code == 2 and "the torch engine does not scale the levels" in r.output
+    assert not (tmp_path / "u").exists()

@@ -18,9 +18,7 @@ source images, or null for all), ``scheduler`` (a Dask scheduler address such as
 ``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
 layer's choice replaces an earlier layer's), ``png`` (``fast`` or ``compact``: how the PNGs
 are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``),
-``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame),
-``severity_size`` (``HxW`` or ``none``: the size at which the levels' spatial parameters are
-defined, :mod:`robodepth_cli.corruptions.scaling`; unset: ``none``). A corruption or level the dataset does not
+``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame), ``severity_size`` (``HxW`` or ``none``: :mod:`robodepth_cli.corruptions.scaling`). A corruption or level the dataset does not
 have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
@@ -409,8 +407,6 @@ class _Resolver:
                               f"pip install 'robodepth-cli[video]'")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
-        if "severity_size" in ds.options():  # recorded either way: build.json says which
-            extra.setdefault("severity_size", "none")
         lacking = missing_depth(ds, self.values, extra)  # (key, why): a depth-aware variant without depth
         if lacking:
             raise ConfigError(f"{_loc(self.origin[lacking[0]], lacking[0])}: {lacking[1]}")
@@ -418,17 +414,13 @@ class _Resolver:
             from ..sources.engines import settle
 
             try:
-                extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()})
+                preset = str(CONFIG_DIR / f"{self.preset}.yaml")  # the keys it set: their defaults
+                extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()}, {k for k, w in self.origin.items() if w == preset})
             except InvalidValueError as exc:
                 raise ConfigError(str(exc)) from None
             if extra["engine"] == "torch" and self.values.get("frames"):
                 raise ConfigError(f"{_loc(self.origin['engine'], 'engine')}: the torch engine does not "
                                   f"render neighbour frames (--frames); use --engine numpy")
-            if extra["engine"] == "torch" and extra.get("severity_size", "none") != "none":
-                raise ConfigError(f"{_loc(self.origin['engine'], 'engine')}: the torch engine does not "
-                                  f"scale the levels to a severity size ({extra['severity_size']}, "
-                                  f"from {_loc(self.origin['severity_size'], 'severity_size')}); use "
-                                  f"--engine numpy, or --severity-size none")
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),
                            size=self.values["size"], variants=tuple(variants), levels=tuple(levels),
                            seed=self.values["seed"], jobs=self.values["jobs"],

@@ -102,8 +102,8 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs(), flicker=flicker)
-    text = result.csv_text()
-    E.write_results(out, _severity_line(dataset) + _own_depth_lines(dataset, pred) + text)
+    text = _with_severity(dataset, result.csv_text())
+    E.write_results(out, _own_depth_lines(dataset, pred) + text)
     show_results(result, text, out, bench, as_json, replacing)
 
 
@@ -204,11 +204,11 @@ def _implausible_clean(result) -> str:
     return ""
 
 
-def _severity_line(dataset) -> str:
-    """The results CSV's comment line naming the build's severity size (none: no line)."""
-    from ..corruptions.scaling import csv_line
+def _with_severity(dataset, text: str) -> str:
+    """The results CSV with the build's severity size as its last column (none: as it was)."""
+    from ..corruptions.scaling import with_column
 
-    return csv_line(((dataset.record.config or {}).get("extra") or {}).get("severity_size"))
+    return with_column(text, ((dataset.record.config or {}).get("extra") or {}).get("severity_size"))
 
 
 def _own_depth_lines(dataset, pred: Path) -> str:

@@ -112,10 +112,10 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
         click.echo(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
                    f"{state.path} (finished by an earlier run)", err=True)
     replacing = out.exists()
-    text = result.csv_text()
-    from ..corruptions.scaling import csv_line
+    from ..corruptions.scaling import with_column
 
-    E.write_results(out, csv_line(cfg.extra.get("severity_size")) + text)
+    text = with_column(result.csv_text(), cfg.extra.get("severity_size"))
+    E.write_results(out, text)
     state.remove()
     show_results(result, text, out, bench, as_json, replacing)
 

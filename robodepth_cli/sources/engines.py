@@ -30,11 +30,16 @@ def check_option(key: str, value):
     return value
 
 
-def settle(extra: dict, where: dict[str, str]) -> dict:
+def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -> dict:
     """``extra`` with ``engine`` (default numpy) and ``device`` decided: ``cpu`` for the
     numpy engine (``cuda`` is refused: it has no GPU path), the device
     ``auto`` picks for torch (``cuda`` refused when torch sees no GPU). ``where`` names the
-    flag or file that set each key, for the messages."""
+    flag or file that set each key, for the messages; ``preset``: the keys the preset set.
+
+    ``severity_size`` is recorded either way (``none`` when unset); the torch engine does not
+    scale the levels to a severity size: a preset's gives way to ``none``, one asked for is
+    refused."""
+    extra = {**extra, "severity_size": extra.get("severity_size") or "none"}
     engine = extra.get("engine") or "numpy"
     device = extra.get("device")
     if engine == "numpy":
@@ -42,6 +47,13 @@ def settle(extra: dict, where: dict[str, str]) -> dict:
             raise InvalidValueError(f"{where.get('device', '--device')}: {device} needs --engine torch "
                                     f"(the numpy engine runs on the CPU)")
         return {**extra, "engine": engine, "device": "cpu"}
+    size = extra["severity_size"]
+    if size != "none" and "severity_size" in preset:
+        extra = {**extra, "severity_size": "none"}
+    elif size != "none":
+        raise InvalidValueError(f"{where.get('engine', '--engine')}: the torch engine does not scale the "
+                                f"levels to a severity size ({size}, from {where['severity_size']}); use "
+                                f"--engine numpy, or --severity-size none")
     from ..corruptions.torch_engine import resolve_device
 
     try:
