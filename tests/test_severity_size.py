@@ -368,3 +368,24 @@ def test_the_torch_engine_takes_none_from_a_preset_and_refuses_an_asked_size(cli
     r = cli(*args, "--out", tmp_path / "u", "--severity-size", "192x640")
     assert r.exit_code == 2 and "the torch engine does not scale the levels" in r.output
     assert not (tmp_path / "u").exists()
+
+
+def test_corrupt_takes_the_severity_size(cli, fixtures_dir, tmp_path):
+    from PIL import Image
+
+    frame = next((fixtures_dir / "kitti_raw").rglob("*.png"))
+    outs = {}
+    for size in ("none", "375x1242", "96x320"):
+        r = cli("corrupt", frame, "-c", "defocus_blur", "-l", "3", "--severity-size", size,
+                "--out", tmp_path / f"{size}.png")
+        assert r.exit_code == 0, r.output
+        with Image.open(tmp_path / f"{size}.png") as im:
+            outs[size] = np.asarray(im)
+    assert (outs["none"] == outs["375x1242"]).all()  # the frame's own size: the tabulated bytes
+    assert sharpness(outs["96x320"]) < sharpness(outs["none"])  # ~3.9x the radius: blurrier
+
+
+def sharpness(img: np.ndarray) -> float:
+    """Mean absolute horizontal gradient: falls as a blur widens."""
+    g = np.asarray(img, np.float64).mean(axis=2)
+    return float(np.abs(np.diff(g, axis=1)).mean())
