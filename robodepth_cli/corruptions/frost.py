@@ -87,11 +87,11 @@ def scaled_size(texture_hw, image_hw, scale: float | None = None) -> tuple[int, 
 # One image size's five textures: a preset build has one size (one resize per process);
 # a build of mixed sizes re-resizes (~10 ms) instead of holding ~30 MB per large texture.
 @lru_cache(maxsize=5)
-def scaled_texture(index: int, image_hw: tuple[int, int], scale: float | None = None) -> np.ndarray:
+def scaled_texture(index: int, image_hw: tuple[int, int]) -> np.ndarray:
     """Texture ``index`` resized for an image of ``image_hw`` (bicubic, OpenCV) and
     converted to RGB (channel order does not affect the resize). Read-only."""
     bgr = texture_bgr(index)
-    resized = cv2.resize(bgr, scaled_size(bgr.shape[:2], image_hw, scale), interpolation=cv2.INTER_CUBIC)
+    resized = cv2.resize(bgr, scaled_size(bgr.shape[:2], image_hw), interpolation=cv2.INTER_CUBIC)
     rgb = np.ascontiguousarray(resized[..., ::-1])
     rgb.flags.writeable = False
     return rgb
@@ -132,8 +132,8 @@ def frost(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | No
     a 1.1 margin always applied, so the crop offsets always have room (as
     imagecorruptions-imaug 1.1.5 does); frost's grain therefore grows with the image
     beyond the texture's size. With a severity size, the texture is scaled as for the
-    image at the severity size, times its ``scale`` (:func:`scaled_size`): the grain is
-    the same share of the image at any size.
+    image at the severity size, times its ``scale`` (:func:`scaled_size`), and only the crop
+    is resampled (:func:`scaled_crop`): the grain is the same share of the image at any size.
 
     Between integer levels: ``a`` and ``b`` linear. The texture and the crop are drawn the
     same way at every level (the level does not choose the texture), so a decimal level
@@ -143,8 +143,28 @@ def frost(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | No
     installed.
     """
     height, width = x.shape[:2]
-    tex = scaled_texture(int(rng.integers(len(TEXTURES))), (height, width), scale)
+    index = int(rng.integers(len(TEXTURES)))
+    if scale is not None and scale != 1:  # at 1, the enlarged texture is the tabulated one
+        return _blend(x, scaled_crop(index, (height, width), scale, rng), blend_table(level))
+    tex = scaled_texture(index, (height, width))
     top = int(rng.integers(0, tex.shape[0] - height))
     left = int(rng.integers(0, tex.shape[1] - width))
     crop = tex[top:top + height, left:left + width]
     return _blend(x, crop, blend_table(level))
+
+
+def scaled_crop(index: int, image_hw: tuple[int, int], scale: float, rng: np.random.Generator) -> np.ndarray:
+    """The H x W crop of texture ``index`` enlarged to :func:`scaled_size` at a severity
+    size's ``scale``, its offsets drawn as :func:`frost` draws them; only the crop is
+    resampled (bicubic, the resize's pixel-centre mapping): the enlarged texture of a
+    large frame would be several hundred MB per texture. RGB, read-only."""
+    height, width = image_hw
+    bgr = texture_bgr(index)
+    tw, th = scaled_size(bgr.shape[:2], image_hw, scale)
+    top = int(rng.integers(0, th - height))
+    left = int(rng.integers(0, tw - width))
+    sx, sy = bgr.shape[1] / tw, bgr.shape[0] / th
+    m = np.array([[sx, 0.0, (left + 0.5) * sx - 0.5], [0.0, sy, (top + 0.5) * sy - 0.5]])
+    crop = cv2.warpAffine(bgr, m, (width, height), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_REPLICATE)
+    return np.ascontiguousarray(crop[..., ::-1])
