@@ -30,7 +30,7 @@ def box_gaussian(img: np.ndarray, sigma: float, border: int) -> np.ndarray:
     out = cv2.copyMakeBorder(img, pad, pad, pad, pad, border)
     for width in widths:
         out = cv2.blur(out, (width, width), borderType=border)
-    return out[pad:pad + h, pad:pad + w]
+    return np.ascontiguousarray(out[pad:pad + h, pad:pad + w])
 
 
 def split_streak(dys: np.ndarray, dxs: np.ndarray, ks: np.ndarray):

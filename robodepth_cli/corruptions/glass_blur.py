@@ -23,17 +23,21 @@ def swap_offsets(shape, delta: int, iterations: int, rng: np.random.Generator) -
     return rng.integers(-delta, delta, size=(iterations, rows, cols, 2), dtype=np.int8)
 
 
-def _gaussian(img: np.ndarray, sigma: float) -> np.ndarray:
-    """``gaussian(img, sigma, truncate=4, mode='nearest')``; a kernel that only a severity
-    size makes this wide (over 41 taps) by three box blurs of the same variance
-    (:func:`~._large.box_gaussian`)."""
+def _blur_levels(img: np.ndarray, sigma: float) -> np.ndarray:
+    """``uint8(floor(gauss(img / 255, sigma) * 255))`` of the uint8 ``img`` at a severity
+    size: the exact Gaussian while its kernel is short (up to 41 taps), beyond that three box
+    blurs of the same variance (:func:`~._large.box_gaussian`) in float32 on the 0..255
+    values, a flat region keeping its level (1e-3 of a level added before the truncation,
+    which float32's rounding would otherwise take one level lower half the time)."""
     if int(4.0 * sigma + 0.5) <= 20:
-        return gaussian(img, sigma, truncate=4.0, mode="nearest")
+        return truncate_to_uint8(gaussian(img / 255.0, sigma, truncate=4.0, mode="nearest"))
     import cv2
 
     from ._large import box_gaussian
 
-    return box_gaussian(img, sigma, cv2.BORDER_REPLICATE)
+    v = box_gaussian(img.astype(np.float32), sigma, cv2.BORDER_REPLICATE)
+    v += np.float32(1e-3)
+    return truncate_to_uint8(v, 1.0)
 
 
 def block_sources(shape, scale: float, delta: int, iterations: int, rng: np.random.Generator):
@@ -48,14 +52,22 @@ def block_sources(shape, scale: float, delta: int, iterations: int, rng: np.rand
     cells[..., 0] = np.arange(gh, dtype=np.int32)[:, None]
     cells[..., 1] = np.arange(gw, dtype=np.int32)[None, :]
     shuffle_pixels(cells, swap_offsets((gh, gw), delta, iterations, rng), delta)
-    cy = (np.arange(h, dtype=np.int64) * gh // h).astype(np.int32)
-    cx = (np.arange(w, dtype=np.int64) * gw // w).astype(np.int32)
-    moved = cells[cy[:, None], cx[None, :]]
-    rows = np.rint((moved[..., 0] - cy[:, None]) * (h / gh)).astype(np.int32) + np.arange(h, dtype=np.int32)[:, None]
-    cols = np.rint((moved[..., 1] - cx[None, :]) * (w / gw)).astype(np.int32) + np.arange(w, dtype=np.int32)[None, :]
-    np.clip(rows, 0, h - 1, out=rows)
-    np.clip(cols, 0, w - 1, out=cols)
-    return rows, cols
+    return tuple(_fine(cells[..., axis], axis, (h, w), (gh, gw)) for axis in (0, 1))
+
+
+def _fine(cells: np.ndarray, axis: int, shape, grid) -> np.ndarray:
+    """The source row (``axis`` 0) or column (1) of every pixel, from the source cells of
+    the grid: the own cell's displacement in cells, in pixels (rounded, by table), added to
+    the pixel's own index and clipped to the image."""
+    n, g = shape[axis], grid[axis]
+    own = [(np.arange(m, dtype=np.int64) * k // m).astype(np.int32) for m, k in zip(shape, grid)]
+    moved = cells[own[0][:, None], own[1][None, :]]
+    moved -= own[axis][:, None] if axis == 0 else own[axis][None, :]
+    reach = int(np.abs(moved).max(initial=0))
+    table = np.rint(np.arange(-reach, reach + 1) * (n / g)).astype(np.int32)
+    out = table[moved + reach]
+    out += np.arange(n, dtype=np.int32)[:, None] if axis == 0 else np.arange(n, dtype=np.int32)[None, :]
+    return np.clip(out, 0, n - 1, out=out)
 
 
 @njit
@@ -123,8 +135,10 @@ def glass_blur(x: np.ndarray, level: int, rng: np.random.Generator, scale: float
     sigma, delta, iterations = interpolate(LEVELS, level, RULES)
     if scale is not None:
         rows, cols = block_sources(x.shape, scale, delta, iterations, rng)
-        y = truncate_to_uint8(_gaussian(x / 255.0, sigma * scale))
-        return truncate_to_uint8(_gaussian(y[rows, cols] / 255.0, sigma * scale))
+        rows *= x.shape[1]
+        rows += cols  # one flat index: a single gather
+        y = _blur_levels(x, sigma * scale).reshape(-1, x.shape[2])[rows]
+        return _blur_levels(y, sigma * scale)
     offsets = swap_offsets(x.shape, delta, iterations, rng)
     y = truncate_to_uint8(gaussian(x / 255.0, sigma, truncate=4.0, mode="nearest"))
     shuffle_pixels(y, offsets, delta)
