@@ -3,7 +3,8 @@ level 5 of every corruption whose parameters the severity size scales, with
 ``--severity-size none`` (the parameters as tabulated) and with 192x640 (scaled by about
 14x), side by side in one process on one core.
 
-Goal (issue 37): each scaled one within 3x the time of none (long kernels by FFT).
+Goal (issue 37): each scaled one within 3x the time of none (long kernels split or boxed:
+corruptions/_large.py). The depth-aware ones only with --depth (minutes at this size).
 
     python -m bench.severity_size [--names defocus_blur,motion_blur] [--depth] [--size 4032x6048]
 """
