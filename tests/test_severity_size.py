@@ -389,3 +389,10 @@ def sharpness(img: np.ndarray) -> float:
     """Mean absolute horizontal gradient: falls as a blur widens."""
     g = np.asarray(img, np.float64).mean(axis=2)
     return float(np.abs(np.diff(g, axis=1)).mean())
+
+
+def test_list_says_which_corruptions_scale(cli):
+    import json
+
+    listed = {c["name"]: c["scaled"] for c in json.loads(cli("list", "--format", "json").stdout)}
+    assert listed == {n: c.scaled for n, c in REGISTRY.items()} and listed["motion_blur"] and not listed["gaussian_noise"]

@@ -37,7 +37,7 @@ def list_command(fmt):
 
         click.echo(json.dumps([
             {"name": c.name, "category": c.category, "deterministic": c.deterministic,
-             "needs_depth": c.needs_depth,
+             "needs_depth": c.needs_depth, "scaled": c.scaled,
              "levels": [c.params(lv) for lv in range(1, c.n_levels + 1)],
              "between_levels": dict(zip(c.fields, c.rules)), "formula": c.doc}
             for c in REGISTRY.values()], indent=2))
