@@ -75,8 +75,9 @@ def test_layout_own_sizes_and_pixels(folder, tmp_path, build):
                 assert (row["source"], int(row["height"]), int(row["width"])) == (SOURCES[key], h, w)
                 # seeded from (seed, "custom", variant, level, key), as SPEC section 4 says
                 rng = seeding.job_rng(3, "custom", v, lv, key)
+                # at build custom's severity size, 192 x 640
                 np.testing.assert_array_equal(load(out / v / str(lv) / key),
-                                              corruptions.corrupt(clean, v, lv, rng))
+                                              corruptions.corrupt(clean, v, lv, rng, severity_size=(192, 640)))
     record = json.loads((out / "build.json").read_text())
     assert record["dataset"] == "custom" and record["config"]["size"] is None
     assert record["split"]["keys"] == sorted(KEYS)

@@ -54,8 +54,8 @@ def test_kitti_c_torch_build_matches_the_numpy_build(kitti, tmp_path, build_kitt
             assert diff.max() <= 1 and (diff == 0).mean() > 0.95, path
         else:
             assert a[path] == b[path], path
-    assert record(out)["config"]["extra"] == {"engine": "torch", "device": "cpu"}
-    assert record(ref)["config"]["extra"] == {"engine": "numpy", "device": "cpu"}
+    assert record(out)["config"]["extra"] == {"engine": "torch", "device": "cpu", "severity_size": "none"}
+    assert record(ref)["config"]["extra"] == {"engine": "numpy", "device": "cpu", "severity_size": "none"}
     assert params(out) == {"engine=torch"} and params(ref) == {""}
     # Resume and verify as for any build.
     again = build_kitti(root, split, out, *flags, "--engine", "torch", "--device", "cpu")
@@ -75,7 +75,8 @@ def test_nyu_and_custom_torch_builds_match_the_numpy_builds(tmp_path, cli):
     save(custom / "a.png", random_image(40, 56, 1))
     save(custom / "sub" / "b.png", random_image(36, 64, 2))  # each its own size
     for dataset, root, extra in (("nyudepth2-c", nyu, ("--split", split, "--size", "48x64", "--no-gt")),
-                                 ("custom", custom, ())):
+                                 # the torch engine does not scale: both at none
+                                 ("custom", custom, ("--severity-size", "none"))):
         outs = {}
         for engine in ("numpy", "torch"):
             outs[engine] = tmp_path / f"{dataset}-{engine}"

@@ -18,7 +18,7 @@ source images, or null for all), ``scheduler`` (a Dask scheduler address such as
 ``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
 layer's choice replaces an earlier layer's), ``png`` (``fast`` or ``compact``: how the PNGs
 are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``),
-``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame). A corruption or level the dataset does not
+``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame), ``severity_size`` (``HxW`` or ``none``: :mod:`robodepth_cli.corruptions.scaling`). A corruption or level the dataset does not
 have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
@@ -227,7 +227,8 @@ class _Resolver:
             from .renderers import settle
 
             try:
-                extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()})
+                preset = str(CONFIG_DIR / f"{self.preset}.yaml")  # the keys it set: their defaults
+                extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()}, {k for k, w in self.origin.items() if w == preset})
             except InvalidValueError as exc:
                 raise ConfigError(str(exc)) from None
             if extra["engine"] == "torch" and self.values.get("frames"):

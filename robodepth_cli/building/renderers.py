@@ -47,18 +47,26 @@ def make_renderer(ds: Dataset, config, depth=None) -> Renderer:
         from ..styles.inputs import make_renderer as style_renderer
 
         return style_renderer(config)
-    numpy_engine = CorruptionRenderer(ds.name, config.seed, depth)
+    from ..corruptions.scaling import parse_severity_size
+
+    numpy_engine = CorruptionRenderer(ds.name, config.seed, depth,
+                                      parse_severity_size(config.extra.get("severity_size")))
     if config.extra.get("engine") == "torch":
         return TorchCorruptionRenderer(ds.name, config.seed, config.extra["device"], config.jobs,
                                        numpy_engine)
     return numpy_engine
 
 
-def settle(extra: dict, where: dict[str, str]) -> dict:
+def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -> dict:
     """``extra`` with ``engine`` (default numpy) and ``device`` decided: ``cpu`` for the
     numpy engine (``cuda`` is refused: it has no GPU path), the device
     ``auto`` picks for torch (``cuda`` refused when torch sees no GPU). ``where`` names the
-    flag or file that set each key, for the messages."""
+    flag or file that set each key, for the messages; ``preset``: the keys the preset set.
+
+    ``severity_size`` is recorded either way (``none`` when unset); the torch engine does not
+    scale the levels to a severity size: a preset's gives way to ``none``, one asked for is
+    refused."""
+    extra = {**extra, "severity_size": extra.get("severity_size") or "none"}
     engine = extra.get("engine") or "numpy"
     device = extra.get("device")
     if engine == "numpy":
@@ -66,6 +74,13 @@ def settle(extra: dict, where: dict[str, str]) -> dict:
             raise InvalidValueError(f"{where.get('device', '--device')}: {device} needs --engine torch "
                                     f"(the numpy engine runs on the CPU)")
         return {**extra, "engine": engine, "device": "cpu"}
+    size = extra["severity_size"]
+    if size != "none" and "severity_size" in preset:
+        extra = {**extra, "severity_size": "none"}
+    elif size != "none":
+        raise InvalidValueError(f"{where.get('engine', '--engine')}: the torch engine does not scale the "
+                                f"levels to a severity size ({size}, from {where['severity_size']}); use "
+                                f"--engine numpy, or --severity-size none")
     from ..corruptions.torch_engine import resolve_device
 
     try:
@@ -130,10 +145,11 @@ class CorruptionRenderer:
     the depth-aware ones get the source's depth from ``depth`` (a
     :class:`~.scenedepth.DepthSource`), read once per source and only when a job needs it."""
 
-    def __init__(self, dataset: str, seed: int, depth=None):
+    def __init__(self, dataset: str, seed: int, depth=None, severity_size: tuple[int, int] | None = None):
         self.dataset = dataset
         self.seed = seed
         self.depth = depth
+        self.severity_size = severity_size  # (H0, W0): see corruptions.scaling; None: as tabulated
 
     def render(self, clean, key, jobs, anchor=None, sequence=None):
         """``anchor``: the key of the test frame whose sequence ``key`` is in (``--frames``);
@@ -150,7 +166,8 @@ class CorruptionRenderer:
                 if depth is None and self.depth is not None and needs_depth(job.variant):
                     depth = self.depth.depth(key, clean.shape[:2])
                 yield job, render(clean, job.variant, job.level, seed=self.seed, dataset=self.dataset,
-                                  key=key, depth=depth, anchor=None if anchor == key else anchor)
+                                  key=key, depth=depth, anchor=None if anchor == key else anchor,
+                                  severity_size=self.severity_size)
             except Exception as exc:  # one broken variant must not sink the other outputs
                 yield job, exc
 
@@ -179,13 +196,15 @@ class CorruptionRenderer:
         return done[position]
 
     def fingerprint(self, variant: str) -> str:
-        # A corruption's output depends only on the seed, the size and the source, and a
-        # depth-aware one's on the depth source too.
-        if self.depth is None:
-            return ""
-        from ..corruptions import needs_depth
+        # A corruption's output depends only on the seed, the size and the source, a
+        # depth-aware one's on the depth source too, a spatial one's on the severity size.
+        from ..corruptions import is_scaled, needs_depth
+        from ..corruptions.scaling import size_text
 
-        return self.depth.fingerprint if needs_depth(variant) else ""
+        parts = [self.depth.fingerprint] if self.depth is not None and needs_depth(variant) else []
+        if self.severity_size is not None and is_scaled(variant):
+            parts.append(f"severity_size={size_text(self.severity_size)}")
+        return ";".join(parts)
 
     def depth_stamp(self, key: str) -> str:
         """What identifies source ``key``'s depth (:meth:`.scenedepth.DepthSource.stamp`)."""

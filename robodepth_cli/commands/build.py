@@ -48,6 +48,9 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--scene-depth", metavar="PRED", help="The depth of the depth-aware corruptions (fog_3d, ...) "
               "from a model's predictions for the clean images (robodepth predict's --out) instead of the "
               "dataset's own; relative maps are median-scaled to the dataset's depth.")
+@common.severity_size_option("default: none for kitti-c, kitti-c-hr, nyudepth2-c, the benchmark's "
+                             "pixels; 480x640 for scannet-c; 192x640 for custom and the other "
+                             "zero-shot sets; see docs/severity-and-chains.md")
 @click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
 @click.option("--only-styles", metavar="A,B|all", help="kitti-s: comma-separated style names, or 'all'.")
 @click.option("--vgg", metavar="FILE", help="kitti-s: AdaIN encoder checkpoint (vgg_normalised.pth).")

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ..errors import RobodepthError, cannot_write, counted
+from ..errors import InvalidValueError, RobodepthError, cannot_write, counted
 
 
 ARGV = "robodepth.argv"  # ctx.meta: the arguments as typed (set by the group)
@@ -234,6 +234,26 @@ def selection_options(command):
     for option in reversed(options):
         command = option(command)
     return command
+
+
+def severity_size_option(default_text: str):
+    """``--severity-size HxW|none``: the image size at which the levels' spatial parameters
+    are defined (:mod:`robodepth_cli.corruptions.scaling`); ``default_text`` says the
+    command's default."""
+    return click.option("--severity-size", metavar="HxW|none",
+                        help="The image size at which the levels' blur radii, streaks, flakes and "
+                             "warps are defined; another size scales them by the square root of the "
+                             f"area ratio; none: pixels as tabulated at any size ({default_text}).")
+
+
+def severity_size(value: str | None, flag: str = "--severity-size") -> tuple[int, int] | None:
+    """``--severity-size`` checked: ``(H, W)``, or None for ``none`` or when not given."""
+    from ..corruptions.scaling import parse_severity_size
+
+    try:
+        return parse_severity_size(value)
+    except InvalidValueError as exc:
+        raise RobodepthError(f"{flag}: {exc}") from None
 
 
 def evaluation_options(command):

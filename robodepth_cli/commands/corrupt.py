@@ -37,7 +37,7 @@ def list_command(fmt):
 
         click.echo(json.dumps([
             {"name": c.name, "category": c.category, "deterministic": c.deterministic,
-             "needs_depth": c.needs_depth,
+             "needs_depth": c.needs_depth, "scaled": c.scaled,
              "levels": [c.params(lv) for lv in range(1, c.n_levels + 1)],
              "between_levels": dict(zip(c.fields, c.rules)), "formula": c.doc}
             for c in REGISTRY.values()], indent=2))
@@ -60,7 +60,8 @@ def list_command(fmt):
               help="Output .png for one image; otherwise (or ending with /) a directory "
                    "receiving NAME/LEVEL.png and CHAIN.png (e.g. fog-3+gaussian_noise-2.5.png).")
 @_depth_options
-def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth_scale):
+@common.severity_size_option("default: none")
+def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth_scale, severity_size):
     """Corrupt one image (its EXIF orientation applied first).
 
     \b
@@ -69,10 +70,12 @@ def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth
     robodepth corrupt frame.png -c fog:3+gaussian_noise:2.5 --out fog_noise.png
     robodepth corrupt frame.png -c all -l all --size 192x640 --out corrupted/
     robodepth corrupt frame.png -c fog_3d -l 3 --depth depth.png --depth-scale 256 --out f.png
+    robodepth corrupt big.png -c defocus_blur -l 3 --severity-size 192x640 --out d.png
     """
     from ..corruptions import render
 
     seed = common.seed(seed)
+    severity_size = common.severity_size(severity_size)
     level_list = common.levels(level)
     jobs = common.variants(corruption, level_list)
     single = len(jobs) == 1 and "all" not in corruption.replace(" ", "").split(",")
@@ -95,7 +98,8 @@ def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth
     if not single:
         common.on_interrupt(f"the images written so far are kept under {out}, each complete")
     for name, variant, lv in jobs:
-        img = render(clean, variant, lv, seed=seed, dataset="image", key=key, depth=depth)
+        img = render(clean, variant, lv, seed=seed, dataset="image", key=key, depth=depth,
+                     severity_size=severity_size)
         common.write_png(target if single else directory / name, img)
     if single:
         common.wrote(f"{target} ({common.hxw(*img.shape[:2])})")
@@ -165,7 +169,9 @@ def _describe(items: list[str], level_list: list) -> str:
 @click.option("--thumb-width", default=320, show_default=True, type=click.IntRange(32, 2000),
               help="Width of each cell in pixels.")
 @_depth_options
-def preview_command(image, out, corruption, level, size, seed, thumb_width, depth_file, depth_scale):
+@common.severity_size_option("default: none")
+def preview_command(image, out, corruption, level, size, seed, thumb_width, depth_file, depth_scale,
+                    severity_size):
     """A labelled contact sheet: the clean image, then one row per corruption or chain and
     one column per level.
 
@@ -176,12 +182,13 @@ def preview_command(image, out, corruption, level, size, seed, thumb_width, dept
     from ..preview import contact_sheet
 
     seed = common.seed(seed)
+    severity_size = common.severity_size(severity_size)
     target = common.png_output(out, f"{Path(image).stem}_preview.png")
     level_list = common.levels(level, "--levels")
     rows = common.items(corruption, level_list)
     clean = common.load_input(image, size)
     depth = _depth(depth_file, depth_scale, rows, clean)
     sheet = contact_sheet(clean, rows, level_list, seed=seed, key=Path(image).name,
-                          thumb_width=thumb_width, depth=depth)
+                          thumb_width=thumb_width, depth=depth, severity_size=severity_size)
     common.write_png(target, np.asarray(sheet))
     common.wrote(f"{target} ({common.hxw(sheet.height, sheet.width)})")

@@ -105,7 +105,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs(), flicker=flicker)
-    text = result.csv_text()
+    text = _with_severity(dataset, result.csv_text())
     E.write_results(out, _own_depth_lines(dataset, pred) + text)
     common.show_results(result, text, out, bench, as_json, replacing)
 
@@ -120,6 +120,13 @@ def implausible_dee(metrics: dict, setup) -> str:
         return ""
     return (f"clean DEE {value:.3f} is implausible (at least 1, with {setup.describe()}); "
             "check --kind, --stereo and --png-scale")
+
+
+def _with_severity(dataset, text: str) -> str:
+    """The results CSV with the build's severity size as its last column (none: as it was)."""
+    from ..corruptions.scaling import with_column
+
+    return with_column(text, ((dataset.record.config or {}).get("extra") or {}).get("severity_size"))
 
 
 def _own_depth_lines(dataset, pred: Path) -> str:

@@ -36,6 +36,7 @@ from . import common
               help="What the maps hold: required for python:, overrides an hf model's own.")
 @click.option("--metric/--relative", default=None,
               help="The maps are in metres or relative, as for predict.")
+@common.severity_size_option("default: none, the benchmark's pixels")
 @common.evaluation_options
 @click.option("--keep-predictions", type=click.Path(file_okay=False, path_type=Path), metavar="DIR",
               help="Also write the predictions to DIR, in predict's layout (DIR/clean.npy, "

@@ -13,6 +13,7 @@ from ..imageio import as_rgb
 from .depth import DepthError, scene_depth
 from .registry import Corruption, registry
 from .chains import Chain, expand_chain, looks_like_chain, parse_chain
+from .scaling import scale_factor
 from .severity import parse_level
 
 # Importing a module registers its corruption(s).
@@ -43,7 +44,8 @@ def check_level(corruption: Corruption, level) -> int | float:
     return parse_level(level, top=corruption.n_levels, what=corruption.name)
 
 
-def corrupt(image: np.ndarray, name: str, level, rng: np.random.Generator, depth=None) -> np.ndarray:
+def corrupt(image: np.ndarray, name: str, level, rng: np.random.Generator, depth=None, *,
+            severity_size: tuple[int, int] | None = None) -> np.ndarray:
     """Apply corruption ``name`` at ``level`` (1..5, decimals allowed: see
     :mod:`.severity`) to ``image``.
 
@@ -54,23 +56,27 @@ def corrupt(image: np.ndarray, name: str, level, rng: np.random.Generator, depth
     ``depth`` is the scene's depth in metres (H x W; NaN, 0 or inf where missing), which a
     depth-aware corruption needs (:class:`DepthError` without it) and the others ignore;
     it is prepared by :func:`~._depth.scene_depth` (filled, sized to the image).
+
+    ``severity_size`` ``(H0, W0)``: the size at which the level's spatial parameters are
+    defined, scaled to the image's by :func:`~.scaling.scale_factor`; None: as tabulated.
     """
     c = get(name)
     level = check_level(c, level)
     _check_rng(rng)
     image = as_rgb(image)
-    return _apply(c, image, level, rng, _depth_for(image, depth, (c,)))
+    return _apply(c, image, level, rng, _depth_for(image, depth, (c,)), severity_size)
 
 
 def corrupt_chain(image: np.ndarray, chain: Chain | str, rngs: Sequence[np.random.Generator],
-                  depth=None) -> np.ndarray:
+                  depth=None, *, severity_size: tuple[int, int] | None = None) -> np.ndarray:
     """Apply the steps of ``chain`` (a :class:`~.chains.Chain` or its text) in order, step
     ``k`` drawing from ``rngs[k]`` (one generator per step:
     :func:`robodepth_cli.seeding.chain_rngs` gives the reproducible ones).
 
     Each step is exactly :func:`corrupt` of the previous step's output, so a chain of
     deterministic steps equals applying them one after another. Every depth-aware step
-    receives the same ``depth``: no step moves the scene's geometry."""
+    receives the same ``depth``: no step moves the scene's geometry; every step the same
+    ``severity_size``."""
     if not isinstance(chain, Chain):
         chain = parse_chain(chain)
     rngs = list(rngs)
@@ -82,18 +88,19 @@ def corrupt_chain(image: np.ndarray, chain: Chain | str, rngs: Sequence[np.rando
     steps = [get(step.name) for step in chain.steps]
     d = _depth_for(out, depth, steps, chain.text)
     for step, c, rng in zip(chain.steps, steps, rngs):
-        out = _apply(c, out, step.level, rng, d)
+        out = _apply(c, out, step.level, rng, d, severity_size)
     return out
 
 
 def render(clean: np.ndarray, variant: str, level, *, seed: int, dataset: str, key: str,
-           depth=None, anchor: str | None = None) -> np.ndarray:
+           depth=None, anchor: str | None = None,
+           severity_size: tuple[int, int] | None = None) -> np.ndarray:
     """The image of one job: corruption ``variant`` at ``level``, or, when ``variant`` is a
     chain (its text; ``level`` is then unused), that chain; every draw from the job's own
     generators (:func:`~robodepth_cli.seeding.job_rng`,
     :func:`~robodepth_cli.seeding.chain_rngs`). The one rule by which ``corrupt``,
-    ``preview``, a build and the torch transforms turn a job into pixels. ``depth`` as
-    :func:`corrupt` takes it.
+    ``preview``, a build and the torch transforms turn a job into pixels. ``depth`` and
+    ``severity_size`` as :func:`corrupt` takes them.
 
     ``anchor``: the key of the test frame whose neighbour ``key`` is; each corruption's
     scene draws are then seeded from ``anchor`` and its noise from ``key``
@@ -108,16 +115,26 @@ def render(clean: np.ndarray, variant: str, level, *, seed: int, dataset: str, k
         by_key = {k: seeding.chain_rngs(seed, dataset, chain, k)
                   for k in {draw_key(step.name, key, anchor) for step in chain.steps}}
         rngs = [by_key[draw_key(step.name, key, anchor)][i] for i, step in enumerate(chain.steps)]
-        return corrupt_chain(clean, chain, rngs, depth)
+        return corrupt_chain(clean, chain, rngs, depth, severity_size=severity_size)
     return corrupt(clean, variant, level,
-                   seeding.job_rng(seed, dataset, variant, level, draw_key(variant, key, anchor)), depth)
+                   seeding.job_rng(seed, dataset, variant, level, draw_key(variant, key, anchor)), depth,
+                   severity_size=severity_size)
+
+
+def _steps(variant: str) -> tuple[str, ...]:
+    return expand_chain(variant, (1,))[0].names if looks_like_chain(variant) else (variant,)
 
 
 def needs_depth(variant: str) -> bool:
     """Whether ``variant`` (a corruption's name, a chain's text or a chain template whose
     steps lack levels) has a depth-aware step."""
-    names = expand_chain(variant, (1,))[0].names if looks_like_chain(variant) else (variant,)
-    return any(get(n).needs_depth for n in names)
+    return any(get(n).needs_depth for n in _steps(variant))
+
+
+def is_scaled(variant: str) -> bool:
+    """Whether ``variant`` (as :func:`needs_depth` takes it) has a step whose pixels the
+    severity size changes."""
+    return any(get(n).scaled for n in _steps(variant))
 
 
 def depth_aware_variant(name: str) -> bool:
@@ -146,10 +163,14 @@ def _check_rng(rng) -> None:
         raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
 
 
-def _apply(c: Corruption, image: np.ndarray, level, rng: np.random.Generator, depth) -> np.ndarray:
+def _apply(c: Corruption, image: np.ndarray, level, rng: np.random.Generator, depth,
+           severity_size=None) -> np.ndarray:
     x = image.view()
     x.flags.writeable = False  # corruption functions are pure: writing to the input fails loudly
-    out = c.fn(x, depth, level, rng) if c.needs_depth else c.fn(x, level, rng)
+    s = scale_factor(x.shape, severity_size) if c.scaled else None
+    # At the severity size itself (s == 1) the tabulated parameters, by the very same code.
+    kw = {"scale": s} if s is not None and s != 1.0 else {}
+    out = c.fn(x, depth, level, rng, **kw) if c.needs_depth else c.fn(x, level, rng, **kw)
     if out.dtype != np.uint8 or out.shape != x.shape:
         raise AssertionError(f"{c.name} returned {out.dtype} {out.shape} for {x.shape}")
     return out

@@ -67,8 +67,8 @@ def direct_kernel(radius: float, alias: float) -> np.ndarray:
     return k
 
 
-@register(("radius", "alias"), LEVELS, deterministic=True)
-def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
+@register(("radius", "alias"), LEVELS, deterministic=True, scaled=True)
+def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | None = None) -> np.ndarray:
     """Convolve each channel with :func:`disk_kernel` ``(radius, alias)`` with OpenCV
     ``filter2D`` semantics (reflect-101 border): ``clip01(filter2D(f, disk))``, truncated
     to uint8. Computed on the 0..255 values in float32 (:func:`~._exact.correlate2d`: a
@@ -79,7 +79,11 @@ def defocus_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndar
 
     Between integer levels: ``radius`` and ``alias`` linear; the disk takes the pixels
     within the fractional radius, so it grows by whole rings of pixels as ``radius``
-    passes each distance ``sqrt(X^2 + Y^2)``."""
+    passes each distance ``sqrt(X^2 + Y^2)``.
+
+    With a severity size, ``radius`` and ``alias`` are multiplied by its ``scale``."""
     radius, alias = interpolate(LEVELS, level)
+    if scale is not None:
+        radius, alias = radius * scale, alias * scale
     out = correlate2d(x, direct_kernel(radius, alias), spectrum_kernel=disk_kernel(radius, alias))
     return truncate_to_uint8(out, 1.0)

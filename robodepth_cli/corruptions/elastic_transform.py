@@ -33,8 +33,8 @@ def smoothed_uniforms(shape: tuple[int, int], rng: np.random.Generator) -> np.nd
     return gaussian(np.stack([u[0], u[1]], axis=-1), (0.01 * h, 0.01 * w), truncate=3, mode="reflect")
 
 
-@register(("k",), LEVELS)
-def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
+@register(("k",), LEVELS, scaled=True)
+def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | None = None) -> np.ndarray:
     """Random elastic warp. ``m = 0.005 * H`` for both directions; ``U(-m, m)`` fields of
     H x W for ``dx`` (drawn first) and ``dy``, each smoothed with ``gaussian(sigma=(0.01 H,
     0.01 W), mode='reflect', truncate=3)`` and multiplied by ``alpha = 250 * k``; every
@@ -42,10 +42,11 @@ def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np
     border (SciPy ``map_coordinates(order=1, mode='reflect')`` = OpenCV
     ``BORDER_REFLECT``); clipped and truncated.
 
-    Size rule (as imagecorruptions-imaug 1.1.5): everything scales with the image: the
-    smoothing sigma is 1% of the height and width, and the displacement ``0.005 H * 250 k``
-    uses the height for both directions (a wide image is warped as much as a square one
-    of the same height).
+    Size rule (as imagecorruptions-imaug 1.1.5): the smoothing sigma is 1% of the height
+    and width and the amplitude ``0.005 H * 250 k`` grows with the height, but smoothing
+    white noise over ``sigma`` pixels shrinks it as ``1 / sigma``: the displacement stays
+    the same number of pixels at any size. With a severity size the amplitude is also
+    multiplied by its ``scale``, so the displacement is a fixed share of the image.
 
     The uniforms are drawn on [0, 1) and mapped to [-m, m) after the smoothing, which is
     linear and keeps constants: ``alpha * gaussian(U(-m, m)) = 2 m alpha * gaussian(U(0, 1))
@@ -58,6 +59,8 @@ def elastic_transform(x: np.ndarray, level: int, rng: np.random.Generator) -> np
     """
     h, w = x.shape[:2]
     m_alpha = 0.005 * h * 250 * interpolate(LEVELS, level)
+    if scale is not None:
+        m_alpha *= scale
     coords = smoothed_uniforms((h, w), rng)
     coords *= np.float32(2 * m_alpha)
     coords += _offset_grid(h, w, m_alpha)

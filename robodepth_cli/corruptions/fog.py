@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from ._jit import njit
@@ -111,8 +112,22 @@ def plasma_fractal(n: int, decay: float, rng: np.random.Generator, shape=None) -
     return out
 
 
-@register(("t", "d"), LEVELS)
-def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
+def fog_map(shape: tuple[int, int], decay: float, rng: np.random.Generator, scale: float | None = None):
+    """The H x W plasma of fog for an image of ``shape``: the top-left of a
+    :func:`plasma_fractal` of side the smallest power of two >= max(H, W); with a severity
+    size's ``scale``, that of the image at the severity size (``round(H / scale)`` x
+    ``round(W / scale)``) resized to H x W (bilinear; area when shrinking)."""
+    height, width = shape
+    if scale is not None:
+        h0, w0 = max(round(height / scale), 1), max(round(width / scale), 1)
+        small = plasma_fractal(next_power_of_two(max(h0, w0, 2)), decay, rng, (h0, w0))
+        how = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
+        return cv2.resize(small, (width, height), interpolation=how)
+    return plasma_fractal(next_power_of_two(max(height, width)), decay, rng, (height, width))
+
+
+@register(("t", "d"), LEVELS, scaled=True)
+def fog(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | None = None) -> np.ndarray:
     """Fog: with ``m = max f`` and ``P`` a :func:`plasma_fractal` of side ``N`` (the
     smallest power of two >= max(H, W)) and decay ``d``, ``g = f + t * P[:H, :W]`` on every
     channel; result ``clip01(g * m / (m + t))``, truncated to uint8.
@@ -120,7 +135,9 @@ def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     Size rule: the map's side ``N`` grows with the image (64 for 37 x 53, 2048 for
     375 x 1242 and 1024 x 2048, 4096 for 2048 x 4096), so the fractal's largest features
     scale with the image, and only the top-left H x W of it is used (a wide image sees a
-    band of the square map), as imagecorruptions-imaug 1.1.5 does.
+    band of the square map), as imagecorruptions-imaug 1.1.5 does. With a severity size,
+    the map is that of the image at the severity size, resized to the image
+    (:func:`fog_map`): its features keep their share of the image.
 
     Computed in float32 in the 0..255 domain: ``(x + 255 t P) * m / (m + t)``.
 
@@ -128,8 +145,7 @@ def fog(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     every level; only their decay changes).
     """
     t, d = interpolate(LEVELS, level)
-    height, width = x.shape[:2]
-    plasma = plasma_fractal(next_power_of_two(max(height, width)), d, rng, (height, width))
+    plasma = fog_map(x.shape[:2], d, rng, scale)
     m = float(x.max()) / 255.0
     scale = np.float32(m / (m + t))
     thick = np.float32(255.0 * t)

@@ -63,14 +63,25 @@ def texture_bgr(index: int) -> np.ndarray:
     return img
 
 
-def scaled_size(texture_hw, image_hw) -> tuple[int, int]:
-    """``(width, height)`` the texture is resized to: ``q = 1`` if it is at least as large
-    as the image in both dimensions, else the larger of ``image / texture`` over the
-    dimensions where it is smaller; ``q *= 1.1``; ``(ceil(w_t * q), ceil(h_t * q))``."""
+def _factor(texture_hw, image_hw) -> float:
     (th, tw), (h, w) = texture_hw, image_hw
     ratios = [n / t for n, t in ((h, th), (w, tw)) if t < n]
     q = max(ratios) if ratios else 1
-    q *= 1.1
+    return q * 1.1
+
+
+def scaled_size(texture_hw, image_hw, scale: float | None = None) -> tuple[int, int]:
+    """``(width, height)`` the texture is resized to: ``q = 1`` if it is at least as large
+    as the image in both dimensions, else the larger of ``image / texture`` over the
+    dimensions where it is smaller; ``q *= 1.1``; ``(ceil(w_t * q), ceil(h_t * q))``.
+
+    With a severity size's ``scale``: the larger of that ``q`` and ``scale`` times the ``q``
+    of the image at the severity size (``image / scale``), so that the grain is that of the
+    severity size, grown with the image, and the texture still covers it."""
+    q = _factor(texture_hw, image_hw)
+    if scale is not None:
+        q = max(q, scale * _factor(texture_hw, (image_hw[0] / scale, image_hw[1] / scale)))
+    (th, tw) = texture_hw
     return int(math.ceil(tw * q)), int(math.ceil(th * q))
 
 
@@ -109,8 +120,8 @@ def _blend(x, crop, table):
     return out
 
 
-@register(("a", "b"), LEVELS)
-def frost(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
+@register(("a", "b"), LEVELS, scaled=True)
+def frost(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | None = None) -> np.ndarray:
     """Frost: pick texture ``k`` uniformly among the first five (``rng.integers(5)``),
     read it as BGR, resize it to :func:`scaled_size` with bicubic interpolation, take the
     H x W crop at row ``rng.integers(0, h' - H)`` and column ``rng.integers(0, w' - W)``
@@ -121,7 +132,10 @@ def frost(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     Size rule: a texture smaller than the image in either dimension is scaled up by the
     larger of the ratios so that it covers the image (e.g. all five for 1024 x 2048), with
     a 1.1 margin always applied, so the crop offsets always have room (as
-    imagecorruptions-imaug 1.1.5 does); frost's grain therefore grows with the image.
+    imagecorruptions-imaug 1.1.5 does); frost's grain therefore grows with the image
+    beyond the texture's size. With a severity size, the texture is scaled as for the
+    image at the severity size, times its ``scale`` (:func:`scaled_size`), and only the crop
+    is resampled (:func:`scaled_crop`): the grain is the same share of the image at any size.
 
     Between integer levels: ``a`` and ``b`` linear. The texture and the crop are drawn the
     same way at every level (the level does not choose the texture), so a decimal level
@@ -131,8 +145,28 @@ def frost(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     installed.
     """
     height, width = x.shape[:2]
-    tex = scaled_texture(int(rng.integers(len(TEXTURES))), (height, width))
+    index = int(rng.integers(len(TEXTURES)))
+    if scale is not None and scale != 1:  # at 1, the enlarged texture is the tabulated one
+        return _blend(x, scaled_crop(index, (height, width), scale, rng), blend_table(level))
+    tex = scaled_texture(index, (height, width))
     top = int(rng.integers(0, tex.shape[0] - height))
     left = int(rng.integers(0, tex.shape[1] - width))
     crop = tex[top:top + height, left:left + width]
     return _blend(x, crop, blend_table(level))
+
+
+def scaled_crop(index: int, image_hw: tuple[int, int], scale: float, rng: np.random.Generator) -> np.ndarray:
+    """The H x W crop of texture ``index`` enlarged to :func:`scaled_size` at a severity
+    size's ``scale``, its offsets drawn as :func:`frost` draws them; only the crop is
+    resampled (bicubic, the resize's pixel-centre mapping): the enlarged texture of a
+    large frame would be several hundred MB per texture. RGB, read-only."""
+    height, width = image_hw
+    bgr = texture_bgr(index)
+    tw, th = scaled_size(bgr.shape[:2], image_hw, scale)
+    top = int(rng.integers(0, th - height))
+    left = int(rng.integers(0, tw - width))
+    sx, sy = bgr.shape[1] / tw, bgr.shape[0] / th
+    m = np.array([[sx, 0.0, (left + 0.5) * sx - 0.5], [0.0, sy, (top + 0.5) * sy - 0.5]])
+    crop = cv2.warpAffine(bgr, m, (width, height), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_REPLICATE)
+    return np.ascontiguousarray(crop[..., ::-1])

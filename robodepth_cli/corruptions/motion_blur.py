@@ -91,6 +91,10 @@ def _shift_sum(img, dys, dxs, ks, out):
     return out
 
 
+# More taps than any tabulated level has (41): only a severity size's longer streaks are split.
+LONG_TAPS = 64
+
+
 def shift_blur(img: np.ndarray, radius: int, sigma: float, angle: float) -> np.ndarray:
     """The benchmark's ``_motion_blur``: ``sum_i k_i * shift(img, dx_i, dy_i)`` over the
     taps of :func:`motion_taps`, where ``shift`` moves the image by ``dx`` columns and
@@ -98,32 +102,49 @@ def shift_blur(img: np.ndarray, radius: int, sigma: float, angle: float) -> np.n
     nearest row or column moved in.
 
     ``img`` is H x W or H x W x C of any real dtype; returns float32 of the same shape,
-    unclipped.
+    unclipped. A streak of more than :data:`LONG_TAPS` taps is applied as two shorter
+    ones (:func:`~._large.split_streak`): the shifts all lead one way, so the replicated
+    border of the first is the border of the whole.
     """
     src = np.ascontiguousarray(img)
     flat = src.ndim == 2
     if flat:
         src = src[..., None]
-    dys, dxs, ks = motion_taps(radius, sigma, angle, src.shape[:2])
-    out = _shift_sum(src, dys, dxs, ks, np.zeros(src.shape, np.float32))
+    taps = motion_taps(radius, sigma, angle, src.shape[:2])
+    if len(taps[2]) > LONG_TAPS:
+        from ._large import split_streak
+
+        first, second = split_streak(*taps)
+        src = _shift_sum(src, *first, np.zeros(src.shape, np.float32))
+        taps = second
+    out = _shift_sum(src, *taps, np.zeros(src.shape, np.float32))
     return out[..., 0] if flat else out
 
 
 RULES = (ROUND, LINEAR)
 
 
-@register(("radius", "sigma"), LEVELS, rules=RULES)
-def motion_blur(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
+def scaled_radius(radius: int, scale: float | None) -> int:
+    """A streak's radius in pixels at the severity size's ``scale``: rounded, halves up."""
+    return radius if scale is None else int(math.floor(radius * scale + 0.5))
+
+
+@register(("radius", "sigma"), LEVELS, rules=RULES, scaled=True)
+def motion_blur(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | None = None) -> np.ndarray:
     """:func:`shift_blur` of the 0..255 image with ``(radius, sigma)`` of the level and an
     angle drawn uniformly from [-45, 45) degrees; clipped to [0, 255] and truncated.
 
-    Size rule (as imagecorruptions-imaug 1.1.5): the radius is in pixels whatever the image
-    size (a 2048-wide frame is blurred over the same 21..41 pixels as a 640-wide one), and
-    the taps stop at the first shift that reaches the image's height or width, which only
-    matters for images smaller than the kernel (e.g. 37 x 53 at level 5).
+    Size rule: without a severity size (as imagecorruptions-imaug 1.1.5) the radius is in
+    pixels whatever the image size (a 2048-wide frame is blurred over the same 21..41
+    pixels as a 640-wide one); with one, ``radius`` (rounded, halves up) and ``sigma`` are
+    multiplied by its ``scale``. The taps stop at the first shift that reaches the image's
+    height or width, which only matters for images smaller than the kernel (e.g. 37 x 53
+    at level 5).
 
     Between integer levels: ``sigma`` linear; ``radius`` linear, rounded to the nearest
     integer (halves up). The angle is drawn the same way at every level."""
     radius, sigma = interpolate(LEVELS, level, RULES)
+    if scale is not None:
+        radius, sigma = scaled_radius(radius, scale), sigma * scale
     angle = rng.uniform(-45, 45)
     return truncate_to_uint8(shift_blur(x, radius, sigma, angle), 1.0)

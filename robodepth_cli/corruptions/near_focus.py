@@ -15,20 +15,29 @@ RADIUS = (3.0, 4.0, 6.0, 8.0, 10.0)
 FOCUS_PERCENTILE = 10.0  # focused on the depth nearer than 90 % of the pixels
 
 
-def focused(x: np.ndarray, depth: np.ndarray, level, percentile: float, table) -> np.ndarray:
+def width_scale(x: np.ndarray, scale: float | None) -> float:
+    """What the depth-aware corruptions' pixel parameters (tabulated at 640 pixels wide,
+    the width of both benchmarks' severity sizes) are multiplied by: ``W / 640``, or with
+    a severity size its ``scale``."""
+    return x.shape[1] / 640.0 if scale is None else scale
+
+
+def focused(x: np.ndarray, depth: np.ndarray, level, percentile: float, table,
+            scale: float | None = None) -> np.ndarray:
     """``x`` through the thin lens of :mod:`._lens` focused at ``percentile`` of the depth,
-    with the level's radius (of ``table``) scaled to the image width."""
-    radius = interpolate(table, level) * x.shape[1] / 640.0
+    with the level's radius (of ``table``) times :func:`width_scale`."""
+    radius = interpolate(table, level) * width_scale(x, scale)
     focus = float(np.percentile(depth, percentile))
     return round_to_uint8(lens_blur(x, depth, focus, radius))
 
 
-@register(("radius_px",), RADIUS, deterministic=True, depth=True)
-def near_focus(x: np.ndarray, depth: np.ndarray, level, rng: np.random.Generator) -> np.ndarray:
+@register(("radius_px",), RADIUS, deterministic=True, depth=True, scaled=True)
+def near_focus(x: np.ndarray, depth: np.ndarray, level, rng: np.random.Generator,
+               scale: float | None = None) -> np.ndarray:
     """Thin-lens defocus focused near: focal distance ``f`` = the 10th percentile of the
     depth; blur radius ``r(d) = R * min(1, |d - f| / d)`` pixels, ``R`` scaled by
-    ``W / 640``; rendered in depth layers back to front (no bleeding of a sharp object over
+    ``W / 640`` (with a severity size: by its scale); rendered in depth layers back to front (no bleeding of a sharp object over
     its blurred surroundings); rounded to the nearest level.
 
     Between integer levels: ``R`` linear."""
-    return focused(x, depth, level, FOCUS_PERCENTILE, RADIUS)
+    return focused(x, depth, level, FOCUS_PERCENTILE, RADIUS, scale)

@@ -31,6 +31,7 @@ class Corruption:
     fn: CorruptionFn
     doc: str
     needs_depth: bool = False  # fn(x, depth, level, rng): depth in metres, H x W float32
+    scaled: bool = False  # fn(..., scale=s) takes the severity size's factor (:mod:`.scaling`)
 
     @property
     def n_levels(self) -> int:
@@ -51,10 +52,12 @@ _REGISTRY: dict[str, Corruption] = {}
 
 
 def register(fields: Sequence[str], levels: Sequence, *, rules: Sequence[str] | None = None,
-             deterministic: bool = False, depth: bool = False):
+             deterministic: bool = False, depth: bool = False, scaled: bool = False):
     """Decorator: add a corruption function to the registry under its own name, which must
     be one of :data:`robodepth_cli.benchmarks.ALL_CORRUPTIONS`; ``depth`` marks one that
-    takes the scene's depth (:data:`~robodepth_cli.benchmarks.DEPTH_AWARE`). ``rules`` names, per field, how
+    takes the scene's depth (:data:`~robodepth_cli.benchmarks.DEPTH_AWARE`), ``scaled`` one
+    with spatial parameters, which takes the keyword ``scale`` (:mod:`.scaling`; None: the
+    parameters as tabulated). ``rules`` names, per field, how
     it is interpolated between integer levels (default: all ``linear``); the function
     itself applies them (through :func:`~.severity.interpolate`)."""
     rules = tuple(rules) if rules is not None else (LINEAR,) * len(fields)
@@ -79,6 +82,7 @@ def register(fields: Sequence[str], levels: Sequence, *, rules: Sequence[str] | 
             fn=fn,
             doc=(fn.__doc__ or "").strip(),
             needs_depth=depth,
+            scaled=scaled,
         )
         return fn
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._jit import njit
-from .motion_blur import shift_blur
+from .motion_blur import scaled_radius, shift_blur
 from .registry import register
 from .severity import LINEAR, ROUND, interpolate
 from .zoom_blur import linear_zoom, zoom_axis
@@ -83,16 +83,19 @@ def _blend(x, layer, beta, out):
 RULES = (LINEAR, LINEAR, LINEAR, LINEAR, ROUND, LINEAR, LINEAR)
 
 
-@register(("mu", "sigma", "z", "tau", "r", "s", "beta"), LEVELS, rules=RULES)
-def snow(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
+@register(("mu", "sigma", "z", "tau", "r", "s", "beta"), LEVELS, rules=RULES, scaled=True)
+def snow(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | None = None) -> np.ndarray:
     """On ``f = x / 255`` in float32: ``g = beta * f + (1 - beta) * max(f, gray(f) * 1.5 +
     0.5)`` with ``gray`` OpenCV's RGB-to-gray, then ``clip01(g + S + rot180(S))`` with ``S``
     the :func:`snow_layer` rounded to 1/255 and cropped to H x W, on every channel;
     truncated to uint8 (fused in :func:`_blend`).
 
-    Size rule (as imagecorruptions-imaug 1.1.5): the noise is drawn at the image size and
-    zoomed by the fixed factor ``z``, so flakes are ``z`` pixels wide at any size; the
-    blur's radius is fixed in pixels, its taps stop at the layer's border
+    Size rule: without a severity size (as imagecorruptions-imaug 1.1.5) the noise is
+    drawn at the image size and zoomed by the fixed factor ``z``, so flakes are ``z``
+    pixels wide at any size, and the blur's radius is fixed in pixels; with one, ``z``,
+    ``r`` (rounded, halves up) and ``s`` are multiplied by its ``scale``, so the flakes and
+    their streaks keep their share of the image (and the number of flakes stays that of
+    the severity size). The blur's taps stop at the layer's border
     (:func:`~.motion_blur.motion_taps`); the zoomed layer, ``round(ceil(H / z) * z)`` by
     ``round(ceil(W / z) * z)``, is at least H x W and is cropped to its top-left H x W.
 
@@ -100,6 +103,8 @@ def snow(x: np.ndarray, level: int, rng: np.random.Generator) -> np.ndarray:
     any other), ``tau``, ``s`` and ``beta`` linear; the blur radius ``r`` linear, rounded to
     the nearest integer (halves up)."""
     mu, sigma, z, tau, radius, s, beta = interpolate(LEVELS, level, RULES)
+    if scale is not None:
+        z, radius, s = z * scale, scaled_radius(radius, scale), s * scale
     h, w = x.shape[:2]
     layer = snow_layer((h, w), mu, sigma, z, tau, radius, s, rng)
     return _blend(x, layer[:h, :w], beta, np.empty_like(x))

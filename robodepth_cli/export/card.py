@@ -48,33 +48,55 @@ def _parameters(variants: list[str]) -> list[str]:
 
 def holdings(shards, rows: dict) -> dict[str, dict]:
     """What the export holds, per configuration (:class:`~.plan.Shard` s): its ``levels``,
-    ``seeds`` and ``engines`` (``numpy``, ``torch``; none for the clean images and the
-    ground truth), from the manifest ``rows`` of its files: every build request into the
+    ``seeds``, ``engines`` (``numpy``, ``torch``; none for the clean images and the
+    ground truth) and ``severity`` sizes (``HxW`` or ``none``, for the variants a severity
+    size changes), from the manifest ``rows`` of its files: every build request into the
     build counts, not only the last."""
     from ..output.layout import TORCH_FINGERPRINT
 
     held: dict[str, dict] = {}
     for s in shards:
-        h = held.setdefault(s.config, {"levels": set(), "seeds": set(), "engines": set()})
+        h = held.setdefault(s.config, {"levels": set(), "seeds": set(), "engines": set(),
+                                       "severity": set()})
+        scaled = s.config not in ("clean", GT_CONFIG) and _scaled(s.config)
         for item in s.items:
             if item.level is not None:
                 h["levels"].add(item.level)
             h["seeds"].add(item.seed)
             if s.config not in ("clean", GT_CONFIG):
-                torch = TORCH_FINGERPRINT in rows[item.output].params.split(";")
-                h["engines"].add("torch" if torch else "numpy")
+                params = rows[item.output].params.split(";")
+                h["engines"].add("torch" if TORCH_FINGERPRINT in params else "numpy")
+                if scaled:
+                    h["severity"].add(next((p[len(SEVERITY):] for p in params
+                                            if p.startswith(SEVERITY)), "none"))
     return {c: {k: sorted(v) for k, v in h.items()} for c, h in held.items()}
 
 
+SEVERITY = "severity_size="  # a scaled output's manifest params name its severity size
+
+
+def _scaled(config: str) -> bool:
+    """Whether the variant ``config`` (a corruption or a chain; a style: no) has a step
+    whose pixels a severity size changes."""
+    from ..corruptions import is_scaled
+    from ..errors import InvalidValueError
+
+    try:
+        return is_scaled(config)
+    except InvalidValueError:
+        return False
+
+
 def _held_lines(held: dict[str, dict]) -> list[str]:
-    """One line per configuration: its levels, seeds and engines."""
+    """One line per configuration: its levels, seeds, engines and severity sizes."""
     from ..keys import level_text
 
     lines = []
     for config, h in held.items():
         parts = [f"levels {', '.join(level_text(lv) for lv in h['levels'])}" if h["levels"] else "",
                  f"seed {', '.join(map(str, h['seeds']))}",
-                 f"{' and '.join(h['engines'])} engine" if h["engines"] else ""]
+                 f"{' and '.join(h['engines'])} engine" if h["engines"] else "",
+                 f"severity size {', '.join(h['severity'])}" if h.get("severity") else ""]
         lines.append(f"- `{config}`: " + "; ".join(p for p in parts if p))
     return lines
 
@@ -125,6 +147,10 @@ def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dic
         "",
         f"- robodepth {record.robodepth or 'unknown'} built it; robodepth {version} exported it.",
         f"- Size {'x'.join(map(str, size)) + ' (HxW)' if size else 'each image its own'}.",
+        "- Severity size (above, per configuration): `none` keeps each level's blur radii, "
+        "streaks and flakes at the tabulated pixels at any image size; `HxW` takes the "
+        "spatial parameters of an image of that size, scaled to each image by the square root "
+        "of the area ratio." if any(h.get("severity") for h in held.values()) else "",
         f"- Corruption parameters: the RoboDepth benchmark's, as robodepth {record.robodepth} "
         "states them (`robodepth list`); the build's whole configuration and command are in "
         "`robodepth/build.json`, and `robodepth/manifest.csv` lists every file with its sha256 "

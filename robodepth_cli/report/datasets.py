@@ -39,6 +39,7 @@ class Entry:
     sha256: str
     model: I.Model | None = None  # scored as its benchmark (kitti-c, nyudepth2-c, kitti-s)
     scores: S.Scores | None = None  # other datasets with corruption rows
+    severity_size: str = "none"  # the build's, as the results file records it
 
     def value(self, corruption: str | None, metric: str) -> float | None:
         """The clean row's error (``corruption`` None), or the corruption's mean over its
@@ -116,11 +117,15 @@ def load(paths: Sequence[Path], names: Sequence[str], keys: Sequence[tuple[str, 
     for n, p, k in zip(chosen, paths, keys):
         if k[0] in PUBLISHED:
             (model,) = I.load([p], [n], k[0])
-            entries.append(Entry(n, p, k, model.variants, model.sha256, model=model))
+            entries.append(Entry(n, p, k, model.variants, model.sha256, model=model,
+                                 severity_size=model.severity_size))
         else:
+            from ..corruptions.scaling import in_results
+
             text = R.read_text(p)
             _check(text, str(p))
-            entries.append(Entry(n, p, k, I._variant_rows(text), sha256_bytes(text.encode())))
+            entries.append(Entry(n, p, k, I._variant_rows(text), sha256_bytes(text.encode()),
+                                 severity_size=in_results(text)))
     if baseline is not None and baseline not in chosen:
         raise I.ReportError(f"--baseline {baseline!r}: no results file has that model name "
                             f"(the names: {', '.join(dict.fromkeys(chosen))})")
@@ -236,10 +241,18 @@ def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Sec
                             f"The clean images' {'AbsRel, δ1 and ' if metrics else ''}DEE "
                             f"on {sec.title}"
                             + ("; over its corruptions, mDEE and mRR" if scored else "") + what
-                            + ". Bold: best; underlined: second.",
+                            + ". Bold: best; underlined: second." + _mixed(entries),
                             cols, [I.Row(e.name, "yours", e.value(None, "dee"), source=str(e.path))
                                    for e in entries], values))
     return sec
+
+
+def _mixed(entries: Sequence[Entry]) -> str:
+    """The caption's sentence when ``entries`` were made at different severity sizes."""
+    from ..corruptions.scaling import mixed_note
+
+    note = mixed_note(e.severity_size for e in entries)
+    return f" {note}." if note else ""
 
 
 def _relabel(t: Table, label: str) -> Table:
@@ -267,7 +280,7 @@ def across(entries: Sequence[Entry]) -> Table:
         values.append(v)
     return Table("Across datasets", "across", "Each model's clean DEE on every dataset and, "
                  "where the dataset has corruptions, its mDEE (lower is better; n/a: no results "
-                 "there). Bold: best; underlined: second.", cols,
+                 "there). Bold: best; underlined: second." + _mixed(entries), cols,
                  [I.Row(m, "yours", None) for m in models], values)
 
 

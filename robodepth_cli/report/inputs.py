@@ -65,6 +65,7 @@ class Model:
     variants: list[dict] = field(default_factory=list)  # the CSV's rows, numbers as floats
     sha256: str = ""
     own_depth: str = ""  # a warning: judged on corruptions made from its own depth predictions
+    severity_size: str = "none"  # the build's, as the results file records it
 
 
 def model_names(paths: Sequence[Path], names: Sequence[str]) -> list[str]:
@@ -145,10 +146,11 @@ def load(paths: Sequence[Path], names: Sequence[str], benchmark: str) -> list[Mo
             if missing:
                 raise ReportError(missing)
             row = Row(name, "yours", res.clean, scores=S.score(res, bench), source=str(path))
+        from ..corruptions.scaling import in_results
         from ..evaluation.owndepth import warning
 
         out.append(Model(name, path, row, _variant_rows(text), sha256_bytes(text.encode()),
-                         warning(text, str(path))))
+                         warning(text, str(path)), in_results(text)))
     return out
 
 

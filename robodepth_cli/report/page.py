@@ -8,6 +8,7 @@ import re
 from dataclasses import dataclass
 from typing import Sequence
 
+from ..corruptions.scaling import mixed_note
 from .. import __version__
 from . import published as P
 from .tables import Table, bench_name, to_html
@@ -80,7 +81,7 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
     e = html.escape
     bname = bench_name(benchmark) if tables else "several datasets"
     names = ", ".join(dict.fromkeys([m.name for m in models]
-                                    + [n for *_, files in sections for n, _ in files]))
+                                    + [n for *_, files in sections for n, *_ in files]))
     n_files = len(models) + sum(len(files) for *_, files in sections)
     parts = ["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
              '<meta name="viewport" content="width=device-width, initial-scale=1">',
@@ -92,9 +93,7 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
              f'<p class="meta">Made by robodepth {e(__version__)} from {n_files} results '
              f"file{'s' if n_files != 1 else ''}. Your models are shaded; grey rows are the "
              "RoboDepth paper's published models, for context.</p>",
-             '<ul class="models">']
-    parts += _model_items(models)
-    parts.append("</ul>")
+             *_model_items(models)]
     if dataset:
         parts.append(f'<p class="meta">Dataset build: <code>{e(dataset["path"])}</code> '
                      f'({e(str(dataset["name"]))}, {dataset["images"]} images, seed '
@@ -117,7 +116,9 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
         parts.append(f"<h2>{e(title)}</h2>")
         if files:
             parts.append('<ul class="models">' + "".join(
-                f"<li><strong>{e(n)}</strong>: <code>{e(p)}</code></li>" for n, p in files) + "</ul>")
+                f"<li><strong>{e(n)}</strong>: <code>{e(p)}</code>"
+                + "".join(f", severity size {e(x)}" for x in more) + "</li>"
+                for n, p, *more in files) + "</ul>")
         parts += [to_html(t) for t in more]
     parts += ["<h2>How the scores are computed</h2>", f'<p class="note">{NOTES}</p>',
               '<p class="note">Published rows are scored from the paper\'s per-corruption DEE '
@@ -130,14 +131,20 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
 
 
 def _model_items(models: Sequence) -> list[str]:
-    """Each model's list item: its results file and clean DEE, and its warning if any."""
+    """The list of the models: each one's results file, clean DEE and severity size, and its
+    warning if any; then a note when their severity sizes differ."""
     e = html.escape
-    items = []
+    items = ['<ul class="models">']
     for m in models:
         clean = "" if m.row.clean is None else f", clean DEE {m.row.clean:.3f}"
-        items.append(f"<li><strong>{e(m.name)}</strong>: <code>{e(str(m.path))}</code>{clean}</li>")
+        items.append(f"<li><strong>{e(m.name)}</strong>: <code>{e(str(m.path))}</code>{clean}, "
+                     f"severity size {e(m.severity_size)}</li>")
         if getattr(m, "own_depth", ""):
             items.append(f'<li class="note">Warning: {e(m.own_depth)}.</li>')
+    items.append("</ul>")
+    mixed = mixed_note(m.severity_size for m in models)
+    if mixed:
+        items.append(f'<p class="note">{e(mixed)}.</p>')
     return items
 
 

@@ -239,7 +239,7 @@ def to_json(report: Report) -> dict:
     for m in report.models:
         r = m.row
         entry = {"model": m.name, "results": str(m.path), "results_sha256": m.sha256,
-                 "clean_dee": r.clean}
+                 "severity_size": m.severity_size, "clean_dee": r.clean}
         if report.note:
             entry["beyond_benchmark"] = r.scores.to_json()["beyond_benchmark"]
         elif r.scores is not None:
@@ -282,6 +282,7 @@ def _section_json(sec, report: Report) -> dict:
         scores = e.scores or (e.model.row.scores if e.model is not None else None)
         models.append({
             "model": e.name, "results": str(e.path), "results_sha256": e.sha256,
+            "severity_size": e.severity_size,
             "clean": {"dee": e.value(None, "dee"), "abs_rel": clean.get("abs_rel"), "a1": clean.get("a1")},
             "scores": None if scores is None or scores.note else {
                 "mce": scores.overall.ce if scores.baseline.name else None,
@@ -413,7 +414,8 @@ def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> l
     kinds = {r.kind for r in report.rows}
     if "published" not in kinds:
         context = "baseline" if "baseline" in kinds else "none"
-    extra = [(sec.title, sec.tables, [(e.name, str(e.path)) for e in report.entries if e.key == sec.key])
+    extra = [(sec.title, sec.tables, [(e.name, str(e.path), e.severity_size)
+                                      for e in report.entries if e.key == sec.key])
              for sec in report.sections]
     if report.flicker:
         extra.append(("Flicker", FL.tables(report.flicker, report.benchmark), []))

@@ -41,7 +41,9 @@ def settings(inputs: RunInputs, model, setup, batch: int, engine: str) -> dict:
             "keys": split_digest(inputs.keys), "size": list(cfg.size) if cfg.size else None,
             "seed": cfg.seed, "engine": engine, "batch": batch,
             "model": {k: record[k] for k in ("model", "adapter", "identity", "options", "evaluate")},
-            "setup": asdict(setup)}
+            "setup": asdict(setup),
+            # Only when set: a run's state from before the option stays valid.
+            **({"severity_size": sev} if (sev := cfg.extra.get("severity_size", "none")) != "none" else {})}
 
 
 def render_batch(renderer: Renderer, cleans: Sequence[np.ndarray], keys: Sequence[str],

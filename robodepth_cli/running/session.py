@@ -61,7 +61,9 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
         note(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
              f"{state.path} (finished by an earlier run)")
     replacing = out.exists()
-    text = result.csv_text()
+    from ..corruptions.scaling import with_column
+
+    text = with_column(result.csv_text(), cfg.extra.get("severity_size"))
     E.write_results(out, text)
     state.remove()
     return result, text, bench, replacing

@@ -221,8 +221,9 @@ class Dataset:
         return out
 
     def options(self) -> tuple[str, ...]:
-        """Config keys of this dataset beyond the common ones: the engine and its device."""
-        return ENGINE_OPTIONS + ("scene_depth",)
+        """Config keys of this dataset beyond the common ones: the engine and its device,
+        the depth of the depth-aware corruptions, the severity size."""
+        return ENGINE_OPTIONS + ("scene_depth", "severity_size")
 
     def check_option(self, key: str, value, base: Path):
         """The checked value of option ``key``; :class:`InvalidValueError` saying what is wrong.
@@ -231,6 +232,10 @@ class Dataset:
             from .predicted import check_option
 
             return check_option(value, base)
+        if key == "severity_size":  # kept as its text (build.json, the manifest, the card)
+            from ..corruptions.scaling import parse_severity_size, size_text
+
+            return size_text(parse_severity_size(value))
         if key in ENGINE_OPTIONS:
             choices = ENGINES if key == "engine" else DEVICES
             if value is not None and value not in choices:

@@ -24,7 +24,7 @@ class KittiC(torch.utils.data.Dataset):
     ``on_the_fly=False`` the images are read from ``root/<corruption>/<level>/<key>``
     (a chain: ``root/<chain directory name>/<key>``); with ``on_the_fly=True`` they are
     computed from ``root/clean/<key>`` with :class:`Corrupt` seeded as the build was (its
-    seed and dataset from ``build.json``), which gives the same pixels: only the clean
+    seed, dataset and severity size from ``build.json``), which gives the same pixels: only the clean
     images need to be on disk.
 
     An item is a dict: ``key`` (str), ``image`` (3 x H x W uint8 tensor, or whatever
@@ -55,7 +55,10 @@ class KittiC(torch.utils.data.Dataset):
         self._index = list(range(len(self.keys)))
         self.dataset = built.name
         self.seed = int(built.record.seed or 0)
-        self.corruption = Corrupt(corruption, level, seed=self.seed, dataset=self.dataset)
+        # The build's severity size too, so that on_the_fly gives the built pixels.
+        severity = ((built.record.config or {}).get("extra") or {}).get("severity_size")
+        self.corruption = Corrupt(corruption, level, seed=self.seed, dataset=self.dataset,
+                                  severity_size=severity)
         self.level = self.corruption.level
         self.on_the_fly = bool(on_the_fly)
         self.transform = transform

@@ -101,6 +101,24 @@ def _no_depth(variant: str) -> None:
                             f"rng, depth=...)")
 
 
+def _severity_size(value) -> tuple[int, int] | None:
+    """``severity_size=`` of a transform: ``(H, W)``, ``"HxW"`` or ``"none"``/None (see
+    :mod:`robodepth_cli.corruptions.scaling`)."""
+    from ..corruptions.scaling import parse_severity_size
+
+    try:
+        return parse_severity_size(value)
+    except InvalidValueError as exc:
+        raise TorchAPIError(f"severity_size: {exc}") from None
+
+
+def _batch_unscaled(t) -> None:
+    """A batch goes to the torch engine, which does not scale the levels yet."""
+    if t.severity_size is not None:
+        raise TorchAPIError("severity_size: a batch (N x 3 x H x W) is corrupted by the torch engine, "
+                            "which does not scale the levels yet; call the transform per image")
+
+
 # --- transforms ----------------------------------------------------------------------------
 
 class Corrupt:
@@ -115,6 +133,9 @@ class Corrupt:
         transform's own generator (``None``: fresh entropy in every process).
     dataset : the dataset whose seeding ``key=`` follows: ``"custom"`` (default),
         ``"kitti-c"`` or ``"nyudepth2-c"``.
+    severity_size : the size ``(H, W)`` (or ``"HxW"``) at which the level's spatial
+        parameters are defined, scaled to each image as ``--severity-size`` does (a build's
+        pixels need the build's); None (default): as tabulated. Images only, not batches.
 
     Calling it with a PIL image, an H x W x 3 uint8 array or a 3 x H x W tensor (uint8, or
     floating point in [0, 1], rounded to uint8 levels first) returns the same type.
@@ -128,7 +149,8 @@ class Corrupt:
     ``i`` with ``key[i]`` when ``key`` is a sequence of keys (see :mod:`.batch`).
     """
 
-    def __init__(self, name: str, level=None, seed: int | None = 0, dataset: str = "custom"):
+    def __init__(self, name: str, level=None, seed: int | None = 0, dataset: str = "custom",
+                 severity_size=None):
         from ..corruptions.chains import ChainError, looks_like_chain, parse_chain
 
         if looks_like_chain(name):
@@ -142,6 +164,7 @@ class Corrupt:
             self.chain = None
             self.name, self.level = _check(name, level)
         self.dataset = str(dataset)
+        self.severity_size = _severity_size(severity_size)
         self._gen = _ProcessGenerator(seed)
 
     @property
@@ -158,16 +181,18 @@ class Corrupt:
 
     def _apply(self, arr: np.ndarray, key: str | None) -> np.ndarray:
         if self.chain is None:
-            return corruptions.corrupt(arr, self.name, self.level, self.rng_for(key))
+            return corruptions.corrupt(arr, self.name, self.level, self.rng_for(key),
+                                       severity_size=self.severity_size)
         if key is None:
             rngs = [self._gen.get()] * len(self.chain.steps)
         else:
             self.rng_for(key)  # the same refusal without a seed
             rngs = seeding.chain_rngs(self.seed, self.dataset, self.chain, seed_key(self.dataset, key))
-        return corruptions.corrupt_chain(arr, self.chain, rngs)
+        return corruptions.corrupt_chain(arr, self.chain, rngs, severity_size=self.severity_size)
 
     def __call__(self, img, key: str | None = None):
         if transforms_batch.is_batch(img):  # key: one per item, or None
+            _batch_unscaled(self)
             return transforms_batch.corrupt(self, img, key)
         arr, back = _to_array(img)
         try:
@@ -188,6 +213,7 @@ class RandomCorrupt:
     All draws (whether to corrupt, which corruption and level, the corruption's own
     randomness) come from one generator per process seeded from ``seed``
     (``None``: fresh entropy). Defaults: all 18 corruptions, levels 1 to 5.
+    ``severity_size`` as :class:`Corrupt` takes it.
 
     ``t(batch, keys=None, epoch=0)`` on an ``N x 3 x H x W`` batch returns ``(batch,
     applied)``, ``applied[i]`` the ``name:level`` item ``i`` got or ``""``; with ``keys`` each
@@ -195,7 +221,7 @@ class RandomCorrupt:
     """
 
     def __init__(self, names: Sequence[str] | None = None, levels: Sequence[int] | None = None,
-                 p: float = 0.5, seed: int | None = None):
+                 p: float = 0.5, seed: int | None = None, severity_size=None):
         names = tuple(corruptions.NAMES if names is None else names)
         levels = tuple(range(1, 6) if levels is None else levels)
         if not names or not levels:
@@ -206,10 +232,12 @@ class RandomCorrupt:
         if not 0.0 <= float(p) <= 1.0:
             raise TorchAPIError(f"p must be in [0, 1], got {p!r}")
         self.names, self.levels, self.p = names, tuple(_check(names[0], lv)[1] for lv in levels), float(p)
+        self.severity_size = _severity_size(severity_size)
         self._gen = _ProcessGenerator(seed)
 
     def __call__(self, img, keys=None, epoch: int = 0):
         if transforms_batch.is_batch(img):
+            _batch_unscaled(self)
             return transforms_batch.random_corrupt(self, img, keys, int(epoch))
         if keys is not None:
             raise TorchAPIError("keys= is for a batch (an N x 3 x H x W tensor), one key per item")
@@ -219,7 +247,7 @@ class RandomCorrupt:
         name = self.names[rng.integers(len(self.names))]
         level = self.levels[rng.integers(len(self.levels))]
         arr, back = _to_array(img)
-        return back(corruptions.corrupt(arr, name, level, rng))
+        return back(corruptions.corrupt(arr, name, level, rng, severity_size=self.severity_size))
 
     def __repr__(self) -> str:
         return f"RandomCorrupt(names={list(self.names)}, levels={list(self.levels)}, p={self.p})"
@@ -241,6 +269,7 @@ class RandomChain:
     p : probability of applying a chain at all (default 1); otherwise the image is returned
         unchanged with the empty chain ``""``.
     seed : an integer >= 0.
+    severity_size : as :class:`Corrupt` takes it.
 
     ``t(img, key, epoch=None)`` returns ``(image, chain)``: the corrupted image (same type
     as ``img``, see :class:`Corrupt`) and the canonical text of the chain applied
@@ -260,7 +289,7 @@ class RandomChain:
     """
 
     def __init__(self, names: Sequence[str] | None = None, steps=(1, 3), severity=(1.0, 5.0),
-                 distinct: bool = True, p: float = 1.0, seed: int = 0):
+                 distinct: bool = True, p: float = 1.0, seed: int = 0, severity_size=None):
         from ..corruptions.chains import MAX_STEPS
 
         self.names = tuple(corruptions.NAMES if names is None else names)
@@ -286,6 +315,7 @@ class RandomChain:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise TorchAPIError(f"seed must be an integer >= 0, got {seed!r}")
         self.seed = int(seed)
+        self.severity_size = _severity_size(severity_size)
         # Shared memory, not an int: persistent DataLoader workers keep the copy they got
         # when they started, and an int there would stay at that epoch for ever.
         self._shared_epoch = torch.zeros((), dtype=torch.int64).share_memory_()
@@ -350,13 +380,14 @@ class RandomChain:
 
     def __call__(self, img, key, epoch: int | None = None):
         if transforms_batch.is_batch(img):  # key: one per item
+            _batch_unscaled(self)
             return transforms_batch.random_chain(self, img, key, epoch)
         chain = self.draw(key, epoch)
         if chain is None:
             return img, ""
         arr, back = _to_array(img)
         rngs = seeding.chain_rngs(self.seed, f"random-chain epoch {self._epoch(epoch)}", chain, str(key))
-        return back(corruptions.corrupt_chain(arr, chain, rngs)), chain.text
+        return back(corruptions.corrupt_chain(arr, chain, rngs, severity_size=self.severity_size)), chain.text
 
     def __repr__(self) -> str:
         return (f"RandomChain(names={list(self.names)}, steps={self.steps}, p={self.p}, "

@@ -1,0 +1,98 @@
+"""The severity size: the image size at which the levels' spatial parameters are defined.
+
+The benchmark's levels were tuned at 192 x 640 (KITTI-C) and 480 x 640 (NYUDepth2-C). With a
+severity size ``H0 x W0``, every spatial parameter of a corruption (a blur radius, a streak,
+a displacement, a flake, a block, a texture's grain, a fractal's features) is multiplied by
+
+    ``s = sqrt((H * W) / (H0 * W0))``
+
+for an ``H x W`` image: the square root of the area ratio, so that a blur covers the same
+share of the image's area whatever its size and aspect ratio. At the severity size itself
+``s`` is exactly 1 and the output is that of the levels as tabulated, byte for byte. Without
+a severity size (``none``) the parameters are used as tabulated at any size: the benchmark's
+behaviour. Per-pixel corruptions (noise, JPEG's 8 x 8 codec blocks, brightness, contrast,
+dark, colour quantisation) have nothing to scale.
+
+This module is light (no engine imports): the configuration and the CLI parse the option here.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import InvalidValueError
+
+NONE = "none"
+KITTI = (192, 640)  # the size KITTI-C's levels were tuned at
+NYU = (480, 640)  # NYUDepth2-C's
+
+def parse_severity_size(value) -> tuple[int, int] | None:
+    """``value`` (``none``, ``HxW`` text, an ``[H, W]`` pair, or None) as ``(H, W)``, or None
+    for ``none``; :class:`InvalidValueError` saying what is wrong otherwise (the caller
+    names the flag or key)."""
+    from ..imageio import parse_size
+
+    if value is None or (isinstance(value, str) and value.strip().lower() == NONE):
+        return None
+    if isinstance(value, (list, tuple)) and len(value) == 2:
+        value = f"{value[0]}x{value[1]}"
+    if not isinstance(value, str):
+        raise InvalidValueError(f"expected HxW such as 192x640, or none, got {value!r}")
+    return parse_size(value)
+
+
+def size_text(size: tuple[int, int] | None) -> str:
+    """``192x640``, or ``none`` for no severity size: how build.json, the manifest's params,
+    the dataset card and the report write it."""
+    return NONE if size is None else f"{size[0]}x{size[1]}"
+
+
+def scale_factor(shape: tuple[int, int], size: tuple[int, int] | None) -> float | None:
+    """The factor ``s`` by which an image of ``shape`` (H, W) scales the spatial parameters
+    defined at severity size ``size``: ``sqrt(H W / (H0 W0))``; None without a severity
+    size (the parameters as tabulated)."""
+    if size is None:
+        return None
+    h, w = shape[:2]
+    return math.sqrt((h * w) / (size[0] * size[1]))
+
+
+# A results CSV made on a build with a severity size has a last column saying so on every
+# row (a text column, which every reader of results takes); one without it was made with
+# none, or before the option.
+COLUMN = "severity_size"
+
+
+def with_column(text: str, size: str | None) -> str:
+    """The results CSV ``text`` with the column :data:`COLUMN` of ``size`` (a build's
+    ``severity_size`` text) added to every row; unchanged for none (the CSV stays as it
+    always was)."""
+    if size in (None, NONE):
+        return text
+    lines = text.splitlines()
+    out = [f"{lines[0]},{COLUMN}"] + [f"{line},{size}" for line in lines[1:] if line]
+    return "\n".join(out) + "\n"
+
+
+def in_results(text: str) -> str:
+    """The severity size a results CSV (its ``text``) was made at: its :data:`COLUMN`'s
+    first value, else ``none``."""
+    import csv
+    import io
+
+    rows = csv.reader(line for line in io.StringIO(text) if line.strip() and not line.lstrip().startswith("#"))
+    header = [c.strip().lower() for c in next(rows, [])]
+    if COLUMN not in header:
+        return NONE
+    first = next(rows, None)
+    return first[header.index(COLUMN)].strip() if first and len(first) > header.index(COLUMN) else NONE
+
+
+def mixed_note(sizes) -> str:
+    """One line when results made at different severity sizes meet in one table; ""
+    otherwise."""
+    distinct = sorted(set(sizes))
+    if len(distinct) < 2:
+        return ""
+    return (f"These results were made at different severity sizes ({', '.join(distinct)}): a level "
+            "is not the same corruption across them")
