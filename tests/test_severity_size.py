@@ -288,17 +288,26 @@ def test_a_bad_severity_size_is_refused_naming_the_flag(cli, fixtures_dir, tmp_p
 
 
 def test_the_dataset_card_states_the_severity_size():
+    """Each configuration's severity sizes come from the manifest rows of its files (two build
+    requests into one build can differ), not from the last request's build.json."""
     from types import SimpleNamespace
 
-    from robodepth_cli.export.card import card
+    from robodepth_cli.export.card import card, holdings
 
-    def record(extra):
-        return SimpleNamespace(dataset="custom", keys=["a.png"], seed=0, robodepth="x", command=[],
-                               config={"levels": [3], "size": None, "extra": extra})
+    record = SimpleNamespace(dataset="custom", keys=["a.png", "b.png"], seed=0, robodepth="x",
+                             command=[], config={"levels": [3], "size": None, "extra": {}})
 
-    shards = [{"config": "defocus_blur", "split": "level_3"}]
-    assert "Severity size: 192x640 (HxW)" in card(record({"severity_size": "192x640"}), shards, "parquet", "x")
-    assert "Severity size: none" in card(record({}), shards, "parquet", "x")
+    def text(*params):
+        items = [SimpleNamespace(level=3, seed=0, output=f"defocus_blur/3/{k}") for k in ("a.png", "b.png")]
+        rows = {i.output: SimpleNamespace(params=p) for i, p in zip(items, params)}
+        held = holdings([SimpleNamespace(config="defocus_blur", items=items)], rows)
+        return card(record, [{"config": "defocus_blur", "split": "level_3"}], "parquet", "x", held)
+
+    assert "- `defocus_blur`: levels 3; seed 0; numpy engine; severity size 192x640\n" in text(
+        "severity_size=192x640", "severity_size=192x640")
+    assert "- `defocus_blur`: levels 3; seed 0; numpy engine; severity size none\n" in text("", "")
+    assert "severity size 192x640, none" in text("severity_size=192x640", "")
+    assert "square root of the area ratio" in text("", "")
 
 
 def test_the_report_names_each_files_severity_size_and_a_mixed_table_says_so(tmp_path, cli):
