@@ -344,13 +344,16 @@ def remap_reflect(x: np.ndarray, coords: np.ndarray) -> np.ndarray:
 _COEF_BITS = 11  # OpenCV's INTER_RESIZE_COEF_BITS: coefficients in units of 1/2048
 
 
-def _cubic_taps(n_src: int, n_dst: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per output position along one axis, the four source indices (clamped: replicated
-    border) and OpenCV's fixed-point cubic weights (A = -0.75), computed as OpenCV does in
-    float32: ``f = float32((d + 0.5) * scale - 0.5)``, ``s = floor(f)``, ``t = f - s``,
-    weights rounded half to even after scaling by 2048, the last ``1 - w0 - w1 - w2``."""
+def _cubic_taps(n_src: int, n_dst: int, start: int = 0, count: int | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Per output position ``d`` along one axis (``start .. start + count``; all by
+    default), the four source indices (clamped: replicated border) and OpenCV's fixed-point
+    cubic weights (A = -0.75), computed as OpenCV does in float32:
+    ``f = float32((d + 0.5) * scale - 0.5)``, ``s = floor(f)``, ``t = f - s``, weights
+    rounded half to even after scaling by 2048, the last ``1 - w0 - w1 - w2``."""
     scale = 1.0 / (n_dst / n_src)
-    f = ((np.arange(n_dst, dtype=np.float64) + 0.5) * scale - 0.5).astype(np.float32)
+    d = np.arange(start, start + (n_dst - start if count is None else count), dtype=np.float64)
+    f = ((d + 0.5) * scale - 0.5).astype(np.float32)
     s = np.floor(f)
     t = f - s
     one, a = np.float32(1), np.float32(-0.75)
@@ -390,16 +393,19 @@ def _cubic_columns(rows, yi, yw, shift, out):
             line[q] = min(max(v, 0), 255)
 
 
-def resize_cubic(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+def resize_cubic(img: np.ndarray, size: tuple[int, int],
+                 window: tuple[int, int, int, int] | None = None) -> np.ndarray:
     """``cv2.resize(img, size, interpolation=INTER_CUBIC)`` of uint8 ``img`` (H x W x C) to
     ``size`` = (width, height) by OpenCV's reference fixed-point formula, in exact integer
     arithmetic: rows of 4 taps weighted in 1/2048, then columns likewise, the sum rounded
-    (``+ 2^21 >> 22``) and saturated to 0..255."""
+    (``+ 2^21 >> 22``) and saturated to 0..255. ``window`` = (top, left, height, width):
+    only that part of the resized image (the same bytes as cropping the whole one)."""
     (w_out, h_out), (h, w, ch) = size, img.shape
-    xi, xw = _cubic_taps(w, w_out)
-    yi, yw = _cubic_taps(h, h_out)
-    rows = np.empty((h, w_out, ch), np.int64)
+    top, left, rows_out, cols_out = window or (0, 0, h_out, w_out)
+    xi, xw = _cubic_taps(w, w_out, left, cols_out)
+    yi, yw = _cubic_taps(h, h_out, top, rows_out)
+    rows = np.empty((h, cols_out, ch), np.int64)
     _cubic_rows(np.ascontiguousarray(img), xi, xw, rows)
-    out = np.empty((h_out, w_out, ch), np.uint8)
-    _cubic_columns(rows.reshape(h, -1), yi, yw, 2 * _COEF_BITS, out.reshape(h_out, -1))
+    out = np.empty((rows_out, cols_out, ch), np.uint8)
+    _cubic_columns(rows.reshape(h, -1), yi, yw, 2 * _COEF_BITS, out.reshape(rows_out, -1))
     return out

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import cv2
+import math
 import numpy as np
 
 from ._jit import njit
@@ -116,13 +116,20 @@ def fog_map(shape: tuple[int, int], decay: float, rng: np.random.Generator, scal
     """The H x W plasma of fog for an image of ``shape``: the top-left of a
     :func:`plasma_fractal` of side the smallest power of two >= max(H, W); with a severity
     size's ``scale``, that of the image at the severity size (``round(H / scale)`` x
-    ``round(W / scale)``) resized to H x W (bilinear; area when shrinking)."""
+    ``round(W / scale)``) resized to H x W: linear interpolation between pixel centres
+    (SciPy ``ndimage.zoom``, order 1, edges replicated), after a box average over
+    ``ceil(1 / scale)`` pixels when shrinking. SciPy's ndimage has no CPU-dependent code
+    path, so the map is the same on any CPU."""
     height, width = shape
     if scale is not None:
+        from scipy import ndimage
+
         h0, w0 = max(round(height / scale), 1), max(round(width / scale), 1)
         small = plasma_fractal(next_power_of_two(max(h0, w0, 2)), decay, rng, (h0, w0))
-        how = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
-        return cv2.resize(small, (width, height), interpolation=how)
+        if scale < 1:
+            small = ndimage.uniform_filter(small, size=math.ceil(1 / scale), mode="nearest")
+        out = ndimage.zoom(small, (height / h0, width / w0), order=1, mode="nearest", grid_mode=True)
+        return np.ascontiguousarray(out[:height, :width], dtype=np.float32)
     return plasma_fractal(next_power_of_two(max(height, width)), decay, rng, (height, width))
 
 

@@ -158,15 +158,13 @@ def frost(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | No
 def scaled_crop(index: int, image_hw: tuple[int, int], scale: float, rng: np.random.Generator) -> np.ndarray:
     """The H x W crop of texture ``index`` enlarged to :func:`scaled_size` at a severity
     size's ``scale``, its offsets drawn as :func:`frost` draws them; only the crop is
-    resampled (bicubic, the resize's pixel-centre mapping): the enlarged texture of a
+    resampled (:func:`~._exact.resize_cubic` of that window: the same bytes as the crop of
+    the whole enlarged texture, on any CPU): the enlarged texture of a
     large frame would be several hundred MB per texture. RGB, read-only."""
     height, width = image_hw
     bgr = texture_bgr(index)
     tw, th = scaled_size(bgr.shape[:2], image_hw, scale)
     top = int(rng.integers(0, th - height))
     left = int(rng.integers(0, tw - width))
-    sx, sy = bgr.shape[1] / tw, bgr.shape[0] / th
-    m = np.array([[sx, 0.0, (left + 0.5) * sx - 0.5], [0.0, sy, (top + 0.5) * sy - 0.5]])
-    crop = cv2.warpAffine(bgr, m, (width, height), flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP,
-                          borderMode=cv2.BORDER_REPLICATE)
+    crop = resize_cubic(bgr, (tw, th), (top, left, height, width))
     return np.ascontiguousarray(crop[..., ::-1])
