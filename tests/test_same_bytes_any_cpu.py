@@ -1,6 +1,6 @@
 """The same output bytes whichever SIMD code the libraries take: small builds (every
 corruption at every level and a decimal one, chains, the depth-aware ones at an odd size,
-the corruptions over time) in subprocesses with OpenCV's, IPP's, numpy's, numba's and
+the corruptions over time, a severity size) in subprocesses with OpenCV's, IPP's, numpy's, numba's and
 libjpeg-turbo's CPU-dependent paths switched off, one at a time and all together, stand in
 for older or other CPUs; every manifest must equal the plain run's."""
 
@@ -78,6 +78,11 @@ def builds(roots, out):
            "--size", "33x49", "--frames", "-1,1", "--no-gt", "--levels", "1,3,5,2.5",
            "--corruptions", f"{OVER_TIME},defocus_blur,elastic_transform,glass_blur,frost",
            "--out", out / "frames", *common)
+    # A severity size far below the image size: the scaled parameters' long kernels and
+    # resampled textures and maps (a custom build's default is scaled too).
+    yield ("build", "custom", "--root", kitti / "2011_09_26/2011_09_26_drive_0002_sync/image_02/data",
+           "--limit", "1", "--size", "200x667", "--severity-size", "48x160", "--corruptions", EIGHTEEN,
+           "--levels", "3,5", "--out", out / "scaled", *common)
 
 
 # A child process: the corruptions whose library calls took CPU-dependent paths, at every
@@ -132,6 +137,7 @@ def test_the_plain_builds_cover_every_kind_of_variant(plain):
     names = set(f"{EIGHTEEN},{DEPTH_AWARE},{OVER_TIME}".split(","))
     assert names <= variants and {"clean", "defocus_blur-2.5+frost-1"} <= variants
     assert any("/2.5/" in key for key in plain)
+    assert sum(key.startswith("scaled:") and "/5/" in key for key in plain) == 18
     assert all(len(h) == 64 for h in plain.values())
     assert sum(":" not in key for key in plain) == 3 * 6 * 6  # the full-size child's variants
 
