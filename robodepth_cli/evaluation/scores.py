@@ -55,7 +55,7 @@ class Scores:
     note: str = ""  # why there is no mCE, mRR or mDEE (rows beyond the benchmark only)
 
     def to_json(self) -> dict:
-        """The JSON form; keys are documented in docs/evaluation.md and stay stable. A results file
+        """The JSON form; keys are documented in docs/score.md and stay stable. A results file
         with rows beyond the benchmark adds ``beyond_benchmark``."""
         doc = {
             "benchmark": self.benchmark,
