@@ -4,10 +4,10 @@ PIP ?= $(PYTHON) -m pip
 # build and its nvidia-* wheels. For the CPU-only build, set it to the CPU index URL that
 # PyTorch's "Get started" page gives for pip: make install TORCH_INDEX=<that URL>
 TORCH_INDEX ?=
-# The browser the report's browser test drives (tests/test_report_browser.py).
+# The browser the report's browser test drives (tests/report/test_report_browser.py).
 CHROMIUM ?= chromium
 
-.PHONY: install test bench demo
+.PHONY: install test test-fast bench demo
 
 install:
 	$(PIP) install $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX) )torch==2.13.0
@@ -26,6 +26,11 @@ install:
 test:
 	$(PYTHON) -m ruff check .
 	$(PYTHON) -m pytest -q
+
+# The inner loop: everything but the tests marked slow (long end-to-end runs).
+test-fast:
+	$(PYTHON) -m ruff check .
+	$(PYTHON) -m pytest -q -m "not slow"
 
 bench:
 	$(PYTHON) -m bench.run

@@ -113,6 +113,7 @@ def test_full_dataset_job_counts(splits_dir):
         assert len(entries) * (len(jobs) - 1) == n_corrupted
 
 
+@pytest.mark.slow
 def test_jobs_1_and_2_give_identical_trees(kitti, tmp_path, build_kitti):
     root, split = kitti
     flags = ["--size", "64x96", "--corruptions", "gaussian_noise,impulse_noise,shot_noise,pixelate",

@@ -8,6 +8,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 from PIL import Image
 from scipy.ndimage import distance_transform_edt
 
@@ -53,6 +54,7 @@ def test_nyu_build_uses_its_own_ground_truth(tmp_path, cli):
     assert again.exit_code == 0 and "0 written" in again.output, again.output
 
 
+@pytest.mark.slow
 def test_kitti_build_densifies_the_velodyne_at_the_output_size(tmp_path, cli):
     root, out = fixture_kitti_with_scans(tmp_path), tmp_path / "k"
     res = cli("build", "kitti-c", "--root", root, "--split", FIXTURES / "kitti_split.txt", "--out", out,

@@ -324,6 +324,7 @@ def test_lock_taken_again_if_its_file_was_removed_meanwhile(tmp_path, monkeypatc
 
 # --- KITTI-S -------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_kitti_s_rerun_with_nothing_to_do_computes_no_style_statistics(tmp_path, fixtures_dir, cli,
                                                                      monkeypatch):
     from tests.helpers.adain import save_checkpoints

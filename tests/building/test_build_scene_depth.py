@@ -118,6 +118,7 @@ def _predict(cli, tmp_path, out, pred, fn, *flags):
     assert res.exit_code == 0, res.output
 
 
+@pytest.mark.slow
 def test_scene_depth_from_metric_predictions_and_the_own_depth_warning(tmp_path, cli):
     img, depth = folder(tmp_path, {"a": np.full((H, W), 12.0, np.float32)})
     first, second = tmp_path / "first", tmp_path / "second"

@@ -67,6 +67,7 @@ def test_kitti_c_torch_build_matches_the_numpy_build(kitti, tmp_path, build_kitt
     assert cli("verify", out).exit_code == 0
 
 
+@pytest.mark.slow
 def test_nyu_and_custom_torch_builds_match_the_numpy_builds(tmp_path, cli):
     nyu = tmp_path / "nyu"
     split = nyu_tree(nyu, ["bathroom/rgb_00045.jpg", "kitchen/rgb_00046.jpg"], size=(48, 64))

@@ -18,6 +18,9 @@ from tests.helpers.imports import imported_by_command
 from tests.helpers.manifest import manifest_rows
 from tests.helpers.trees import kitti_tree, random_image, save, tree
 
+# Every test here is a long end-to-end run (make test-fast leaves them out).
+pytestmark = pytest.mark.slow
+
 CHEAP = ["--corruptions", "brightness,gaussian_noise,zoom_blur", "--levels", "1,3", "--size", "48x160"]
 SLOWER = ["--corruptions", "contrast,gaussian_noise,zoom_blur,motion_blur", "--levels", "2,4",
           "--size", "96x320"]

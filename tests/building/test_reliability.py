@@ -34,9 +34,10 @@ from robodepth_cli.building import gather
 from robodepth_cli.output import manifest, record as build_record
 
 from tests.helpers.messages import one_line_error
+from tests.helpers.paths import REPO
 from tests.helpers.trees import KITTI_DRIVE, kitti_key, kitti_tree, random_image, save, tree
 
-PACKAGE = Path(__file__).resolve().parents[1] / "robodepth_cli"
+PACKAGE = REPO / "robodepth_cli"
 CLI = [sys.executable, "-m", "robodepth_cli.cli"]
 SMALL = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1", "--jobs", "1"]
 
@@ -408,6 +409,7 @@ def test_read_only_output_file_system(kitti, tmp_path, mount_point, build_kitti)
     one_line_error(res, start=f"{mount_point / 'out'}: cannot write the output directory (Read-only file system)")
 
 
+@pytest.mark.slow
 def test_full_disk_midway_keeps_only_complete_images_and_resumes(big, reference, tmp_path,
                                                                  mount_point, cli, build_kitti):
     """A build onto a real, too-small file system (tmpfs), with the default pool of workers."""
@@ -599,6 +601,7 @@ def completed_rows(out: Path) -> int:
     return sum(1 for r in manifest.read_recorded(out).values() if not r.error)
 
 
+@pytest.mark.slow
 def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference, tmp_path,
                                                                  processes, cli):
     out = tmp_path / "out"
@@ -623,6 +626,7 @@ def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference,
     assert (out / "manifest.csv").read_bytes() == reference[1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [
     signal.SIGINT,   # what Ctrl-C in a terminal does: the whole group
     signal.SIGTERM,  # what a batch scheduler sends at the end of a job's time
@@ -651,6 +655,7 @@ def test_ctrl_c_stops_cleanly_and_the_rerun_completes(big, reference, tmp_path, 
     assert tree(out) == reference[0]
 
 
+@pytest.mark.slow
 def test_second_build_into_the_same_out_is_refused_while_one_runs(big, reference, tmp_path,
                                                                   processes, cli):
     out = tmp_path / "out"

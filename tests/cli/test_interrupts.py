@@ -128,6 +128,7 @@ CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
 @pytest.mark.parametrize("name, where, nth, args, kept, absent", CASES, ids=[c[0] for c in CASES])
 def test_every_command_stops_cleanly(inputs, tmp_path, sig, name, where, nth, args, kept, absent):
@@ -175,6 +176,7 @@ WRITTEN = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, args, output", WRITTEN, ids=[c[0] for c in WRITTEN])
 def test_an_interrupt_after_the_output_is_written_says_so(inputs, tmp_path, name, args, output):
     out = tmp_path / "out"

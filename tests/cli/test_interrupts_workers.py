@@ -23,6 +23,9 @@ from tests.helpers.gt_trees import write_tree
 from tests.helpers.signals import signal_when_ready
 from tests.helpers.trees import kitti_tree
 
+# Every test here is a long end-to-end run (make test-fast leaves them out).
+pytestmark = pytest.mark.slow
+
 STOP_AT = """
 import multiprocessing, signal, sys, threading, time
 # A shell that starts the suite in the background leaves SIGINT ignored in its children; a

@@ -163,6 +163,7 @@ class _Drawn(torch.utils.data.Dataset):
         return self.t.draw(i).text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("context,workers", [("fork", 2), ("spawn", 1)])
 def test_random_chain_set_epoch_reaches_persistent_workers(context, workers):
     from robodepth_cli.torch import RandomChain

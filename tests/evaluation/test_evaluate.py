@@ -624,6 +624,7 @@ def _blocks(path, heading):
             re.findall(r"```sh\n(.*?)```", section, re.S))
 
 
+@pytest.mark.slow
 def test_readme_loop_runs(kitti_c, tmp_path, monkeypatch, cli):
     """The README's loop, its predict and evaluate commands exactly as printed, with a
     random-weight monodepth2 checkpoint where the README's model folder is."""
@@ -805,6 +806,7 @@ def test_builds_carry_ground_truth_that_evaluate_reads(fixtures_dir, tmp_path, c
         assert float(r["abs_rel"]) < 1e-6 and float(r["a1"]) == 1.0 and abs(float(r["silog"])) < 1e-3
 
 
+@pytest.mark.slow
 def test_kitti_s_styles(fixtures_dir, kitti_c, tmp_path, cli):
     """KITTI-S: one row per style (level 0, like the clean row), the kitti protocol; no
     robustness scores exist for it, so --score is refused before any work."""

@@ -118,6 +118,7 @@ def chains_only(fixtures_dir, tmp_path_factory, cli):
     return out, pred, tmp
 
 
+@pytest.mark.slow
 def test_chains_only_build_is_evaluated_and_scored(chains_only, cli):
     """evaluate --score and score show the metrics and every chain's DEE, with a note
     saying why there is no mCE; nothing is refused (issue 26 item 9)."""

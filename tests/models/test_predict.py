@@ -108,6 +108,7 @@ def reference_disp(enc, dec, images, post_process=False):
     return rm * d + lm * m + (1 - lm - rm) * (d + m) / 2
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("layers,post", [(18, False), (50, False), (18, True)])
 def test_monodepth2_matches_an_independent_forward_pass(dataset, tmp_path, cli, layers, post):
     enc, dec = random_monodepth2(tmp_path / "model", layers, seed=layers)
@@ -130,6 +131,7 @@ def test_monodepth2_matches_an_independent_forward_pass(dataset, tmp_path, cli, 
     assert record["options"] == {"post_process": post}
 
 
+@pytest.mark.slow
 def test_post_process_mirrors(dataset, tmp_path, cli):
     """Flip averaging is symmetric: a mirrored image gets the mirrored map."""
     from robodepth_cli.models import load_model
@@ -196,6 +198,7 @@ def reference_hf(folder, images):
     return F.interpolate(depth[:, None], size=(h, w), mode="bicubic", align_corners=False)[:, 0].numpy()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["dpt", "depth_anything"])
 def test_transformers_models(dataset, tmp_path, cli, which):
     folder = tmp_path / which
@@ -420,6 +423,7 @@ def test_predict_modules_import_no_heavy_library():
 
 # --------------------------------------------------------------------------- the loop
 
+@pytest.mark.slow
 def test_build_predict_evaluate_score(dataset, tmp_path, cli, user_module):
     """evaluate takes its defaults from PRED/predictions.json: the same numbers as with the
     flags given by hand; then score reads the CSV."""
@@ -448,6 +452,7 @@ def test_build_predict_evaluate_score(dataset, tmp_path, cli, user_module):
     assert (tmp_path / "a.csv").read_text() != (tmp_path / "c.csv").read_text()
 
 
+@pytest.mark.slow
 def test_relative_model_evaluated_after_scale_shift_in_disparity(dataset, tmp_path, cli):
     """A relative hf model's record makes scale-shift in disparity space evaluate's default."""
     tiny_dpt(tmp_path / "dpt")

@@ -220,6 +220,7 @@ def test_page_is_self_contained(kitti_report):
     assert len(ids) == len(set(ids))
 
 
+@pytest.mark.slow
 def test_published_none_and_baseline(tmp_path, cli):
     a = evaluate_csv(tmp_path / "a.csv", "nyudepth2-c", "DPT ViT-B")
     for which, rows in (("none", ["a"]), ("baseline", ["a", "AdaBins EB5"])):
@@ -313,6 +314,7 @@ def test_radar_ring_values_cross_no_line():
 
 # --------------------------------------------------------------------------- with the dataset build
 
+@pytest.mark.slow
 def test_dataset_fingerprint_and_qualitative_figure(small_build, tmp_path, cli):
     import hashlib
 
@@ -366,6 +368,7 @@ def test_without_matplotlib_figures_are_refused_in_one_line(tmp_path):
     assert res.returncode == 0 and "mCE" in res.stdout
 
 
+@pytest.mark.slow
 def test_two_rows_mark_only_the_best(tmp_path, cli):
     a = evaluate_csv(tmp_path / "a.csv", "nyudepth2-c", "DPT ViT-B")
     b = evaluate_csv(tmp_path / "b.csv", "nyudepth2-c", "BTS R50")

@@ -25,6 +25,9 @@ from PIL import Image
 
 from tests.helpers.report import evaluate_csv
 
+# Every test here is a long end-to-end run (make test-fast leaves them out).
+pytestmark = pytest.mark.slow
+
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
          "--disable-component-update", "--no-first-run", "--disable-sync",

@@ -42,6 +42,7 @@ def two_models(tmp_path):
     return a, b
 
 
+@pytest.mark.slow
 def test_flicker_tables_and_json_equal_the_csv(tmp_path, cli, two_models):
     pytest.importorskip("matplotlib")
     out = tmp_path / "out"
@@ -102,6 +103,7 @@ def test_flicker_figure_bars_are_the_values_and_legible(two_models):
     assert sorted(round(line.get_xdata()[0], 9) for line in left.get_lines()) == [0.01, 0.02]
 
 
+@pytest.mark.slow
 def test_without_flicker_the_report_is_unchanged(tmp_path, cli, two_models):
     pytest.importorskip("matplotlib")
     plain = evaluate_csv(tmp_path / "plain.csv", "kitti-c", "MonoViT")

@@ -64,6 +64,7 @@ def test_interrupt_leaves_no_partial_report(tmp_path, cli, monkeypatch):
     assert not out.exists() and list(tmp_path.iterdir()) == [k]  # no temporary folder left
 
 
+@pytest.mark.slow
 def test_interrupt_keeps_the_earlier_report_whole(tmp_path, cli, monkeypatch):
     k = evaluate_csv(tmp_path / "k.csv", "kitti-c", "MonoViT")
     out = tmp_path / "out"
@@ -76,6 +77,7 @@ def test_interrupt_keeps_the_earlier_report_whole(tmp_path, cli, monkeypatch):
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
 
 
+@pytest.mark.slow
 def test_second_report_leaves_nothing_stale(tmp_path, cli):
     """A report with a figure (severity) then one without it into the same OUT: the old
     figure files go, and the message says so; the user's own files stay."""
@@ -113,6 +115,7 @@ def test_nan_in_an_unscored_column_is_refused_not_written(tmp_path, cli):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_interrupt_while_moving_into_place_is_held_and_told(tmp_path, cli, monkeypatch):
     """Ctrl-C during the renames that replace an earlier report acts once they are done,
     and says the report was written (not "nothing was written")."""

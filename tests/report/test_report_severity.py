@@ -9,6 +9,7 @@ import pytest
 
 from tests.helpers.report import evaluate_csv, extra_rows
 
+@pytest.mark.slow
 def test_report_keeps_curves_and_chains_apart(tmp_path, cli):
     pytest.importorskip("matplotlib")
     plain = evaluate_csv(tmp_path / "plain.csv", "kitti-c", "MonoViT")
@@ -37,6 +38,7 @@ def test_report_keeps_curves_and_chains_apart(tmp_path, cli):
     assert "fog" in svg and "snow" in svg and "KITTI-C" in svg
 
 
+@pytest.mark.slow
 def test_report_without_extra_rows_has_no_such_section(tmp_path, cli):
     pytest.importorskip("matplotlib")
     plain = evaluate_csv(tmp_path / "plain.csv", "kitti-c", "MonoViT")

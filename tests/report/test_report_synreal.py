@@ -184,6 +184,7 @@ def test_synreal_figure_is_legible():
             assert page.x0 <= b.x0 and b.x1 <= page.x1 and page.y0 <= b.y0 and b.y1 <= page.y1, text
 
 
+@pytest.mark.slow
 def test_datasets_side_by_side(tmp_path, cli):
     """KITTI-C and NYUDepth2-C in one report (the rows say which), and a dataset with no
     published baseline scored against a model the user names."""

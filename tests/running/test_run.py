@@ -43,6 +43,7 @@ def py_model(tmp_path_factory):
     return f"python:{path}:predict"
 
 
+@pytest.mark.slow
 def test_kitti_run_writes_the_csv_of_build_predict_evaluate(tmp_path, cli, kitti_scans_root):
     import torch
 

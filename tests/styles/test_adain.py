@@ -68,6 +68,7 @@ def _outputs_meaningful(img: np.ndarray) -> None:
     assert ((img > 0) & (img < 255)).mean() > 0.9 and img.std() > 5
 
 
+@pytest.mark.slow
 def test_batched_engine_matches_per_pair_reference(checkpoints, stylizer, images):
     _, _, vgg, dec = checkpoints
     content, styles = images
@@ -84,6 +85,7 @@ def test_batched_engine_matches_per_pair_reference(checkpoints, stylizer, images
     assert np.abs(got[0].astype(int) - got[1].astype(int)).mean() > 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("chunk,channels_last", [(1, False), (3, True)])
 def test_engine_options_do_not_change_the_result(checkpoints, stylizer, images, chunk, channels_last):
     vgg_path, dec_path, _, _ = checkpoints

@@ -38,6 +38,7 @@ def test_choose_device(monkeypatch):
     assert adain.choose_device("cpu") == torch.device("cpu")
 
 
+@pytest.mark.slow
 def test_gpu_batching_gives_the_cpu_bytes(ckpt):
     """All styles in one batch (as on a GPU) against one at a time (the CPU default), on
     the CPU: the same bytes, and each within one level of the per-pair reference."""

@@ -149,6 +149,7 @@ def _tree(out):
             for p in sorted(out.rglob("*.png"))}
 
 
+@pytest.mark.slow
 def test_kitti_s_build_layout_pixels_resume_and_workers(tmp_path, fixtures_dir, ckpt, kitti_s_args, cli,
                                                         build_kitti_s):
     _, _, vgg, dec = ckpt
