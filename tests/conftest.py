@@ -88,17 +88,23 @@ def read_only_dir(tmp_path) -> Path:
         yield where
 
 
+def _fixture_kitti_c(cli, fixtures_dir, where: Path, levels: str) -> Path:
+    """``where/KITTI_C``: the fixtures' two KITTI frames at 64 x 96, brightness and contrast
+    at ``levels``, no ground truth."""
+    out = where / "KITTI_C"
+    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
+              fixtures_dir / "kitti_split.txt", "--out", out, "--size", "64x96", "--corruptions",
+              "brightness,contrast", "--levels", levels, "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    return out
+
+
 @pytest.fixture(scope="session")
 def kitti_c_build(fixtures_dir, tmp_path_factory, cli) -> Path:
     """A small KITTI-C built from the fixtures (64 x 96; brightness and contrast at levels 1 and
     3; no ground truth), made once per session. Tests only read it: one that needs to
     change it works on ``copy_build(kitti_c_build, ...)``."""
-    out = tmp_path_factory.mktemp("kitti_c_build") / "KITTI_C"
-    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
-              fixtures_dir / "kitti_split.txt", "--out", out, "--size", "64x96", "--corruptions",
-              "brightness,contrast", "--levels", "1,3", "--jobs", "1")
-    assert res.exit_code == 0, res.output
-    return out
+    return _fixture_kitti_c(cli, fixtures_dir, tmp_path_factory.mktemp("kitti_c_build"), "1,3")
 
 
 @pytest.fixture(scope="session")
@@ -106,12 +112,7 @@ def small_build(fixtures_dir, tmp_path_factory, cli) -> Path:
     """A KITTI-C built from the fixtures with brightness and contrast at level 3 alone (64 x
     96; no ground truth), made once per session for the report tests, which read it: the
     report's one-frame figure draws one level per corruption."""
-    out = tmp_path_factory.mktemp("small_build") / "KITTI_C"
-    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
-              fixtures_dir / "kitti_split.txt", "--out", out, "--size", "64x96", "--corruptions",
-              "brightness,contrast", "--levels", "3", "--jobs", "1")
-    assert res.exit_code == 0, res.output
-    return out
+    return _fixture_kitti_c(cli, fixtures_dir, tmp_path_factory.mktemp("small_build"), "3")
 
 
 @pytest.fixture(scope="session")
