@@ -54,7 +54,7 @@ def _links(page):
 def test_pages_exist():
     names = {p.name for p in PAGES}
     assert {"README.md", "corruptions.md", "datasets-and-layout.md", "ground-truth.md",
-            "evaluate.md", "score.md", "custom-and-torch.md", "cluster.md", "performance.md",
+            "evaluation.md", "score.md", "custom-and-torch.md", "cluster.md", "performance.md",
             "development.md"} <= names
 
 

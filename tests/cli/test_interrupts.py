@@ -156,7 +156,7 @@ def test_every_command_stops_cleanly(inputs, tmp_path, sig, name, where, nth, ar
 def test_interrupts_are_documented(cli):
     text = " ".join(cli("--help").output.split())
     assert "Ctrl-C" in text and "130" in text
-    doc = (REPO / "docs" / "evaluate.md").read_text()
+    doc = (REPO / "docs" / "evaluation.md").read_text()
     assert "SIGTERM" in doc and "130" in doc
 
 
