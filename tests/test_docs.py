@@ -134,7 +134,9 @@ def _tree_folders(text: str) -> set[str]:
     """The folders of the first fenced block after "## The code": one per line, two spaces of
     indent per level, a name ending with "/" (what follows it is its description)."""
     tour = text[text.index("## The code"):]
-    block = FENCE.search(tour).group(0).splitlines()[1:-1]
+    fence = FENCE.search(tour)
+    assert fence, 'no fenced tree after "## The code"'
+    block = fence.group(0).splitlines()[1:-1]
     folders, path = set(), []
     for line in block:
         m = re.match(r"( *)(\w+)/(?:\s|$)", line)
