@@ -4,13 +4,13 @@ PIP ?= $(PYTHON) -m pip
 # build and its nvidia-* wheels. For the CPU-only build, set it to the CPU index URL that
 # PyTorch's "Get started" page gives for pip: make install TORCH_INDEX=<that URL>
 TORCH_INDEX ?=
-# The browser the report's browser test drives (tests/test_report_browser.py).
+# The browser the report's browser test drives (tests/report/test_report_browser.py).
 CHROMIUM ?= chromium
 # The exact versions of every distribution that decides a pixel (a pip constraints file,
 # read at run time by robodepth verify and selftest too).
 LOCK := robodepth_cli/constraints.txt
 
-.PHONY: install test bench demo selftest-record
+.PHONY: install test test-fast bench demo selftest-record
 
 install:
 	$(PIP) install $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX) )-c $(LOCK) torch
@@ -29,6 +29,11 @@ install:
 test:
 	$(PYTHON) -m ruff check .
 	$(PYTHON) -m pytest -q
+
+# The inner loop: everything but the tests marked slow (long end-to-end runs).
+test-fast:
+	$(PYTHON) -m ruff check .
+	$(PYTHON) -m pytest -q -m "not slow"
 
 bench:
 	$(PYTHON) -m bench.run

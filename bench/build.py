@@ -58,8 +58,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 
-from tests import _trees  # the test suite's tree builders
-from tests._paths import FIXTURES  # tests/data/fixtures, inside the repository
+from tests.helpers import trees as _trees  # the test suite's tree builders
+from tests.helpers.paths import FIXTURES  # tests/data/fixtures, inside the repository
 
 KITTI_FRAMES = FIXTURES / "kitti_raw" / "2011_09_26" / "2011_09_26_drive_0002_sync" / "image_02" / "data"
 NYU_FRAMES = FIXTURES / "nyu" / "bedroom"

@@ -32,7 +32,7 @@ from PIL import Image, ImageOps  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
-from tests._paths import REFERENCE  # noqa: E402  (tests/data/reference, inside the repository)
+from tests.helpers.paths import REFERENCE  # noqa: E402  (tests/data/reference, inside the repository)
 from robodepth_cli.corruptions import NAMES, REGISTRY, corrupt  # noqa: E402
 
 DEFAULT_IMAGE = REFERENCE / "kitti" / "kitti_like_md2__input.png"

@@ -26,7 +26,7 @@ import time  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from tests._paths import FIXTURES  # noqa: E402
+from tests.helpers.paths import FIXTURES  # noqa: E402
 from robodepth_cli.corruptions import DEPTH_NAMES, corrupt  # noqa: E402
 from robodepth_cli.imageio import load_clean  # noqa: E402
 

@@ -28,8 +28,8 @@ import tempfile
 from pathlib import Path
 
 from bench.build import measure  # the process-tree sampler of the build benchmark
-from tests import _trees  # the test suite's tree builders
-from tests._paths import FIXTURES
+from tests.helpers import trees as _trees  # the test suite's tree builders
+from tests.helpers.paths import FIXTURES
 
 REPO = Path(__file__).resolve().parents[1]
 KITTI_FRAMES = FIXTURES / "kitti_raw" / "2011_09_26" / "2011_09_26_drive_0002_sync" / "image_02" / "data"

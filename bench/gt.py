@@ -40,7 +40,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 
-from tests._paths import FIXTURES, SPLITS  # tests/data, inside the repository
+from tests.helpers.paths import FIXTURES, SPLITS  # tests/data, inside the repository
 
 CALIB = FIXTURES / "kitti_raw" / "2011_09_26"
 EIGEN = SPLITS / "eigen_test_files.txt"

@@ -29,7 +29,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
-from tests._paths import FIXTURES  # noqa: E402
+from tests.helpers.paths import FIXTURES  # noqa: E402
 from robodepth_cli.corruptions import NAMES, corrupt  # noqa: E402
 from robodepth_cli.imageio import encode_png, load_clean  # noqa: E402
 from robodepth_cli.seeding import job_rng  # noqa: E402

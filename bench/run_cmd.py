@@ -3,7 +3,7 @@ the wall time of each step and the disk each leaves behind.
 
 A KITTI raw tree of N frames (the two fixture frames and their velodyne scans, copied
 under new frame numbers: the speed does not depend on the pixels) and a monodepth2-format
-ResNet-18 at 192 x 640 with random weights (tests/test_predict.py writes it). Both paths
+ResNet-18 at 192 x 640 with random weights (tests/helpers/models.py writes it). Both paths
 run as a user runs them, each command in a fresh interpreter, on the same corruptions and
 levels (default: all of KITTI-C's, 91 variants), and their results CSVs are compared byte
 for byte. The disk is what each path leaves: the build's tree with its ground truth, the
@@ -27,7 +27,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 
-from tests._paths import FIXTURES
+from tests.helpers.paths import FIXTURES
 
 DRIVE = "2011_09_26/2011_09_26_drive_0002_sync"
 
@@ -52,11 +52,11 @@ def make_tree(root: Path, n: int) -> Path:
 
 
 def write_model(folder: Path) -> None:
-    """The tests' random ResNet-18 monodepth2 checkpoint at 192 x 640, written by a child
-    that has tests/ on its path (test_predict imports its neighbours by their own names)."""
-    code = ("import sys, torch; from pathlib import Path; from test_predict import random_monodepth2; "
+    """The tests' random ResNet-18 monodepth2 checkpoint at 192 x 640 (tests/helpers/models.py),
+    written by a child process so that this one never imports torch."""
+    code = ("import sys, torch; from pathlib import Path; from tests.helpers.models import random_monodepth2; "
             "torch.manual_seed(0); random_monodepth2(Path(sys.argv[1]), 18, height=192, width=640)")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join((str(REPO), str(REPO / "tests")))}
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
     subprocess.run([sys.executable, "-c", code, str(folder)], cwd=REPO, env=env, check=True)
 
 

@@ -34,7 +34,7 @@ import torch  # noqa: E402
 
 from robodepth_cli.corruptions import NAMES, corrupt, torch_engine  # noqa: E402
 from robodepth_cli.imageio import read_rgb, resize_lanczos  # noqa: E402
-from tests._paths import FIXTURES  # noqa: E402
+from tests.helpers.paths import FIXTURES  # noqa: E402
 
 
 def frames(size: tuple[int, int]) -> list[np.ndarray]:

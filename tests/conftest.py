@@ -1,14 +1,19 @@
-"""Shared test fixtures. Paths to the test data are constants in ``_paths.py``; tree
-builders are in ``_trees.py``."""
+"""Shared test fixtures. Paths to the test data are constants in ``tests/helpers/paths.py``;
+tree builders and the other plain helpers are in ``tests/helpers/``."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner, Result
 
-from _paths import FIXTURES, REFERENCE, SPLITS
+from tests.helpers.builds import copy_build
+from tests.helpers.evaluation import GT_SHAPES, KITTI_VARIANTS, kitti_preds, lidar_gt, write_form1
+from tests.helpers.paths import FIXTURES, REFERENCE, SPLITS
+from tests.helpers.readonly import read_only_directory
+from tests.helpers.trees import fixture_kitti_with_scans
 
 # Commands that draw a progress bar: the tests read only what the command reports.
 _PROGRESS_COMMANDS = ("build", "verify", "gt")
@@ -67,3 +72,63 @@ def build_kitti(cli):
         return cli("build", "kitti-c", "--root", root, "--split", split, "--out", out, *flags)
 
     return build
+
+
+@pytest.fixture(scope="session")
+def kitti_scans_root(tmp_path_factory) -> Path:
+    """The fixtures' KITTI frames with their velodyne scans, made once per session; tests only
+    read it (one that changes a scan makes its own with ``fixture_kitti_with_scans``)."""
+    return fixture_kitti_with_scans(tmp_path_factory.mktemp("kitti_scans"))
+
+
+@pytest.fixture
+def read_only_dir(tmp_path) -> Path:
+    """A directory nothing can be written into, even by root (tests/helpers/readonly.py)."""
+    with read_only_directory(tmp_path) as where:
+        yield where
+
+
+def _fixture_kitti_c(cli, fixtures_dir, where: Path, levels: str) -> Path:
+    """``where/KITTI_C``: the fixtures' two KITTI frames at 64 x 96, brightness and contrast
+    at ``levels``, no ground truth."""
+    out = where / "KITTI_C"
+    res = cli("build", "kitti-c", "--root", fixtures_dir / "kitti_raw", "--split",
+              fixtures_dir / "kitti_split.txt", "--out", out, "--size", "64x96", "--corruptions",
+              "brightness,contrast", "--levels", levels, "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    return out
+
+
+@pytest.fixture(scope="session")
+def kitti_c_build(fixtures_dir, tmp_path_factory, cli) -> Path:
+    """A small KITTI-C built from the fixtures (64 x 96; brightness and contrast at levels 1 and
+    3; no ground truth), made once per session. Tests only read it: one that needs to
+    change it works on ``copy_build(kitti_c_build, ...)``."""
+    return _fixture_kitti_c(cli, fixtures_dir, tmp_path_factory.mktemp("kitti_c_build"), "1,3")
+
+
+@pytest.fixture(scope="session")
+def small_build(fixtures_dir, tmp_path_factory, cli) -> Path:
+    """A KITTI-C built from the fixtures with brightness and contrast at level 3 alone (64 x
+    96; no ground truth), made once per session for the report tests, which read it: the
+    report's one-frame figure draws one level per corruption."""
+    return _fixture_kitti_c(cli, fixtures_dir, tmp_path_factory.mktemp("small_build"), "3")
+
+
+@pytest.fixture(scope="session")
+def kitti_c(kitti_c_build, tmp_path_factory):
+    """``(out, gts)``: ``kitti_c_build`` with ground truth written in the test in monodepth2's
+    gt_depths.npz format (an object array of float32 maps, split order)."""
+    out = copy_build(kitti_c_build, tmp_path_factory)
+    gts = np.empty(2, object)
+    for i, shape in enumerate(GT_SHAPES):
+        gts[i] = lidar_gt(shape, i)
+    np.savez_compressed(out / "gt_depths.npz", data=gts)
+    return out, list(gts)
+
+
+@pytest.fixture(scope="session")
+def kitti_pred(kitti_c, tmp_path_factory):
+    """Predictions for every variant of ``kitti_c`` in the folder's first form."""
+    pred = tmp_path_factory.mktemp("pred") / "PRED"
+    return write_form1(pred, {v: kitti_preds(k) for k, v in enumerate(KITTI_VARIANTS)})

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from _paths import REPO
+from tests.helpers.paths import REPO
 
 PKG = REPO / "robodepth_cli"
 ROOT = "robodepth_cli"

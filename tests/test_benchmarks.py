@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 
 import pytest
 
 from robodepth_cli.building.config import ConfigError, resolve
 
-from _trees import nyu_tree, tree
+from tests.helpers.imports import imported_by_command
+from tests.helpers.trees import nyu_tree, tree
 
 # Retyped from the benchmark's definition: every corruption in order, and NYUDepth2-C's
 # subset (all but fog, frost and snow) at levels 1..4.
@@ -80,14 +79,6 @@ def test_score_does_not_load_the_corruption_engine(tmp_path):
     rows += [f"{n},{lv},0.2" for n in NYU_15 for lv in range(1, 5)]
     results = tmp_path / "r.csv"
     results.write_text("\n".join(rows) + "\n")
-    code = ("import sys; from robodepth_cli.cli import main\n"
-            "try:\n"
-            f"    main(['score', {str(results)!r}, '--benchmark', 'nyudepth2-c', '--json'])\n"
-            "except SystemExit as e:\n"
-            "    assert not e.code, e.code\n"
-            "print(sorted(m for m in ('numba', 'cv2', 'torch', 'robodepth_cli.corruptions')"
-            " if m in sys.modules), file=sys.stderr)\n")
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert res.returncode == 0, res.stderr
-    assert '"mce"' in res.stdout
-    assert res.stderr.strip() == "[]"
+    argv = ["score", results, "--benchmark", "nyudepth2-c", "--json"]
+    heavy = ["numba", "cv2", "torch", "robodepth_cli.corruptions"]
+    assert imported_by_command(argv, heavy, stdout_has='"mce"') == []

@@ -6,7 +6,7 @@ import re
 
 import click
 import pytest
-from _paths import REPO
+from tests.helpers.paths import PENDING_PACKAGES, REPO
 
 from robodepth_cli.cli import main
 
@@ -54,7 +54,7 @@ def _links(page):
 def test_pages_exist():
     names = {p.name for p in PAGES}
     assert {"README.md", "corruptions.md", "datasets-and-layout.md", "ground-truth.md",
-            "evaluation.md", "custom-and-torch.md", "cluster.md", "performance.md",
+            "evaluation.md", "score.md", "custom-and-torch.md", "cluster.md", "performance.md",
             "development.md"} <= names
 
 
@@ -127,21 +127,40 @@ def test_every_command_and_option_is_documented():
     assert not problems, "undocumented: " + "; ".join(problems)
 
 
-def test_development_names_modules_that_exist():
-    """The code tour in docs/development.md names files that exist: a module moved or renamed
-    fails here until the page follows."""
-    text = (REPO / "docs" / "development.md").read_text()
+PENDING_FOLDERS = {f"robodepth_cli/{name}/" for name in PENDING_PACKAGES}
+
+
+def _tree_folders(text: str) -> set[str]:
+    """The folders of the first fenced block after "## The code": one per line, two spaces of
+    indent per level, a name ending with "/" (what follows it is its description)."""
     tour = text[text.index("## The code"):]
-    pkg = REPO / "robodepth_cli"
-    folders = {n + "/" for row in re.findall(r"^\|([^|\n]*)\|", tour, re.M)
-               for n in re.findall(r"`(\w+)/`", row)}  # the table's first column
-    names = set(re.findall(r"`([\w/]+\.py)`", tour)) | folders
-    assert {"sources/", "building/", "evaluation/"} <= folders
-    assert len(names) > 20
-    known = {p.relative_to(pkg).as_posix() for p in pkg.rglob("*.py")}
-    known |= {p.name for p in pkg.rglob("*.py")} | {p.relative_to(pkg).as_posix() + "/"
-                                                     for p in pkg.iterdir() if p.is_dir()}
-    assert sorted(names - known) == []
+    fence = FENCE.search(tour)
+    assert fence, 'no fenced tree after "## The code"'
+    block = fence.group(0).splitlines()[1:-1]
+    folders, path = set(), []
+    for line in block:
+        m = re.match(r"( *)(\w+)/(?:\s|$)", line)
+        assert m, f"not a folder line: {line!r}"
+        depth = len(m.group(1)) // 2
+        path[depth:] = [m.group(2)]
+        folders.add("/".join(path) + "/")
+    return folders
+
+
+def test_tree_parser_reads_nesting():
+    text = "## The code\n\n```\nroot/  the top\n  a/   one\n    b/ two\n  c/\n```\n"
+    assert _tree_folders(text) == {"root/", "root/a/", "root/a/b/", "root/c/"}
+
+
+def test_development_tree_is_the_package_folders():
+    """The layout tree in docs/development.md names every package folder, and only those: a
+    folder added, moved or removed fails here until the tree follows."""
+    tree = _tree_folders((REPO / "docs" / "development.md").read_text())
+    real = {p.parent.relative_to(REPO).as_posix() + "/" for p in (REPO / "robodepth_cli").rglob("__init__.py")}
+    assert "robodepth_cli/" in tree
+    assert sorted(real - tree) == [], "folders missing from the tree"
+    assert sorted(tree - real - PENDING_FOLDERS) == [], "the tree names folders that do not exist"
+    assert sorted(PENDING_FOLDERS & real) == [], "these folders exist now: remove them from PENDING_FOLDERS"
 
 
 def test_pages_name_every_depth_aware_corruption_and_what_video_covers():

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from _paths import REFERENCE, REPO
+from tests.helpers.paths import REFERENCE, REPO
 
 PAGES = ["README.md", "docs/corruptions.md", "docs/severity-and-chains.md"]
 SH_BLOCK = re.compile(r"^```sh\n(.*?)^```", re.S | re.M)

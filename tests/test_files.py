@@ -7,7 +7,7 @@ import os
 
 import pytest
 
-from _readonly import read_only_dir, read_only_reason  # noqa: F401
+from tests.helpers.readonly import read_only_reason
 from robodepth_cli import files
 from robodepth_cli.errors import RobodepthError
 

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from _paths import REPO
+from tests.helpers.paths import REPO
 
 
 def make_n(*args: str) -> list[str]:

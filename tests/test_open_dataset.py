@@ -7,7 +7,7 @@ import pytest
 from robodepth_cli import open_dataset
 from robodepth_cli.api import DatasetError, IncompleteBuild
 
-from _trees import random_image, save
+from tests.helpers.trees import random_image, save
 
 
 @pytest.fixture(scope="module")

@@ -57,7 +57,7 @@ class Scores:
     levels: tuple[int, ...] = ()  # the benchmark's levels (an unpublished set's: its own)
 
     def to_json(self) -> dict:
-        """The JSON form; keys are documented in docs/evaluation.md and stay stable. A results file
+        """The JSON form; keys are documented in docs/score.md and stay stable. A results file
         with rows beyond the benchmark adds ``beyond_benchmark``."""
         doc = {
             "benchmark": self.benchmark,

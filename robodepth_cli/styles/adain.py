@@ -318,7 +318,7 @@ def pixel_affine(conv: nn.Conv2d, x: torch.Tensor) -> torch.Tensor:
     """A 1 x 1 convolution (the encoder's first module) as a fixed sequence of elementwise
     operations. oneDNN's 1 x 1 convolution rounds differently with 1 and 2 threads, which
     would make an image's bytes depend on the number of workers; every other module of the
-    encoder and decoder gives the same bits for any thread count (tests/test_adain.py)."""
+    encoder and decoder gives the same bits for any thread count (tests/styles/test_adain.py)."""
     w, b = conv.weight[:, :, 0, 0], conv.bias
     y = x[:, :1] * w[:, 0].view(1, -1, 1, 1)
     for c in range(1, w.shape[1]):

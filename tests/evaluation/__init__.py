@@ -1,0 +1,1 @@
+"""Tests of robodepth_cli/evaluation/."""

@@ -1,0 +1,1 @@
+"""Tests of robodepth_cli/running/ and the end-to-end loops (robodepth run, make demo)."""
