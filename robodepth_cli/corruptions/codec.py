@@ -4,7 +4,9 @@ would. PyAV (the ``video`` extra) is imported here only, when a sequence is enco
 
 Encoding: RGB frames -> yuv420p (BT.601 limited range, as a camera's encoder stores video)
 at 10 frames per second (KITTI's rate), constant rate factor ``crf``, preset ``medium``.
-Odd sizes are padded by repeating the last row/column and cropped back after decoding.
+Odd sizes are padded by repeating the last row/column and cropped back after decoding;
+so are H.265 frames 48 pixels wide or narrower, to 64 columns, and H.265 frames under 16
+rows, to 16 (see :func:`coded_size`).
 
 Same bytes in any process and on any CPU with the same library versions: the colour
 conversions both ways are exact integer arithmetic here (:func:`rgb_to_yuv420p`,
@@ -23,6 +25,14 @@ from ..errors import RobodepthError
 
 CODECS = {"h264": ("libx264", "h264"), "h265": ("libx265", "hevc")}
 FPS = 10
+# libx265's lookahead (its cuTree, on the half-size picture in 8 x 8 blocks) writes past
+# its buffers when a row has fewer than 4 blocks, i.e. a frame 48 pixels wide or narrower
+# (valgrind: invalid writes at every height from 8 to 128; a glibc abort or a segfault in
+# a later encode). The height does not matter; from 50 pixels wide on it is clean.
+# libx265 refuses pictures under 16 rows.
+H265_NARROWEST = 48
+H265_PADDED_WIDTH = 64
+H265_MIN_HEIGHT = 16
 
 
 def _av():
@@ -69,21 +79,35 @@ def yuv420p_to_rgb(yuv: np.ndarray) -> np.ndarray:
     return np.clip((rgb + 128) >> 8, 0, 255).astype(np.uint8)
 
 
+def coded_size(h: int, w: int, codec: str) -> tuple[int, int]:
+    """The picture size (H, W) the encoder gets for frames of ``h`` x ``w``: even, and for
+    H.265 64 wide when the frame is 48 or narrower (libx265 corrupts memory there) and at
+    least 16 high (it refuses fewer rows). Sizes the encoder handles are left alone, so
+    their streams do not change."""
+    h, w = h + h % 2, w + w % 2
+    if codec == "h265":
+        h = max(h, H265_MIN_HEIGHT)
+        w = H265_PADDED_WIDTH if w <= H265_NARROWEST else w
+    return h, w
+
+
 def encode(frames: list[np.ndarray], codec: str, crf: int) -> bytes:
-    """``frames`` (uint8 H x W x 3, same size) as an Annex B elementary stream."""
+    """``frames`` (uint8 H x W x 3, same size) as an Annex B elementary stream of
+    :func:`coded_size` pictures, padded by repeating the last row and column."""
     av = _av()
     encoder, fmt = CODECS[codec]
     h, w = frames[0].shape[:2]
+    ch, cw = coded_size(h, w, codec)
     buf = io.BytesIO()
     with av.open(buf, "w", format=fmt) as container:
         stream = container.add_stream(encoder, rate=FPS)
-        stream.width, stream.height = w + w % 2, h + h % 2
+        stream.width, stream.height = cw, ch
         stream.pix_fmt = "yuv420p"
         params = {"h264": {"x264-params": "threads=1:lookahead-threads=1:sliced-threads=0"},
                   "h265": {"x265-params": "log-level=none:pools=1:frame-threads=1"}}[codec]
         stream.options = {"crf": str(int(crf)), "preset": "medium", "threads": "1", **params}
         for img in frames:
-            img = np.pad(img, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+            img = np.pad(img, ((0, ch - h), (0, cw - w), (0, 0)), mode="edge")
             frame = av.VideoFrame.from_ndarray(rgb_to_yuv420p(img), format="yuv420p")
             for packet in stream.encode(frame):
                 container.mux(packet)
