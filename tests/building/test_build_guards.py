@@ -151,7 +151,7 @@ def test_damaged_manifest_row_is_named_with_a_way_out(kitti, tmp_path, cli, buil
 # --- defect 4: one build per OUT -------------------------------------------------------------
 
 def test_a_custom_build_at_its_own_sizes_into_one_at_a_size_says_so(tmp_path, cli):
-    from _trees import random_image, save
+    from tests.helpers.trees import random_image, save
 
     save(tmp_path / "img" / "a.png", random_image(96, 128, seed=0))
     args = ("build", "custom", "--root", tmp_path / "img", "--out", tmp_path / "out", "--corruptions",

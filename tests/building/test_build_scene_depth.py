@@ -234,7 +234,7 @@ def test_score_of_depth_aware_rows_alone(tmp_path, cli):
 def test_a_rebuild_redoes_exactly_the_outputs_whose_depth_changed(tmp_path, cli):
     """Overwriting one depth map, then changing --depth-scale: the same command remakes the
     depth-aware outputs made from the old depth (as a fresh build makes them), nothing else."""
-    from _depth_files import png16
+    from tests.helpers.depth_files import png16
 
     for i, name in enumerate("ab"):
         save(tmp_path / "img" / f"{name}.png", random_image(H, W, seed=i))

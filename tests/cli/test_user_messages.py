@@ -209,7 +209,7 @@ def test_root_made_of_symlinked_date_folders_builds(cli, tmp_path):
 
 
 def test_an_output_under_proc_is_not_said_not_to_exist(tmp_path, cli):
-    from _paths import FIXTURES
+    from tests.helpers.paths import FIXTURES
 
     if not os.path.isdir("/proc/self"):
         pytest.skip("this system has no /proc")

@@ -418,7 +418,7 @@ def test_a_frames_build_exports_every_neighbour_frame(tmp_path, cli, build_kitti
     import datasets
     import webdataset as wds
 
-    from _trees import kitti_drive, kitti_key
+    from tests.helpers.trees import kitti_drive, kitti_key
     from robodepth_cli.torch import KittiC
 
     root = tmp_path / "raw"
@@ -480,7 +480,7 @@ def test_depth_build_ground_truth_rows_evaluate_and_verify(tmp_path, cli, monkey
     import datasets
     import webdataset as wds
 
-    from _trees import random_image, save
+    from tests.helpers.trees import random_image, save
 
     maps = {"a": np.full((40, 48), 7.5, np.float32), "sub/b": np.linspace(1, 60, 40 * 48, dtype=np.float32).reshape(40, 48)}
     maps["sub/b"][:5] = np.nan
