@@ -29,9 +29,12 @@ FPS = 10
 # its buffers when a row has fewer than 4 blocks, i.e. a frame 48 pixels wide or narrower
 # (valgrind: invalid writes at every height from 8 to 128; a glibc abort or a segfault in
 # a later encode). The height does not matter; from 50 pixels wide on it is clean.
+# libx264 reads uninitialised memory on the same narrow frames (valgrind, at 32 x 48 and
+# 48 x 48; none at 64 or 640 wide), so its stream could differ between two encodes of the
+# same frames in one process (seen once in 20 processes at 64 x 48): both get 64 columns.
 # libx265 refuses pictures under 16 rows.
-H265_NARROWEST = 48
-H265_PADDED_WIDTH = 64
+NARROWEST = 48
+PADDED_WIDTH = 64
 H265_MIN_HEIGHT = 16
 
 
@@ -80,14 +83,15 @@ def yuv420p_to_rgb(yuv: np.ndarray) -> np.ndarray:
 
 
 def coded_size(h: int, w: int, codec: str) -> tuple[int, int]:
-    """The picture size (H, W) the encoder gets for frames of ``h`` x ``w``: even, and for
-    H.265 64 wide when the frame is 48 or narrower (libx265 corrupts memory there) and at
-    least 16 high (it refuses fewer rows). Sizes the encoder handles are left alone, so
-    their streams do not change."""
+    """The picture size (H, W) the encoder gets for frames of ``h`` x ``w``: even; 64 wide
+    when the frame is 48 or narrower (libx265 writes past its buffers there, libx264 reads
+    memory it never wrote, so its stream could change with what ran before in the
+    process); for H.265 at least 16 high (it refuses fewer rows). Sizes the encoders handle
+    are left alone, so their streams do not change."""
     h, w = h + h % 2, w + w % 2
+    w = PADDED_WIDTH if w <= NARROWEST else w
     if codec == "h265":
         h = max(h, H265_MIN_HEIGHT)
-        w = H265_PADDED_WIDTH if w <= H265_NARROWEST else w
     return h, w
 
 
