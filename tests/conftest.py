@@ -75,6 +75,21 @@ def build_kitti(cli):
 
 
 @pytest.fixture(scope="session")
+def frames_build(build_kitti, tmp_path_factory) -> Path:
+    """A ``--frames -1,1`` build of six consecutive KITTI frames (test frames 0, 2 and 5) at
+    48 x 64, fog at levels 2 and 3, no ground truth; made once per session, only read."""
+    from tests.helpers.trees import kitti_drive
+
+    base = tmp_path_factory.mktemp("frames")
+    split = kitti_drive(base / "raw", range(6), [0, 2, 5])
+    out = base / "OUT"
+    res = build_kitti(base / "raw", split, out, "--size", "48x64", "--corruptions", "fog",
+                      "--levels", "2,3", "--jobs", "1", "--no-gt", "--frames", "-1,1")
+    assert res.exit_code == 0, res.output
+    return out
+
+
+@pytest.fixture(scope="session")
 def kitti_scans_root(tmp_path_factory) -> Path:
     """The fixtures' KITTI frames with their velodyne scans, made once per session; tests only
     read it (one that changes a scan makes its own with ``fixture_kitti_with_scans``)."""

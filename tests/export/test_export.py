@@ -410,7 +410,7 @@ def test_report_draws_a_frame_of_an_export_as_of_the_build(build, exports, tmp_p
         assert len(got) == len(tree) and all(np.array_equal(a, b) for a, b in zip(tree, got))
 
 
-def test_a_frames_build_exports_every_neighbour_frame(tmp_path, cli, build_kitti, monkeypatch):
+def test_a_frames_build_exports_every_neighbour_frame(tmp_path, cli, frames_build, monkeypatch):
     """A build with --frames: every file of it is exported (the neighbour frames in a split
     ``<split>_neighbours`` of their variant, by key), read back by datasets, webdataset and
     KittiC(frames=) as from the build, and verify passes."""
@@ -418,15 +418,10 @@ def test_a_frames_build_exports_every_neighbour_frame(tmp_path, cli, build_kitti
     import datasets
     import webdataset as wds
 
-    from tests.helpers.trees import kitti_drive, kitti_key
+    from tests.helpers.trees import kitti_key
     from robodepth_cli.torch import KittiC
 
-    root = tmp_path / "raw"
-    split = kitti_drive(root, range(6), [0, 2, 5])
-    out = tmp_path / "out"
-    res = build_kitti(root, split, out, "--size", "48x64", "--corruptions", "fog", "--levels", "3",
-                      "--jobs", "1", "--no-gt", "--frames", "-1,1")
-    assert res.exit_code == 0, res.output
+    out = frames_build
     files = manifest_by_output(out)
     neighbours = [kitti_key(n) for n in (1, 3, 4)]
     for fmt in ("parquet", "webdataset"):

@@ -8,18 +8,12 @@ from PIL import Image
 
 from robodepth_cli.torch import KittiC, TorchAPIError
 
-from tests.helpers.trees import kitti_drive, kitti_key
+from tests.helpers.trees import kitti_key
 
 
 @pytest.fixture
-def built(tmp_path, build_kitti):
-    root = tmp_path / "raw"
-    split = kitti_drive(root, range(6), [0, 2, 5])
-    out = tmp_path / "OUT"
-    res = build_kitti(root, split, out, "--size", "48x64", "--corruptions", "fog", "--levels", "2",
-                      "--jobs", "1", "--no-gt", "--frames", "-1,1")
-    assert res.exit_code == 0, res.output
-    return out
+def built(frames_build):
+    return frames_build
 
 
 def test_items_hold_the_neighbours_in_order(built):
