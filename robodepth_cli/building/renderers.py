@@ -22,7 +22,7 @@ import numpy as np
 
 from ..benchmarks import TEMPORAL
 from ..errors import InvalidValueError
-from ..output.layout import TORCH_FINGERPRINT
+from ..output.layout import SEVERITY_SIZE, TORCH_FINGERPRINT
 from ..sources.datasets import Dataset, Job, StyleDataset
 
 
@@ -203,7 +203,7 @@ class CorruptionRenderer:
 
         parts = [self.depth.fingerprint] if self.depth is not None and needs_depth(variant) else []
         if self.severity_size is not None and is_scaled(variant):
-            parts.append(f"severity_size={size_text(self.severity_size)}")
+            parts.append(SEVERITY_SIZE + size_text(self.severity_size))
         return ";".join(parts)
 
     def depth_stamp(self, key: str) -> str:

@@ -20,7 +20,7 @@ from .severity import LevelError, level_text, parse_level
 
 _ENGINE = ("REGISTRY", "NAMES", "DEPTH_NAMES", "DepthError", "Corruption", "corrupt",
            "corrupt_chain", "render", "get", "check_level", "needs_depth",
-           "depth_aware_variant", "is_scaled")
+           "depth_aware_variant", "is_scaled", "scaled_variant")
 
 __all__ = ["CATEGORIES", "WEATHER", "SENSOR", "DATA", "LevelError", "level_text", "parse_level",
            *_ENGINE]

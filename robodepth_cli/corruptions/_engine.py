@@ -140,8 +140,19 @@ def is_scaled(variant: str) -> bool:
 def depth_aware_variant(name: str) -> bool:
     """Whether the variant ``name`` (a corruption, a chain; clean or a style: no) is made
     from the scene's depth."""
+    return _of_corruptions(needs_depth, name)
+
+
+def scaled_variant(name: str) -> bool:
+    """Whether the variant ``name`` (a corruption, a chain; clean or a style: no) has a
+    step whose pixels a severity size changes."""
+    return _of_corruptions(is_scaled, name)
+
+
+def _of_corruptions(test, name: str) -> bool:
+    """``test(name)`` for a corruption or chain; False for any other variant's name."""
     try:
-        return needs_depth(name)
+        return test(name)
     except InvalidValueError:  # clean, a style
         return False
 

@@ -52,13 +52,14 @@ def holdings(shards, rows: dict) -> dict[str, dict]:
     ground truth) and ``severity`` sizes (``HxW`` or ``none``, for the variants a severity
     size changes), from the manifest ``rows`` of its files: every build request into the
     build counts, not only the last."""
-    from ..output.layout import TORCH_FINGERPRINT
+    from ..corruptions import scaled_variant
+    from ..output.layout import SEVERITY_SIZE, TORCH_FINGERPRINT
 
     held: dict[str, dict] = {}
     for s in shards:
         h = held.setdefault(s.config, {"levels": set(), "seeds": set(), "engines": set(),
                                        "severity": set()})
-        scaled = s.config not in ("clean", GT_CONFIG) and _scaled(s.config)
+        scaled = s.config not in ("clean", GT_CONFIG) and scaled_variant(s.config)
         for item in s.items:
             if item.level is not None:
                 h["levels"].add(item.level)
@@ -67,24 +68,9 @@ def holdings(shards, rows: dict) -> dict[str, dict]:
                 params = rows[item.output].params.split(";")
                 h["engines"].add("torch" if TORCH_FINGERPRINT in params else "numpy")
                 if scaled:
-                    h["severity"].add(next((p[len(SEVERITY):] for p in params
-                                            if p.startswith(SEVERITY)), "none"))
+                    h["severity"].add(next((p[len(SEVERITY_SIZE):] for p in params
+                                            if p.startswith(SEVERITY_SIZE)), "none"))
     return {c: {k: sorted(v) for k, v in h.items()} for c, h in held.items()}
-
-
-SEVERITY = "severity_size="  # a scaled output's manifest params name its severity size
-
-
-def _scaled(config: str) -> bool:
-    """Whether the variant ``config`` (a corruption or a chain; a style: no) has a step
-    whose pixels a severity size changes."""
-    from ..corruptions import is_scaled
-    from ..errors import InvalidValueError
-
-    try:
-        return is_scaled(config)
-    except InvalidValueError:
-        return False
 
 
 def _held_lines(held: dict[str, dict]) -> list[str]:

@@ -38,9 +38,11 @@ GT_DIR = "gt"
 NEIGHBOUR_OF = "neighbour_of="
 # A torch-engine output's manifest params hold it, so the two engines' files never mix.
 TORCH_FINGERPRINT = "engine=torch"
+# A scaled output's manifest params name its severity size: ``severity_size=HxW``.
+SEVERITY_SIZE = "severity_size="
 
 __all__ = ["MANIFEST", "RECORD", "LOCK", "JOURNAL", "BOOKKEEPING", "GT_FILE", "GT_DIR", "CLEAN",
-           "NEIGHBOUR_OF", "TORCH_FINGERPRINT",
+           "NEIGHBOUR_OF", "TORCH_FINGERPRINT", "SEVERITY_SIZE",
            "variant_dir", "output_path", "depth_gt_name",
            "variant_order"]
 
