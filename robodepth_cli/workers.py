@@ -67,7 +67,6 @@ def in_order(fn: Callable[..., Any], tasks: Sequence[tuple], jobs: int,
     from multiprocessing.connection import wait
 
     context = multiprocessing.get_context("spawn")
-    workers: list = []
     pipes: dict = {}  # this side of each worker's pipe -> its process
     finished = False
     try:
@@ -75,10 +74,11 @@ def in_order(fn: Callable[..., Any], tasks: Sequence[tuple], jobs: int,
             here, there = context.Pipe()
             process = context.Process(target=_serve, args=(there, fn, initializer, initargs),
                                       daemon=True)
+            # Known before it starts: a Ctrl-C held during the start is raised as the start
+            # ends, and the process must be among those killed then.
+            pipes[here] = process
             _start_held(process)
             there.close()
-            workers.append(process)
-            pipes[here] = process
         todo = iter(enumerate(tasks))
         busy: dict = {}  # pipe -> the index of the task it runs
         done: dict = {}  # index -> (ok, value), until its turn comes
@@ -108,14 +108,21 @@ def in_order(fn: Callable[..., Any], tasks: Sequence[tuple], jobs: int,
             yield value
         finished = True
     finally:
-        for pipe, process in pipes.items():
-            if finished:
-                with contextlib.suppress(OSError):
-                    pipe.send(None)  # every task is done: let it end by itself
-            elif process.is_alive():
-                process.kill()  # nothing a worker holds needs cleaning up: it writes nothing
-            pipe.close()
-        for process in workers:
+        _stop(pipes, finished)
+
+
+def _stop(pipes: dict, finished: bool) -> None:
+    """End the workers (``pipes``: this side of each one's pipe -> its process): told to stop
+    when every task is done, else killed; then waited for."""
+    for pipe, process in pipes.items():
+        if finished:
+            with contextlib.suppress(OSError):
+                pipe.send(None)  # every task is done: let it end by itself
+        elif process.is_alive():
+            process.kill()  # nothing a worker holds needs cleaning up: it writes nothing
+        pipe.close()
+    for process in pipes.values():
+        if process.pid is not None:  # an interrupt can come before its start
             process.join()
 
 

@@ -142,3 +142,31 @@ def test_build_stops_at_once_while_its_workers_start(fixtures_dir, tmp_path, sig
     assert status == 130, err
     assert err.splitlines()[-1] == "robodepth: interrupted; rerun the same command to resume", err
     assert "Traceback" not in err and "Process" not in err, err
+
+
+def test_a_ctrl_c_held_while_a_worker_starts_kills_that_worker(monkeypatch):
+    """The Ctrl-C held back during a worker's start is raised as the start ends: the worker
+    just started must be killed with the others (it was left running, and its start-up then
+    failed on the inputs the command had removed, printing a traceback)."""
+    import time
+
+    from robodepth_cli import workers
+
+    started = []
+    real_start = workers._start_held
+
+    def start_then_interrupt(process):
+        real_start(process)
+        started.append(process)
+        raise KeyboardInterrupt  # as signals_held delivers a Ctrl-C that came during the start
+
+    monkeypatch.setattr(workers, "_start_held", start_then_interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            list(workers.in_order(abs, [(-1,)], 1, time.sleep, (60,)))
+        assert len(started) == 1 and not started[0].is_alive()
+    finally:
+        for process in started:
+            if process.is_alive():
+                process.kill()
+                process.join()
