@@ -5,14 +5,15 @@ would. PyAV (the ``video`` extra) is imported here only, when a sequence is enco
 Encoding: RGB frames -> yuv420p (BT.601 limited range, as a camera's encoder stores video)
 at 10 frames per second (KITTI's rate), constant rate factor ``crf``, preset ``medium``.
 Odd sizes are padded by repeating the last row/column and cropped back after decoding;
-so are H.265 frames 48 pixels wide or narrower, to 64 columns, and H.265 frames under 16
-rows, to 16 (see :func:`coded_size`).
+so are narrow frames (H.264: 48 pixels wide or narrower, to 64 columns; H.265: 64 or
+narrower, to 72) and H.265 frames under 64 rows, to 64 (see :func:`coded_size`).
 
 Same bytes in any process and on any CPU with the same library versions: the colour
 conversions both ways are exact integer arithmetic here (:func:`rgb_to_yuv420p`,
 :func:`yuv420p_to_rgb`), not FFmpeg's swscale, whose SIMD code differs with the CPU
 (with FFmpeg's SIMD switched off, its conversion changed the stream); the encoder runs one
-thread with no sliced threads and its lookahead in that thread, the decoder one thread.
+thread with no sliced threads and its lookahead in that thread, the decoder one thread;
+both encoders run their CPU-independent code (:data:`X264_PARAMS`, :data:`X265_PARAMS`).
 """
 
 from __future__ import annotations
@@ -25,17 +26,30 @@ from ..errors import RobodepthError
 
 CODECS = {"h264": ("libx264", "h264"), "h265": ("libx265", "hevc")}
 FPS = 10
-# libx265's lookahead (its cuTree, on the half-size picture in 8 x 8 blocks) writes past
-# its buffers when a row has fewer than 4 blocks, i.e. a frame 48 pixels wide or narrower
-# (valgrind: invalid writes at every height from 8 to 128; a glibc abort or a segfault in
-# a later encode). The height does not matter; from 50 pixels wide on it is clean.
-# libx264 reads uninitialised memory on the same narrow frames (valgrind, at 32 x 48 and
-# 48 x 48; none at 64 or 640 wide), so its stream could differ between two encodes of the
-# same frames in one process (seen once in 20 processes at 64 x 48): both get 64 columns.
-# libx265 refuses pictures under 16 rows.
-NARROWEST = 48
-PADDED_WIDTH = 64
-H265_MIN_HEIGHT = 16
+# Narrow pictures the encoders mishandle are widened (valgrind, one encode of 3 frames):
+# - libx265's lookahead (its cuTree, on the half-size picture in 8 x 8 blocks) writes past
+#   its buffers when a row has fewer than 4 blocks, i.e. 48 pixels wide or narrower (a
+#   glibc abort or a segfault in a later encode), and its motion search reads memory it
+#   never wrote on pictures exactly one 64-pixel block wide and 64 or more high (none at
+#   56, 62, 72 or 128 wide);
+# - libx264 reads uninitialised memory 48 pixels wide or narrower (none at 56, 64, 640).
+# Either way the stream could change with what ran before in the process.
+NARROW = {"h264": (48, 64), "h265": (64, 72)}  # codec -> (widest padded, padded width)
+# libx265 refuses pictures under 16 rows, and on 16 rows its stream changed between two
+# encodes in one process now and then (3 processes in 80 under load; none at 64 rows).
+H265_MIN_HEIGHT = 64
+# FFmpeg's parser reads up to AV_INPUT_BUFFER_PADDING_SIZE bytes past the end of its input,
+# which must be zeros.
+PARSER_PADDING = 64
+# One thread each, and the encoders' canonical code instead of the SIMD code they pick from
+# the CPU: libx264's assembly takes other decisions on AVX than on SSE2 (another stream at
+# 192 x 640), and libx265's gives another stream at every instruction set it dispatches
+# (SSE2, SSE4.2, AVX, AVX2, AVX-512) and reads memory it never wrote (valgrind; none with
+# asm=none), so its stream could change with what ran before in the process. x264's
+# cpu-independent mode keeps its assembly where that is exact; asm=none costs x265 no time
+# here (3 frames of 192 x 640 to 376 x 1242, measured side by side).
+X264_PARAMS = "threads=1:lookahead-threads=1:sliced-threads=0:cpu-independent=1"
+X265_PARAMS = "log-level=none:pools=1:frame-threads=1:asm=none"
 
 
 def _av():
@@ -83,13 +97,14 @@ def yuv420p_to_rgb(yuv: np.ndarray) -> np.ndarray:
 
 
 def coded_size(h: int, w: int, codec: str) -> tuple[int, int]:
-    """The picture size (H, W) the encoder gets for frames of ``h`` x ``w``: even; 64 wide
-    when the frame is 48 or narrower (libx265 writes past its buffers there, libx264 reads
-    memory it never wrote, so its stream could change with what ran before in the
-    process); for H.265 at least 16 high (it refuses fewer rows). Sizes the encoders handle
-    are left alone, so their streams do not change."""
+    """The picture size (H, W) the encoder gets for frames of ``h`` x ``w``: even; for
+    H.264 64 wide when the frame is 48 or narrower, for H.265 72 wide when it is 64 or
+    narrower and at least 64 high (on smaller pictures the encoders read memory they never
+    wrote, write past their buffers or give another stream now and then). Sizes the
+    encoders handle are left alone, so their streams do not change."""
     h, w = h + h % 2, w + w % 2
-    w = PADDED_WIDTH if w <= NARROWEST else w
+    widest, padded = NARROW[codec]
+    w = padded if w <= widest else w
     if codec == "h265":
         h = max(h, H265_MIN_HEIGHT)
     return h, w
@@ -107,8 +122,7 @@ def encode(frames: list[np.ndarray], codec: str, crf: int) -> bytes:
         stream = container.add_stream(encoder, rate=FPS)
         stream.width, stream.height = cw, ch
         stream.pix_fmt = "yuv420p"
-        params = {"h264": {"x264-params": "threads=1:lookahead-threads=1:sliced-threads=0"},
-                  "h265": {"x265-params": "log-level=none:pools=1:frame-threads=1"}}[codec]
+        params = {"h264": {"x264-params": X264_PARAMS}, "h265": {"x265-params": X265_PARAMS}}[codec]
         stream.options = {"crf": str(int(crf)), "preset": "medium", "threads": "1", **params}
         for img in frames:
             img = np.pad(img, ((0, ch - h), (0, cw - w), (0, 0)), mode="edge")
@@ -135,8 +149,12 @@ def decode(data: bytes, codec: str, n: int, size: tuple[int, int]) -> list[np.nd
         except (av.error.FFmpegError, ValueError):
             pass  # a packet the decoder refuses: its picture is not shown
 
+    # PyAV hands the parser the bytes object as it is (valgrind: reads past its end in
+    # av_parser_parse2); a view of a zero-padded copy gives it the padding it expects.
+    padded = bytearray(data)
+    padded.extend(bytes(PARSER_PADDING))
     try:
-        packets = ctx.parse(data) + ctx.parse(None)  # None: the parser's last picture too
+        packets = ctx.parse(memoryview(padded)[:len(data)]) + ctx.parse(None)  # None: flush
     except av.error.FFmpegError:
         packets = []
     for packet in packets:
