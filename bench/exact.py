@@ -22,7 +22,6 @@ for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMB
 
 import argparse  # noqa: E402
 import contextlib  # noqa: E402
-import platform  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -31,6 +30,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.fft  # noqa: E402
 
+from bench import cpu_name  # noqa: E402
 from bench.depth import frames  # noqa: E402
 from robodepth_cli.corruptions import NAMES, REGISTRY, corrupt  # noqa: E402
 from robodepth_cli.building.tasks import _keep_freed_memory  # noqa: E402
@@ -120,9 +120,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     cv2.setNumThreads(1)
     _keep_freed_memory()  # as a build's worker does: no fresh pages for every temporary
-    cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")),
-               platform.processor()) if os.path.exists("/proc/cpuinfo") else platform.processor()
-    print(f"CPU: {cpu}; load average {os.getloadavg()[0]:.2f}; CPU ms per image, all levels summed")
+    print(f"CPU: {cpu_name()}; load average {os.getloadavg()[0]:.2f}; CPU ms per image, all levels summed")
     ok = True
     for label, x, depth in frames():
         names = [n for n in CHANGED if n in NAMES or REGISTRY[n].needs_depth]
