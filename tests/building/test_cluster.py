@@ -3,6 +3,7 @@ processes on 127.0.0.1, started here and torn down even when a test fails."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -93,6 +94,16 @@ class LocalCluster:
             deadline = time.monotonic() + START_TIMEOUT_S
             while address in self.client.nthreads() and time.monotonic() < deadline:
                 time.sleep(0.1)
+
+    @contextlib.contextmanager
+    def extra_worker(self, name: str, **start):
+        """One more worker (``add_worker``'s options) for the block, stopped after it, pass or
+        fail; yields its address."""
+        proc, address = self.add_worker(name, **start)
+        try:
+            yield address
+        finally:
+            self.stop(proc, address)
 
     def close(self) -> None:
         if self.client is not None:
@@ -287,12 +298,9 @@ def test_worker_with_other_robodepth_is_refused_before_any_work(build, cluster, 
     init = shadow / "robodepth_cli" / "__init__.py"
     init.write_text(init.read_text().replace('__version__ = "', '__version__ = "0.0.0+other'))
     env = {**os.environ, "PYTHONPATH": str(shadow)}
-    proc, address = cluster.add_worker("other", env=env, cwd=shadow)  # python -m puts the cwd first
-    try:
-        out = tmp_path / "out"
+    out = tmp_path / "out"
+    with cluster.extra_worker("other", env=env, cwd=shadow) as address:  # python -m puts the cwd first
         res = build(out, *CHEAP, "--scheduler", cluster.address)
-    finally:
-        cluster.stop(proc, address)
     assert res.exit_code == 2, res.output
     connecting, msg = res.output.strip().splitlines()  # the error is the one line after
     assert connecting.startswith(f"robodepth: connecting to the Dask scheduler at {cluster.address}")
@@ -309,12 +317,9 @@ def test_worker_that_cannot_see_the_root_is_refused_before_any_work(build, clust
     root, _ = kitti
     hide = root.parent
     prefix = ["unshare", "-Urm", "sh", "-c", 'mount -t tmpfs tmpfs "$0" && exec "$@"', str(hide)]
-    proc, address = cluster.add_worker("blind", prefix=prefix)
-    try:
-        out = tmp_path / "out"
+    out = tmp_path / "out"
+    with cluster.extra_worker("blind", prefix=prefix) as address:
         res = build(out, *CHEAP, "--scheduler", cluster.address)
-    finally:
-        cluster.stop(proc, address)
     assert res.exit_code == 2, res.output
     assert res.output.strip().splitlines()[1:] == [
         f"robodepth: error: worker {address}: cannot see the root {root} (no such directory); "

@@ -596,6 +596,15 @@ def wait_until_partly_done(proc, out: Path, timeout: float = 120.0) -> None:
     raise AssertionError("the build wrote nothing in time")
 
 
+def signalled_midway(processes, big, out: Path, sig: int):
+    """A build of ``big`` into ``out``, sent ``sig`` (to its process group: the main process
+    and its workers) once it has recorded an image; its process."""
+    proc = processes(*build_args(big, out))
+    wait_until_partly_done(proc, out)
+    os.killpg(proc.pid, sig)
+    return proc
+
+
 def completed_rows(out: Path) -> int:
     """Outputs recorded so far: in the manifest, or in the journal of a killed build."""
     return sum(1 for r in manifest.read_recorded(out).values() if not r.error)
@@ -605,9 +614,7 @@ def completed_rows(out: Path) -> int:
 def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference, tmp_path,
                                                                  processes, cli):
     out = tmp_path / "out"
-    proc = processes(*build_args(big, out))
-    wait_until_partly_done(proc, out)
-    os.killpg(proc.pid, signal.SIGKILL)  # the main process and its workers
+    proc = signalled_midway(processes, big, out, signal.SIGKILL)
     proc.wait(timeout=60)
     assert proc.returncode == -signal.SIGKILL
     done = completed_rows(out)
@@ -634,9 +641,7 @@ def test_sigkill_midway_then_rerun_equals_an_uninterrupted_build(big, reference,
 def test_ctrl_c_stops_cleanly_and_the_rerun_completes(big, reference, tmp_path, processes, sig, cli,
                                                       build_kitti):
     out = tmp_path / "out"
-    proc = processes(*build_args(big, out))
-    wait_until_partly_done(proc, out)
-    os.killpg(proc.pid, sig)
+    proc = signalled_midway(processes, big, out, sig)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "Warning" not in err, err
@@ -659,9 +664,8 @@ def test_ctrl_c_stops_cleanly_and_the_rerun_completes(big, reference, tmp_path, 
 def test_second_build_into_the_same_out_is_refused_while_one_runs(big, reference, tmp_path,
                                                                   processes, cli):
     out = tmp_path / "out"
-    first = processes(*build_args(big, out))
-    wait_until_partly_done(first, out)
-    os.killpg(first.pid, signal.SIGSTOP)  # hold it mid-build, lock taken, for as long as needed
+    # Held mid-build, its lock taken, for as long as needed.
+    first = signalled_midway(processes, big, out, signal.SIGSTOP)
     try:
         second = processes(*build_args(big, out, jobs="1"))
         _, err = second.communicate(timeout=300)

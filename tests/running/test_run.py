@@ -43,6 +43,20 @@ def py_model(tmp_path_factory):
     return f"python:{path}:predict"
 
 
+def build_predict_evaluate(cli, tmp_path, build, predict, evaluate=()):
+    """The three commands a run replaces, as a user types them: ``build *build`` into
+    tmp_path/B, ``predict -m ...`` into P, ``evaluate *evaluate`` into e.csv; evaluate's
+    result."""
+    res = cli("build", *build, "--out", tmp_path / "B", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    res = cli("predict", tmp_path / "B", *predict, "--out", tmp_path / "P", "--no-progress")
+    assert res.exit_code == 0, res.output
+    res = cli("evaluate", tmp_path / "B", "--pred", tmp_path / "P", "--out", tmp_path / "e.csv",
+              *evaluate, "--no-progress")
+    assert res.exit_code == 0, res.output
+    return res
+
+
 @pytest.mark.slow
 def test_kitti_run_writes_the_csv_of_build_predict_evaluate(tmp_path, cli, kitti_scans_root):
     import torch
@@ -53,15 +67,8 @@ def test_kitti_run_writes_the_csv_of_build_predict_evaluate(tmp_path, cli, kitti
     random_monodepth2(tmp_path / "m", 18)
     model = f"monodepth2:{tmp_path / 'm'}"
     split = FIXTURES / "kitti_split.txt"
-    res = cli("build", "kitti-c", "--root", kitti_scans_root, "--split", split, "--out", tmp_path / "B",
-              *KITTI_FLAGS, "--jobs", "1")
-    assert res.exit_code == 0, res.output
-    res = cli("predict", tmp_path / "B", "-m", model, "--out", tmp_path / "P", "--device", "cpu",
-              "--no-progress")
-    assert res.exit_code == 0, res.output
-    res = cli("evaluate", tmp_path / "B", "--pred", tmp_path / "P", "--out", tmp_path / "e.csv",
-              "--score", "--no-progress")
-    assert res.exit_code == 0, res.output
+    res = build_predict_evaluate(cli, tmp_path, ("kitti-c", "--root", kitti_scans_root, "--split", split,
+                                                 *KITTI_FLAGS), ("-m", model, "--device", "cpu"), ("--score",))
     scores = res.stdout[res.stdout.index("mCE"):]
 
     res = cli("run", "kitti-c", "--root", kitti_scans_root, "--split", split, "-m", model, "--device",
@@ -84,14 +91,8 @@ def test_kitti_run_writes_the_csv_of_build_predict_evaluate(tmp_path, cli, kitti
 def test_nyu_run_writes_the_csv_of_build_predict_evaluate(tmp_path, cli, py_model):
     split = FIXTURES / "nyu_split.txt"
     model = (py_model, "--kind", "depth", "--metric")
-    res = cli("build", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", split, "--out",
-              tmp_path / "B", *NYU_FLAGS, "--jobs", "1")
-    assert res.exit_code == 0, res.output
-    res = cli("predict", tmp_path / "B", "-m", *model, "--out", tmp_path / "P", "--no-progress")
-    assert res.exit_code == 0, res.output
-    res = cli("evaluate", tmp_path / "B", "--pred", tmp_path / "P", "--out", tmp_path / "e.csv",
-              "--no-progress")
-    assert res.exit_code == 0, res.output
+    build_predict_evaluate(cli, tmp_path, ("nyudepth2-c", "--root", FIXTURES / "nyu", "--split", split,
+                                           *NYU_FLAGS), ("-m", *model))
     res = cli("run", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", split, "-m", *model,
               "--out", tmp_path / "r.csv", *NYU_FLAGS, "--no-progress")
     assert res.exit_code == 0, res.output
@@ -125,13 +126,7 @@ def test_nyu_run_from_the_labeled_file(tmp_path, cli, py_model):
     split = write_split(tmp_path / "split.txt", [0, 3])
     flags = ("--split", split, "--size", "48x64", "--corruptions", "contrast", "--levels", "3")
     model = (py_model, "--kind", "depth", "--metric")
-    res = cli("build", "nyudepth2-c", "--root", mat, "--out", tmp_path / "B", *flags, "--jobs", "1")
-    assert res.exit_code == 0, res.output
-    res = cli("predict", tmp_path / "B", "-m", *model, "--out", tmp_path / "P", "--no-progress")
-    assert res.exit_code == 0, res.output
-    res = cli("evaluate", tmp_path / "B", "--pred", tmp_path / "P", "--out", tmp_path / "e.csv",
-              "--no-progress")
-    assert res.exit_code == 0, res.output
+    build_predict_evaluate(cli, tmp_path, ("nyudepth2-c", "--root", mat, *flags), ("-m", *model))
     res = cli("run", "nyudepth2-c", "--root", mat, "-m", *model, "--out", tmp_path / "r.csv",
               *flags, "--no-progress")
     # The file's depths are noise, so no model scores: the CSV is written, with a warning.
