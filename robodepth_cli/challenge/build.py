@@ -18,7 +18,6 @@ The public folder is written under a temporary name and renamed when complete.
 from __future__ import annotations
 
 import dataclasses
-import os
 from pathlib import Path
 
 import numpy as np
@@ -164,6 +163,7 @@ def _write_private(cfg, private: Path, picks: list[Pick], shas: dict, maps: dict
     with atomic_output(private / layout.GT) as fh:
         write_npz(fh, ((p.id, maps[p.source]()) for p in picks))
     write_atomic(private / layout.KEY, layout.key_text(rows).encode())
+    write_atomic(private / layout.LIST, "".join(p.id + "\n" for p in picks).encode())
     meta = {"format": layout.FORMAT, "track": track, "images": n, "dataset": cfg.dataset,
             "seed": cfg.seed, "corruptions": list(cfg.variants), "levels": list(cfg.levels)}
     write_atomic(private / layout.META, layout.meta_text(meta).encode())
