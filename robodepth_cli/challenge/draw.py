@@ -15,7 +15,6 @@ from ..errors import InvalidValueError
 from ..seeding import sample_rng
 
 ID_HEX = 10  # digits of an image id: 16^10 ids, so a clash among a few thousand is rare (redrawn)
-_TRIES = 100  # reshuffles to avoid the same (frame, corruption, level) twice
 
 
 @dataclass(frozen=True)
@@ -46,7 +45,7 @@ def draw(n: int, sources: Sequence[str], corruptions: Sequence[str], levels: Seq
     - Source frames: a random permutation of ``sources`` for the first ``len(sources)``
       images, another for the next, and so on: a frame is used at most ``ceil(n / S)``
       times, once while ``n <= S``. The (corruption, level) pairs are shuffled onto them;
-      a frame never gets the same pair twice (the pairs are shuffled again until it does not).
+      a frame never gets the same pair twice (:func:`_separate`).
     - The list order is another permutation, and each id ``ID_HEX`` random hex digits.
     """
     if n < 1:
@@ -58,14 +57,9 @@ def draw(n: int, sources: Sequence[str], corruptions: Sequence[str], levels: Seq
     pairs = [(c, lv) for c in corruptions
              for lv in balanced(per_corruption.count(c), list(levels), rng)]
     frames = [sources[i] for _ in range(-(-n // len(sources))) for i in rng.permutation(len(sources))][:n]
-    for _ in range(_TRIES):
-        order = rng.permutation(n)
-        triples = [(frames[i], *pairs[order[i]]) for i in range(n)]
-        if len(set(triples)) == n:
-            break
-    else:
-        raise InvalidValueError(f"{n} images from {len(sources)} frames: more than there are "
-                                "distinct (frame, corruption, level) triples to draw")
+    assigned = [pairs[k] for k in rng.permutation(n)]
+    _separate(frames, assigned, rng)
+    triples = [(f, *pair) for f, pair in zip(frames, assigned)]
     ids: list[str] = []
     seen: set[str] = set()
     while len(ids) < n:
@@ -76,3 +70,27 @@ def draw(n: int, sources: Sequence[str], corruptions: Sequence[str], levels: Seq
     place = rng.permutation(n)
     picks = [Pick(ids[k], int(place[k]), *triples[k]) for k in range(n)]
     return sorted(picks, key=lambda p: p.position)
+
+
+def _separate(frames: list, pairs: list, rng: np.random.Generator) -> None:
+    """Swap ``pairs`` in place until no frame has the same pair twice: each repeat swaps with
+    the first position (in an order drawn from ``rng``) of another frame where both swapped
+    triples are new. :class:`InvalidValueError` when no such swap exists."""
+    from collections import Counter
+
+    used = Counter(zip(frames, pairs))
+    for i in range(len(frames)):
+        if used[(frames[i], pairs[i])] < 2:
+            continue
+        for j in rng.permutation(len(frames)).tolist():
+            a, b = (frames[i], pairs[j]), (frames[j], pairs[i])
+            if frames[j] != frames[i] and used[a] == 0 and used[b] == 0:
+                used[(frames[i], pairs[i])] -= 1
+                used[(frames[j], pairs[j])] -= 1
+                pairs[i], pairs[j] = pairs[j], pairs[i]
+                used[a] += 1
+                used[b] += 1
+                break
+        else:
+            raise InvalidValueError(f"{len(frames)} images from {len(set(frames))} frames: more "
+                                    "than there are distinct (frame, corruption, level) triples")
