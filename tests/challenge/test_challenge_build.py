@@ -146,3 +146,48 @@ def test_nyu_track(cli, tmp_path):
             png = FIXTURES / "nyu" / r["source"].replace("rgb_", "sync_depth_").replace(".png", ".png")
             mm = np.asarray(Image.open(png), dtype=np.float32)
             np.testing.assert_allclose(gt[r["id"]], mm / 1000.0, rtol=1e-6)
+
+
+def test_predict_writes_a_valid_submission(cli, challenge, tmp_path):
+    """robodepth predict on the public folder: a zip holding disp.npz, each image's map under
+    its id (a python: model's disparity from the image's own pixels), accepted by check and
+    scored."""
+    (tmp_path / "net.py").write_text("import numpy as np\n\ndef predict(images):\n"
+                                     "    return images.mean(-1).astype(np.float32) / 255 + 0.01\n")
+    sub = tmp_path / "submission.zip"
+    res = cli("predict", challenge / "public", "-m", f"python:{tmp_path / 'net.py'}:predict", "--kind", "disp",
+              "-o", sub, "--no-progress")
+    assert res.exit_code == 0, res.output
+    assert cli("challenge", "check", sub, "--public", challenge / "public").exit_code == 0
+    from PIL import Image
+    import io
+    import zipfile
+
+    with zipfile.ZipFile(sub) as zf:
+        assert zf.namelist() == ["disp.npz"]
+        with np.load(io.BytesIO(zf.read("disp.npz")), allow_pickle=False) as npz:
+            ids = (challenge / "public" / "list.txt").read_text().split()
+            assert list(npz.keys()) == ids
+            for i in ids:
+                rgb = np.asarray(Image.open(challenge / "public" / "images" / f"{i}.png").convert("RGB"))
+                np.testing.assert_allclose(npz[i], rgb.mean(-1) / 255 + 0.01, rtol=1e-6)
+    res = cli("challenge", "score", sub, "--reference", challenge / "private", "--json")
+    assert res.exit_code == 0 and json.loads(res.output)["images"] == 12
+
+
+def test_predict_on_track_nyu_needs_metric_depth(cli, tmp_path):
+    out = tmp_path / "N"
+    res = cli("challenge", "build", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", FIXTURES / "nyu_split.txt",
+              "--seed", "2", "-n", "2", "--out", out, "--jobs", "1", "--corruptions", "pixelate", "--no-progress")
+    assert res.exit_code == 0, res.output
+    (tmp_path / "net.py").write_text("import numpy as np\n\ndef predict(images):\n"
+                                     "    return np.full(images.shape[:3], 3.0, np.float32)\n")
+    net = f"python:{tmp_path / 'net.py'}:predict"
+    one_line_error(cli("predict", out / "public", "-m", net, "--kind", "disp", "-o", tmp_path / "s.zip",
+                       "--no-progress"), "track nyu takes metric depth")
+    assert not (tmp_path / "s.zip").exists()
+    res = cli("predict", out / "public", "-m", net, "--kind", "depth", "--metric", "-o", tmp_path / "s.zip",
+              "--no-progress")
+    assert res.exit_code == 0, res.output
+    got = json.loads(cli("challenge", "score", tmp_path / "s.zip", "--reference", out / "private", "--json").output)
+    assert got["images"] == 2 and "silog" in got
