@@ -42,6 +42,7 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
                     metric, progress):
     """Run a depth model over DATASET_DIR (made by robodepth build) and write its predictions
     to PRED in the layout robodepth evaluate reads.
+
     A challenge's public folder as DATASET_DIR: PRED is the submission zip (docs/challenge.md).
 
     Every variant (or those of --variants) is run in split order; each variant's file is
