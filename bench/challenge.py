@@ -12,7 +12,7 @@ in this process, on the same arrays:
   memory, as it holds them (its loading is not timed);
 - robodepth: the submission opened from ``disp.npy`` and, separately, from a deflated
   ``disp.zip`` holding it, each map read from the stream, its ground truth from the
-  reference's ``gt.npz`` (timed), resized only at the valid pixels.
+  reference's deflated ``gt.npz``, as ``challenge build`` writes it (timed), resized only at the valid pixels.
 
 Prints both times, the ratio, the largest difference of the seven numbers, and robodepth's
 peak traced memory (tracemalloc, a second run) with the size of one map and of the whole array beside it.
@@ -38,6 +38,8 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from bench import cpu_name  # noqa: E402
+from robodepth_cli.challenge.layout import gt_members  # noqa: E402
+from robodepth_cli.challenge.npzfile import write_npz  # noqa: E402
 from robodepth_cli.challenge.scoring import open_reference, score  # noqa: E402
 from robodepth_cli.challenge.submission import open_submission  # noqa: E402
 from tests.helpers.challenge import official_evaluate, write_reference  # noqa: E402
@@ -79,8 +81,10 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         ids = [f"{k:010x}" for k in range(n)]
-        ref = open_reference(str(write_reference(tmp / "ref", ids, gts,
-                                                 corruptions=["fog", "dark"] * (n // 2) + ["fog"] * (n % 2))))
+        folder = write_reference(tmp / "ref", ids, gts, corruptions=["fog", "dark"] * (n // 2) + ["fog"] * (n % 2))
+        with open(folder / "gt.npz", "wb") as fh:  # as challenge build writes it
+            write_npz(fh, (m for i, g in zip(ids, gts) for m in gt_members(i, g)))
+        ref = open_reference(str(folder))
         disps = np.lib.format.open_memmap(tmp / "disp.npy", "w+", np.float32, (n, 192, 640))
         for k in range(n):
             disps[k] = disps_u[k % args.unique]

@@ -161,7 +161,7 @@ def _write_private(cfg, private: Path, picks: list[Pick], shas: dict, maps: dict
     rows = [{"id": p.id, "position": p.position, "source": p.source, "corruption": p.corruption,
              "level": p.level, "seed": cfg.seed, "sha256": shas[p.id]} for p in picks]
     with atomic_output(private / layout.GT) as fh:
-        write_npz(fh, ((p.id, maps[p.source]()) for p in picks))
+        write_npz(fh, (m for p in picks for m in layout.gt_members(p.id, maps[p.source]())))
     write_atomic(private / layout.KEY, layout.key_text(rows).encode())
     write_atomic(private / layout.LIST, "".join(p.id + "\n" for p in picks).encode())
     meta = {"format": layout.FORMAT, "track": track, "images": n, "dataset": cfg.dataset,

@@ -122,7 +122,7 @@ def _npz_bytes(members) -> bytes:
 def reference_files(private: Path, ids: list[str], rows: list[dict], meta: dict) -> dict[str, bytes]:
     """A phase's reference data: the whole list, the key rows and maps of the images scored."""
     with np.load(private / layout.GT, allow_pickle=False) as gt:
-        maps = _npz_bytes((r["id"], gt[r["id"]]) for r in rows)
+        maps = _npz_bytes(m for r in rows for m in layout.gt_members(r["id"], layout.read_gt(gt, r["id"])))
     return {layout.LIST: "".join(i + "\n" for i in ids).encode(),
             layout.KEY: layout.key_text(rows).encode(), layout.GT: maps,
             layout.META: layout.meta_text({**meta, "scored": len(rows)}).encode()}

@@ -9,8 +9,10 @@ public/ (what participants download)::
 
 private/ (what stays with the organisers and the scoring program)::
 
-    gt.npz              one float32 depth map in metres per id (member ``<id>.npy``; 0 or
-                        NaN where invalid), no pickle
+    gt.npz              the float32 depth map in metres of each id, no pickle: member
+                        ``<id>.npy`` (the map; 0 or NaN where invalid), or for a map
+                        mostly invalid (KITTI's lidar) ``<id>.shape.npy``, ``<id>.index.npy``
+                        and ``<id>.depth.npy`` (see :func:`gt_members`)
     key.csv             id, position, source, corruption, level, seed, sha256 (of the PNG)
     challenge.json      track, dataset, seed, corruptions, levels, benchmark
     build/              the build of the clean images and ground truth it was drawn from
@@ -39,6 +41,34 @@ FORMAT = 1  # of challenge.json
 
 class ChallengeFolderError(RobodepthError):
     """A public or private folder that is not one ``challenge build`` wrote."""
+
+
+def gt_members(image_id: str, depth):
+    """The ``gt.npz`` members of one map: ``(<id>, map)`` when at least half its pixels are
+    valid (finite, above 0); else its shape (int64 H, W), the flat row-major indices of the
+    valid pixels (int32) and their depths (float32), which cost a tenth of the inflating."""
+    import numpy as np
+
+    depth = np.asarray(depth, np.float32)
+    valid = np.flatnonzero(np.isfinite(depth) & (depth > 0))
+    if valid.size * 2 >= depth.size or depth.size >= 2 ** 31:
+        return [(image_id, depth)]
+    return [(f"{image_id}.shape", np.array(depth.shape, np.int64)),
+            (f"{image_id}.index", valid.astype(np.int32)),
+            (f"{image_id}.depth", depth.reshape(-1)[valid])]
+
+
+def read_gt(npz, image_id: str):
+    """The map of ``image_id`` from an opened ``gt.npz`` (``np.load``): as stored, or rebuilt
+    from its sparse members with 0 elsewhere; ``KeyError`` if it has none."""
+    import numpy as np
+
+    if image_id in npz.files:
+        return npz[image_id]
+    shape = tuple(int(v) for v in npz[f"{image_id}.shape"])
+    depth = np.zeros(shape, np.float32)
+    depth.reshape(-1)[npz[f"{image_id}.index"]] = npz[f"{image_id}.depth"]
+    return depth
 
 
 def read_meta(folder: str) -> dict:

@@ -157,7 +157,7 @@ def score(submission, ref: Reference) -> Scores:
             if row is None:
                 continue
             try:
-                gt = gt_file[image_id]
+                gt = layout.read_gt(gt_file, image_id)
             except KeyError:
                 raise ReferenceError_(f"{ref.folder}: gt.npz has no map for {image_id}") from None
             try:
