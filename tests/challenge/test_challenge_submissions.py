@@ -39,6 +39,19 @@ def _zip(path, members, method=zipfile.ZIP_DEFLATED):
     return path
 
 
+def _streamed(path, shape, block: bytes, count: int):
+    """A zip whose member disp.npy has a float32 header of ``shape`` and then ``block``
+    ``count`` times, written as a stream (never whole in memory)."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+        with zf.open("disp.npy", "w", force_zip64=True) as fh:
+            header = io.BytesIO()
+            np.lib.format.write_array_header_1_0(header, {"descr": "<f4", "fortran_order": False, "shape": shape})
+            fh.write(header.getvalue())
+            for _ in range(count):
+                fh.write(block)
+    return path
+
+
 @pytest.fixture
 def public(tmp_path):
     return public_folder(tmp_path / "public", IDS)
@@ -93,16 +106,7 @@ def test_several_and_no_arrays(cli, tmp_path, public):
 def test_zip_bomb_refused_from_the_index(cli, tmp_path, public):
     # 1.2 GB of zeros declared as one .npy member, deflated to about a MB: refused by the
     # declared size before anything is inflated, with memory to spare.
-    path = tmp_path / "bomb.zip"
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
-        with zf.open("disp.npy", "w", force_zip64=True) as fh:
-            header = io.BytesIO()
-            np.lib.format.write_array_header_1_0(header, {"descr": "<f4", "fortran_order": False,
-                                                          "shape": (3, 10000, 10000)})
-            fh.write(header.getvalue())
-            chunk = bytes(1 << 22)
-            for _ in range(300):
-                fh.write(chunk)
+    path = _streamed(tmp_path / "bomb.zip", (3, 10000, 10000), bytes(1 << 22), 300)
     assert path.stat().st_size < 10e6
     tracemalloc.start()
     _check(cli, path, public, "over the limit", "--max-size")
@@ -211,17 +215,8 @@ def test_npz_in_a_deflated_zip_leaves_no_temporary_file(tmp_path):
 
 def test_maps_are_read_one_at_a_time(tmp_path):
     # 40 maps of 1000 x 1000 float32 (160 MB) in one zip member: peak memory a few maps.
-    path = tmp_path / "big.zip"
     ids = [f"i{k}" for k in range(40)]
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
-        with zf.open("disp.npy", "w", force_zip64=True) as fh:
-            header = io.BytesIO()
-            np.lib.format.write_array_header_1_0(header, {"descr": "<f4", "fortran_order": False,
-                                                          "shape": (40, 1000, 1000)})
-            fh.write(header.getvalue())
-            m = np.full((1000, 1000), 0.5, np.float32).tobytes()
-            for _ in ids:
-                fh.write(m)
+    path = _streamed(tmp_path / "big.zip", (40, 1000, 1000), np.full((1000, 1000), 0.5, np.float32).tobytes(), 40)
     tracemalloc.start()
     with open_submission(str(path), ids, 10 ** 9) as sub:
         n = sum(1 for _ in sub.maps())
