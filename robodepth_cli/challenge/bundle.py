@@ -4,8 +4,8 @@ version 2) for a challenge built by ``challenge build``.
 The zip holds, at its root:
 
 - ``competition.yaml``: title, logo, docker image, terms and pages, two tasks (the
-  development set: the first images of the list, scored with visible results; the final
-  set: every image), two phases, a sample submission as a solution, a leaderboard whose
+  development set, :func:`dev_rows`, scored with visible results; the final set: every
+  image), two phases, a sample submission as a solution, a leaderboard whose
   columns are keys of ``scores.json``, the track's ranking metric first;
 - ``pages/`` (overview, data, evaluation, terms), ``logo.png``;
 - ``scoring_program/``: ``metadata.yaml`` (``command: python3 /app/program/score.py
@@ -56,8 +56,9 @@ class BundleError(RobodepthError):
 
 
 def leaderboard_columns(track: str, corruptions) -> list[dict]:
-    """The leaderboard's columns: the ranking metric first, then the other metrics, DEE,
-    and DEE per corruption (keys of ``scores.json``)."""
+    """The leaderboard's columns: the ranking metric first (the leaderboard's
+    ``primary_index``), then the other metrics, DEE, and DEE per corruption (keys of
+    ``scores.json``; Codabench stores a column's key and title in 36 characters)."""
     from ..evaluation.protocols import KITTI_METRICS, NYU_METRICS
 
     rank, sorting = RANK[track]
@@ -67,6 +68,29 @@ def leaderboard_columns(track: str, corruptions) -> list[dict]:
     cols += [("dee", "asc"), ("mdee", "asc")] + [(f"dee_{c}", "asc") for c in corruptions]
     return [{"title": k.replace("_", " "), "key": k, "index": i, "sorting": s, "precision": 4}
             for i, (k, s) in enumerate(cols)]
+
+
+def dev_rows(rows: list[dict], k: int) -> list[dict]:
+    """The development set: for each corruption its first image in list order, then the
+    next images of the list, ``k`` in all (at least one per corruption), in list order; so
+    every per-corruption column of the leaderboard has a value in both phases."""
+    chosen: dict[str, dict] = {}
+    for r in rows:
+        chosen.setdefault(r["corruption"], r)
+    picked = {r["id"] for r in chosen.values()}
+    for r in rows:
+        if len(picked) >= k:
+            break
+        picked.add(r["id"])
+    return [r for r in rows if r["id"] in picked]
+
+
+def present(rows: list[dict]) -> list[str]:
+    """The corruptions of ``rows``, in benchmark order."""
+    from ..benchmarks import ALL_CORRUPTIONS
+
+    have = {r["corruption"] for r in rows}
+    return [c for c in ALL_CORRUPTIONS if c in have] + sorted(have - set(ALL_CORRUPTIONS))
 
 
 def competition_yaml(meta: dict, title: str, dev_images: int, dates: dict, per_day: int,
@@ -85,7 +109,7 @@ def competition_yaml(meta: dict, title: str, dev_images: int, dates: dict, per_d
                   (("Overview", "overview"), ("Data", "data"), ("Evaluation", "evaluation"),
                    ("Terms", "terms"))],
         "tasks": [{"index": 0, "name": "Development set",
-                   "description": f"The first {dev_images} images of list.txt.",
+                   "description": f"{dev_images} of the images, every corruption among them.",
                    "scoring_program": "scoring_program/", "reference_data": "reference_dev/"},
                   {"index": 1, "name": "Final set", "description": f"All {meta['images']} images.",
                    "scoring_program": "scoring_program/", "reference_data": "reference_final/"}],
@@ -99,9 +123,9 @@ def competition_yaml(meta: dict, title: str, dev_images: int, dates: dict, per_d
                     "start": dates["final_start"], "end": dates["final_end"],
                     "max_submissions_per_day": per_day, "max_submissions": final_total,
                     "tasks": [1]}],
-        "leaderboards": [{"index": 0, "title": "Results", "key": "main",
+        "leaderboards": [{"index": 0, "title": "Results", "key": "main", "primary_index": 0,
                           "submission_rule": "Force_Last",
-                          "columns": leaderboard_columns(track, meta.get("corruptions", []))}],
+                          "columns": leaderboard_columns(track, meta["corruptions"])}],
     }
     return yaml.safe_dump(doc, sort_keys=False, allow_unicode=True)
 
@@ -157,10 +181,12 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
     meta = layout.read_meta(str(private))
     ids = layout.read_list(str(public))
     rows = layout.read_key(str(private))
-    n = len(ids)
-    dev = dev_images if dev_images is not None else max(1, min(50, n // 10))
-    if not 1 <= dev <= n:
-        raise BundleError(f"--dev-images {dev}: must be 1..{n}")
+    n, corruptions = len(ids), present(rows)
+    meta = {**meta, "corruptions": corruptions}
+    dev = dev_images if dev_images is not None else max(len(corruptions), min(50, n // 10))
+    if not len(corruptions) <= dev <= n:
+        raise BundleError(f"--dev-images {dev}: must be {len(corruptions)}..{n} (at least one "
+                          "image per corruption, so that every leaderboard column has a value)")
     package = Path(__file__).resolve().parent.parent
     with atomic_output(out) as fh, zipfile.ZipFile(fh, "w") as zf:
         _add(zf, "competition.yaml", competition_yaml(meta, title, dev, dates, per_day, total,
@@ -175,7 +201,7 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
             _add(zf, f"scoring_program/robodepth_cli/{pkg}__init__.py", b"")
         for rel in PROGRAM_FILES:
             _add(zf, f"scoring_program/robodepth_cli/{rel}", (package / rel).read_bytes())
-        for folder, part in (("reference_dev", rows[:dev]), ("reference_final", rows)):
+        for folder, part in (("reference_dev", dev_rows(rows, dev)), ("reference_final", rows)):
             for name, data in reference_files(private, ids, part, meta).items():
                 _add(zf, f"{folder}/{name}", data)
         _add(zf, "solutions/sample/disp.npz", sample_submission(ids))

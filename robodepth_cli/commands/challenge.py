@@ -141,7 +141,8 @@ def challenge_check_command(submission, public, max_size):
               help="The competition bundle to write (a .zip to upload to Codabench).")
 @click.option("--title", default="RoboDepth Challenge", show_default=True, help="The competition's title.")
 @click.option("--dev-images", type=int, metavar="K",
-              help="Images of the development phase: the first K of the list (default: a tenth, at most 50).")
+              help="Images of the development phase: each corruption's first in the list, then the "
+                   "list's next ones, K in all (default: a tenth, at most 50, at least one per corruption).")
 @click.option("--dev-start", default="2026-01-01", show_default=True, help="Development phase start (YYYY-MM-DD).")
 @click.option("--final-start", default="2026-03-01", show_default=True,
               help="Final phase start, the development phase's end (YYYY-MM-DD).")

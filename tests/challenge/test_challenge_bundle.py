@@ -40,7 +40,7 @@ def case(tmp_path_factory):
     for name in ("list.txt", "challenge.json"):
         (root / "C" / "public" / name).write_bytes((root / "C" / "private" / name).read_bytes())
     res = CliRunner().invoke(main, ["challenge", "bundle", str(root / "C"), "--out", str(root / "b.zip"),
-                                    "--dev-images", "4", "--per-day", "3", "--total", "30",
+                                    "--dev-images", "5", "--per-day", "3", "--total", "30",
                                     "--final-total", "2", "--max-size", "100"], catch_exceptions=False)
     assert res.exit_code == 0, res.output
     np.save(root / "disp.npy", disps)
@@ -83,10 +83,16 @@ def test_competition_yaml_is_what_the_v2_unpacker_reads(case):
         board = doc["leaderboards"][0]
         assert board["columns"][0]["key"] == "abs_rel" and board["columns"][0]["sorting"] == "asc"
         assert [c["index"] for c in board["columns"]] == list(range(len(board["columns"])))
+        assert board["primary_index"] == 0
+        keys = [c["key"] for c in board["columns"]]
+        assert len(set(keys)) == len(keys)  # unique per leaderboard, as Codabench's Column is
+        assert all(len(c["key"]) <= 36 and len(c["title"]) <= 36 for c in board["columns"])
+        assert {f"dee_{c}" for c in CORRUPTIONS} <= set(keys)
         meta = yaml.safe_load(zf.read("scoring_program/metadata.yaml"))
         assert meta["command"].split()[1:] == ["/app/program/score.py", "/app/input", "/app/output", "100000000"]
-        dev_key = text("reference_dev/key.csv").splitlines()
-        assert len(dev_key) == 1 + 4 and text("reference_dev/list.txt").split() == ids
+        dev_key = [line.split(",") for line in text("reference_dev/key.csv").splitlines()[1:]]
+        # each corruption's first image (list positions 0-4), none beyond: K = 5 here
+        assert [int(r[1]) for r in dev_key] == [0, 1, 2, 3, 4] and text("reference_dev/list.txt").split() == ids
 
 
 def _venv_with_numpy_only(where):
@@ -152,8 +158,11 @@ def test_development_phase_scores_its_images(case, tmp_path):
     proc, out = _worker_run(py, root, root / "b.zip", "reference_dev", root / "disp.zip", tmp_path)
     assert proc.returncode == 0, proc.stderr
     scores = json.loads((out / "scores.json").read_text())
-    assert scores["images"] == 4
-    np.testing.assert_allclose(scores["abs_rel"], official_evaluate(disps[:4], gts[:4])[0], rtol=1e-6)
+    assert scores["images"] == 5
+    np.testing.assert_allclose(scores["abs_rel"], official_evaluate(disps[:5], gts[:5])[0], rtol=1e-6)
+    with zipfile.ZipFile(root / "b.zip") as zf:
+        doc = yaml.safe_load(zf.read("competition.yaml"))
+    assert {c["key"] for c in doc["leaderboards"][0]["columns"]} <= set(scores)  # every column, this phase too
 
 
 def test_the_sample_submission_and_the_starting_kit(case, tmp_path):
@@ -200,7 +209,9 @@ def test_bundle_refusals(cli, case, tmp_path):
     root = case[0]
     one_line_error(cli("challenge", "bundle", tmp_path, "--out", tmp_path / "b.zip"), "missing")
     one_line_error(cli("challenge", "bundle", root / "C", "--out", tmp_path / "b.zip", "--dev-images", "99"),
-                   "--dev-images 99")
+                   "--dev-images 99", "5..10")
+    one_line_error(cli("challenge", "bundle", root / "C", "--out", tmp_path / "b.zip", "--dev-images", "3"),
+                   "at least one image per corruption")
     one_line_error(cli("challenge", "bundle", root / "C", "--out", tmp_path / "b.zip", "--final-start",
                        "2025-01-01"), "in that order")
     assert sys.version_info >= (3, 8)
