@@ -195,3 +195,25 @@ def test_predict_on_track_nyu_needs_metric_depth(cli, tmp_path):
     assert res.exit_code == 0, res.output
     got = json.loads(cli("challenge", "score", tmp_path / "s.zip", "--reference", out / "private", "--json").output)
     assert got["images"] == 2 and "silog" in got
+
+
+def test_custom_with_depth(cli, tmp_path):
+    """A custom build with --depth (given in --config): each image's ground truth is its own
+    depth map."""
+    from PIL import Image
+
+    rng = np.random.default_rng(0)
+    (tmp_path / "rgb").mkdir()
+    (tmp_path / "depth").mkdir()
+    for i in range(3):
+        Image.fromarray(rng.integers(0, 255, (40, 60, 3), dtype=np.uint8)).save(tmp_path / "rgb" / f"im{i}.png")
+        np.save(tmp_path / "depth" / f"im{i}.npy", rng.uniform(1, 20, (40, 60)).astype(np.float32))
+    (tmp_path / "cfg.yaml").write_text(f"depth: {tmp_path / 'depth'}\n")
+    res = cli("challenge", "build", "custom", "--root", tmp_path / "rgb", "--config", tmp_path / "cfg.yaml",
+              "--seed", "1", "-n", "5", "--corruptions", "fog,brightness", "--out", tmp_path / "C", "--no-progress")
+    assert res.exit_code == 0, res.output
+    key = _key(tmp_path / "C")
+    assert max(Counter(r["source"] for r in key).values()) == 2  # 5 images of 3 frames: at most twice
+    with np.load(tmp_path / "C" / "private" / "gt.npz", allow_pickle=False) as gt:
+        for r in key:
+            np.testing.assert_array_equal(gt[r["id"]], np.load(tmp_path / "depth" / r["source"].replace(".png", ".npy")))
