@@ -63,6 +63,8 @@ def build_challenge(cfg, root: Path, out: Path, *, images: int | None, track: st
     stage = private / layout.BUILD
     summary = build(dataclasses.replace(cfg, variants=()), root, stage, progress=progress,
                     command=command, gt=True)
+    if summary.interrupted:
+        raise KeyboardInterrupt  # the command line says what was kept, exit status 130
     if not summary.complete:
         raise ChallengeBuildError(f"{stage}: the build of the source frames did not finish "
                                   f"({summary.text()}); fix it and rerun")
@@ -70,8 +72,10 @@ def build_challenge(cfg, root: Path, out: Path, *, images: int | None, track: st
     maps = ground_truth_maps(built)
     sources = [k for k in built.keys if k in maps]
     picks = draw(n, sources, cfg.variants, cfg.levels, cfg.seed, cfg.dataset)
-    rows, size = _write_public(cfg, ds, root, stage, public, picks, track, progress)
-    _write_private(cfg, private, picks, rows, maps, track, n)
+    # The private files are written before the public folder takes its name: a challenge
+    # whose key could not be written never looks built.
+    _write_public(cfg, ds, root, stage, public, picks, track, progress,
+                  then=lambda shas: _write_private(cfg, private, picks, shas, maps, track, n))
     return read_public_meta(public)
 
 
@@ -106,9 +110,9 @@ def ground_truth_maps(built) -> dict:
 
 
 def _write_public(cfg, ds, root: Path, stage: Path, public: Path, picks: list[Pick],
-                  track: str, progress: bool) -> tuple[dict, tuple | None]:
-    """Render and write every image, then the list, README and metadata; the folder appears
-    whole. Returns the sha256 of each id's PNG and the images' size (None if they differ)."""
+                  track: str, progress: bool, then) -> None:
+    """Render and write every image, then the list, README and metadata, then call
+    ``then`` with the sha256 of each id's PNG; the folder appears whole after that."""
     from ..building.gather import gather_sources
     from ..building.pipeline import make_renderer
     from ..building.tasks import load_source
@@ -150,7 +154,7 @@ def _write_public(cfg, ds, root: Path, stage: Path, public: Path, picks: list[Pi
                 "size": list(size) if size else None}
         (tmp / layout.META).write_text(layout.meta_text(meta), encoding="utf-8")
         (tmp / layout.README).write_text(readme(meta), encoding="utf-8")
-    return shas, size
+        then(shas)
 
 
 def _write_private(cfg, private: Path, picks: list[Pick], shas: dict, maps: dict, track: str,

@@ -68,6 +68,8 @@ def challenge_build_command(dataset, root, out, seed, images, corruptions, level
         raise RobodepthError(f"--images {images}: need at least 1")
     cfg = resolve(dataset, config_file, {"corruptions": corruptions, "levels": levels,
                                          "seed": seed, "split": split, "size": size, "jobs": jobs})
+    common.on_interrupt(f"no challenge was written; the source frames' build in {out / 'private' / 'build'} "
+                        "is kept and a rerun resumes it")
     meta = build_challenge(cfg, root, out, images=images, track=track, progress=progress,
                            command=common.typed_argv())
     click.echo(f"{out}: {meta['images']} images (track {meta['track']}) in {out / 'public'}; "
