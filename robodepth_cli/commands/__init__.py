@@ -10,6 +10,7 @@ command is a new module here plus one entry in :data:`COMMANDS`.
 from __future__ import annotations
 
 from .build import build_command, verify_command
+from .challenge import challenge_command
 from .corrupt import corrupt_command, list_command, preview_command
 from .evaluate import evaluate_command
 from .export import export_command
@@ -23,4 +24,4 @@ from .stylize import stylize_command
 
 COMMANDS = (run_command, list_command, corrupt_command, preview_command, build_command, verify_command,
             stylize_command, score_command, predict_command, evaluate_command, gt_command,
-            report_command, export_command, selftest_command)
+            report_command, export_command, selftest_command, challenge_command)

@@ -16,7 +16,8 @@ from . import common
                    "depth model, local folder or local cache) or python:MODULE:CALLABLE.")
 @click.option("--out", "-o", "pred", required=True, type=click.Path(path_type=Path),
               metavar="PRED", help="Where the predictions go (PRED/clean.npy, "
-              "PRED/<corruption>/<level>.npy, PRED/predictions.json).")
+              "PRED/<corruption>/<level>.npy, PRED/predictions.json); for a challenge's public "
+              "folder, the submission zip to write.")
 @click.option("--variants", metavar="LIST",
               help="Only these variants: comma-separated clean, <corruption> (all its levels), "
                    "<corruption>/<level>, <style>. Default: every variant of the build.")
@@ -42,6 +43,8 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
     """Run a depth model over DATASET_DIR (made by robodepth build) and write its predictions
     to PRED in the layout robodepth evaluate reads.
 
+    A challenge's public folder as DATASET_DIR: PRED is the submission zip (docs/challenge.md).
+
     Every variant (or those of --variants) is run in split order; each variant's file is
     written whole or not at all, and a run started again skips the finished variants.
     PRED/predictions.json records the model and what its maps hold; robodepth evaluate takes
@@ -53,6 +56,10 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
       robodepth predict KITTI_C -m hf:depth-anything/Depth-Anything-V2-Small-hf -o DA
       robodepth predict NYU_C -m python:mymodel.py:predict --kind depth --metric -o P
     """
+    from ..challenge.predict import is_public_folder
+
+    if is_public_folder(dataset_dir):
+        return _challenge(dataset_dir, spec, pred, variants, batch_size, device, post_process, kind, metric, progress)
     from ..api import open_dataset
     from ..models import load_model
     from ..models import predict as P
@@ -90,3 +97,21 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
 
     click.echo(f"next: robodepth evaluate {shlex.quote(str(dataset_dir))} --pred "
                f"{shlex.quote(str(pred))}", err=True)
+
+
+def _challenge(public, spec, out, variants, batch_size, device, post_process, kind, metric, progress):
+    """``predict`` on a challenge's public folder: the submission zip, in list order."""
+    from ..challenge.predict import predict_submission
+    from ..errors import RobodepthError
+    from ..models import load_model
+    from ..progress import bar as progress_bar
+
+    if variants:
+        raise RobodepthError("--variants: a challenge's public folder has no variants")
+    if batch_size < 1:
+        raise click.BadParameter("must be at least 1", param_hint="--batch-size")
+    model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
+    with progress_bar("img", progress=progress) as bar:
+        n = predict_submission(public, model, out, batch_size, progress=bar.update)
+    click.echo(f"{model.spec} on {model.device}: {n} maps -> {out}; check it with: robodepth "
+               f"challenge check {out} --public {public}", err=True)

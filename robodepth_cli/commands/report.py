@@ -78,9 +78,17 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
       robodepth report ours.csv --dataset KITTI_C --pred PRED --out report/
       robodepth report a.csv b.csv c.csv a_fog.csv b_fog.csv c_fog.csv --name A --name B
           --name C --name A --name B --name C --out report/
+      robodepth report team1/scores.json team2/scores.json --out leaderboard/
+
+    Challenge scores.json files (robodepth challenge score) make a leaderboard instead:
+    OUT/index.html and OUT/leaderboard.md, a table per track with per-corruption columns.
     """
     from ..report import write as W
+    from ..report.leaderboard import is_challenge_scores
 
+    challenge = [is_challenge_scores(p) for p in results]
+    if any(challenge):
+        return _leaderboard(results, challenge, names, out, preds, dataset)
     if preds and dataset is None:
         raise RobodepthError("--pred needs --dataset (the build the predictions were made on)")
     if len(preds) > len(results):
@@ -135,3 +143,17 @@ def _say_written(report, written, out: Path) -> None:
                    + ", ".join(str(p.relative_to(out)) for p in written.removed))
     click.echo(f"wrote {out / 'index.html'} ({where}: {models}; "
                f"{len(written.files)} files under {out}{removed})", err=True)
+
+
+def _leaderboard(results, challenge, names, out, preds, dataset) -> None:
+    """``report`` on challenge scores.json files: the leaderboard (docs/report.md)."""
+    from ..report.leaderboard import write_leaderboard
+
+    if not all(challenge):
+        other = next(p for p, c in zip(results, challenge) if not c)
+        raise RobodepthError(f"{other}: not a challenge scores.json; a leaderboard takes only those "
+                             "(make results CSVs a report of their own)")
+    if preds or dataset is not None:
+        raise RobodepthError("--pred, --dataset: not for a challenge leaderboard")
+    written = write_leaderboard(results, names, out)
+    click.echo(f"wrote {written[0]} and {written[1]} ({counted(len(results), 'entry', 'entries')})", err=True)
