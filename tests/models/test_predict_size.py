@@ -150,3 +150,26 @@ def test_monodepth2_parameters_are_its_checkpoints_weights(dataset, tmp_path, cl
     # The stem alone, 7x7 from 3 to 64 channels at half the input size, is a lower bound.
     assert sizes[False]["flops"] > 2 * 64 * 3 * 49 * (NET_H // 2) * (NET_W // 2)
     assert sizes[True]["flops"] == 2 * sizes[False]["flops"]
+
+
+@pytest.mark.slow
+def test_hf_model_parameters_are_its_saved_weights(dataset, tmp_path, cli):
+    """An hf: model's parameters: the elements of the tensors save_pretrained wrote (tied
+    tensors once); its FLOPs at least its patch embedding's at the processor's 32 x 32."""
+    import torch
+    from safetensors.torch import load_file
+    from transformers import DPTConfig, DPTForDepthEstimation, DPTImageProcessor
+
+    torch.manual_seed(3)
+    cfg = DPTConfig(hidden_size=16, num_hidden_layers=4, num_attention_heads=2, intermediate_size=24,
+                    image_size=32, patch_size=8, neck_hidden_sizes=[8, 8, 16, 16],
+                    fusion_hidden_size=8, backbone_out_indices=[0, 1, 2, 3], head_in_index=-1)
+    DPTForDepthEstimation(cfg).save_pretrained(tmp_path / "dpt")
+    DPTImageProcessor(size={"height": 32, "width": 32}).save_pretrained(tmp_path / "dpt")
+    saved = load_file(tmp_path / "dpt" / "model.safetensors")
+    pred = tmp_path / "P"
+    res = cli("predict", dataset, "-m", f"hf:{tmp_path / 'dpt'}", "-o", pred, "--variants", "clean")
+    assert res.exit_code == 0, res.output
+    size = _record(pred)["size"]
+    assert size["params"] == sum(t.numel() for t in saved.values())
+    assert size["flops"] > conv(3, 16, 8, 4, 4)[1]
