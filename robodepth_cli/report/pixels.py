@@ -11,9 +11,9 @@ Definitions (per variant, over the images it was computed on; channels R, G, B):
   0);
 - ``psnr``: 10 log10(255^2 / MSE), the MSE pooled over every value of every image (so one
   identical image does not make it infinite); null when every image equals its clean one;
-- ``ssim``: the mean over the images of scikit-image's ``structural_similarity`` against
-  the clean image (its defaults: a 7 x 7 uniform window, K1 0.01, K2 0.03, the mean over
-  the channels), ``data_range`` 255.
+- ``ssim``: the mean over the images of the SSIM against the clean image, as scikit-image's
+  ``structural_similarity`` computes it by default (a 7 x 7 uniform window, K1 0.01, K2
+  0.03, the mean over the channels; ``data_range`` 255), see :func:`ssim`.
 
 The build is streamed: one clean image and one variant's image are held at a time, and a
 variant keeps only its sums (3 x 256 counts, two numbers), so memory does not grow with
@@ -79,11 +79,35 @@ def moments(hist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mean, np.sqrt(var)
 
 
-def ssim(clean: np.ndarray, image: np.ndarray) -> float:
-    """scikit-image's SSIM of two ``H x W x 3`` uint8 images (module docstring)."""
-    from skimage.metrics import structural_similarity
+WINDOW = 7  # SSIM's window, scikit-image's default
+C1, C2 = (0.01 * PEAK) ** 2, (0.03 * PEAK) ** 2  # K1 = 0.01, K2 = 0.03
 
-    return float(structural_similarity(clean, image, channel_axis=2, data_range=PEAK))
+
+def ssim(clean: np.ndarray, image: np.ndarray) -> float:
+    """The SSIM of two ``H x W x 3`` uint8 images as scikit-image's
+    ``structural_similarity(..., channel_axis=2, data_range=255)`` computes it by default:
+    per pixel, means over the 7 x 7 window around it and sample (co)variances (times
+    49/48), ``(2 mx my + C1)(2 cxy + C2) / ((mx^2 + my^2 + C1)(vx + vy + C2))``, averaged
+    over the pixels whose window lies inside the image and over the channels. OpenCV's box
+    filter takes the window means (about 3x faster than scikit-image's filters, the same
+    value to 1e-15); at least 7 x 7 pixels."""
+    import cv2
+
+    if min(clean.shape[:2]) < WINDOW:
+        raise StatsError(f"an image of {clean.shape[1]}x{clean.shape[0]} is smaller than SSIM's "
+                         f"{WINDOW}x{WINDOW} window")
+    x, y = clean.astype(np.float64), image.astype(np.float64)
+
+    def mean(a):
+        return cv2.boxFilter(a, cv2.CV_64F, (WINDOW, WINDOW), normalize=True,
+                             borderType=cv2.BORDER_REFLECT)
+
+    mx, my = mean(x), mean(y)
+    k = WINDOW * WINDOW / (WINDOW * WINDOW - 1)
+    vx, vy, cxy = k * (mean(x * x) - mx * mx), k * (mean(y * y) - my * my), k * (mean(x * y) - mx * my)
+    s = (2 * mx * my + C1) * (2 * cxy + C2) / ((mx * mx + my * my + C1) * (vx + vy + C2))
+    r = WINDOW // 2  # the pixels whose window lies inside the image
+    return float(s[r:-r, r:-r].mean())
 
 
 def psnr(sse: float, values: int) -> float | None:

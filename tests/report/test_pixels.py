@@ -64,6 +64,23 @@ def test_ssim_of_a_textured_pair_by_its_formula():
     assert X.ssim(x, y) == pytest.approx(sum(per) / 3, rel=1e-9)
 
 
+@pytest.mark.parametrize("shape", [(7, 7, 3), (9, 11, 3), (64, 96, 3), (375, 1242, 3)])
+def test_ssim_is_scikit_images(shape):
+    from skimage.metrics import structural_similarity
+
+    rng = np.random.default_rng(shape[0])
+    x = rng.integers(0, 256, shape, dtype=np.uint8)
+    for y in (np.clip(x.astype(int) + rng.integers(-40, 40, shape), 0, 255).astype(np.uint8),
+              rng.integers(0, 256, shape, dtype=np.uint8), (x // 2).astype(np.uint8)):
+        assert X.ssim(x, y) == pytest.approx(structural_similarity(x, y, channel_axis=2, data_range=255),
+                                             rel=1e-12, abs=1e-12)
+
+
+def test_ssim_of_an_image_under_its_window_refused():
+    with pytest.raises(X.StatsError, match="smaller than SSIM's 7x7 window"):
+        X.ssim(np.zeros((6, 20, 3), np.uint8), np.zeros((6, 20, 3), np.uint8))
+
+
 def test_chosen_images_are_spread_over_the_split():
     assert X.chosen(5, None) == [0, 1, 2, 3, 4] and X.chosen(5, 9) == [0, 1, 2, 3, 4]
     assert X.chosen(11, 3) == [0, 5, 10] and X.chosen(100, 1) == [0]
