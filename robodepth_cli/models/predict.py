@@ -273,7 +273,7 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
                                    if k + 1 < len(chunks) else None)
                         at = chunks[k].start
                         for batch in same_size_runs(images):
-                            maps = model.predict(batch) if recorded else _first(model, batch, pred, record)
+                            maps = model.predict(batch) if recorded else first_batch(model, batch, pred, record)
                             recorded = True
                             for m in maps:
                                 out.write(_no_prediction(m) if at in lacking else m)
@@ -288,7 +288,7 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     return run
 
 
-def _first(model, batch: np.ndarray, pred: Path, record: dict) -> np.ndarray:
+def first_batch(model, batch: np.ndarray, pred: Path, record: dict) -> np.ndarray:
     """The maps of the run's first batch, its model's size measured on it (torch models) and
     the record written with it."""
     maps, size = measured(model, batch)

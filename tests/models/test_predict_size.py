@@ -173,3 +173,19 @@ def test_hf_model_parameters_are_its_saved_weights(dataset, tmp_path, cli):
     size = _record(pred)["size"]
     assert size["params"] == sum(t.numel() for t in saved.values())
     assert size["flops"] > conv(3, 16, 8, 4, 4)[1]
+
+
+def test_run_writes_the_size_as_evaluate_does(tmp_path, cli, stack):
+    """robodepth run: the same params and flops columns, and the kept predictions.json's
+    size, as predict and evaluate give (the images at 64 x 96, as the hand count's)."""
+    from tests.helpers.paths import FIXTURES
+
+    res = cli("run", "nyudepth2-c", "--root", FIXTURES / "nyu", "--split", FIXTURES / "nyu_split.txt",
+              "-m", f"python:{stack}:net", "--kind", "depth", "--out", tmp_path / "r.csv",
+              "--size", f"{H}x{W}", "--corruptions", "brightness", "--levels", "1",
+              "--keep-predictions", tmp_path / "K", "--no-progress")
+    assert res.exit_code == 0, res.output
+    rows = _rows(tmp_path / "r.csv")
+    assert len(rows) == 2 and all(r["params"] == str(PARAMS) and r["flops"] == str(FLOPS) for r in rows)
+    size = _record(tmp_path / "K")["size"]
+    assert (size["params"], size["flops"]) == (PARAMS, FLOPS)
