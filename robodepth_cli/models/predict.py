@@ -17,9 +17,10 @@ written into a temporary folder beside it, renamed into place when complete.
 what its maps hold (``output`` disparity or depth, ``scale`` relative or metric, and the
 ``evaluate`` defaults ``kind``, ``align``, ``align_space``), the input size, the dataset,
 and the robodepth version; for a torch model also its ``size``, parameters and FLOPs per
-image, measured on the first batch (:mod:`.size`). It is written once the model has produced its first valid
-batch, before any prediction file; a later run into the same PRED must be of the same
-model on the same dataset's split, or it is refused (the files would mix two models).
+image, measured on the first batch (:mod:`.size`). It is written once the model has
+produced its first valid batch, before any prediction file; a later run into the same
+PRED must be of the same model on the same dataset's split, or it is refused (the files
+would mix two models).
 PRED is refused inside the dataset: the build's manifest lists every file there, and
 ``verify`` would then report the predictions as extra files.
 
