@@ -20,8 +20,9 @@ from .report import report_command
 from .run import run_command
 from .score import score_command
 from .selftest import selftest_command
+from .stats import stats_command
 from .stylize import stylize_command
 
 COMMANDS = (run_command, list_command, corrupt_command, preview_command, build_command, verify_command,
             stylize_command, score_command, predict_command, evaluate_command, gt_command,
-            report_command, export_command, selftest_command, challenge_command)
+            report_command, stats_command, export_command, selftest_command, challenge_command)

@@ -105,7 +105,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs(), flicker=flicker)
-    text = _with_severity(dataset, result.csv_text())
+    text = _with_size(pred, _with_severity(dataset, result.csv_text()))
     E.write_results(out, _own_depth_lines(dataset, pred) + text)
     common.show_results(result, text, out, bench, as_json, replacing)
 
@@ -127,6 +127,14 @@ def _with_severity(dataset, text: str) -> str:
     from ..corruptions.scaling import with_column
 
     return with_column(text, ((dataset.record.config or {}).get("extra") or {}).get("severity_size"))
+
+
+def _with_size(pred: Path, text: str) -> str:
+    """The results CSV with the model's ``params`` and ``flops`` columns when
+    ``PRED/predictions.json`` records its size (evaluation/modelsize.py)."""
+    from ..evaluation.modelsize import with_size
+
+    return with_size(text, _record(pred))
 
 
 def _own_depth_lines(dataset, pred: Path) -> str:

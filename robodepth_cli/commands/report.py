@@ -58,8 +58,23 @@ from . import common
               help="Resamples of the models for the intervals of synthetic against real.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of those resamples (the same seed gives the same intervals).")
+@click.option("--tag", "tags", multiple=True, metavar="MODEL:KEY=VALUE",
+              help="A property of one of your models (repeatable; several as KEY=V,KEY=V): "
+                   "base, modality, backbone, resolution, pretrain (compared in groups of "
+                   "variants) or finetune (the corruption it was fine-tuned with, none for "
+                   "the baseline).")
+@click.option("--groups", "groups", type=click.Choice(["yours", "all"]), default="yours",
+              show_default=True, help="Groups of variants (modality, pre-training, "
+                                      "resolution) among your models, or all: the paper's too.")
+@click.option("--params", "params", multiple=True, metavar="MODEL=COUNT",
+              help="A model's parameters (14.3M), over what its results record (repeatable).")
+@click.option("--flops", "flops", multiple=True, metavar="MODEL=COUNT",
+              help="A model's FLOPs per image, a multiply-add counting 2 (16G; repeatable).")
+@click.option("--sizes", "sizes", type=click.Path(dir_okay=False, path_type=Path), metavar="FILE",
+              help="A CSV model,params,flops of model sizes (the paper's models' too; the "
+                   "package ships none).")
 def report_command(results, out, names, benchmark, context, dataset, preds, frame, kinds, on,
-                   baseline, pairs, metric, n_boot, seed):
+                   baseline, pairs, metric, n_boot, seed, tags, groups, params, flops, sizes):
     """A report of one or more models: a self-contained HTML page, the figures (SVG, PDF,
     PNG), LaTeX and Markdown tables and a versioned scores.json.
 
@@ -107,6 +122,9 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
 
     say = (lambda what: click.echo(f"  {what}", err=True)) if sys.stderr.isatty() else (lambda _: None)
     W.draw(report)
+    from ..report.analyses import add as add_analyses
+
+    add_analyses(report, tags=tags, params=params, flops=flops, sizes=sizes, groups=groups)
     for m in report.models:  # judged on corruptions made from its own depth predictions
         if m.own_depth:
             click.echo(f"robodepth: warning: {m.own_depth}", err=True)

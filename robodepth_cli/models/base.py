@@ -41,6 +41,9 @@ class Model:
     # A multi-frame model: the neighbour offsets it takes besides the frame (e.g. (-1, 1));
     # its batches are then N x F x H x W x 3, the frame first (see models/pycall.py).
     frames: tuple[int, ...] = ()
+    # The torch modules whose parameters and FLOPs are counted (models/size.py); () when
+    # the model exposes none.
+    modules: tuple = field(default=(), repr=False)
 
     def predict(self, images: np.ndarray) -> np.ndarray:
         return check_maps(self.run(images), len(images), self.spec)

@@ -69,7 +69,7 @@ def load(arg: str, spec: str, *, device: str = "auto", kind: str | None = None,
         identity["files"] = _files(Path(source))
     return Model(spec=spec, adapter="hf", kind=kind, metric=metric, align=align,
                  align_space=space, input_size=_input_size(processor), identity=identity,
-                 run=run, device=dev, options={"model_type": model_type})
+                 run=run, device=dev, options={"model_type": model_type}, modules=(model,))
 
 
 def _load_parts(source, where: str, arg: str, spec: str):

@@ -83,7 +83,8 @@ def load(arg: str, spec: str, *, device: str = "auto", post_process: bool = Fals
                 "resnet": net.num_layers}
     return Model(spec=spec, adapter="monodepth2", kind="disp", metric=False, align="median",
                  align_space="depth", input_size=[height, width], identity=identity, run=run,
-                 device=dev, options={"post_process": post_process})
+                 device=dev, options={"post_process": post_process},
+                 modules=(net.encoder, net.decoder))
 
 
 def _read(path: Path) -> dict:

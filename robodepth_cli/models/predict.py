@@ -16,9 +16,11 @@ written into a temporary folder beside it, renamed into place when complete.
 ``PRED/predictions.json`` records the model (spec, adapter, what tells its weights apart),
 what its maps hold (``output`` disparity or depth, ``scale`` relative or metric, and the
 ``evaluate`` defaults ``kind``, ``align``, ``align_space``), the input size, the dataset,
-and the robodepth version. It is written once the model has produced its first valid
-batch, before any prediction file; a later run into the same PRED must be of the same
-model on the same dataset's split, or it is refused (the files would mix two models).
+and the robodepth version; for a torch model also its ``size``, parameters and FLOPs per
+image, measured on the first batch (:mod:`.size`). It is written once the model has
+produced its first valid batch, before any prediction file; a later run into the same
+PRED must be of the same model on the same dataset's split, or it is refused (the files
+would mix two models).
 PRED is refused inside the dataset: the build's manifest lists every file there, and
 ``verify`` would then report the predictions as extra files.
 
@@ -47,6 +49,7 @@ from ..errors import cannot_write
 from ..predictions import (RECORD, ImageFilesWriter, PredictionWriter, finished, read_record,
                            remove_leftovers, split_digest)
 from .errors import ModelError
+from .size import measured
 
 # The most pixels one forward pass holds: the memory of a batch (its images, the model's
 # float copies and activations) grows with its pixels. 2**22: 34 images of 192 x 640, 9 of
@@ -271,10 +274,8 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
                                    if k + 1 < len(chunks) else None)
                         at = chunks[k].start
                         for batch in same_size_runs(images):
-                            maps = model.predict(batch)
-                            if not recorded:
-                                write_record(pred, record)
-                                recorded = True
+                            maps = model.predict(batch) if recorded else first_batch(model, batch, pred, record)
+                            recorded = True
                             for m in maps:
                                 out.write(_no_prediction(m) if at in lacking else m)
                                 at += 1
@@ -286,6 +287,16 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
             _remove_empty(pred)
         raise
     return run
+
+
+def first_batch(model, batch: np.ndarray, pred: Path, record: dict) -> np.ndarray:
+    """The maps of the run's first batch, its model's size measured on it (torch models) and
+    the record written with it."""
+    maps, size = measured(model, batch)
+    if size is not None:
+        record["size"] = size
+    write_record(pred, record)
+    return maps
 
 
 def _lacking(dataset: BuiltDataset, v: Variant, run: PredictRun) -> set[int]:

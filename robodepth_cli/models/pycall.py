@@ -25,6 +25,7 @@ import numpy as np
 
 from .errors import ModelError
 from .base import KINDS, Model, default_alignment
+from .size import modules_of
 
 
 def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = None) -> Model:
@@ -61,7 +62,8 @@ def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = 
                 "sha256": _file_hash(path, spec)}
     return Model(spec=spec, adapter="python", kind=kind, metric=metric, align=align,
                  align_space=space, input_size=None, identity=identity, run=run,
-                 device="the function's own device", frames=frames)
+                 device="the function's own device", frames=frames,
+                 modules=modules_of(fn, spec))
 
 
 def _frames(value, spec: str) -> tuple[int, ...]:

@@ -99,3 +99,15 @@ def baseline(benchmark: str):
     """The published baseline row of ``benchmark`` (KITTI-C, NYUDepth2-C or KITTI-S)."""
     rows = style_models() if benchmark == "kitti-s" else models(benchmark)
     return next(r for r in rows if r.block == "baseline")
+
+
+PROPERTIES = ("modality", "backbone", "resolution", "pretrain")
+
+
+@lru_cache(maxsize=None)
+def properties(benchmark: str) -> dict[str, dict[str, str]]:
+    """Each published model's ``modality``, ``backbone``, ``resolution`` and ``pretrain`` as
+    printed (KITTI-C; ``{}`` for a benchmark whose table has no such columns), the empty
+    cells left out."""
+    return {row["model"]: {k: row[k].strip() for k in PROPERTIES if (row.get(k) or "").strip()}
+            for row in _rows(benchmark)}

@@ -139,9 +139,10 @@ def _judge(variant: Variant, bounds, painter, paint, model, truth, setup, size, 
                 pending = painter.submit(paint[k + 1])
             i = a
             for batch in P.same_size_runs(images):
-                maps = model.predict(batch)
-                if record is not None:  # once the model has given a valid batch, as predict
-                    P.write_record(keep, record)
+                if record is None:
+                    maps = model.predict(batch)
+                else:  # once the model has given a valid batch, as predict (its size too)
+                    maps = P.first_batch(model, batch, keep, record)
                     record = None
                 for m in maps:
                     errs, ratio = image_errors(m, f"{model.spec}: {variant.label}: {variant.keys[i]}",

@@ -61,12 +61,32 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
         note(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
              f"{state.path} (finished by an earlier run)")
     replacing = out.exists()
-    from ..corruptions.scaling import with_column
-
-    text = with_column(result.csv_text(), cfg.extra.get("severity_size"))
+    text = _csv(result, cfg, model, cleans)
     E.write_results(out, text)
     state.remove()
     return result, text, bench, replacing
+
+
+def _csv(result, cfg, model, cleans) -> str:
+    """The results CSV as evaluate writes it: the build's severity size, the model's size."""
+    from ..corruptions.scaling import with_column
+    from ..evaluation.modelsize import with_size
+
+    return with_size(with_column(result.csv_text(), cfg.extra.get("severity_size")),
+                     {"size": _size(model, cleans)})
+
+
+def _size(model, cleans) -> dict | None:
+    """The model's size (models/size.py) measured on the first clean image, as predict
+    measures it on its first batch (the FLOPs per image do not depend on the batch)."""
+    import numpy as np
+
+    from ..models.size import measured
+
+    first = cleans[0]
+    frames = tuple(getattr(model, "frames", ()))
+    batch = np.stack([first] * (1 + len(frames)))[None] if frames else first[None]
+    return measured(model, batch)[1]
 
 
 def _early_warning(bench, setup, note: Callable[[str], None]):
