@@ -80,3 +80,20 @@ def test_bad_frame_declaration_refused(tmp_path, cli, build_kitti, user_module):
     res = cli("predict", out, "-m", f"python:{user_module}:zero", "--kind", "disp", "-o", tmp_path / "P")
     assert res.exit_code == 2
     assert "robodepth_frames (0,): expected distinct non-zero integer frame offsets" in res.output
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "webdataset"])
+def test_a_multi_frame_model_predicts_on_an_export_as_on_its_build(tmp_path, cli, build_kitti,
+                                                                    user_module, fmt):
+    out = build(tmp_path, build_kitti, "--frames", "-1,1")
+    export = tmp_path / "export"
+    res = cli("export", out, "--format", fmt, "--to", export, "--no-progress")
+    assert res.exit_code == 0, res.output
+    res = cli("predict", export, "-m", f"python:{user_module}:multi", "--kind", "disp",
+              "-o", tmp_path / "P")
+    assert res.exit_code == 0, res.output
+    for variant in ("clean", "fog/2"):
+        got = np.load(tmp_path / "P" / f"{variant}.npy")
+        want = np.stack([1 + red(out, variant, n) + 2 * red(out, variant, n - 1) + 4 * red(out, variant, n + 1)
+                         for n in (0, 2, 5)])
+        np.testing.assert_array_equal(got, want)
