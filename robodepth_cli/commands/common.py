@@ -295,6 +295,8 @@ def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: 
         click.echo(f"robodepth: warning: --stereo multiplied every depth by {STEREO_SCALE}: right "
                    "for a stereo model's depths in monodepth2's units (1 / its disparity), wrong "
                    f"for depths in metres ({STEREO_SCALE} times too far; drop --stereo)", err=True)
+    for note in result.warnings:
+        click.echo(f"robodepth: warning: {note}", err=True)
     if result.missing:
         click.echo(f"robodepth: warning: no predictions for {counted(len(result.missing), 'variant')}; "
                    "evaluated the rest", err=True)
