@@ -151,6 +151,33 @@ def seed(value: int, flag: str = "--seed") -> int:
     return check_seed(value, flag)
 
 
+CONTENT_DATASET = "image"  # the dataset name corrupt and preview draw under without --as
+
+
+def as_option(command):
+    """``--as DATASET:KEY`` of ``corrupt`` and ``preview``, declared once."""
+    return click.option("--as", "draw_as", metavar="DATASET:KEY",
+                        help="Draw as a build of DATASET draws for its image KEY (the image's path "
+                             "under the build's clean/ folder), to remake a build's image from its "
+                             "clean one; default: drawn from the image's pixels.")(command)
+
+
+def draw_as(value: str | None, clean: np.ndarray) -> tuple[str, str]:
+    """``(dataset, key)`` a single-image command draws under: ``--as DATASET:KEY`` as a
+    build of DATASET draws for its image KEY (its path under the build's ``clean/``), else (:data:`CONTENT_DATASET`, the image's
+    :func:`~robodepth_cli.seeding.content_key`)."""
+    from ..seeding import content_key
+    from ..sources.datasets import DATASETS
+
+    if value is None:
+        return CONTENT_DATASET, content_key(clean)
+    dataset, _, key = value.partition(":")
+    if dataset not in DATASETS or not key:
+        raise RobodepthError(f"--as {value}: expected DATASET:KEY, DATASET one of "
+                             f"{', '.join(DATASETS)} and KEY the image's path under the build's clean/")
+    return dataset, key
+
+
 def means_directory(out: str) -> bool:
     """Whether ``--out`` as typed names a directory: it ends with a path separator, or it
     is an existing directory."""
