@@ -136,7 +136,11 @@ def load_input(image: str, size: str | None) -> np.ndarray:
     Its EXIF orientation is applied first: a photo is corrupted the way viewers show it."""
     from ..imageio import load_clean, parse_size
 
-    return load_clean(image, parse_size(size) if size else None, orient=True)
+    try:
+        hw = parse_size(size) if size else None
+    except InvalidValueError as exc:
+        raise RobodepthError(f"--size: {exc}") from None
+    return load_clean(image, hw, orient=True)
 
 
 def hxw(height: int, width: int) -> str:

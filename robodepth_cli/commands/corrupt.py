@@ -9,6 +9,7 @@ import numpy as np
 
 from ..benchmarks import DEPTH_AWARE
 from ..errors import RobodepthError
+from ..files import check_writable
 from . import common
 
 
@@ -101,6 +102,7 @@ def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth
                 f"{len(jobs)} images, which go into a directory; pick one corruption and one "
                 f"level (-c NAME -l N), or one chain, to write that file, or end the name with / "
                 f"to make it a directory")
+    check_writable(target if single else directory / jobs[0][0], "--out")  # before any work
     clean = common.load_input(image, size)
     depth = _depth(depth_file, depth_scale, [v for _, v, _ in jobs], clean)
     dataset, key = common.draw_as(draw_as, clean)
@@ -198,6 +200,7 @@ def preview_command(image, out, corruption, level, size, seed, thumb_width, dept
     target = common.png_output(out, f"{Path(image).stem}_preview.png")
     level_list = common.levels(level, "--levels")
     rows = common.items(corruption, level_list)
+    check_writable(target, "--out")  # before any work
     clean = common.load_input(image, size)
     depth = _depth(depth_file, depth_scale, rows, clean)
     dataset, key = common.draw_as(draw_as, clean)
