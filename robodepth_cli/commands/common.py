@@ -161,15 +161,18 @@ CONTENT_DATASET = "image"  # the dataset name corrupt and preview draw under wit
 def as_option(command):
     """``--as DATASET:KEY`` of ``corrupt`` and ``preview``, declared once."""
     return click.option("--as", "draw_as", metavar="DATASET:KEY",
-                        help="Draw as a build of DATASET draws for its image KEY (the image's path "
-                             "under the build's clean/ folder), to remake a build's image from its "
-                             "clean one; default: drawn from the image's pixels.")(command)
+                        help="Draw as a build of DATASET draws for its source KEY (manifest.csv's "
+                             "source column, or the image's path under the build's clean/), to "
+                             "remake a build's image from its clean one; default: drawn from the "
+                             "image's pixels.")(command)
 
 
 def draw_as(value: str | None, clean: np.ndarray) -> tuple[str, str]:
     """``(dataset, key)`` a single-image command draws under: ``--as DATASET:KEY`` as a
-    build of DATASET draws for its image KEY (its path under the build's ``clean/``), else (:data:`CONTENT_DATASET`, the image's
+    build of DATASET draws for its source KEY (:func:`~robodepth_cli.keys.seed_key`: the
+    manifest's ``source`` column or the image's path under ``clean/``), else (:data:`CONTENT_DATASET`, the image's
     :func:`~robodepth_cli.seeding.content_key`)."""
+    from ..keys import seed_key
     from ..seeding import content_key
     from ..sources.datasets import DATASETS
 
@@ -178,8 +181,8 @@ def draw_as(value: str | None, clean: np.ndarray) -> tuple[str, str]:
     dataset, _, key = value.partition(":")
     if dataset not in DATASETS or not key:
         raise RobodepthError(f"--as {value}: expected DATASET:KEY, DATASET one of "
-                             f"{', '.join(DATASETS)} and KEY the image's path under the build's clean/")
-    return dataset, key
+                             f"{', '.join(DATASETS)} and KEY a source as manifest.csv records it")
+    return dataset, seed_key(dataset, key)
 
 
 def means_directory(out: str) -> bool:

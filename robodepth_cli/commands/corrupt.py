@@ -78,7 +78,8 @@ def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth
 
     The random draws are keyed by the seed, the corruption, the level and the image's
     pixels (after --size): byte-identical copies give the same output. --as DATASET:KEY
-    draws as a build of DATASET does for its image KEY (its path under OUT/clean/): from
+    draws as a build of DATASET does for its source KEY (manifest.csv's source column, or
+    the image's path under OUT/clean/): from
     the build's clean image, with the build's --seed and severity size, it remakes the
     build's pixels.
     """

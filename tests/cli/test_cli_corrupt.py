@@ -110,9 +110,10 @@ def test_byte_identical_copies_draw_alike_whatever_their_names(tmp_path, cli):
 
 @pytest.mark.slow
 def test_as_remakes_a_build_image_from_its_clean_one(tmp_path, cli, build_kitti):
-    """corrupt --as kitti-c:KEY (KEY: the image's path under OUT/clean/) of the build's clean
-    image, with the build's seed and severity size, gives the pixels of the build's fog/3 and
-    gaussian_noise/2 files (the PNG encoding is the build's --png choice)."""
+    """corrupt --as kitti-c:KEY (KEY: the manifest's source, or the image's path under
+    OUT/clean/) of the build's clean image, with the build's seed and severity size, gives the
+    pixels of the build's fog/3 and gaussian_noise/2 files (the PNG encoding is the build's
+    --png choice)."""
     import json
 
     from tests.helpers.manifest import manifest_rows
@@ -125,12 +126,12 @@ def test_as_remakes_a_build_image_from_its_clean_one(tmp_path, cli, build_kitti)
     assert res.exit_code == 0, res.output
     size = (json.loads((out / "build.json").read_text())["config"].get("extra") or {}).get("severity_size")
     rows = manifest_rows(out)
-    for variant, level in (("fog", "3"), ("gaussian_noise", "2")):
+    for variant, level, by in (("fog", "3", "key"), ("gaussian_noise", "2", "source")):
         (row,) = [r for r in rows if r["variant"] == variant and r["level"] == level]
         key = row["output"].split("/", 2)[2]
         clean = out / "clean" / key
-        args = ["corrupt", clean, "-c", variant, "-l", level, "--seed", "7",
-                "--as", f"kitti-c:{key}", "--out", tmp_path / f"{variant}.png"]
+        args = ["corrupt", clean, "-c", variant, "-l", level, "--seed", "7", "--as",
+                f"kitti-c:{key if by == 'key' else row['source']}", "--out", tmp_path / f"{variant}.png"]
         if size:
             args += ["--severity-size", size]
         res = cli(*args)
