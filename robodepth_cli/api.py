@@ -39,6 +39,32 @@ class DatasetError(RobodepthError):
     """A directory that is not a usable built dataset, or predictions that do not fit it."""
 
 
+def read_output(root: Path, store, output: str) -> np.ndarray | None:
+    """The image of the build's file ``output`` (its path in the build), from the build
+    folder ``root`` or from an export's ``store``; None when the build has no such file."""
+    from .imageio import read_rgb
+
+    if store is not None:
+        return np.asarray(read_rgb(io.BytesIO(store.read(output)))) if store.has(output) else None
+    path = Path(root) / output
+    return np.asarray(read_rgb(path)) if path.is_file() else None
+
+
+def read_neighbours(root: Path, store, relpath: str, key: str, frames, like: np.ndarray) -> list:
+    """The images of frame ``key``'s neighbours at the offsets ``frames`` in the variant
+    directory ``relpath`` (named as ``build --frames`` writes them: :func:`neighbour_key`),
+    from a build or an export; a neighbour the build does not have is black (the shape of
+    ``like``), as ManyDepth's loader makes a missing file."""
+    from .keys import neighbour_key
+
+    out = []
+    for o in frames:
+        near = neighbour_key(key, o)
+        img = read_output(root, store, f"{relpath}/{near}") if near else None
+        out.append(np.zeros_like(like) if img is None else img)
+    return out
+
+
 @dataclass(frozen=True)
 class Variant:
     """One variant of a built dataset: the clean images, one corruption at one level

@@ -40,6 +40,17 @@ def refused_entry(directory, exc: OSError) -> str:
     return f"{directory}: {os_reason(exc)}"
 
 
+def _file_above(path) -> str | None:
+    """The nearest existing entry above ``path`` when it is not a directory (a file where a
+    folder of the path should be: what EEXIST or ENOTDIR from making the path means), else
+    None. The one wording of this refusal, as :func:`~robodepth_cli.files.check_writable`
+    gives it."""
+    above = os.path.dirname(str(path))
+    while above and not os.path.lexists(above) and above != os.path.dirname(above):
+        above = os.path.dirname(above)
+    return above if above and os.path.lexists(above) and not os.path.isdir(above) else None
+
+
 def _nearest_refusing(path) -> str | None:
     """The nearest existing folder above ``path`` when it refuses a new entry with ENOENT
     (tried: a temporary folder made and removed), else None."""
@@ -57,6 +68,13 @@ def _nearest_refusing(path) -> str | None:
     return None
 
 
+def failure_reason(exc: BaseException) -> str:
+    """An image's failure as its record and messages word it: a :class:`RobodepthError`'s
+    own message (it names the problem; its class says nothing more to a user), anything
+    else (a bug, a library's error) with its class name: ``ValueError: ...``."""
+    return str(exc) if isinstance(exc, RobodepthError) else f"{type(exc).__name__}: {exc}"
+
+
 def counted(n: int, noun: str, plural: str | None = None) -> str:
     """``"1 variant"``, ``"2 variants"``: ``n`` and ``noun``, in the plural unless n is 1."""
     return f"{n} {noun if n == 1 else plural or noun + 's'}"
@@ -67,6 +85,8 @@ def cannot_write(path, reason: OSError | str, flag: str | None = None, what: str
     ``[FLAG ]PATH: cannot write[ WHAT] (REASON)``, ``what`` naming the thing when the path
     alone does not (``"the output directory"``)."""
     if isinstance(reason, OSError):
+        blocking = _file_above(path) if reason.errno in (errno.EEXIST, errno.ENOTDIR) else None
         folder = _nearest_refusing(path) if reason.errno == errno.ENOENT else None
-        reason = refused_entry(folder, reason) if folder else os_reason(reason)
+        reason = (f"{blocking} is not a directory" if blocking else
+                  refused_entry(folder, reason) if folder else os_reason(reason))
     return f"{flag + ' ' if flag else ''}{path}: cannot write{' ' + what if what else ''} ({reason})"

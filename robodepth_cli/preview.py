@@ -16,14 +16,15 @@ _PAD = 4
 
 
 def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
-                  seed: int = 0, key: str = "image", thumb_width: int = 320,
+                  seed: int = 0, dataset: str = "image", key: str = "image", thumb_width: int = 320,
                   depth=None, severity_size=None) -> Image.Image:
     """One row per corruption or chain (label, then one cell per level) under a first row
     holding the clean image. Cells are the corrupted images scaled to ``thumb_width`` pixels
     wide. A chain's steps written without a level take the column's level
     (``fog+gaussian_noise``); the others keep theirs. A chain whose steps all have their
     level (``fog:3+gaussian_noise:2.5``) is the same image in every column, so it is drawn
-    once, in the first column, labelled "fixed levels". ``depth`` (metres) is the scene's,
+    once, in the first column, labelled "fixed levels". Each cell is ``render`` of (``seed``,
+    ``dataset``, ``key``): what ``corrupt`` writes for the same job. ``depth`` (metres) is the scene's,
     for the depth-aware corruptions; ``severity_size`` as
     :func:`~robodepth_cli.corruptions.corrupt` takes it."""
     names, levels = list(names), list(levels)
@@ -57,7 +58,7 @@ def contact_sheet(clean: np.ndarray, names: Iterable[str], levels: Iterable, *,
         for j, level in enumerate(levels):
             if fixed and j > 0:
                 break
-            job = dict(seed=seed, dataset="preview", key=key, depth=depth, severity_size=severity_size)
+            job = dict(seed=seed, dataset=dataset, key=key, depth=depth, severity_size=severity_size)
             if chained:
                 out = render(clean, expand_chain(name, [level])[0].text, None, **job)
             elif level <= REGISTRY[name].n_levels:

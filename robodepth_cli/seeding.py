@@ -46,6 +46,17 @@ def sample_rng(seed: int, purpose: str, epoch: int, key: str) -> np.random.Gener
     return np.random.Generator(np.random.PCG64(_seed_sequence(seed, purpose, f"epoch {int(epoch)}", "draw", key)))
 
 
+def content_key(image: np.ndarray) -> str:
+    """The draw key of an image known by its pixels alone (``corrupt`` and ``preview``
+    without ``--as``): ``"pixels:"`` and the sha256 of its shape, dtype and bytes, so
+    byte-identical copies draw alike whatever their file names, and any other image draws
+    its own streams."""
+    a = np.ascontiguousarray(image)
+    h = hashlib.sha256(f"{a.shape}|{a.dtype.str}|".encode("ascii"))
+    h.update(a.data)
+    return f"pixels:{h.hexdigest()}"
+
+
 def check_seed(value, where: str = "--seed") -> int:
     """``value`` as a seed: an integer >= 0 (text of one is accepted, as flags arrive).
 

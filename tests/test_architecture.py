@@ -447,3 +447,23 @@ def test_no_folder_named_like_build_output():
                and p.name != "__pycache__"}
     clashes = sorted(f for f in folders if Path(f).name in TOOLING_OUTPUT_NAMES)
     assert clashes == [], f"rename: {clashes} (tooling skips or ignores such folders)"
+
+
+def _code_literals(path: Path) -> set[str]:
+    """The string constants of a module's code (docstrings and f-string text included,
+    since a path written into an f-string is still a path spelled out)."""
+    import ast
+
+    return {n.value for n in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+            if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+
+
+def test_the_predictions_record_name_is_spelled_by_its_owner_only():
+    """``predictions.json`` is :data:`robodepth_cli.predictions.RECORD`: code elsewhere uses
+    the constant (help text and docstrings may name the file)."""
+    from robodepth_cli.predictions import RECORD
+
+    owner = MODULES["predictions"]
+    spelled = sorted(name for name, path in MODULES.items()
+                     if path != owner and RECORD in _code_literals(path))
+    assert spelled == [], f"use robodepth_cli.predictions.RECORD in {spelled}"

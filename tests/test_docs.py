@@ -172,3 +172,26 @@ def test_pages_name_every_depth_aware_corruption_and_what_video_covers():
     index = (REPO / "docs" / "README.md").read_text(encoding="utf-8")
     video = next(ln for ln in index.splitlines() if ln.startswith("| [video.md]"))
     assert "over time" in video and "flicker" in video
+
+
+def test_the_performance_page_stays_under_8_kb():
+    """A reference page of figures, read at a glance: under 8 KB (history belongs in the log)."""
+    size = (REPO / "docs" / "performance.md").stat().st_size
+    assert size < 8 * 1024, f"docs/performance.md is {size} bytes; trim its prose"
+
+
+def test_the_readme_counts_what_robodepth_list_lists():
+    from click.testing import CliRunner
+
+    from robodepth_cli.benchmarks import CORRUPTIONS, DEPTH_AWARE
+    from robodepth_cli.corruptions import REGISTRY
+
+    import json
+
+    listed = CliRunner().invoke(main, ["list", "--format", "json"])
+    assert listed.exit_code == 0
+    assert len(json.loads(listed.output)) == len(REGISTRY)
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    (line,) = [ln for ln in readme.splitlines() if ln.startswith("robodepth list ")]
+    counts = [int(n) for n in re.findall(r"\b(\d+)\b", line.partition("#")[2])]
+    assert counts == [len(REGISTRY), len(CORRUPTIONS), len(DEPTH_AWARE)], line

@@ -82,7 +82,10 @@ def main() -> None:
     views = []
     for name, path, size, depth, thumb in frames:
         clean = load_clean(path, size)
-        sheet = contact_sheet(clean, NAMES, range(1, 6), key=path.name, thumb_width=thumb, depth=depth)
+        # Drawn as these figures always were (dataset "preview", the file's name), not as
+        # robodepth preview now draws (the pixels' key): the figures keep their bytes.
+        sheet = contact_sheet(clean, NAMES, range(1, 6), dataset="preview", key=path.name,
+                              thumb_width=thumb, depth=depth)
         write_png(HERE / f"depth-aware-{name}.png", np.asarray(sheet), 9)
         inv = 1 / depth
         view = (255 * (inv - inv.min()) / (inv.max() - inv.min())).astype(np.uint8)

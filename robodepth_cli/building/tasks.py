@@ -13,7 +13,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import RobodepthError, cannot_write, os_reason
+from ..errors import RobodepthError, cannot_write, failure_reason, os_reason
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
 from ..output.manifest import Journal, Row
@@ -147,7 +147,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     with Journal(out) as journal:
         for job, img in rendered:
             if isinstance(img, BaseException):
-                fail(job, f"{src.path}: {_job_name(job)}: {type(img).__name__}: {img}")
+                fail(job, f"{src.path}: {_job_name(job)}: {failure_reason(img)}")
                 continue
             target = out / job.path(src.key)
             try:
@@ -274,7 +274,7 @@ def load_source(src: Source, size: tuple[int, int] | None):
     except RobodepthError as exc:  # ImageError, or a labeled file's NyuError
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
-        return None, f"{src.path}: {type(exc).__name__}: {exc}"
+        return None, f"{src.path}: {failure_reason(exc)}"
 
 
 def _frames_of(src: Source, clean, todo: list[Job], size) -> dict:

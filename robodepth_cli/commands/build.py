@@ -162,8 +162,9 @@ def _executor(cfg):
 @click.command("verify")
 @click.argument("out", type=click.Path(path_type=Path))
 @click.option("--against", metavar="OTHER", type=click.Path(path_type=Path),
-              help="Also compare OUT with another build of the same dataset (its folder or its "
-                   "manifest.csv): per variant, outputs identical, differing or missing.")
+              help="Also compare OUT with another build of the same dataset (its folder, its "
+                   "export's folder or its manifest.csv): per variant, outputs identical, "
+                   "differing or missing.")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
 def verify_command(out, against, progress):
@@ -177,9 +178,12 @@ def verify_command(out, against, progress):
     recorded as failed, with the reason; and, in one line, the libraries that decide pixels
     which the build used at other versions than robodepth's lock.
 
-    --against OTHER then compares the two builds' manifests: for each variant, how many
-    outputs are identical, differ, or are missing here (OTHER only) or there (OUT only), and
-    the largest pixel difference of the differing ones where both files are on disk.
+    --against OTHER then compares the two builds output by output (OTHER: a build's folder,
+    an export's folder, or a manifest.csv alone): for each variant, how many outputs are
+    identical, differ, or are missing here (OTHER only) or there (OUT only), and the largest
+    pixel difference of the differing ones where both files can be read. Where a side's
+    files are at hand, what they hold is compared: a file deleted counts as missing on its
+    side, and one that does not match its own manifest as differing.
 
     Exit status 0 when everything matches, 1 otherwise (--against: any output not
     identical); 2 if OUT cannot be verified (no manifest, a damaged one, or a build writing
@@ -190,12 +194,8 @@ def verify_command(out, against, progress):
     from ..output.verify import verify
     from ..progress import bar as progress_bar
 
-    if against is not None:
-        from ..output.compare import other_manifest
-
-        if is_export(out):
-            raise RobodepthError("--against: OUT is an export; compare the builds it was made from")
-        other_manifest(against)  # a wrong OTHER is refused before OUT is hashed
+    if against is not None:  # a wrong OTHER is refused before OUT is hashed
+        _check_against(out, against)
     with progress_bar("file", progress=progress) as bar:
         if is_export(out):  # robodepth export's folder: its shards against the carried manifest
             from ..export.verify import verify_export
@@ -220,7 +220,7 @@ def verify_command(out, against, progress):
         click.echo(f"{out}: {report.checked} files match the manifest")
     else:
         click.echo(f"{out}: {report.checked} files checked; the tree does not match its manifest", err=True)
-    same = _against(out, against) if against is not None else True
+    same = _against(out, report, against, progress) if against is not None else True
     if not (report.ok and same):
         sys.exit(1)
 
@@ -238,20 +238,67 @@ def _list_failed(report) -> None:
         click.echo(f"  ... and {len(by_reason) - _LISTED} more reasons")
 
 
-def _against(out: Path, other: Path) -> bool:
-    """Print OUT's comparison with OTHER, variant by variant; whether every output is identical."""
-    from ..output.compare import compare
+def _against(out: Path, report, other: Path, progress) -> bool:
+    """Print OUT's comparison with OTHER, variant by variant; whether every output is identical.
+    ``report``: OUT's verify report (its deleted and changed files count)."""
+    from ..output.compare import Side, compare, disk_files
+    from ..output.manifest import read_recorded
 
-    variants = compare(out, other)
+    mine = Side({p: r for p, r in read_recorded(out).items() if not r.error},
+                set(report.missing), set(report.changed), disk_files(out))
+    variants = compare(mine, _other_side(other, progress))
+    total = sum(v.outputs for v in variants.values())
+    bad = total - sum(v.identical for v in variants.values())
     for name, v in variants.items():
         click.echo(f"{name}: {v.text()}")
-    total = sum(v.identical + v.differ + v.only_here + v.only_there for v in variants.values())
-    bad = sum(v.differ + v.only_here + v.only_there for v in variants.values())
     if not bad:
         click.echo(f"{out}: all {total} outputs identical to {other}")
         return True
     click.echo(f"{out}: {bad} of {total} outputs differ from {other} or are missing on one side", err=True)
     return False
+
+
+def _check_against(out: Path, other: Path) -> None:
+    from ..export.layout import META
+    from ..export.reader import is_export
+    from ..output.compare import other_rows
+
+    if is_export(out):
+        raise RobodepthError("--against: OUT is an export; compare the builds it was made from")
+    other_rows(other / META if is_export(other) else other)
+
+
+def _other_side(other: Path, progress):
+    """OTHER as a side of the comparison: a build's folder with its files re-hashed, an
+    export's with its shards read, or a manifest file by its rows alone."""
+    from ..export.layout import META
+    from ..export.reader import export_files, is_export
+    from ..output.compare import Side, disk_files, other_rows
+    from ..output.manifest import ManifestError
+
+    if Path(other).is_file():
+        rows, base = other_rows(other)
+        return Side(rows, files=disk_files(base))
+    export = is_export(other)
+    rows, base = other_rows(Path(other) / META if export else other)
+    from ..progress import bar as progress_bar
+
+    with progress_bar("file", progress=progress) as bar:
+        if export:
+            from ..export.verify import verify_export
+
+            report = verify_export(other, progress=bar.update)
+            files = lambda paths: export_files(other, paths)  # noqa: E731
+        else:
+            from ..output.verify import verify
+
+            try:
+                report = verify(other, planned_outputs=lambda record: None, progress=bar.update,
+                                on_total=lambda n: bar.reset(total=n))
+            except ManifestError as exc:
+                raise ManifestError(f"--against: {exc}") from None
+            files = disk_files(Path(other))
+    return Side(rows, set(report.missing) & rows.keys(), set(report.changed) & rows.keys(), files)
 
 
 def _list(paths: list[str], indent: str) -> None:

@@ -136,7 +136,11 @@ def load_input(image: str, size: str | None) -> np.ndarray:
     Its EXIF orientation is applied first: a photo is corrupted the way viewers show it."""
     from ..imageio import load_clean, parse_size
 
-    return load_clean(image, parse_size(size) if size else None, orient=True)
+    try:
+        hw = parse_size(size) if size else None
+    except InvalidValueError as exc:
+        raise RobodepthError(f"--size: {exc}") from None
+    return load_clean(image, hw, orient=True)
 
 
 def hxw(height: int, width: int) -> str:
@@ -149,6 +153,36 @@ def seed(value: int, flag: str = "--seed") -> int:
     from ..seeding import check_seed
 
     return check_seed(value, flag)
+
+
+CONTENT_DATASET = "image"  # the dataset name corrupt and preview draw under without --as
+
+
+def as_option(command):
+    """``--as DATASET:KEY`` of ``corrupt`` and ``preview``, declared once."""
+    return click.option("--as", "draw_as", metavar="DATASET:KEY",
+                        help="Draw as a build of DATASET draws for its source KEY (manifest.csv's "
+                             "source column, or the image's path under the build's clean/), to "
+                             "remake a build's image from its clean one; default: drawn from the "
+                             "image's pixels.")(command)
+
+
+def draw_as(value: str | None, clean: np.ndarray) -> tuple[str, str]:
+    """``(dataset, key)`` a single-image command draws under: ``--as DATASET:KEY`` as a
+    build of DATASET draws for its source KEY (:func:`~robodepth_cli.keys.seed_key`: the
+    manifest's ``source`` column or the image's path under ``clean/``), else (:data:`CONTENT_DATASET`, the image's
+    :func:`~robodepth_cli.seeding.content_key`)."""
+    from ..keys import seed_key
+    from ..seeding import content_key
+    from ..sources.datasets import DATASETS
+
+    if value is None:
+        return CONTENT_DATASET, content_key(clean)
+    dataset, _, key = value.partition(":")
+    if dataset not in DATASETS or not key:
+        raise RobodepthError(f"--as {value}: expected DATASET:KEY, DATASET one of "
+                             f"{', '.join(DATASETS)} and KEY a source as manifest.csv records it")
+    return dataset, seed_key(dataset, key)
 
 
 def means_directory(out: str) -> bool:
@@ -295,6 +329,8 @@ def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: 
         click.echo(f"robodepth: warning: --stereo multiplied every depth by {STEREO_SCALE}: right "
                    "for a stereo model's depths in monodepth2's units (1 / its disparity), wrong "
                    f"for depths in metres ({STEREO_SCALE} times too far; drop --stereo)", err=True)
+    for note in result.warnings:
+        click.echo(f"robodepth: warning: {note}", err=True)
     if result.missing:
         click.echo(f"robodepth: warning: no predictions for {counted(len(result.missing), 'variant')}; "
                    "evaluated the rest", err=True)

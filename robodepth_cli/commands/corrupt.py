@@ -9,6 +9,7 @@ import numpy as np
 
 from ..benchmarks import DEPTH_AWARE
 from ..errors import RobodepthError
+from ..files import check_writable
 from . import common
 
 
@@ -61,7 +62,9 @@ def list_command(fmt):
                    "receiving NAME/LEVEL.png and CHAIN.png (e.g. fog-3+gaussian_noise-2.5.png).")
 @_depth_options
 @common.severity_size_option("default: none")
-def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth_scale, severity_size):
+@common.as_option
+def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth_scale, severity_size,
+                    draw_as):
     """Corrupt one image (its EXIF orientation applied first).
 
     \b
@@ -71,6 +74,14 @@ def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth
     robodepth corrupt frame.png -c all -l all --size 192x640 --out corrupted/
     robodepth corrupt frame.png -c fog_3d -l 3 --depth depth.png --depth-scale 256 --out f.png
     robodepth corrupt big.png -c defocus_blur -l 3 --severity-size 192x640 --out d.png
+    robodepth corrupt OUT/clean/a.png -c fog -l 3 --as custom:a.png --severity-size 192x640 --out f.png
+
+    The random draws are keyed by the seed, the corruption, the level and the image's
+    pixels (after --size): byte-identical copies give the same output. --as DATASET:KEY
+    draws as a build of DATASET does for its source KEY (manifest.csv's source column, or
+    the image's path under OUT/clean/): from
+    the build's clean image, with the build's --seed and severity size, it remakes the
+    build's pixels.
     """
     from ..corruptions import render
 
@@ -92,13 +103,14 @@ def corrupt_command(image, corruption, level, seed, size, out, depth_file, depth
                 f"{len(jobs)} images, which go into a directory; pick one corruption and one "
                 f"level (-c NAME -l N), or one chain, to write that file, or end the name with / "
                 f"to make it a directory")
+    check_writable(target if single else directory / jobs[0][0], "--out")  # before any work
     clean = common.load_input(image, size)
     depth = _depth(depth_file, depth_scale, [v for _, v, _ in jobs], clean)
-    key = Path(image).name
+    dataset, key = common.draw_as(draw_as, clean)
     if not single:
         common.on_interrupt(f"the images written so far are kept under {out}, each complete")
     for name, variant, lv in jobs:
-        img = render(clean, variant, lv, seed=seed, dataset="image", key=key, depth=depth,
+        img = render(clean, variant, lv, seed=seed, dataset=dataset, key=key, depth=depth,
                      severity_size=severity_size)
         common.write_png(target if single else directory / name, img)
     if single:
@@ -170,14 +182,17 @@ def _describe(items: list[str], level_list: list) -> str:
               help="Width of each cell in pixels.")
 @_depth_options
 @common.severity_size_option("default: none")
+@common.as_option
 def preview_command(image, out, corruption, level, size, seed, thumb_width, depth_file, depth_scale,
-                    severity_size):
+                    severity_size, draw_as):
     """A labelled contact sheet: the clean image, then one row per corruption or chain and
     one column per level.
 
     \b
     robodepth preview frame.png -c fog,contrast --out sheet.png
     robodepth preview frame.png -c fog,fog+gaussian_noise -l 1,1.5,2,2.5,3 --out sheet.png
+
+    Each cell is drawn as robodepth corrupt draws it (from the image's pixels, or --as).
     """
     from ..preview import contact_sheet
 
@@ -186,9 +201,11 @@ def preview_command(image, out, corruption, level, size, seed, thumb_width, dept
     target = common.png_output(out, f"{Path(image).stem}_preview.png")
     level_list = common.levels(level, "--levels")
     rows = common.items(corruption, level_list)
+    check_writable(target, "--out")  # before any work
     clean = common.load_input(image, size)
     depth = _depth(depth_file, depth_scale, rows, clean)
-    sheet = contact_sheet(clean, rows, level_list, seed=seed, key=Path(image).name,
+    dataset, key = common.draw_as(draw_as, clean)
+    sheet = contact_sheet(clean, rows, level_list, seed=seed, dataset=dataset, key=key,
                           thumb_width=thumb_width, depth=depth, severity_size=severity_size)
     common.write_png(target, np.asarray(sheet))
     common.wrote(f"{target} ({common.hxw(sheet.height, sheet.width)})")

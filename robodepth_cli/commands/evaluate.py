@@ -79,6 +79,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     from ..workers import default_jobs
     from ..api import open_dataset
     from ..files import check_writable
+    from ..predictions import RECORD
 
     if out is None:
         out = Path(DEFAULT_OUT)
@@ -94,7 +95,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     setup, taken = evaluation_setup(dataset.name, _recorded(pred), protocol, kind, stereo, png_scale,
                                     align, align_space, crop, min_depth, max_depth)
     if taken:
-        click.echo(f"robodepth: from {pred / 'predictions.json'}: {', '.join(taken)}", err=True)
+        click.echo(f"robodepth: from {pred / RECORD}: {', '.join(taken)}", err=True)
     bench = scored_benchmark(dataset.name, dataset.variants()) if with_score else None
     with progress_bar("img", progress=progress) as bar:
         def set_total(n):

@@ -21,9 +21,10 @@ def selftest_command():
     reference's bytes, except KITTI-S's stylised images, which may differ by 1 grey level
     (torch's CPU kernels are not bit-exact across CPUs). About 10-30 s on 2 cores.
 
-    Prints one line when everything matches. Otherwise names each variant that differs,
-    with its largest grey-level difference, and each library that decides pixels whose
-    installed version is not the lock's; exit status 1. Exit status 2: it could not run.
+    Prints one line when everything matches (exit status 0), after a warning naming each
+    library that decides pixels whose installed version is not the lock's, if any. When an
+    output differs, names each variant that differs, with its largest grey-level difference,
+    and those libraries; exit status 1. Exit status 2: it could not run.
     """
     import contextlib
     import io
@@ -45,14 +46,18 @@ def selftest_command():
     seconds = time.monotonic() - start
     for name in outcome.skipped:
         click.echo(f"skipped {OPTIONAL[name]} is not installed")
+    versions = f"installed versions other than the lock: {'; '.join(outcome.versions)}"
     if outcome.ok:
+        if outcome.versions:
+            click.echo(f"warning: {versions}; they make the reference bytes here", err=True)
         click.echo(f"selftest: all {outcome.checked} outputs match the reference (KITTI-S within 1 grey level), "
-                   f"versions as locked, in {seconds:.0f} s")
+                   + ("versions not as locked" if outcome.versions else "versions as locked")
+                   + f", in {seconds:.0f} s")
         return
     for variant, result in outcome.failed.items():
         click.echo(f"{variant}: {result.text()}")
     if outcome.versions:
-        click.echo(f"installed versions other than the lock: {'; '.join(outcome.versions)}")
+        click.echo(versions)
     bad = sum(r.differ + len(r.not_built) for r in outcome.failed.values())
     click.echo(f"selftest: {bad} of {outcome.checked} outputs differ from the reference"
                + ("; this is not the locked install" if outcome.versions else ""), err=True)

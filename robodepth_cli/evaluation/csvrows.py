@@ -41,21 +41,41 @@ def dataset_of(text: str, source: str) -> tuple[str, str] | None:
     """The (dataset, split) a results CSV's ``dataset`` and ``split`` columns name (lower
     case; split "" when absent or empty), or None when it has no ``dataset`` column (results
     from elsewhere, or written before evaluate wrote it). ScoreError when its rows name
-    more than one."""
-    rows = [r for r in csv.reader(io.StringIO(text)) if any(c.strip() for c in r)
-            and not r[0].lstrip().startswith("#")]
-    header = [c.strip().lower() for c in rows[0]] if rows else []
-    if "dataset" not in header:
+    more than one, or a row has more cells than the header (:func:`check_width`)."""
+    reader = csv.reader(io.StringIO(text))
+    header: list[str] | None = None
+    found = set()
+    try:
+        for row in reader:
+            if not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
+                continue
+            if header is None:
+                header = [c.strip().lower() for c in row]
+                if "dataset" not in header:
+                    return None
+                at = [header.index(c) if c in header else None for c in DATASET_COLUMNS]
+                continue
+            check_width(row, header, f"{source}:{reader.line_num}")
+            found.add(tuple(row[i].strip().lower() if i is not None and i < len(row) else ""
+                            for i in at))
+    except csv.Error as exc:
+        raise ScoreError(f"{source}:{reader.line_num}: malformed CSV: {exc}") from None
+    if header is None:
         return None
-    at = [header.index(c) if c in header else None for c in DATASET_COLUMNS]
-    found = {tuple(r[i].strip().lower() if i is not None and i < len(r) else "" for i in at)
-             for r in rows[1:]}
     if len(found) > 1:
         names = sorted(f"{d}:{s}" if s else d for d, s in found)
         raise ScoreError(f"{source}: its rows are on different datasets ({', '.join(names)}); "
                          "one results file holds one dataset's results")
     key = found.pop() if found else ("", "")
     return key if key[0] else None
+
+
+def check_width(row: list[str], header: list[str], where: str) -> None:
+    """Refuse a row with more cells than the header names columns: its cells would be read
+    under the wrong columns (a comma inside a cell, a value pasted twice)."""
+    if len(row) > len(header):
+        raise ScoreError(f"{where}: {len(row)} fields, but the header names {len(header)} "
+                         f"columns (a comma too many?)")
 
 
 def number(text: str, column: str, where: str) -> float:
@@ -156,6 +176,7 @@ def data_rows(text: str, source: str) -> Iterator[tuple[int, str, dict[str, str]
             where = f"{source}:{line}"
             if any(i >= len(row) for i in columns.values()):
                 raise ScoreError(f"{where}: only {len(row)} cells; the header names more columns")
+            check_width(row, header, where)
             _other_cells(row, header, set(columns.values()), where)
             yield line, where, {c: row[i] for c, i in columns.items()}, use_dee
     except csv.Error as exc:

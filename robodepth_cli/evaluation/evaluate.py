@@ -25,6 +25,7 @@ from ..errors import cannot_write, counted
 from ..groundtruth.depthmaps import NoValidPixel
 from ..groundtruth.read import GroundTruth, load_ground_truth
 from ..predictions import Predictions, find_predictions
+from .aspect import aspect_warnings
 from .csvrows import DATASET_COLUMNS
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
 
@@ -68,6 +69,7 @@ class Evaluation:
     # (key -> the build's reason); the metrics are the means over the others.
     left_out: dict[str, str] = field(default_factory=dict)
     split: str = ""  # the build's named subset (drivingstereo-c's weather), else ""
+    warnings: list[str] = field(default_factory=list)  # e.g. aspect ratios far apart (.aspect)
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -186,12 +188,14 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     # Handed over in a list that the callee empties: with workers, it drops the maps once
     # shared, and nothing here keeps a second copy.
     truth = [load_ground_truth(gt_path, names, setup.protocol, setup.valid, absent=absent)]
+    aspect = aspect_warnings(found, truth[0].shapes, dataset.size)
     n = len(dataset.keys)
     if on_total:
         on_total(n * len(found))
     result = Evaluation(dataset.name, setup, str(pred), str(gt_path), n, missing=missing,
                         pairs=len(pairs or ()), split=split_name(dataset),
-                        left_out={dataset.keys[i]: dataset.no_depth[dataset.keys[i]] for i in sorted(absent)})
+                        left_out={dataset.keys[i]: dataset.no_depth[dataset.keys[i]] for i in sorted(absent)},
+                        warnings=aspect)
     jobs = min(jobs, len(found), -(-n * len(found) // MAPS_PER_WORKER))
     result.results = _evaluate_all(found, truth, setup, dataset.size, progress, pairs, jobs)
     return _with_left_out(result, dataset)

@@ -54,6 +54,23 @@ def shard_rows(path: Path, fmt: str, prefix: str) -> Iterator[tuple[str, bytes]]
             yield (f"{prefix}/{member.name}" if prefix else member.name), data
 
 
+def export_files(to: Path, paths) -> Iterator[tuple[str, bytes]]:
+    """(path in the build, bytes) of those of ``paths`` that the images in ``to``'s shards
+    hold, shard by shard (each shard that may hold one is read once); a shard that cannot
+    be read yields nothing."""
+    record = read_export_record(to) or {}
+    wanted = set(paths)
+    for e in record.get("shards") or []:
+        if e["config"] == GT_CONFIG or not any(p.startswith(e["prefix"] + "/") for p in wanted):
+            continue
+        try:
+            for name, data in shard_rows(Path(to) / e["file"], record.get("format"), e["prefix"]):
+                if name in wanted:
+                    yield name, data
+        except Exception:  # noqa: BLE001 -- any reader error means a damaged shard (verify names it)
+            continue
+
+
 def gt_rows(path: Path, fmt: str) -> Iterator[tuple[str, str, bytes]]:
     """(path of its file in the build, image key, the map's ``.npy`` bytes) of every
     ground-truth map in one shard, in order (see :mod:`.groundtruth`)."""

@@ -194,20 +194,16 @@ def _read_images(variant: Variant, indices: range) -> list[np.ndarray]:
 
 def _read_sequences(variant: Variant, indices: range, frames: tuple[int, ...]) -> list[np.ndarray]:
     """For a multi-frame model: per image, an ``F x H x W x 3`` stack of it and its
-    neighbours at ``frames`` (the same variant's files of frame ``n + offset``, named as a
-    build with ``--frames`` writes them); a neighbour the build does not have is black, as
-    ManyDepth's loader makes a missing file. The neighbours are read beside the build's
-    files (:meth:`Variant.images`, which refuses an export)."""
-    from ..imageio import read_rgb
-    from ..keys import neighbour_key
+    neighbours at ``frames`` (the same variant's files of frame ``n + offset``, from the
+    build's folder or an export's shards; a neighbour the build does not have is black)."""
+    from ..api import read_neighbours
 
-    paths = variant.images()
     out = []
     for i in indices:
         frame = variant.read(i)
-        near = [neighbour_key(str(paths[i]), o) for o in frames]
-        out.append(np.stack([frame, *[np.asarray(read_rgb(Path(n))) if n and Path(n).is_file()
-                                      else np.zeros_like(frame) for n in near]]))
+        near = read_neighbours(variant.root, variant.store, variant.relpath, variant.keys[i],
+                               frames, frame)
+        out.append(np.stack([frame, *near]))
     return out
 
 

@@ -1,16 +1,25 @@
 """``robodepth verify OUT --against OTHER``: is my build the same as yours?
 
-Both builds' manifests are compared output by output: an output is identical when both
-list it with the same sha256, differs when the hashes differ, and is missing on the side
-that does not list it (or lists it as failed). Where both files are on disk, a differing
-output is decoded and its largest pixel difference taken. OTHER is another build's folder
-or a ``manifest.csv`` (its files, when they lie beside it, are used for the differences).
+Both sides are compared output by output. A side is a build's folder (its files on disk), an
+export's folder (its images in shards, its manifest at ``robodepth/manifest.csv``) or a
+``manifest.csv`` alone (its rows only; its files, when they lie beside it, are used for the
+differences). An output is
+
+- missing on a side whose manifest does not list it (or lists it as failed), or whose
+  files are on disk and lack it (deleted);
+- differing when the two manifests give other sha256s, or when a side's file does not
+  match its own manifest (what is on disk is compared, not what a manifest claims);
+- identical otherwise.
+
+Where both files can be read, a differing output is decoded and its largest pixel
+difference taken.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -19,17 +28,43 @@ from .manifest import ManifestError, Row, read_manifest_file, read_recorded
 
 
 @dataclass
+class Side:
+    """One side of a comparison: its successful manifest rows, the listed outputs whose file
+    is gone or holds other bytes than the row says, and ``files(paths)``, which yields
+    ``(path, bytes)`` for those of ``paths`` it can read (in any order)."""
+
+    rows: dict[str, Row]
+    gone: set[str] = field(default_factory=set)
+    changed: set[str] = field(default_factory=set)
+    files: Callable[[Iterable[str]], Iterator[tuple[str, bytes]]] = lambda paths: iter(())
+
+
+def disk_files(base: Path) -> Callable[[Iterable[str]], Iterator[tuple[str, bytes]]]:
+    """The ``files`` of a side whose outputs lie under ``base``."""
+
+    def files(paths):
+        for p in paths:
+            try:
+                yield p, (base / p).read_bytes()
+            except OSError:  # missing or unreadable: no pixel difference
+                continue
+
+    return files
+
+
+@dataclass
 class VariantComparison:
+    outputs: int = 0  # listed by either side
     identical: int = 0
     differ: int = 0
-    only_here: int = 0  # listed by OUT only
-    only_there: int = 0  # listed by OTHER only
+    only_here: int = 0  # listed by OUT only, or deleted from OTHER's files
+    only_there: int = 0  # listed by OTHER only, or deleted from OUT's files
     largest: int | None = None  # largest pixel difference of a differing pair of files
-    unread: int = 0  # differing outputs without both files on disk (no difference taken)
+    unread: int = 0  # differing outputs without both files read (no difference taken)
 
     @property
     def same(self) -> bool:
-        return not (self.differ or self.only_here or self.only_there)
+        return self.identical == self.outputs
 
     def text(self) -> str:
         parts = [f"{self.identical} identical", f"{self.differ} differ",
@@ -42,10 +77,13 @@ class VariantComparison:
         return ", ".join(parts)
 
 
-def pixels(path: Path) -> np.ndarray:
+def pixels(data: bytes) -> np.ndarray:
+    """The values of an encoded image; OSError or ValueError when it is not one."""
+    import io
+
     from PIL import Image
 
-    with Image.open(path) as im:
+    with Image.open(io.BytesIO(data)) as im:
         return np.asarray(im)
 
 
@@ -56,15 +94,16 @@ def largest_difference(a: np.ndarray, b: np.ndarray) -> int | None:
     return int(np.abs(a.astype(np.int32) - b.astype(np.int32)).max(initial=0))
 
 
-def other_manifest(other: Path) -> tuple[dict[str, Row], Path]:
-    """OTHER's successful rows and the folder its outputs are relative to."""
+def other_rows(other: Path) -> tuple[dict[str, Row], Path]:
+    """OTHER's successful rows and the folder its outputs are relative to; an export's
+    folder is given here as its ``robodepth/`` folder (the one holding its manifest)."""
     other = Path(other)
     if other.is_file():
         rows, base = read_manifest_file(other), other.parent
     elif other.is_dir():
         if not (other / MANIFEST).is_file():
-            raise ManifestError(f"--against: {other}: no {MANIFEST}; give a robodepth build "
-                                f"or its {MANIFEST}")
+            raise ManifestError(f"--against: {other}: no {MANIFEST}; give a robodepth build, "
+                                f"an export or a {MANIFEST}")
         rows, base = read_recorded(other), other
     else:
         raise ManifestError(f"--against: {other}: does not exist")
@@ -73,32 +112,51 @@ def other_manifest(other: Path) -> tuple[dict[str, Row], Path]:
     return {p: r for p, r in rows.items() if not r.error}, base
 
 
-def compare(out: Path, other: Path) -> dict[str, VariantComparison]:
+def compare(mine: Side, theirs: Side) -> dict[str, VariantComparison]:
     """Per variant directory (``clean``, ``fog/3``, a chain's or a style's), in path order."""
-    mine = {p: r for p, r in read_recorded(Path(out)).items() if not r.error}
-    theirs, base = other_manifest(other)
     result: dict[str, VariantComparison] = {}
-    for path in sorted(mine.keys() | theirs.keys()):
-        row = mine.get(path) or theirs[path]
+    differing: dict[str, VariantComparison] = {}
+    for path in sorted(mine.rows.keys() | theirs.rows.keys()):
+        row = mine.rows.get(path) or theirs.rows[path]
         v = result.setdefault(variant_dir(row.variant, row.level), VariantComparison())
-        if path not in theirs:
+        here = path in mine.rows and path not in mine.gone
+        there = path in theirs.rows and path not in theirs.gone
+        v.outputs += 1
+        if not there:
             v.only_here += 1
-        elif path not in mine:
+            v.only_there += not here  # OUT lacks it too (deleted from both sides)
+        elif not here:
             v.only_there += 1
-        elif mine[path].sha256 == theirs[path].sha256:
+        elif (mine.rows[path].sha256 == theirs.rows[path].sha256
+              and path not in mine.changed and path not in theirs.changed):
             v.identical += 1
         else:
             v.differ += 1
-            _take_difference(v, Path(out) / path, base / path)
+            differing[path] = v
+    _take_differences(differing, mine, theirs)
     return result
 
 
-def _take_difference(v: VariantComparison, a: Path, b: Path) -> None:
-    try:
-        d = largest_difference(pixels(a), pixels(b))
-    except (OSError, ValueError):  # a file missing or not an image
+def _take_differences(differing: dict[str, VariantComparison], mine: Side, theirs: Side) -> None:
+    """Each differing output's largest pixel difference into its variant's count: OTHER's
+    files are read once, in the order its side gives them (an export's, shard by shard)."""
+    done = set()
+    for path, data in theirs.files(sorted(differing)):
+        if path not in differing or path in done:
+            continue
+        done.add(path)
+        here = dict(mine.files([path])).get(path)
         d = None
-    if d is None:  # another size: no pixel to pixel difference
-        v.unread += 1
-    else:
-        v.largest = d if v.largest is None else max(v.largest, d)
+        if here is not None:
+            try:
+                d = largest_difference(pixels(here), pixels(data))
+            except (OSError, ValueError):  # not an image
+                d = None
+        v = differing[path]
+        if d is None:
+            v.unread += 1
+        else:
+            v.largest = d if v.largest is None else max(v.largest, d)
+    for path, v in differing.items():
+        if path not in done:
+            v.unread += 1

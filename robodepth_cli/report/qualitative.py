@@ -66,7 +66,7 @@ def pred_kinds(preds: Sequence[Path], kinds: Sequence[str], dataset_name: str) -
     ``--kind``, ``predictions.json`` (what robodepth predict recorded) or ``default`` (the
     dataset's evaluation default: disp for KITTI, depth for NYU). ``kinds`` is ``--kind``
     as given: not at all, once for every ``--pred``, or once per ``--pred`` in order."""
-    from ..predictions import read_record
+    from ..predictions import RECORD, read_record
 
     check_kinds(kinds, preds)
     default = "depth" if dataset_name == "nyudepth2-c" else "disp"
@@ -77,7 +77,7 @@ def pred_kinds(preds: Sequence[Path], kinds: Sequence[str], dataset_name: str) -
             continue
         record = read_record(Path(pred)) if Path(pred).is_dir() else None
         kind = (record or {}).get("evaluate", {}).get("kind")
-        out.append((kind, "predictions.json") if kind in DRAWN else (default, "default"))
+        out.append((kind, RECORD) if kind in DRAWN else (default, "default"))
     return out
 
 
@@ -85,7 +85,7 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
     """The figure entry (stem, title, caption, Figure) for ``report``'s page, and the
     ``(pred, kind)`` of each ``--pred`` drawn with the dataset's default kind because
     neither ``--kind`` nor a ``predictions.json`` said what it holds."""
-    from ..predictions import find_predictions
+    from ..predictions import RECORD, find_predictions
     from .figures import qualitative_figure
 
     dataset = open_dataset(dataset_dir)
@@ -115,7 +115,7 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
         rows.append((f"{model.name}  ({DRAWN[kind]})", row))
     key = dataset.keys[frame]
     fig = qualitative_figure([v.label for v in variants], images, rows, dataset.name, key)
-    said = {"--kind": "as --kind says", "predictions.json": "as its predictions.json records",
+    said = {"--kind": "as --kind says", RECORD: f"as its {RECORD} records",
             "default": f"the {dataset.name} default"}
     names = ", ".join(f"{m.name} ({DRAWN[k]}, {said[s]})" for m, (k, s) in zip(models, held))
     entry = ("qualitative", "One frame", f"Frame {frame} ({key}) of {dataset_dir}: the clean "

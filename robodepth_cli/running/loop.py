@@ -22,6 +22,7 @@ import numpy as np
 
 from ..api import Variant
 from ..benchmarks import CLEAN
+from ..errors import failure_reason
 from ..evaluation.evaluate import Evaluation, VariantResult, image_errors, variant_result
 from ..models import predict as P
 from ..predictions import PredictionWriter, finished, remove_leftovers, split_digest
@@ -56,7 +57,7 @@ def render_batch(renderer: Renderer, cleans: Sequence[np.ndarray], keys: Sequenc
         ((_, img),) = renderer.render(clean, key, [job])
         if isinstance(img, BaseException):
             level = "" if job.level is None else f" level {job.level}"
-            raise RunError(f"{path}: {job.variant}{level}: {type(img).__name__}: {img}")
+            raise RunError(f"{path}: {job.variant}{level}: {failure_reason(img)}")
         out.append(img)
     return out
 

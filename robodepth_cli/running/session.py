@@ -23,13 +23,14 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
     from ..files import check_writable
     from ..models import load_model
     from ..models.predict import BATCH_PIXELS, batch_limit
+    from ..predictions import RECORD
     from ..progress import bar as progress_bar
     from . import inputs as I, loop
     from .state import RunState
 
     check_writable(out, "--out")
     if keep is not None:
-        check_writable(keep / "predictions.json", "--keep-predictions")
+        check_writable(keep / RECORD, "--keep-predictions")
     cfg = resolve(dataset, config_file, {**flags, **I.engine_flags(engine, device)})
     inputs = I.gather(cfg, root, out)
     bench = scored_benchmark(cfg.dataset, [v for v, _ in inputs.variants])

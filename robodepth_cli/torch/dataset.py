@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..api import failed_text, open_dataset
+from ..api import failed_text, open_dataset, read_neighbours
 from ..output.layout import CLEAN, GT_FILE, variant_dir
 from .errors import TorchAPIError
 from .transforms import Corrupt
@@ -144,23 +144,7 @@ class KittiC(torch.utils.data.Dataset):
         return self.transform(img) if self.transform else torch.from_numpy(img.copy()).permute(2, 0, 1)
 
     def _neighbours(self, i: int, img: np.ndarray) -> list[np.ndarray]:
-        import io
-
-        from ..imageio import read_rgb
-        from ..keys import neighbour_key
-
-        out = []
-        for o in self.frames:
-            key = neighbour_key(self.keys[i], o)
-            output = f"{self._relpath()}/{key}" if key else None
-            if output is None or not (self._store.has(output) if self._store is not None
-                                      else (self.root / output).is_file()):
-                out.append(np.zeros_like(img))
-            elif self._store is not None:
-                out.append(np.asarray(read_rgb(io.BytesIO(self._store.read(output)))))
-            else:
-                out.append(np.asarray(read_rgb(self.root / output)))
-        return out
+        return read_neighbours(self.root, self._store, self._relpath(), self.keys[i], self.frames, img)
 
     def __getstate__(self):
         state = dict(self.__dict__)

@@ -124,7 +124,12 @@ def test_a_missing_scan_fails_only_the_depth_aware_outputs(tmp_path, cli):
     assert res.exit_code == 1, res.output
     failed = {o: r for o, r in manifest_by_output(out).items() if r["error"]}
     assert list(failed) == [f"fog_3d/1/kitti_data/{KITTI_DRIVE}/image_02/data/0000000054.png"]
-    assert "0000000054.bin" in next(iter(failed.values()))["error"]
+    error = next(iter(failed.values()))["error"]
+    assert "0000000054.bin" in error
+    # the reason in the user's words: the source, the job, then the depth's problem, no class name
+    source = root / KITTI_DRIVE / "image_02/data/0000000054.png"
+    scan = root / KITTI_DRIVE / "velodyne_points/data/0000000054.bin"
+    assert error == f"{source}: fog_3d level 1: {scan}: no such velodyne file"
 
 
 def test_datasets_without_depth_refuse_depth_aware_corruptions(tmp_path, cli):

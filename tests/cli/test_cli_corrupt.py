@@ -14,6 +14,7 @@ from robodepth_cli.corruptions import NAMES, REGISTRY, corrupt
 from robodepth_cli.imageio import load_clean
 from robodepth_cli.seeding import job_rng
 
+from tests.helpers.drawkey import pixels_key
 from tests.helpers.paths import REFERENCE
 
 INPUT = REFERENCE / "kitti" / "kitti_like_md2__input.png"
@@ -88,8 +89,57 @@ def test_corrupt_matches_library_call_and_seed(tmp_path, cli):
     cli("corrupt", src, "-c", "gaussian_noise", "-l", "2", "--seed", "5", "--out", b)
     cli("corrupt", src, "-c", "gaussian_noise", "-l", "2", "--seed", "6", "--out", c)
     assert a.read_bytes() == b.read_bytes() != c.read_bytes()
-    expected = corrupt(load_clean(src, None), "gaussian_noise", 2, job_rng(5, "image", "gaussian_noise", 2, "img.png"))
+    clean = load_clean(src, None)
+    expected = corrupt(clean, "gaussian_noise", 2, job_rng(5, "image", "gaussian_noise", 2, pixels_key(clean)))
     assert np.array_equal(np.asarray(Image.open(a)), expected)
+
+
+def test_byte_identical_copies_draw_alike_whatever_their_names(tmp_path, cli):
+    import shutil
+
+    src = small_png(tmp_path)
+    copy = tmp_path / "elsewhere" / "frame_copy.png"
+    copy.parent.mkdir()
+    shutil.copy(src, copy)
+    for command, args in (("corrupt", ("-c", "fog", "-l", "3")), ("preview", ("-c", "fog,gaussian_noise"))):
+        a, b = tmp_path / f"{command}_a.png", tmp_path / f"{command}_b.png"
+        assert cli(command, src, *args, "--out", a).exit_code == 0
+        assert cli(command, copy, *args, "--out", b).exit_code == 0
+        assert a.read_bytes() == b.read_bytes(), command
+
+
+@pytest.mark.slow
+def test_as_remakes_a_build_image_from_its_clean_one(tmp_path, cli, build_kitti):
+    """corrupt --as kitti-c:KEY (KEY: the manifest's source, or the image's path under
+    OUT/clean/) of the build's clean image, with the build's seed and severity size, gives the
+    pixels of the build's fog/3 and gaussian_noise/2 files (the PNG encoding is the build's
+    --png choice)."""
+    import json
+
+    from tests.helpers.manifest import manifest_rows
+    from tests.helpers.trees import kitti_tree
+
+    split = kitti_tree(tmp_path / "raw", [(3, "l", ".png")])
+    out = tmp_path / "OUT"
+    res = build_kitti(tmp_path / "raw", split, out, "--size", "64x96", "--corruptions",
+                      "fog,gaussian_noise", "--levels", "2,3", "--seed", "7", "--jobs", "1", "--no-gt")
+    assert res.exit_code == 0, res.output
+    size = (json.loads((out / "build.json").read_text())["config"].get("extra") or {}).get("severity_size")
+    rows = manifest_rows(out)
+    for variant, level, by in (("fog", "3", "key"), ("gaussian_noise", "2", "source")):
+        (row,) = [r for r in rows if r["variant"] == variant and r["level"] == level]
+        key = row["output"].split("/", 2)[2]
+        clean = out / "clean" / key
+        args = ["corrupt", clean, "-c", variant, "-l", level, "--seed", "7", "--as",
+                f"kitti-c:{key if by == 'key' else row['source']}", "--out", tmp_path / f"{variant}.png"]
+        if size:
+            args += ["--severity-size", size]
+        res = cli(*args)
+        assert res.exit_code == 0, res.output
+        got, want = (np.asarray(Image.open(p)) for p in (tmp_path / f"{variant}.png", out / row["output"]))
+        assert np.array_equal(got, want), variant
+    res = cli("corrupt", clean, "-c", "fog", "-l", "3", "--as", "kitti:x.png", "--out", tmp_path / "x.png")
+    assert res.exit_code == 2 and "--as kitti:x.png: expected DATASET:KEY" in res.output
 
 
 @pytest.mark.parametrize("args,message", [
@@ -158,20 +208,20 @@ def test_preview_draws_a_fixed_chain_once(tmp_path, cli):
     clean = load_clean(src, None)
     levels = [1, 1.5, 2, 5]
     sheet = np.asarray(contact_sheet(clean, ["fog:3+gaussian_noise:2.5", "fog+contrast:2"],
-                                     levels, thumb_width=64, key="img.png"))
+                                     levels, thumb_width=64, key=pixels_key(clean)))
     label_w, head_h, th, tw = 8 + 6 * len("fog:3+gaussian_noise:2.5"), 18, 48, 64  # the sheet's layout
 
     def cell(row, col):  # row 0 is the clean image
         y, x = head_h + row * (th + _PAD), label_w + col * (tw + _PAD) + _PAD
         return sheet[y:y + th, x:x + tw]
 
-    fixed = render(clean, "fog:3+gaussian_noise:2.5", None, seed=0, dataset="preview", key="img.png")
+    fixed = render(clean, "fog:3+gaussian_noise:2.5", None, seed=0, dataset="image", key=pixels_key(clean))
     assert np.array_equal(cell(1, 0), fixed)  # drawn once, in the first column
     for col in range(1, len(levels)):
         assert (cell(1, col) == 255).all()  # and nowhere else: the same image nine times says nothing
         # the template takes each column's level
-        want = render(clean, f"fog:{levels[col]}+contrast:2", None, seed=0, dataset="preview",
-                      key="img.png")
+        want = render(clean, f"fog:{levels[col]}+contrast:2", None, seed=0, dataset="image",
+                      key=pixels_key(clean))
         assert np.array_equal(cell(2, col), want)
     res = cli("preview", src, "-c", "fog:3+gaussian_noise:2.5", "-l", "1,1.5,2,2.5,3,3.5,4,4.5,5",
               "--thumb-width", "64", "--out", tmp_path / "sheet.png")
@@ -215,3 +265,26 @@ def test_missing_frost_textures_are_a_clear_error(tmp_path, monkeypatch, command
     assert res.exit_code == 2
     assert "imagecorruptions-imaug is not installed" in res.output and "Traceback" not in res.output
     assert not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.slow
+def test_the_severity_page_figure_command_remakes_it_from_a_copy_of_the_frame(tmp_path, cli):
+    """docs/severity-and-chains.md's preview command, run on a copy of its frame under
+    another name, writes docs/images/severity-and-chains.png byte for byte."""
+    import re
+    import shlex
+    import shutil
+
+    from tests.helpers.paths import REPO as ROOT
+
+    page = (ROOT / "docs" / "severity-and-chains.md").read_text()
+    (command,) = re.findall(r"```sh\n(robodepth preview frame\.png .*?)\n```", page, re.S)
+    args = shlex.split(command.replace("\\\n", " "))[3:]  # after "robodepth preview frame.png"
+    out = args.index("--out")
+    figure = ROOT / args[out + 1]
+    args[out + 1] = str(tmp_path / "figure.png")
+    frame = tmp_path / "another_name.png"
+    shutil.copy(REFERENCE / "kitti" / "kitti_like_md2__input.png", frame)
+    res = cli("preview", frame, *args)
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "figure.png").read_bytes() == figure.read_bytes()

@@ -11,6 +11,8 @@ from robodepth_cli.corruptions import corrupt, corrupt_chain
 from robodepth_cli.corruptions.chains import parse_chain
 from robodepth_cli.imageio import load_clean
 
+from tests.helpers.drawkey import pixels_key
+
 
 def small_png(tmp_path, name="img.png", size=(48, 64)):
     arr = np.random.default_rng(3).integers(0, 256, (*size, 3), dtype=np.uint8)
@@ -28,7 +30,8 @@ def test_corrupt_at_a_decimal_level_is_the_library_call(tmp_path, cli):
     src = small_png(tmp_path)
     res = cli("corrupt", src, "-c", "gaussian_noise", "-l", "2.50", "-s", "5", "--out", tmp_path / "a.png")
     assert res.exit_code == 0, res.output
-    want = corrupt(load_clean(src, None), "gaussian_noise", 2.5, seeding.job_rng(5, "image", "gaussian_noise", 2.5, "img.png"))
+    clean = load_clean(src, None)
+    want = corrupt(clean, "gaussian_noise", 2.5, seeding.job_rng(5, "image", "gaussian_noise", 2.5, pixels_key(clean)))
     assert np.array_equal(load(tmp_path / "a.png"), want)
 
 
@@ -37,7 +40,8 @@ def test_corrupt_a_chain_into_one_file(tmp_path, cli):
     res = cli("corrupt", src, "-c", "fog:3 + gaussian_noise:2.5", "-s", "5", "--out", tmp_path / "c.png")
     assert res.exit_code == 0, res.output
     chain = parse_chain("fog:3+gaussian_noise:2.5")
-    want = corrupt_chain(load_clean(src, None), chain, seeding.chain_rngs(5, "image", chain, "img.png"))
+    clean = load_clean(src, None)
+    want = corrupt_chain(clean, chain, seeding.chain_rngs(5, "image", chain, pixels_key(clean)))
     assert np.array_equal(load(tmp_path / "c.png"), want)
 
 

@@ -11,6 +11,7 @@ from robodepth_cli.corruptions import corrupt
 from robodepth_cli.imageio import ImageError, read_rgb
 from robodepth_cli.seeding import job_rng
 
+from tests.helpers.drawkey import pixels_key
 from tests.helpers.messages import one_line_error
 
 
@@ -182,5 +183,6 @@ def test_seed_zero_and_up_still_work(cli, tmp_path):
     assert cli("corrupt", src, "-c", "gaussian_noise", "-l", "1", "-s", "7", "--out", out).exit_code == 0
     from robodepth_cli.imageio import load_clean
 
-    expected = corrupt(load_clean(src, None), "gaussian_noise", 1, job_rng(7, "image", "gaussian_noise", 1, "img.png"))
+    clean = load_clean(src, None)
+    expected = corrupt(clean, "gaussian_noise", 1, job_rng(7, "image", "gaussian_noise", 1, pixels_key(clean)))
     assert np.array_equal(np.asarray(Image.open(out)), expected)

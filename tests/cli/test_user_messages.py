@@ -224,3 +224,39 @@ def test_counts_are_worded_in_the_singular_and_plural():
 
     assert counted(1, "variant") == "1 variant" and counted(2, "variant") == "2 variants"
     assert counted(0, "time") == "0 times" and counted(1, "results file") == "1 results file"
+
+
+@pytest.mark.parametrize("command", [["corrupt", "-c", "fog", "-l", "1"], ["preview", "-c", "fog"]])
+def test_single_image_refusals_are_worded_as_the_other_commands(cli, tmp_path, command):
+    """--size names its flag as build does; an --out under a regular file says 'is not a
+    directory' as run, score and evaluate do, before any work."""
+    from tests.helpers.paths import REFERENCE
+
+    frame = REFERENCE / "kitti" / "kitti_like_md2__input.png"
+    res = cli(*command[:1], frame, *command[1:], "--size", "0x0", "--out", tmp_path / "o.png")
+    assert one_line_error(res) == "robodepth: error: --size: size '0x0': both sides must be at least 32"
+    (tmp_path / "file").write_text("")
+    target = tmp_path / "file" / "x.png"
+    res = cli(*command[:1], frame, *command[1:], "--out", target)
+    assert one_line_error(res) == (f"robodepth: error: --out {target}: cannot write "
+                                   f"({tmp_path / 'file'} is not a directory)")
+    build = cli("build", "custom", "--root", tmp_path, "--out", tmp_path / "b", "--size", "0x0")
+    assert one_line_error(build).startswith("robodepth: error: --size: size '0x0': ")
+
+
+def test_a_file_in_the_way_of_an_output_folder_is_named_alike_wherever_it_is_met(tmp_path):
+    """cannot_write of EEXIST or ENOTDIR (a file where a folder of the path should be)
+    names that file as check_writable does."""
+    import errno
+
+    from robodepth_cli.errors import cannot_write
+    from robodepth_cli.files import check_writable
+    from robodepth_cli.errors import RobodepthError
+
+    (tmp_path / "file").write_text("")
+    target = tmp_path / "file" / "sub" / "x.png"
+    with pytest.raises(RobodepthError) as early:
+        check_writable(target)
+    for code in (errno.EEXIST, errno.ENOTDIR):
+        late = cannot_write(target, OSError(code, os.strerror(code)))
+        assert late == str(early.value) == f"{target}: cannot write ({tmp_path / 'file'} is not a directory)"

@@ -298,3 +298,39 @@ def test_npz_errors_name_the_file_once(kitti_c, kitti_pred, tmp_path, cli):
     res = evaluate(cli, out, pred, tmp_path / "r.csv")
     one_line_error(res, stderr=True, pattern=r"clean\.npz: cannot read its array, damaged\?")
     assert res.stderr.count("clean.npz") == 1, res.stderr
+
+
+def _resized_preds(kitti_pred, dst, shape):
+    """``kitti_pred``'s maps resized to ``shape`` (height, width), every variant."""
+    def resize(arrays):
+        for v, a in arrays.items():
+            arrays[v] = np.stack([cv2.resize(m, (shape[1], shape[0])) for m in a])
+
+    return copy_pred(kitti_pred, dst, resize)
+
+
+def test_a_prediction_of_another_aspect_ratio_is_warned_then_refused(kitti_c, kitti_pred, tmp_path, cli):
+    """The build's images are 64 x 96, the ground truth of image 0 375 x 1242 (aspect
+    ratios 1.5 and 3.312): maps of either aspect ratio pass without a word; 50 x 300 (6.0:
+    1.8 times apart from the ground truth's, 4 from the images') is warned; 96 x 10 (31.8
+    times apart) is refused before anything is written."""
+    out, _ = kitti_c
+    for shape in ((64, 96), (120, 400)):
+        res = evaluate(cli, out, _resized_preds(kitti_pred, tmp_path / f"ok{shape[0]}", shape),
+                       tmp_path / "ok.csv")
+        assert res.exit_code == 0 and "aspect" not in res.output, res.output
+    pred = _resized_preds(kitti_pred, tmp_path / "wide", (50, 300))
+    res = evaluate(cli, out, pred, tmp_path / "wide.csv")
+    assert res.exit_code == 0, res.output
+    warned = [ln for ln in res.output.splitlines() if "aspect" in ln]
+    assert len(warned) == len(KITTI_VARIANTS)
+    assert warned[0] == (f"robodepth: warning: {pred / 'clean.npy'}: prediction 0 is 50 x 300, its "
+                         f"ground truth 375 x 1242: aspect ratios 1.8 times apart (more than 1.5); "
+                         f"resized to the ground truth's size anyway")
+    pred = _resized_preds(kitti_pred, tmp_path / "thin", (96, 10))
+    res = evaluate(cli, out, pred, tmp_path / "thin.csv")
+    assert one_line_error(res) == (f"robodepth: error: {pred / 'clean.npy'}: prediction 0 is 96 x 10, its ground truth "
+                                   f"375 x 1242: aspect ratios 31.8 times apart (more than 4: a "
+                                   f"transposed array or another model output?); give maps of "
+                                   f"the image's shape")
+    assert not (tmp_path / "thin.csv").exists()

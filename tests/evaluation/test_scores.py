@@ -358,6 +358,7 @@ GOOD = "corruption,level,abs_rel,a1\nclean,0,0.1,0.9\n"
     (GOOD + "fog,1,0.1,1.5\n", 3, "a1 1.5 is outside [0, 1] (a percentage?"),
     (GOOD + "fog,1,0.1,-0.5\n", 3, "a1 -0.5 is outside [0, 1]"),
     (GOOD + "fog,1,0.1\n", 3, "only 3 cells"),
+    (GOOD + "fog,1,0.1,0.9,7\n", 3, "5 fields, but the header names 4 columns (a comma too many?)"),
     (GOOD + "foggy,1,0.1,0.9\n", 3, "unknown corruption 'foggy'; valid: clean, brightness"),
     (GOOD + "fog,6,0.1,0.9\n", 3, "level 6 of fog is outside 1..5 for kitti-c"),
     (GOOD + "fog,0,0.1,0.9\n", 3, "level 0 of fog is outside 1..5"),
@@ -384,6 +385,19 @@ def test_bad_rows_are_one_line_errors(tmp_path, text, line, problem, cli):
     assert result.exit_code == 2
     assert result.output.startswith(f"robodepth: error: {path}:{line}: ")
     assert problem in result.output and result.output.count("\n") == 1
+
+
+def test_an_extra_field_beside_the_dataset_column_names_its_line(tmp_path, cli):
+    """An evaluate-written CSV (dataset and split columns) with one field too many on line
+    15: named by its line and field count, not as rows on different datasets."""
+    rows = ["corruption,level,abs_rel,a1,dataset,split", "clean,0,0.1,0.9,kitti-c,"]
+    rows += [f"{c},{lv},0.12,0.86,kitti-c," for c in ("fog", "snow", "frost") for lv in range(1, 6)]
+    rows[14] = rows[14].replace("0.12,", "0.12,0.8579344899323409,")
+    path = write(tmp_path, "\n".join(rows) + "\n")
+    result = cli("score", path, "-b", "kitti-c")
+    assert result.exit_code == 2
+    assert result.output == (f"robodepth: error: {path}:15: 7 fields, but the header names 6 "
+                             f"columns (a comma too many?)\n")
 
 
 @pytest.mark.parametrize("text, problem", [

@@ -137,7 +137,63 @@ def test_against_a_manifest_alone_counts_without_pixels(tmp_path, cli, small_bui
 
 def test_against_refuses_what_is_not_a_build(tmp_path, cli, small_build):
     for other, why in ((tmp_path / "nowhere", "does not exist"),
-                       (tmp_path, "no manifest.csv; give a robodepth build or its manifest.csv")):
+                       (tmp_path, "no manifest.csv; give a robodepth build, an export or a manifest.csv")):
         res = cli("verify", small_build, "--against", other)
         assert res.exit_code == 2
         assert res.output.strip() == f"robodepth: error: --against: {other}: {why}"
+
+
+def _nudge(png, by=3):
+    """Change one pixel of ``png`` by ``by`` grey levels, leaving its manifest row alone."""
+    import numpy as np
+    from PIL import Image
+
+    img = np.asarray(Image.open(png)).copy()
+    img[2, 3, 0] = img[2, 3, 0] + by if img[2, 3, 0] < 250 else img[2, 3, 0] - by
+    Image.fromarray(img).save(png)
+
+
+def test_files_on_disk_are_compared_not_what_the_manifests_claim(tmp_path, cli, small_build):
+    import shutil
+
+    other = tmp_path / "other"
+    shutil.copytree(small_build, other)
+    changed, deleted = f"contrast/1/{kitti_key(3)}", f"gaussian_noise/2/{kitti_key(4)}"
+    _nudge(other / changed)
+    (other / deleted).unlink()
+    res = cli("verify", small_build, "--against", other)
+    assert res.exit_code == 1, res.output
+    lines = res.output.splitlines()
+    assert ("contrast/1: 1 identical, 1 differ, 0 missing here, 0 missing there, "
+            "largest pixel difference 3") in lines
+    assert "gaussian_noise/2: 1 identical, 0 differ, 0 missing here, 1 missing there" in lines
+    assert lines[-1] == f"{small_build}: 2 of 10 outputs differ from {other} or are missing on one side"
+    # the other way round: OUT's own check and the comparison agree
+    back = cli("verify", other, "--against", small_build)
+    assert back.exit_code == 1
+    lines = back.output.splitlines()
+    assert f"  {changed}" in lines and f"  {deleted}" in lines  # verify's changed and missing
+    assert ("contrast/1: 1 identical, 1 differ, 0 missing here, 0 missing there, "
+            "largest pixel difference 3") in lines
+    assert "gaussian_noise/2: 1 identical, 0 differ, 1 missing here, 0 missing there" in lines
+    assert not any("all 10 outputs identical" in ln for ln in lines)
+    assert lines[-1] == f"{other}: 2 of 10 outputs differ from {small_build} or are missing on one side"
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "webdataset"])
+def test_against_an_export_of_the_build(tmp_path, cli, small_build, fmt):
+    import shutil
+
+    export = tmp_path / "export"
+    res = cli("export", small_build, "--format", fmt, "--to", export, "--no-progress")
+    assert res.exit_code == 0, res.output
+    ok = cli("verify", small_build, "--against", export)
+    assert ok.exit_code == 0, ok.output
+    assert ok.output.splitlines()[-1] == f"{small_build}: all 10 outputs identical to {export}"
+    mine = tmp_path / "mine"
+    shutil.copytree(small_build, mine)
+    _nudge(mine / f"contrast/2/{kitti_key(4)}", by=5)
+    res = cli("verify", mine, "--against", export)
+    assert res.exit_code == 1
+    assert ("contrast/2: 1 identical, 1 differ, 0 missing here, 0 missing there, "
+            "largest pixel difference 5") in res.output.splitlines()

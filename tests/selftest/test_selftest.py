@@ -96,11 +96,21 @@ def test_a_version_other_than_the_lock_is_named(tmp_path, cli, prebuilt, monkeyp
     text = lock.LOCK_FILE.read_text().replace(f"numpy=={pins['numpy']}", "numpy==1.26.4")
     (tmp_path / "constraints.txt").write_text(text)
     monkeypatch.setattr(lock, "LOCK_FILE", tmp_path / "constraints.txt")
+    res = cli("selftest")  # every output matches: a warning, exit 0
+    assert res.exit_code == 0, res.output
+    warning, line = res.output.splitlines()
+    assert warning == (f"warning: installed versions other than the lock: numpy {pins['numpy']} "
+                       f"(lock 1.26.4); they make the reference bytes here")
+    assert line.startswith(f"selftest: all {len(selftest.read_reference().outputs)} outputs match "
+                           f"the reference (KITTI-S within 1 grey level), versions not as locked, in ")
+    # an output differing as well: exit 1, the versions named beside it
+    tampered_reference(tmp_path, monkeypatch, "custom/fog/3/street.png", 3)
     res = cli("selftest")
     assert res.exit_code == 1
     assert res.output.splitlines() == [
+        "custom:fog/3: 1 of 1 outputs differ from the reference, largest difference 3 grey levels",
         f"installed versions other than the lock: numpy {pins['numpy']} (lock 1.26.4)",
-        f"selftest: 0 of {len(selftest.read_reference().outputs)} outputs differ from the reference; "
+        f"selftest: 1 of {len(selftest.read_reference().outputs)} outputs differ from the reference; "
         f"this is not the locked install"]
     # the maintainer's command refuses to record from such an install
     from robodepth_cli.selftest.__main__ import main
