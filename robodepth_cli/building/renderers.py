@@ -21,7 +21,7 @@ from typing import Iterator, Protocol, Sequence
 import numpy as np
 
 from ..benchmarks import TEMPORAL
-from ..errors import InvalidValueError
+from ..errors import InvalidValueError, reraise_interrupt
 from ..output.layout import SEVERITY_SIZE, TORCH_FINGERPRINT
 from ..sources.datasets import Dataset, Job, StyleDataset
 
@@ -123,6 +123,7 @@ class TorchCorruptionRenderer:
                                                 dataset=self.dataset, keys=[key])
                 yield job, torch_engine.from_batch(out)[0]
             except Exception as exc:  # one broken variant must not sink the other outputs
+                reraise_interrupt(exc)
                 yield job, exc
 
     def fingerprint(self, variant: str) -> str:
@@ -169,6 +170,7 @@ class CorruptionRenderer:
                                   key=key, depth=depth, anchor=None if anchor == key else anchor,
                                   severity_size=self.severity_size)
             except Exception as exc:  # one broken variant must not sink the other outputs
+                reraise_interrupt(exc)
                 yield job, exc
 
     def _over_time(self, job, anchor, frames, position, center):

@@ -13,7 +13,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import RobodepthError, cannot_write, os_reason
+from ..errors import RobodepthError, cannot_write, os_reason, reraise_interrupt
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
 from ..output.manifest import Journal, Row
@@ -274,6 +274,7 @@ def load_source(src: Source, size: tuple[int, int] | None):
     except RobodepthError as exc:  # ImageError, or a labeled file's NyuError
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
+        reraise_interrupt(exc)
         return None, f"{src.path}: {type(exc).__name__}: {exc}"
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ..errors import reraise_interrupt
 from ..files import sha256_bytes, sha256_file
 from ..output.manifest import ManifestError, read_manifest
 from ..output.verify import VerifyReport
@@ -57,6 +58,7 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
                 if progress:
                     progress(1)
         except Exception as exc:  # noqa: BLE001 -- any reader error means a damaged shard
+            reraise_interrupt(exc)
             changed.append(f"{e['file']} (shard: unreadable, {type(exc).__name__}: {exc})")
     for dirpath, _, files in os.walk(to / DATA):
         for name in files:

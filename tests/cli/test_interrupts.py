@@ -202,3 +202,30 @@ def test_sigterm_while_the_command_starts_exits_130_as_later():
                           timeout=60)
     assert proc.returncode == 130, (proc.returncode, proc.stderr)
     assert proc.stderr == "robodepth: interrupted; nothing was written\n"
+
+
+AT_THE_END = """
+import signal, sys, time
+sys.argv = ["robodepth", *sys.argv[1:]]  # as the console script starts it
+real_exit = sys.exit
+
+def waiting(code=0):
+    # After the command's last line, where click ends the process.
+    sys.stderr.write("READY\\n")
+    sys.stderr.flush()
+    time.sleep(60)
+    real_exit(code)
+
+sys.exit = waiting
+from robodepth_cli.cli import main
+main()
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_a_signal_after_the_last_line_exits_130_too(tmp_path, sig):
+    # SIGTERM there used to find the default handler back and exit 143 (issue 42).
+    stopped = signal_when_ready(AT_THE_END, ["list"], sig, cwd=tmp_path)
+    assert stopped.returncode == 130, stopped
+    assert stopped.after.strip().splitlines()[-1] == \
+        "robodepth: interrupted as the command ended; what it wrote is complete", stopped
