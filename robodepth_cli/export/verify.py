@@ -69,8 +69,17 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
     gt_files = {p for p, _ in maps}
     missing = sorted(p for p in expected if p not in seen and p not in gt_files)
     missing += sorted(_label(m) for m in maps if m not in seen)
+    unfinished = ""
+    if record.get("status") != "finished":
+        # Stopped (or killed) before its end: the files of the shards not written yet are
+        # not missing, they are still to come.
+        shards = record.get("shards") or []
+        there = sum(1 for e in shards if (to / e["file"]).is_file())
+        unfinished = (f"{to}: an unfinished export ({there} of {len(shards)} shards written); "
+                      "rerun the export command to finish it")
+        missing = []
     return VerifyReport(checked, missing, changed, sorted(extra), [],
-                        status=record.get("status", ""))
+                        status=record.get("status", ""), unfinished=unfinished)
 
 
 def _rows(file: Path, fmt: str, entry: dict):

@@ -530,3 +530,47 @@ def test_the_card_describes_every_request_into_the_build(build, tmp_path, cli):
     assert "- `gaussian_noise`: levels 1, 3; seed 0; numpy engine" in card
     assert "- `contrast`: levels 2; seed 0; torch engine" in card
     assert "- `clean`: seed 0" in card and "levels [1]" not in card
+
+
+@pytest.mark.parametrize("existing", [False, True], ids=["new-folder", "empty-folder"])
+def test_an_export_refused_mid_way_leaves_nothing_half_made(build, tmp_path, cli, existing):
+    # A file of the build's last variant changed: the shards before it were written when the
+    # refusal came (issue 42: 4 shards and export.json "running" were left).
+    changed = tmp_path / "changed"
+    shutil.copytree(build, changed)
+    victim = sorted((changed / "gaussian_noise" / "3").rglob("*.png"))[-1]
+    victim.write_bytes(victim.read_bytes() + b"x")
+    to = tmp_path / "new" / "wds"
+    if existing:
+        to.mkdir(parents=True)
+    res = cli("export", changed, "--format", "webdataset", "--to", to, "--shard-size", "20kB",
+              "--no-progress")
+    assert res.exit_code == 2 and f"{victim}: changed since the build" in res.output, res.output
+    if existing:
+        assert to.is_dir() and list(to.iterdir()) == []
+    else:
+        assert not (tmp_path / "new").exists()
+
+
+def test_verify_of_an_unfinished_export_says_so(build, tmp_path, cli, monkeypatch):
+    from robodepth_cli.export import run
+
+    real = run.WRITERS["parquet"]
+    calls = []
+
+    def stopping(*args):
+        calls.append(1)
+        if len(calls) == 5:
+            raise KeyboardInterrupt
+        return real(*args)
+
+    monkeypatch.setitem(run.WRITERS, "parquet", stopping)
+    export = tmp_path / "hf"
+    res = cli("export", build, "--format", "parquet", "--to", export, "--shard-size", "20kB",
+              "--no-progress")
+    assert res.exit_code == 130, res.output
+    res = cli("verify", export)
+    assert res.exit_code == 1, res.output
+    assert f"{export}: an unfinished export (4 of 12 shards written); rerun the export command " \
+           "to finish it" in res.output.splitlines(), res.output
+    assert "missing" not in res.output, res.output
