@@ -57,15 +57,16 @@ def make_renderer(ds: Dataset, config, depth=None) -> Renderer:
     return numpy_engine
 
 
-def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -> dict:
+def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -> tuple[dict, list[str]]:
     """``extra`` with ``engine`` (default numpy) and ``device`` decided: ``cpu`` for the
     numpy engine (``cuda`` is refused: it has no GPU path), the device
     ``auto`` picks for torch (``cuda`` refused when torch sees no GPU). ``where`` names the
     flag or file that set each key, for the messages; ``preset``: the keys the preset set.
+    Returned with the notes the build prints (one line each).
 
     ``severity_size`` is recorded either way (``none`` when unset); the torch engine does not
-    scale the levels to a severity size: a preset's gives way to ``none``, one asked for is
-    refused."""
+    scale the levels to a severity size: a preset's gives way to ``none`` (with a note), one
+    asked for is refused."""
     extra = {**extra, "severity_size": extra.get("severity_size") or "none"}
     engine = extra.get("engine") or "numpy"
     device = extra.get("device")
@@ -73,10 +74,14 @@ def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -
         if device == "cuda":
             raise InvalidValueError(f"{where.get('device', '--device')}: {device} needs --engine torch "
                                     f"(the numpy engine runs on the CPU)")
-        return {**extra, "engine": engine, "device": "cpu"}
+        return {**extra, "engine": engine, "device": "cpu"}, []
     size = extra["severity_size"]
+    notes = []
     if size != "none" and "severity_size" in preset:
         extra = {**extra, "severity_size": "none"}
+        notes.append(f"{where.get('engine', '--engine')} torch: the levels are not scaled to the "
+                     f"preset's severity size {size} (severity size none: each level as tabulated, "
+                     f"at any image size; --engine numpy scales them)")
     elif size != "none":
         raise InvalidValueError(f"{where.get('engine', '--engine')}: the torch engine does not scale the "
                                 f"levels to a severity size ({size}, from {where['severity_size']}); use "
@@ -87,7 +92,7 @@ def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -
         chosen = resolve_device(device or "auto")
     except InvalidValueError as exc:
         raise InvalidValueError(f"{where.get('device', '--device')}: {exc}") from None
-    return {**extra, "engine": engine, "device": chosen.type}
+    return {**extra, "engine": engine, "device": chosen.type}, notes
 
 
 class TorchCorruptionRenderer:

@@ -104,6 +104,7 @@ def test_parquet_loads_with_datasets_pixel_for_pixel(build, exports, tmp_path, m
     assert "| 3 | fog | weather & lighting | t, d | 1.5, 2 |" in card and "| 1 | brightness" not in card
     assert "- `fog`: levels 1, 3; seed 0; numpy engine" in card and "Size 48x160 (HxW)" in card
     assert "cc-by-nc-sa-3.0" in card
+    assert "`robodepth build kitti-c` of 2 images from KITTI raw data (Geiger" in card
     manifest = manifest_by_output(build)
     keys = json.loads((build / "build.json").read_text())["split"]["keys"]
     for (config, split), files in _variants(build).items():
@@ -574,3 +575,19 @@ def test_verify_of_an_unfinished_export_says_so(build, tmp_path, cli, monkeypatc
     assert f"{export}: an unfinished export (4 of 12 shards written); rerun the export command " \
            "to finish it" in res.output.splitlines(), res.output
     assert "missing" not in res.output, res.output
+
+
+def test_the_card_of_one_image_of_your_own_reads_right(tmp_path, cli):
+    # It said "of 1 images of your own images" (issue 42).
+    from tests.helpers.trees import random_image, save
+
+    save(tmp_path / "mine" / "a.png", random_image(32, 48, seed=0))
+    out = tmp_path / "MINE_C"
+    res = cli("build", "custom", "--root", tmp_path / "mine", "--out", out, "--corruptions",
+              "brightness", "--levels", "1", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    res = cli("export", out, "--format", "webdataset", "--to", tmp_path / "wds", "--no-progress")
+    assert res.exit_code == 0, res.output
+    card = (tmp_path / "wds" / "README.md").read_text()
+    assert "The images of a `robodepth build custom` of 1 image from your own folder of images, " \
+           "byte for byte as built" in card, card
