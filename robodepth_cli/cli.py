@@ -49,7 +49,7 @@ import click  # noqa: E402
 from . import __version__  # noqa: E402
 from .commands import COMMANDS  # noqa: E402
 from .commands.common import ARGV, interrupt_note  # noqa: E402
-from .errors import RobodepthError, note_interrupt  # noqa: E402
+from .errors import RobodepthError, is_interrupt, note_interrupt  # noqa: E402
 
 
 class UserError(click.ClickException):
@@ -74,18 +74,30 @@ class _Group(click.Group):
         previous = _stop_on_sigterm()
         try:
             return super().invoke(ctx)
-        except RobodepthError as exc:
-            raise UserError(str(exc)) from None
-        except click.UsageError as exc:  # a subcommand's options, as click parses them
-            raise _usage_error(exc, ctx) from None
         except (KeyboardInterrupt, click.Abort):
-            click.echo(f"robodepth: interrupted; {interrupt_note(ctx.meta)}", err=True)
-            raise click.exceptions.Exit(INTERRUPTED) from None
+            raise _interrupted(ctx) from None
+        except Exception as exc:
+            # Ctrl-C or SIGTERM in another exception's clothes (numba's SystemError around
+            # the KeyboardInterrupt, a refusal raised while it propagated) is an interrupt.
+            if is_interrupt(exc) and not isinstance(exc, (click.exceptions.Exit, click.ClickException)):
+                raise _interrupted(ctx) from None
+            if isinstance(exc, RobodepthError):
+                raise UserError(str(exc)) from None
+            if isinstance(exc, click.UsageError):  # a subcommand's options, as click parses them
+                raise _usage_error(exc, ctx) from None
+            raise
         finally:
+            note_interrupt(False)  # handled: library code run after the command is not stopped
             for signum, handler in previous.items():
                 # Run as the command: the interpreter still has to end after the last line.
                 signal.signal(signum, _stopped_at_the_end if handler is _stopped_while_starting
                               else handler)
+
+
+def _interrupted(ctx) -> click.exceptions.Exit:
+    """Print the interrupt's line (what was kept) and give the exit to raise: status 130."""
+    click.echo(f"robodepth: interrupted; {interrupt_note(ctx.meta)}", err=True)
+    return click.exceptions.Exit(INTERRUPTED)
 
 
 def _usage_error(exc: click.UsageError, group_ctx) -> click.ClickException:

@@ -65,8 +65,8 @@ def _render(name: str, image) -> list:
     return list(CorruptionRenderer("custom", 0, _Depth()).render(image, "a", [Job(name, 3)]))
 
 
-def _image():
-    return np.random.default_rng(1).integers(0, 256, (*SIZE, 3), dtype=np.uint8)
+def _image(size=SIZE):
+    return np.random.default_rng(1).integers(0, 256, (*size, 3), dtype=np.uint8)
 
 
 class _Patched:

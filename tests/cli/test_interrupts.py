@@ -229,3 +229,23 @@ def test_a_signal_after_the_last_line_exits_130_too(tmp_path, sig):
     assert stopped.returncode == 130, stopped
     assert stopped.after.strip().splitlines()[-1] == \
         "robodepth: interrupted as the command ended; what it wrote is complete", stopped
+
+
+def test_an_interrupt_wrapped_in_another_exception_is_still_an_interrupt(cli, monkeypatch,
+                                                                         fixtures_dir, tmp_path):
+    # A KeyboardInterrupt raised as a compiled kernel returns reaches its caller as
+    # SystemError; a command it escapes from stops as an interrupt, not with a traceback
+    # (issue 42).
+    from robodepth_cli.corruptions import _engine
+
+    def kernel_returning(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("CPUDispatcher(...) returned a result with an exception set") from exc
+
+    monkeypatch.setattr(_engine, "render", kernel_returning)
+    frame = fixtures_dir / "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
+    res = cli("corrupt", frame, "-c", "brightness", "-l", "1", "--out", f"{tmp_path}/shots/")
+    assert res.exit_code == 130, res.output
+    assert res.output.strip().splitlines()[-1].startswith("robodepth: interrupted;"), res.output
