@@ -250,3 +250,76 @@ def test_a_build_interrupted_inside_a_kernel_stops_and_records_no_failure(tmp_pa
     manifest = (out / "manifest.csv").read_text() if (out / "manifest.csv").exists() else ""
     assert "SystemError" not in manifest and "exception set" not in manifest, manifest
     assert not (out / "brightness/3/c.png").exists()
+
+
+LONG_KERNEL = """
+import signal, sys
+sys.argv = ["robodepth", *sys.argv[1:]]
+signal.signal(signal.SIGINT, signal.default_int_handler)
+import numba
+from robodepth_cli.corruptions import brightness
+from robodepth_cli.cli import main
+
+@numba.njit(nogil=True)
+def spin(n):  # a compiled kernel that runs for many seconds without the GIL
+    x = 0.0
+    for i in range(n):
+        x = (x * 1.0000001 + i) % 1000.0
+    return x
+
+spin(10)
+real = brightness._brighten
+calls = []
+
+def long_kernel(*args):
+    calls.append(1)
+    if len(calls) == 2:  # the second image's: the first one's outputs are recorded
+        sys.stderr.write("READY\\n")
+        sys.stderr.flush()
+        spin(1_000_000_000)
+    return real(*args)
+
+brightness._brighten = long_kernel
+main()
+"""
+
+
+@pytest.mark.slow
+def test_a_one_worker_build_stops_at_once_while_a_long_kernel_runs(tmp_path):
+    # On the main thread the signal's handler waited for the kernel's end (seconds, a
+    # minute on a large image for the depth-aware ones); the task now runs in a thread.
+    import subprocess
+
+    import cv2
+
+    from tests.helpers.paths import REPO
+
+    root = tmp_path / "images"
+    root.mkdir()
+    for name in ("a", "b", "c"):
+        cv2.imwrite(str(root / f"{name}.png"), np.full((48, 64, 3), 100, np.uint8))
+    out = tmp_path / "OUT"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen([sys.executable, "-c", LONG_KERNEL, "build", "custom", "--root", root,
+                             "--out", out, "--corruptions", "brightness", "--levels", "3", "-j", "1",
+                             "--no-progress"], env=env, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stderr.readline().strip() == "READY"
+        time.sleep(0.5)  # well inside the kernel
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        err = proc.communicate(timeout=120)[1]
+        took = time.monotonic() - sent
+    finally:
+        proc.kill()
+        proc.wait()
+    assert proc.returncode == 130, err
+    assert took < 3.0, f"stopped {took:.1f} s after the signal"
+    assert err.strip().splitlines()[-1] == "robodepth: interrupted; rerun the same command to resume"
+    assert " 0 failed of " in err, err
+    assert not (out / "brightness/3/b.png").exists() and (out / "brightness/3/a.png").is_file()
+    rerun = subprocess.run([sys.executable, "-m", "robodepth_cli.cli", "build", "custom", "--root",
+                            root, "--out", out, "--corruptions", "brightness", "--levels", "3",
+                            "-j", "1", "--no-progress"], env=env, capture_output=True, text=True,
+                           timeout=120)
+    assert rerun.returncode == 0 and "0 failed" in rerun.stderr, rerun.stderr
