@@ -225,24 +225,33 @@ main()
 """
 
 
-@pytest.mark.slow
-def test_a_build_interrupted_inside_a_kernel_stops_and_records_no_failure(tmp_path):
-    import subprocess
+def _three_images(tmp_path, shape) -> tuple:
+    """(root holding a.png, b.png, c.png of random pixels, the OUT to build, the
+    environment with the checkout first on the path)."""
+    import cv2
 
     from tests.helpers.paths import REPO
-
-    import cv2
 
     root = tmp_path / "images"
     root.mkdir()
     rng = np.random.default_rng(0)
     for name in ("a", "b", "c"):
-        cv2.imwrite(str(root / f"{name}.png"), rng.integers(0, 256, (960, 3200, 3), np.uint8))
-    out = tmp_path / "OUT"
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
-    proc = subprocess.run([sys.executable, "-c", IN_KERNEL, "build", "custom", "--root", root,
-                           "--out", out, "--corruptions", "brightness", "--levels", "3", "-j", "1",
-                           "--no-progress"], env=env, capture_output=True, text=True, timeout=300)
+        cv2.imwrite(str(root / f"{name}.png"), rng.integers(0, 256, (*shape, 3), np.uint8))
+    return root, tmp_path / "OUT", {**os.environ, "PYTHONPATH": str(REPO)}
+
+
+def _build_args(root, out) -> list:
+    return ["build", "custom", "--root", root, "--out", out, "--corruptions", "brightness",
+            "--levels", "3", "-j", "1", "--no-progress"]
+
+
+@pytest.mark.slow
+def test_a_build_interrupted_inside_a_kernel_stops_and_records_no_failure(tmp_path):
+    import subprocess
+
+    root, out, env = _three_images(tmp_path, (960, 3200))
+    proc = subprocess.run([sys.executable, "-c", IN_KERNEL, *_build_args(root, out)], env=env,
+                          capture_output=True, text=True, timeout=300)
     assert "SIGNAL" in proc.stderr, proc.stderr
     assert proc.returncode == 130, proc.stderr
     assert "SystemError" not in proc.stderr and " 0 failed of " in proc.stderr, proc.stderr
@@ -290,19 +299,9 @@ def test_a_one_worker_build_stops_at_once_while_a_long_kernel_runs(tmp_path):
     # minute on a large image for the depth-aware ones); the task now runs in a thread.
     import subprocess
 
-    import cv2
-
-    from tests.helpers.paths import REPO
-
-    root = tmp_path / "images"
-    root.mkdir()
-    for name in ("a", "b", "c"):
-        cv2.imwrite(str(root / f"{name}.png"), np.full((48, 64, 3), 100, np.uint8))
-    out = tmp_path / "OUT"
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
-    proc = subprocess.Popen([sys.executable, "-c", LONG_KERNEL, "build", "custom", "--root", root,
-                             "--out", out, "--corruptions", "brightness", "--levels", "3", "-j", "1",
-                             "--no-progress"], env=env, stderr=subprocess.PIPE, text=True)
+    root, out, env = _three_images(tmp_path, (48, 64))
+    proc = subprocess.Popen([sys.executable, "-c", LONG_KERNEL, *_build_args(root, out)], env=env,
+                            stderr=subprocess.PIPE, text=True)
     try:
         assert proc.stderr.readline().strip() == "READY"
         time.sleep(0.5)  # well inside the kernel
@@ -318,8 +317,6 @@ def test_a_one_worker_build_stops_at_once_while_a_long_kernel_runs(tmp_path):
     assert err.strip().splitlines()[-1] == "robodepth: interrupted; rerun the same command to resume"
     assert " 0 failed of " in err, err
     assert not (out / "brightness/3/b.png").exists() and (out / "brightness/3/a.png").is_file()
-    rerun = subprocess.run([sys.executable, "-m", "robodepth_cli.cli", "build", "custom", "--root",
-                            root, "--out", out, "--corruptions", "brightness", "--levels", "3",
-                            "-j", "1", "--no-progress"], env=env, capture_output=True, text=True,
-                           timeout=120)
+    rerun = subprocess.run([sys.executable, "-m", "robodepth_cli.cli", *_build_args(root, out)],
+                           env=env, capture_output=True, text=True, timeout=120)
     assert rerun.returncode == 0 and "0 failed" in rerun.stderr, rerun.stderr
