@@ -27,6 +27,17 @@ def _stopped_while_starting(signum, frame):
     os._exit(INTERRUPTED)
 
 
+def _stopped_at_the_end(signum, frame):
+    # After the command's work and its last line, while the interpreter ends: the same
+    # status as during the work, not the signal's own (143 for SIGTERM).
+    try:
+        sys.stdout.flush()  # os._exit would drop what is still buffered
+    except (OSError, ValueError, RuntimeError):  # closed, or interrupted mid-write
+        pass
+    os.write(2, b"robodepth: interrupted as the command ended; what it wrote is complete\n")
+    os._exit(INTERRUPTED)
+
+
 if __name__ == "__main__" or os.path.basename(sys.argv[0]) in ("robodepth", "robodepth.exe"):
     # Run as the command, not imported: Ctrl-C and SIGTERM give exit 130 from the start.
     for _sig in (signal.SIGINT, signal.SIGTERM):
@@ -38,7 +49,7 @@ import click  # noqa: E402
 from . import __version__  # noqa: E402
 from .commands import COMMANDS  # noqa: E402
 from .commands.common import ARGV, interrupt_note  # noqa: E402
-from .errors import RobodepthError  # noqa: E402
+from .errors import RobodepthError, is_interrupt, note_interrupt  # noqa: E402
 
 
 class UserError(click.ClickException):
@@ -59,19 +70,34 @@ class _Group(click.Group):
             raise _usage_error(exc, ctx) from None
 
     def invoke(self, ctx):
+        note_interrupt(False)
         previous = _stop_on_sigterm()
         try:
             return super().invoke(ctx)
-        except RobodepthError as exc:
-            raise UserError(str(exc)) from None
-        except click.UsageError as exc:  # a subcommand's options, as click parses them
-            raise _usage_error(exc, ctx) from None
         except (KeyboardInterrupt, click.Abort):
-            click.echo(f"robodepth: interrupted; {interrupt_note(ctx.meta)}", err=True)
-            raise click.exceptions.Exit(INTERRUPTED) from None
+            raise _interrupted(ctx) from None
+        except Exception as exc:
+            # Ctrl-C or SIGTERM in another exception's clothes (numba's SystemError around
+            # the KeyboardInterrupt, a refusal raised while it propagated) is an interrupt.
+            if is_interrupt(exc) and not isinstance(exc, (click.exceptions.Exit, click.ClickException)):
+                raise _interrupted(ctx) from None
+            if isinstance(exc, RobodepthError):
+                raise UserError(str(exc)) from None
+            if isinstance(exc, click.UsageError):  # a subcommand's options, as click parses them
+                raise _usage_error(exc, ctx) from None
+            raise
         finally:
-            if previous is not None:
-                signal.signal(signal.SIGTERM, previous)
+            note_interrupt(False)  # handled: library code run after the command is not stopped
+            for signum, handler in previous.items():
+                # Run as the command: the interpreter still has to end after the last line.
+                signal.signal(signum, _stopped_at_the_end if handler is _stopped_while_starting
+                              else handler)
+
+
+def _interrupted(ctx) -> click.exceptions.Exit:
+    """Print the interrupt's line (what was kept) and give the exit to raise: status 130."""
+    click.echo(f"robodepth: interrupted; {interrupt_note(ctx.meta)}", err=True)
+    return click.exceptions.Exit(INTERRUPTED)
 
 
 def _usage_error(exc: click.UsageError, group_ctx) -> click.ClickException:
@@ -129,19 +155,27 @@ def _sentence(text: str) -> str:
     return text
 
 
-def _stop_on_sigterm():
-    """Make SIGTERM stop a command as Ctrl-C does (cleanly, through the same handler);
-    the previous handler, or None where none can be set (not the main thread)."""
+def _stop_on_sigterm() -> dict:
+    """Make SIGTERM stop a command as Ctrl-C does, and both through :func:`_interrupt`;
+    the previous handlers (none where none can be set: not the main thread)."""
+    previous = {}
     try:
-        if signal.getsignal(signal.SIGINT) is _stopped_while_starting:
-            signal.signal(signal.SIGINT, signal.default_int_handler)  # Ctrl-C: KeyboardInterrupt again
-        previous = signal.signal(signal.SIGTERM, _interrupt)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(signum)
+            if signum == signal.SIGINT and handler not in (signal.default_int_handler,
+                                                           _stopped_while_starting):
+                continue  # ignored (started in the background), or someone else's
+            previous[signum] = signal.signal(signum, _interrupt)
     except ValueError:
-        return None
-    return signal.SIG_DFL if previous is _stopped_while_starting else previous
+        return previous
+    return previous
 
 
 def _interrupt(signum, frame):
+    # Noted as well as raised: a KeyboardInterrupt raised while compiled code (a numba
+    # kernel) returns reaches its caller wrapped in another exception, which the handlers
+    # that record an image's failure must not take for one (errors.is_interrupt).
+    note_interrupt()
     raise KeyboardInterrupt
 
 

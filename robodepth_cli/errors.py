@@ -90,3 +90,41 @@ def cannot_write(path, reason: OSError | str, flag: str | None = None, what: str
         reason = (f"{blocking} is not a directory" if blocking else
                   refused_entry(folder, reason) if folder else os_reason(reason))
     return f"{flag + ' ' if flag else ''}{path}: cannot write{' ' + what if what else ''} ({reason})"
+
+
+# Set by the command line's SIGINT and SIGTERM handlers (cli.py) when they raise
+# KeyboardInterrupt, cleared when a command starts: an interrupt is under way.
+_INTERRUPT_PENDING: list[bool] = []
+
+
+def note_interrupt(pending: bool = True) -> None:
+    """Record (or, with ``pending=False``, forget) that Ctrl-C or SIGTERM is stopping the
+    command."""
+    _INTERRUPT_PENDING[:] = [True] if pending else []
+
+
+def is_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` is Ctrl-C or SIGTERM stopping the command rather than a failure of
+    the work at hand: a KeyboardInterrupt; an exception whose ``__cause__`` or
+    ``__context__`` chain holds one (a KeyboardInterrupt raised by the signal handler just
+    as a compiled kernel returns, numba's dispatcher among them, reaches the caller as
+    ``SystemError: ... returned a result with an exception set``); or any exception while
+    an interrupt is pending (:func:`note_interrupt`), whatever became of the
+    KeyboardInterrupt on its way."""
+    if _INTERRUPT_PENDING:
+        return True
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def reraise_interrupt(exc: BaseException) -> None:
+    """Raise KeyboardInterrupt (chained to ``exc``) when ``exc`` is an interrupt
+    (:func:`is_interrupt`): what a handler that records an image's or a job's failure calls
+    first, so that a stop is never recorded as a failure."""
+    if is_interrupt(exc):
+        raise KeyboardInterrupt from exc

@@ -60,9 +60,13 @@ class BuildConfig:
     scheduler_file: str | None = None  # or the scheduler file that holds it
     png: str | None = None  # "fast" or "compact"; None: the build's own, else fast
     frames: tuple[int, ...] = ()  # neighbour offsets (--frames -1,1); () a single-frame build
+    # What the build says before it starts about how the settings were settled (one line
+    # each); not part of the record.
+    notes: tuple[str, ...] = field(default=(), compare=False)
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
+        del d["notes"]
         if not self.frames:
             del d["frames"]  # the record of a single-frame build is as it always was
         else:
@@ -219,6 +223,7 @@ class _Resolver:
             raise ConfigError(f"{self.origin[ds.variant_key]}: {coded[0]} needs PyAV: "
                               f"pip install 'robodepth-cli[video]'")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
+        notes: list[str] = []
         extra = {k: v for k, v in self.values.items() if k in ds.options()}
         lacking = missing_depth(ds, self.values, extra)  # (key, why): a depth-aware variant without depth
         if lacking:
@@ -228,7 +233,8 @@ class _Resolver:
 
             try:
                 preset = str(CONFIG_DIR / f"{self.preset}.yaml")  # the keys it set: their defaults
-                extra = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()}, {k for k, w in self.origin.items() if w == preset})
+                extra, notes = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()},
+                                      {k for k, w in self.origin.items() if w == preset})
             except InvalidValueError as exc:
                 raise ConfigError(str(exc)) from None
             if extra["engine"] == "torch" and self.values.get("frames"):
@@ -240,7 +246,8 @@ class _Resolver:
                            limit=self.values.get("limit"), extra=extra,
                            scheduler=self.values.get("scheduler"),
                            scheduler_file=self.values.get("scheduler_file"),
-                           png=self.values.get("png"), frames=self.values.get("frames", ()))
+                           png=self.values.get("png"), frames=self.values.get("frames", ()),
+                           notes=tuple(notes))
 
 
 def resolve(preset: str, config_file: Path | None = None,

@@ -54,8 +54,9 @@ class LocalExecutor:
 
     def map_unordered(self, fn, tasks):
         if self.workers == 1:
+            _STOPPING.clear()
             for t in tasks:
-                yield fn(t)
+                yield _in_thread(fn, t)
             return
         from joblib import Parallel, delayed
 
@@ -88,6 +89,49 @@ class LocalExecutor:
 
     def describe(self) -> dict:
         return {"backend": "local", "workers": self.workers}
+
+
+_STOPPING = threading.Event()  # set when a one-worker build stops: no output is written after
+GRACE_S = 1.0  # how long a stopped build waits for the task's thread to finish a write
+
+
+def stopping() -> bool:
+    """Whether the one-worker build of this process is stopping (Ctrl-C, SIGTERM): its task,
+    still running in its thread, must write nothing more."""
+    return _STOPPING.is_set()
+
+
+def _in_thread(fn, task):
+    """``fn(task)`` in a thread of its own, waited for here. This thread (the main one)
+    stays where Python runs its signal handlers, so Ctrl-C stops a one-worker build at once
+    even while a compiled kernel runs for seconds without the GIL (on the main thread its
+    handler would wait for the kernel's end). Stopped, the task is told to write nothing more
+    (:func:`stopping`) and given :data:`GRACE_S` to finish a write under way; a kernel still
+    running is left to end with the process."""
+    import signal
+
+    box: dict = {}
+
+    def run():
+        if hasattr(signal, "pthread_sigmask"):  # both signals go to the main thread
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        try:
+            box["result"] = fn(task)
+        except BaseException as exc:  # noqa: BLE001 - raised again in the main thread
+            box["error"] = exc
+
+    thread = threading.Thread(target=run, name="robodepth-task", daemon=True)
+    thread.start()
+    try:
+        while thread.is_alive():
+            thread.join(0.1)  # woken to run a handler even for a signal another thread took
+    except BaseException:
+        _STOPPING.set()
+        thread.join(GRACE_S)
+        raise
+    if "error" in box:
+        raise box["error"]
+    return box["result"]
 
 
 def checked_executor(executor: Executor | None, jobs: int, n_tasks: int, root: Path, out: Path,

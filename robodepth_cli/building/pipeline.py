@@ -53,6 +53,7 @@ from .checks import BuildError
 from .config import BuildConfig
 from .executors import Executor, ExecutorError, checked_executor
 from .gather import check_root, gather_sources, orientation_record
+from .vanished import prune
 from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, for_source,
                     run_task, same_source, split_stamp)
 
@@ -183,6 +184,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     out = prepare_out(out)
     with manifest.BuildLock(out):
         claim_out(out)
+        previous, dropped = prune(ds, out, root, sources, previous)
         # Outputs of a custom build made before EXIF orientation was applied show tagged
         # photos as stored: those are made again, upright.
         reorient = (ds.discovers_sources and previous is not None
@@ -205,7 +207,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1, png=png)
         summary = run_tasks(tasks, ctx, executor, out, progress)
-        summary.notes += _upright_note(sources)
+        summary.notes += _upright_note(sources) + ([dropped] if dropped else [])
         if gt and not (summary.interrupted or summary.fatal):
             add_ground_truth(ds, cfg, root, split.get("path"), sources, len(keys), out, summary,
                              progress, rerun=shlex.join(command) if command else None)

@@ -21,7 +21,7 @@ from typing import Iterator, Protocol, Sequence
 import numpy as np
 
 from ..benchmarks import TEMPORAL
-from ..errors import InvalidValueError
+from ..errors import InvalidValueError, reraise_interrupt
 from ..output.layout import SEVERITY_SIZE, TORCH_FINGERPRINT
 from ..sources.datasets import Dataset, Job, StyleDataset
 
@@ -57,15 +57,16 @@ def make_renderer(ds: Dataset, config, depth=None) -> Renderer:
     return numpy_engine
 
 
-def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -> dict:
+def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -> tuple[dict, list[str]]:
     """``extra`` with ``engine`` (default numpy) and ``device`` decided: ``cpu`` for the
     numpy engine (``cuda`` is refused: it has no GPU path), the device
     ``auto`` picks for torch (``cuda`` refused when torch sees no GPU). ``where`` names the
     flag or file that set each key, for the messages; ``preset``: the keys the preset set.
+    Returned with the notes the build prints (one line each).
 
     ``severity_size`` is recorded either way (``none`` when unset); the torch engine does not
-    scale the levels to a severity size: a preset's gives way to ``none``, one asked for is
-    refused."""
+    scale the levels to a severity size: a preset's gives way to ``none`` (with a note), one
+    asked for is refused."""
     extra = {**extra, "severity_size": extra.get("severity_size") or "none"}
     engine = extra.get("engine") or "numpy"
     device = extra.get("device")
@@ -73,10 +74,14 @@ def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -
         if device == "cuda":
             raise InvalidValueError(f"{where.get('device', '--device')}: {device} needs --engine torch "
                                     f"(the numpy engine runs on the CPU)")
-        return {**extra, "engine": engine, "device": "cpu"}
+        return {**extra, "engine": engine, "device": "cpu"}, []
     size = extra["severity_size"]
+    notes = []
     if size != "none" and "severity_size" in preset:
         extra = {**extra, "severity_size": "none"}
+        notes.append(f"{where.get('engine', '--engine')} torch: the levels are not scaled to the "
+                     f"preset's severity size {size} (severity size none: each level as tabulated, "
+                     f"at any image size; --engine numpy scales them)")
     elif size != "none":
         raise InvalidValueError(f"{where.get('engine', '--engine')}: the torch engine does not scale the "
                                 f"levels to a severity size ({size}, from {where['severity_size']}); use "
@@ -87,7 +92,7 @@ def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -
         chosen = resolve_device(device or "auto")
     except InvalidValueError as exc:
         raise InvalidValueError(f"{where.get('device', '--device')}: {exc}") from None
-    return {**extra, "engine": engine, "device": chosen.type}
+    return {**extra, "engine": engine, "device": chosen.type}, notes
 
 
 class TorchCorruptionRenderer:
@@ -123,6 +128,7 @@ class TorchCorruptionRenderer:
                                                 dataset=self.dataset, keys=[key])
                 yield job, torch_engine.from_batch(out)[0]
             except Exception as exc:  # one broken variant must not sink the other outputs
+                reraise_interrupt(exc)
                 yield job, exc
 
     def fingerprint(self, variant: str) -> str:
@@ -169,6 +175,7 @@ class CorruptionRenderer:
                                   key=key, depth=depth, anchor=None if anchor == key else anchor,
                                   severity_size=self.severity_size)
             except Exception as exc:  # one broken variant must not sink the other outputs
+                reraise_interrupt(exc)
                 yield job, exc
 
     def _over_time(self, job, anchor, frames, position, center):

@@ -13,11 +13,12 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import RobodepthError, cannot_write, failure_reason, os_reason
+from ..errors import RobodepthError, cannot_write, failure_reason, os_reason, reraise_interrupt
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
 from ..output.manifest import Journal, Row
 from ..sources.datasets import CLEAN, Entry, Job, locate
+from .executors import stopping
 from .renderers import Renderer
 from .scenedepth import DEPTH
 
@@ -151,7 +152,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
                 continue
             target = out / job.path(src.key)
             try:
-                data = write_png(target, img, PNG_COMPRESS_LEVEL, method=ctx.png)
+                data = _write(target, img, ctx.png)
             except OSError as exc:
                 results.append((JobState.FATAL, row(job, error=cannot_write(target, exc))))
                 return results
@@ -163,6 +164,14 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
             except OSError:
                 pass  # only a safety net: the row still reaches the manifest with the task
     return results
+
+
+def _write(target: Path, img, method: str) -> bytes:
+    """:func:`write_png` of one output, unless the build was stopped while its image was
+    rendered (:func:`.executors.stopping`; KeyboardInterrupt then)."""
+    if stopping():
+        raise KeyboardInterrupt
+    return write_png(target, img, PNG_COMPRESS_LEVEL, method=method)
 
 
 def _source_hash(task: Task) -> tuple[str, tuple]:
@@ -274,6 +283,7 @@ def load_source(src: Source, size: tuple[int, int] | None):
     except RobodepthError as exc:  # ImageError, or a labeled file's NyuError
         return None, str(exc)
     except Exception as exc:  # e.g. Pillow's DecompressionBombError: still this image's problem
+        reraise_interrupt(exc)
         return None, f"{src.path}: {failure_reason(exc)}"
 
 

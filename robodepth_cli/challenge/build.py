@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import RobodepthError
+from ..errors import RobodepthError, failure_reason
 from . import layout
 from .draw import Pick, draw
 
@@ -141,7 +141,7 @@ def _write_public(cfg, ds, root: Path, stage: Path, public: Path, picks: list[Pi
             [(_, img)] = list(renderer.render(clean, p.source, [Job(p.corruption, p.level)]))
             if isinstance(img, BaseException):
                 raise ChallengeBuildError(f"{by_key[p.source].path}: {p.corruption} level "
-                                          f"{p.level}: {type(img).__name__}: {img}")
+                                          f"{p.level}: {failure_reason(img)}")
             data = encode_png(img, method="fast")
             write_atomic(tmp / layout.IMAGES / f"{p.id}.png", data)
             shas[p.id] = sha256_bytes(data)

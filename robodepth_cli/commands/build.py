@@ -127,6 +127,8 @@ def build_command(dataset, root, out, config_file, progress, gt, **flags):
         if flags["scheduler"] and flags["scheduler_file"]:
             raise RobodepthError("--scheduler and --scheduler-file: give one of them, not both")
         cfg = resolve(dataset, config_file, flags)
+        for note in cfg.notes:
+            click.echo(f"note: {note}", err=True)
         with _executor(cfg) as executor:
             summary = build(cfg, root, out, progress=progress, command=common.typed_argv(),
                             executor=executor, gt=gt)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+from ..errors import counted
 from .layout import FORMATS, GT_CONFIG, NEIGHBOURS
 
 NEIGHBOUR_TEXT = (", and `<split>_neighbours` (`level_3_neighbours`) the neighbour frames of a "
@@ -21,15 +22,22 @@ SOURCE_TERMS = {
               "before publishing."),
     "nyu": ("NYU Depth Dataset V2 (Silberman, Hoiem, Kohli, Fergus, ECCV 2012)", "other",
             "Check the terms of NYU Depth V2 on its website before publishing."),
-    "custom": ("your own images", "other",
+    "custom": ("your own folder of images", "other",
                "The licence of the source images applies; check it before publishing."),
 }
 
 
 def _source(dataset: str) -> tuple[str, str, str]:
+    """(where the images come from, as the card's first sentence names it, the licence
+    id, the terms to check)."""
     if dataset.startswith("kitti"):
         return SOURCE_TERMS["kitti"]
-    return SOURCE_TERMS["nyu" if dataset.startswith("nyu") else "custom"]
+    if dataset.startswith("nyu"):
+        return SOURCE_TERMS["nyu"]
+    name, licence, terms = SOURCE_TERMS["custom"]
+    # A zero-shot set (diode-c, ...) is built from its own download, not from your folder.
+    return (name if dataset == "custom" else f"the {dataset.removesuffix('-c')} download",
+            licence, terms)
 
 
 def _parameters(variants: list[str]) -> list[str]:
@@ -117,8 +125,8 @@ def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dic
     body = [
         f"# {record.dataset}, built by robodepth",
         "",
-        f"The images of a `robodepth build {record.dataset}` of {len(record.keys or [])} images of "
-        f"{source}, byte for byte as built ({fmt} shards). Each configuration is one variant: "
+        f"The images of a `robodepth build {record.dataset}` of "
+        f"{counted(len(record.keys or []), 'image')} from {source}, byte for byte as built ({fmt} shards). Each configuration is one variant: "
         f"`clean`, {', '.join(f'`{v}`' for v in variants) or 'no corruption'}"
         f"{', and `' + GT_CONFIG + '` (the ground truth: one row per image, `depth` its map, float32 metres, NaN where there is no measurement)' if GT_CONFIG in configs else ''}; "
         "each split one level (`level_3`) or `test` for a variant without levels"

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import reraise_interrupt
 from ..output.layout import GT_FILE
 from .plan import ExportError
 
@@ -71,6 +72,7 @@ def read_maps(file: Path, path: str, parts) -> dict[int, np.ndarray]:
     except ExportError:
         raise
     except Exception as exc:  # noqa: BLE001 -- the readers' own errors name the file
+        reraise_interrupt(exc)
         raise ExportError(f"{file}: cannot be read as ground truth ({exc})") from None
 
 

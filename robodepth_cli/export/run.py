@@ -94,6 +94,7 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, open_dataset, pro
                           "build stays as it is")
     dataset, rows = _open_build(out, open_dataset)
     check_writable(to / CARD, "--to")
+    made = _made_by_this_run(to)  # removed again if a build file turns out changed mid-way
     manifest = (out / MANIFEST).read_bytes()
     shards = plan(out, dataset, rows, shard_bytes)
     entries = [_entry(s, fmt) for s in shards]
@@ -130,12 +131,46 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, open_dataset, pro
                     e["maps"] = maps
                 with open(to / META / JOURNAL, "a", encoding="utf-8") as fh:
                     fh.write(json.dumps({k: e[k] for k in _DONE if k in e}) + "\n")
+            except ExportError:  # a file of the build changed since the build: refused
+                _undo(made)
+                raise
             except OSError as exc:
                 raise ExportError(_cannot(target, exc)) from None
             summary.written += 1
     _finish(to, dataset, record, fmt, version, holdings(shards, rows))
     summary.size = sum(e["bytes"] for e in entries)
     return summary
+
+
+def _made_by_this_run(to: Path) -> tuple[Path, bool] | None:
+    """(folder, whether it is to be removed itself) holding everything an export into
+    ``to`` starting now will make: the topmost missing folder of ``to`` (removed), or ``to``
+    itself when it exists without an export record (it is empty then, see :func:`_resume`;
+    only its contents go); None when ``to`` holds a stopped export."""
+    if read_export_record(to) is not None:
+        return None
+    top = to.absolute()
+    while not top.parent.exists():
+        top = top.parent
+    return (top, True) if not top.exists() else (top, False)
+
+
+def _undo(made: tuple[Path, bool] | None) -> None:
+    """Remove what this run made (:func:`_made_by_this_run`): a refused export leaves no
+    half-made folder behind."""
+    import shutil
+
+    if made is None:
+        return
+    folder, itself = made
+    if itself:
+        shutil.rmtree(folder, ignore_errors=True)
+        return
+    for child in list(folder.iterdir()) if folder.is_dir() else []:
+        if child.is_dir() and not child.is_symlink():
+            shutil.rmtree(child, ignore_errors=True)
+        else:
+            child.unlink(missing_ok=True)
 
 
 def _resume(to: Path, header: dict, entries: list[dict]) -> None:

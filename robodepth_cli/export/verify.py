@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ..errors import reraise_interrupt
 from ..files import sha256_bytes, sha256_file
 from ..output.manifest import ManifestError, read_manifest
 from ..output.verify import VerifyReport
@@ -57,6 +58,7 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
                 if progress:
                     progress(1)
         except Exception as exc:  # noqa: BLE001 -- any reader error means a damaged shard
+            reraise_interrupt(exc)
             changed.append(f"{e['file']} (shard: unreadable, {type(exc).__name__}: {exc})")
     for dirpath, _, files in os.walk(to / DATA):
         for name in files:
@@ -67,8 +69,17 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
     gt_files = {p for p, _ in maps}
     missing = sorted(p for p in expected if p not in seen and p not in gt_files)
     missing += sorted(_label(m) for m in maps if m not in seen)
+    unfinished = ""
+    if record.get("status") != "finished":
+        # Stopped (or killed) before its end: the files of the shards not written yet are
+        # not missing, they are still to come.
+        shards = record.get("shards") or []
+        there = sum(1 for e in shards if (to / e["file"]).is_file())
+        unfinished = (f"{to}: an unfinished export ({there} of {len(shards)} shards written); "
+                      "rerun the export command to finish it")
+        missing = []
     return VerifyReport(checked, missing, changed, sorted(extra), [],
-                        status=record.get("status", ""))
+                        status=record.get("status", ""), unfinished=unfinished)
 
 
 def _rows(file: Path, fmt: str, entry: dict):

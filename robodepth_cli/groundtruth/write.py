@@ -82,13 +82,14 @@ def _fingerprint(*parts: str) -> str:
 
 
 def plan_gt(split_format: str, root: Path, split_path: Path, limit: int | None,
-            rerun: str | None = None) -> GtPlan:
+            rerun: str | None = None, lost=frozenset()) -> GtPlan:
     """The ground truth of a build of the first ``limit`` lines of ``split_path`` from
     ``root`` (a split format of ``eigen`` means KITTI, ``nyu`` NYU). ``rerun`` is the
-    build's command as typed, which a note about missing inputs repeats."""
+    build's command as typed, which a note about missing inputs repeats; ``lost``: the
+    image keys whose images are not in the root either (their own failures)."""
     root = Path(root)
     if split_format == "eigen":
-        return _plan_kitti(root, split_path, limit, rerun)
+        return _plan_kitti(root, split_path, limit, rerun, lost)
     return _plan_nyu(root, split_path, limit, rerun)
 
 
@@ -97,7 +98,8 @@ def plan_for(ds, cfg, root: Path, split_path: str | None, sources, frames: int,
     """The ground truth of a build: from the split for KITTI and NYU, from the paired depth
     maps for a build with depth; None for a custom build without depth."""
     if not ds.discovers_sources:
-        return plan_gt(ds.split_format, root, Path(split_path), frames, rerun)
+        lost = {s.key for s in sources if s.error}
+        return plan_gt(ds.split_format, root, Path(split_path), frames, rerun, lost)
     from ..sources.depth_pairs import rule_of
 
     rule = rule_of(cfg.extra, root, ds.depth_in_root)
@@ -131,12 +133,27 @@ def _later(what: str, rerun: str | None) -> str:
             f"only the ground truth{command}")
 
 
-def _plan_kitti(root: Path, split_path: Path, limit: int | None, rerun: str | None) -> GtPlan:
+def _plan_kitti(root: Path, split_path: Path, limit: int | None, rerun: str | None,
+                lost=frozenset()) -> GtPlan:
     from . import kitti as gt_kitti
 
     frames = gt_kitti.read_frames(split_path)[:limit]
     plan = GtPlan("kitti", root, str(split_path), [])
     missing = gt_kitti.missing_velodyne(root, frames)
+    lost_frames = {gt_kitti.frame_key(k) for k in lost}
+    absent = [f for f in missing if f.key in lost_frames]
+    if absent:
+        lines = ", ".join(str(f.line) for f in absent[:3]) + (", ..." if len(absent) > 3 else "")
+        many = len(absent) > 1
+        plan.note = (f"no ground truth: split line{'s' if many else ''} {lines} name"
+                     f"{'' if many else 's'} a frame not in the root: "
+                     f"{'their images' if many else 'its image'} failed (above) and "
+                     f"{'their scans' if many else 'its scan'} ({absent[0].velodyne(root)}"
+                     f"{', ...' if many else ''}) {'are' if many else 'is'} missing too; "
+                     f"{GT_FILE} holds one map per split line, so it is made only once every "
+                     f"line's frame has its scan: correct or remove "
+                     f"{'those lines' if many else 'that line'} and rerun the build")
+        return plan
     if missing:
         others = len(missing) - 1
         more = f" and {others} other frame{'s' if others > 1 else ''}" if others else ""

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import reraise_interrupt
 from .errors import ModelError
 from .base import KINDS, Model, default_alignment
 from .size import modules_of
@@ -51,6 +52,7 @@ def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = 
         try:
             return fn(images)
         except Exception as exc:  # the user's code: its failure is reported, not a crash of ours
+            reraise_interrupt(exc)
             raise ModelError(f"{spec}: raised {type(exc).__name__}: "
                              f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''}") from None
 

@@ -289,10 +289,12 @@ def merge_journal(out: Path) -> list[Row]:
     return list(new.values())
 
 
-def compact_manifest(out: Path) -> None:
-    """Rewrite the manifest atomically with the latest row of each path, sorted by path."""
+def compact_manifest(out: Path, drop=frozenset()) -> None:
+    """Rewrite the manifest atomically with the latest row of each path, sorted by path,
+    leaving out the rows of the paths in ``drop``."""
     rows = read_manifest(out)
-    write_atomic(Path(out) / MANIFEST, (HEADER + format_rows(rows[k] for k in sorted(rows))).encode("utf-8"))
+    write_atomic(Path(out) / MANIFEST, (HEADER + format_rows(rows[k] for k in sorted(rows)
+                                                             if k not in drop)).encode("utf-8"))
 
 
 class BuildLock:

@@ -31,14 +31,19 @@ class VerifyReport:
     built: int = 0  # planned outputs with a manifest row and no error
     status: str = ""  # the build record's status
     versions_note: str = ""  # the recorded versions that differ from the lock's, in one line
+    unfinished: str = ""  # an export's: why it is not finished (its line), else ""
 
     @property
     def ok(self) -> bool:
-        return not (self.missing or self.changed or self.extra or self.failed or self.unbuilt)
+        return not (self.missing or self.changed or self.extra or self.failed or self.unbuilt
+                    or self.unfinished)
 
     def incomplete(self) -> str:
         """``"incomplete: 728 of 3640 outputs (build interrupted; rerun the build command
-        to finish)"``, or "" when every planned output was built (or failed)."""
+        to finish)"`` (an export's: :attr:`unfinished`), or "" when every planned output was
+        built (or failed)."""
+        if self.unfinished:
+            return self.unfinished
         if not self.unbuilt:
             return ""
         why = {"running": "build interrupted", "interrupted": "build interrupted",

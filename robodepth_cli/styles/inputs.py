@@ -20,7 +20,7 @@ from PIL import Image
 
 from ..imageio import MIN_SIDE, read_rgb
 from ..files import sha256_file
-from ..errors import InvalidValueError, RobodepthError
+from ..errors import InvalidValueError, RobodepthError, reraise_interrupt
 from ..values import int_from_text
 
 # The 12 KITTI-S styles in the benchmark's order; also the output directory names.
@@ -261,6 +261,7 @@ class StyleRenderer:
                 self.warm_up()
             images = stylizer.stylize(clean, [self.features[j.variant] for j in jobs], self.alpha)
         except Exception as exc:  # reported per job by the builder; the other images go on
+            reraise_interrupt(exc)
             for job in jobs:
                 yield job, exc
             return

@@ -118,3 +118,20 @@ def test_cuda_build_is_within_one_level_of_the_numpy_build(kitti, tmp_path, buil
     assert record(tmp_path / "t")["config"]["extra"]["device"] == "cuda"
     for path in a:
         assert (np.abs(pixels(a[path]) - pixels(b[path])) <= 1).mean() >= 0.999, path
+
+
+def test_custom_torch_build_says_the_presets_severity_size_gives_way(tmp_path, cli):
+    # It went to none without a word (issue 42); a severity size asked for is refused.
+    save(tmp_path / "photos" / "a.png", random_image(40, 56, 1))
+    args = ("build", "custom", "--root", tmp_path / "photos", "--corruptions", "brightness",
+            "--levels", "1", "--engine", "torch", "--device", "cpu", "--jobs", "1")
+    res = cli(*args, "--out", tmp_path / "out")
+    assert res.exit_code == 0, res.output
+    notes = [ln for ln in res.output.splitlines() if ln.startswith("note:")]
+    assert notes == ["note: --engine torch: the levels are not scaled to the preset's severity size "
+                     "192x640 (severity size none: each level as tabulated, at any image size; "
+                     "--engine numpy scales them)"], res.output
+    assert record(tmp_path / "out")["config"]["extra"]["severity_size"] == "none"
+    assert "note:" not in cli(*args, "--severity-size", "none", "--out", tmp_path / "o2").output
+    refused = cli(*args, "--severity-size", "192x640", "--out", tmp_path / "o3")
+    assert refused.exit_code == 2 and "does not scale the levels" in refused.output

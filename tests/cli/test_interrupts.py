@@ -202,3 +202,50 @@ def test_sigterm_while_the_command_starts_exits_130_as_later():
                           timeout=60)
     assert proc.returncode == 130, (proc.returncode, proc.stderr)
     assert proc.stderr == "robodepth: interrupted; nothing was written\n"
+
+
+AT_THE_END = """
+import signal, sys, time
+sys.argv = ["robodepth", *sys.argv[1:]]  # as the console script starts it
+real_exit = sys.exit
+
+def waiting(code=0):
+    # After the command's last line, where click ends the process.
+    sys.stderr.write("READY\\n")
+    sys.stderr.flush()
+    time.sleep(60)
+    real_exit(code)
+
+sys.exit = waiting
+from robodepth_cli.cli import main
+main()
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_a_signal_after_the_last_line_exits_130_too(tmp_path, sig):
+    # SIGTERM there used to find the default handler back and exit 143 (issue 42).
+    stopped = signal_when_ready(AT_THE_END, ["list"], sig, cwd=tmp_path)
+    assert stopped.returncode == 130, stopped
+    assert stopped.after.strip().splitlines()[-1] == \
+        "robodepth: interrupted as the command ended; what it wrote is complete", stopped
+
+
+def test_an_interrupt_wrapped_in_another_exception_is_still_an_interrupt(cli, monkeypatch,
+                                                                         fixtures_dir, tmp_path):
+    # A KeyboardInterrupt raised as a compiled kernel returns reaches its caller as
+    # SystemError; a command it escapes from stops as an interrupt, not with a traceback
+    # (issue 42).
+    from robodepth_cli.corruptions import _engine
+
+    def kernel_returning(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("CPUDispatcher(...) returned a result with an exception set") from exc
+
+    monkeypatch.setattr(_engine, "render", kernel_returning)
+    frame = fixtures_dir / "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
+    res = cli("corrupt", frame, "-c", "brightness", "-l", "1", "--out", f"{tmp_path}/shots/")
+    assert res.exit_code == 130, res.output
+    assert res.output.strip().splitlines()[-1].startswith("robodepth: interrupted;"), res.output

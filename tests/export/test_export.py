@@ -104,6 +104,7 @@ def test_parquet_loads_with_datasets_pixel_for_pixel(build, exports, tmp_path, m
     assert "| 3 | fog | weather & lighting | t, d | 1.5, 2 |" in card and "| 1 | brightness" not in card
     assert "- `fog`: levels 1, 3; seed 0; numpy engine" in card and "Size 48x160 (HxW)" in card
     assert "cc-by-nc-sa-3.0" in card
+    assert "`robodepth build kitti-c` of 2 images from KITTI raw data (Geiger" in card
     manifest = manifest_by_output(build)
     keys = json.loads((build / "build.json").read_text())["split"]["keys"]
     for (config, split), files in _variants(build).items():
@@ -530,3 +531,63 @@ def test_the_card_describes_every_request_into_the_build(build, tmp_path, cli):
     assert "- `gaussian_noise`: levels 1, 3; seed 0; numpy engine" in card
     assert "- `contrast`: levels 2; seed 0; torch engine" in card
     assert "- `clean`: seed 0" in card and "levels [1]" not in card
+
+
+@pytest.mark.parametrize("existing", [False, True], ids=["new-folder", "empty-folder"])
+def test_an_export_refused_mid_way_leaves_nothing_half_made(build, tmp_path, cli, existing):
+    # A file of the build's last variant changed: the shards before it were written when the
+    # refusal came (issue 42: 4 shards and export.json "running" were left).
+    changed = tmp_path / "changed"
+    shutil.copytree(build, changed)
+    victim = sorted((changed / "gaussian_noise" / "3").rglob("*.png"))[-1]
+    victim.write_bytes(victim.read_bytes() + b"x")
+    to = tmp_path / "new" / "wds"
+    if existing:
+        to.mkdir(parents=True)
+    res = cli("export", changed, "--format", "webdataset", "--to", to, "--shard-size", "20kB",
+              "--no-progress")
+    assert res.exit_code == 2 and f"{victim}: changed since the build" in res.output, res.output
+    if existing:
+        assert to.is_dir() and list(to.iterdir()) == []
+    else:
+        assert not (tmp_path / "new").exists()
+
+
+def test_verify_of_an_unfinished_export_says_so(build, tmp_path, cli, monkeypatch):
+    from robodepth_cli.export import run
+
+    real = run.WRITERS["parquet"]
+    calls = []
+
+    def stopping(*args):
+        calls.append(1)
+        if len(calls) == 5:
+            raise KeyboardInterrupt
+        return real(*args)
+
+    monkeypatch.setitem(run.WRITERS, "parquet", stopping)
+    export = tmp_path / "hf"
+    res = cli("export", build, "--format", "parquet", "--to", export, "--shard-size", "20kB",
+              "--no-progress")
+    assert res.exit_code == 130, res.output
+    res = cli("verify", export)
+    assert res.exit_code == 1, res.output
+    assert f"{export}: an unfinished export (4 of 12 shards written); rerun the export command " \
+           "to finish it" in res.output.splitlines(), res.output
+    assert "missing" not in res.output, res.output
+
+
+def test_the_card_of_one_image_of_your_own_reads_right(tmp_path, cli):
+    # It said "of 1 images of your own images" (issue 42).
+    from tests.helpers.trees import random_image, save
+
+    save(tmp_path / "mine" / "a.png", random_image(32, 48, seed=0))
+    out = tmp_path / "MINE_C"
+    res = cli("build", "custom", "--root", tmp_path / "mine", "--out", out, "--corruptions",
+              "brightness", "--levels", "1", "--jobs", "1")
+    assert res.exit_code == 0, res.output
+    res = cli("export", out, "--format", "webdataset", "--to", tmp_path / "wds", "--no-progress")
+    assert res.exit_code == 0, res.output
+    card = (tmp_path / "wds" / "README.md").read_text()
+    assert "The images of a `robodepth build custom` of 1 image from your own folder of images, " \
+           "byte for byte as built" in card, card

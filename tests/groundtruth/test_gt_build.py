@@ -191,3 +191,24 @@ def test_nyu_build_root_file_not_hdf5(tmp_path, cli):
     assert res.exit_code == 2
     assert res.output.strip().splitlines() == [res.output.strip()] and "not an HDF5 file" in res.output
     assert not (tmp_path / "out").exists()
+
+
+def test_kitti_split_line_of_a_frame_not_there_says_the_image_failed(kitti, tmp_path, build_kitti):
+    """A line for a frame the drive does not have (issue 42): the note says the image failed
+    and why no gt_depths.npz (one map per split line) is made, never that the images are
+    built and putting the scans in place would do."""
+    root, split, lines = kitti
+    folder = lines[0].split()[0]
+    bad = tmp_path / "with_a_wrong_line.txt"
+    bad.write_text("\n".join([*lines, f"{folder} 0000000099 l"]) + "\n")
+    out = tmp_path / "out"
+    res = build_kitti(root, bad, out, *KITTI_FLAGS)
+    assert res.exit_code == 1, res.output  # the image of the last line failed
+    note = [ln for ln in res.output.splitlines() if ln.startswith("note:")]
+    assert len(note) == 1, res.output
+    assert note[0].startswith(f"note: no ground truth: split line {len(lines) + 1} names a frame "
+                              "not in the root"), note
+    assert "its image failed" in note[0] and "one map per split line" in note[0], note
+    assert "correct or remove that line" in note[0], note
+    assert "the images are built" not in note[0] and "put the velodyne" not in note[0], note
+    assert not (out / "gt_depths.npz").exists()
