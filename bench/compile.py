@@ -65,7 +65,9 @@ def main() -> int:
         first, second = first_and_second(env, generic)
         print(f"  generic CPU:     first {first:5.1f}  second {second:5.1f}  first - second {first - second:5.1f}"
               f"  (warm-up {seconds:.1f} s)")
-    print("goal met" if ok else "goal NOT met")
+    load = os.getloadavg()
+    print(f"load average at the end {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}; "
+          + ("goal met" if ok else "goal NOT met"))
     return 0
 
 

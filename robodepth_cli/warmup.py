@@ -39,16 +39,19 @@ def kernels() -> dict[str, object]:
     return found
 
 
-def warm_up() -> dict[str, object]:
+def warm_up() -> tuple[dict[str, object], dict[str, str]]:
     """Run every corruption at each of :data:`LEVELS` on a random frame and its depth of
     each of :data:`SHAPES` (those with a size rule at each of :data:`SEVERITY_FACTORS`),
-    which compiles (or loads from the cache) every kernel they call; returns
-    :func:`kernels`."""
+    which compiles (or loads from the cache) every kernel they call. Returns
+    (:func:`kernels`, {corruption: why it could not run} for those that refused, such as
+    frost without its textures)."""
     import numpy as np
 
     from .corruptions import REGISTRY, render
+    from .errors import RobodepthError
 
     rng = np.random.default_rng(0)
+    refused = {}
     for h, w in SHAPES:
         image = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
         depth = rng.uniform(1.0, 80.0, (h, w)).astype(np.float32)
@@ -56,16 +59,25 @@ def warm_up() -> dict[str, object]:
             for factor in SEVERITY_FACTORS if corruption.scaled else (None,):
                 size = None if factor is None else (int(h * factor), int(w * factor))
                 for level in LEVELS:
-                    render(image, name, level, seed=0, dataset="image", key="warmup", depth=depth,
-                           severity_size=size)
-    return kernels()
+                    if name in refused:
+                        break
+                    try:
+                        render(image, name, level, seed=0, dataset="image", key="warmup", depth=depth,
+                               severity_size=size)
+                    except RobodepthError as exc:
+                        refused[name] = str(exc)
+    return kernels(), refused
 
 
 def main() -> int:
+    """Warm up and say what was done in one line (and one per corruption that refused:
+    its kernels compile on first use once it can run); exit status 0."""
     start = time.perf_counter()
-    found = warm_up()
+    found, refused = warm_up()
     compiled = sum(sum(d.stats.cache_misses.values()) for d in found.values())
     loaded = sum(sum(d.stats.cache_hits.values()) for d in found.values())
+    for name, why in refused.items():
+        print(f"warmup: {name} not compiled: {why}")
     print(f"warmup: {len(found)} numba kernels, {compiled + loaded} signatures: {compiled} compiled "
           f"and cached, {loaded} already in the cache ({time.perf_counter() - start:.1f} s)")
     return 0

@@ -128,6 +128,23 @@ def test_a_read_only_install_warmed_before_compiles_nothing(warmed, tmp_path):
     assert cache_files(root) == before
 
 
+@pytest.mark.slow
+def test_a_corruption_that_cannot_run_is_named_and_the_others_warmed(monkeypatch, capsys):
+    from robodepth_cli import warmup
+    from robodepth_cli.corruptions import frost
+
+    def missing(*args):
+        raise frost.FrostTextureError("frost textures: not installed")
+
+    for reader in ("texture_bgr", "scaled_texture"):  # the second caches the first's result
+        monkeypatch.setattr(frost, reader, missing)
+    assert warmup.main() == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "warmup: frost not compiled: frost textures: not installed"
+    assert len(lines) == 2 and lines[1].startswith("warmup: ")
+    assert warmup.kernels()["robodepth_cli.corruptions.snow._blend"].signatures
+
+
 def _brightness(env):
     code = ("import numpy as np; from robodepth_cli.corruptions import corrupt; "
             "corrupt(np.zeros((32, 32, 3), np.uint8), 'brightness', 1, np.random.default_rng(0))")

@@ -1,6 +1,6 @@
 """numba compilation with an on-disk cache that also serves a read-only install.
 
-Every numba kernel of the package is made by :func:`njit` (and listed in :data:`KERNELS`).
+Every numba kernel of the package is made by :func:`njit`.
 Its machine code is cached on disk, so that a process loads it instead of compiling it
 (about a second per kernel and signature). ``python -m robodepth_cli.warmup``, which
 ``make install`` runs, fills the cache with every signature the corruptions use.
@@ -30,9 +30,6 @@ from numba.core.caching import (
     UserProvidedCacheLocator,
     UserWideCacheLocator,
 )
-
-KERNELS: list = []  # every dispatcher njit made, in the order their modules were imported
-
 
 def _fallback_cache_dir() -> str:
     uid = os.getuid() if hasattr(os, "getuid") else "user"
@@ -108,12 +105,10 @@ class _Cache(FunctionCache):
 
 def njit(fn):
     """``numba.njit(cache=True, nogil=True)(fn)``, usable as a decorator, with the cache
-    above; when no folder at all can be written, the kernel is compiled once per process.
-    The dispatcher is appended to :data:`KERNELS`."""
+    above; when no folder at all can be written, the kernel is compiled once per process."""
     dispatcher = numba.njit(nogil=True)(fn)
     try:
         dispatcher._cache = _Cache(fn)  # what cache=True's enable_caching() sets, our class
     except RuntimeError:  # "cannot cache function ...: no locator available"
         pass
-    KERNELS.append(dispatcher)
     return dispatcher
