@@ -17,6 +17,9 @@ install:
 	$(PIP) install -c $(LOCK) -e '.[test,dask,models,figures,exr,export,video]'
 	# Frost textures only: the package's own dependencies (opencv-python, ...) are not wanted.
 	$(PIP) install --no-deps -c $(LOCK) imagecorruptions-imaug
+	# Every numba kernel compiled now, into the cache the install reads: no command waits for a
+	# compile later (docs/development.md says what a read-only install and a Dask worker need).
+	$(PYTHON) -m robodepth_cli.warmup
 	# Headless Chromium for the browser test, where this system lets us install it (Debian
 	# or Ubuntu, as root); anywhere else, say how: only that one test needs it.
 	@if command -v $(CHROMIUM) >/dev/null 2>&1; then :; \

@@ -18,7 +18,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 SCRIPTS = ("corruptions.py", "exact.py", "depth.py", "png.py", "build.py", "stylize.py", "cluster.py", "gt.py",
            "evaluate.py", "source_hash.py", "large.py", "severity_size.py", "predict.py", "torch_engine.py",
-           "export.py", "frames.py", "codec.py", "run_cmd.py", "challenge.py", "pixels.py")
+           "export.py", "frames.py", "codec.py", "run_cmd.py", "challenge.py", "pixels.py", "compile.py")
 
 
 def main() -> int:

@@ -52,6 +52,17 @@ def test_every_install_step_takes_the_lock():
     assert frost[-1] == "imagecorruptions-imaug" and "--no-deps" in frost
 
 
+def test_install_compiles_the_kernels_once_the_package_and_textures_are_in():
+    # The warm-up (tests/test_warmup.py) fills the numba cache the installed package reads;
+    # frost's kernels need the textures installed just before.
+    lines = make_n()
+    commands = [ln for ln in lines if not ln.startswith("#")]
+    warm = [i for i, ln in enumerate(commands) if ln.split()[1:] == ["-m", "robodepth_cli.warmup"]]
+    assert len(warm) == 1, lines
+    last_pip = max(i for i, ln in enumerate(commands) if " pip install " in ln)
+    assert warm[0] == last_pip + 1
+
+
 def test_torch_index_installs_torch_alone_from_that_index():
     index = "file:///somewhere/cpu"
     torch, editable, frost = pip_lines(make_n(f"TORCH_INDEX={index}"))

@@ -1,38 +1,114 @@
-"""numba compilation with an on-disk cache that also works from a read-only install."""
+"""numba compilation with an on-disk cache that also serves a read-only install.
+
+Every numba kernel of the package is made by :func:`njit`.
+Its machine code is cached on disk, so that a process loads it instead of compiling it
+(about a second per kernel and signature). ``python -m robodepth_cli.warmup``, which
+``make install`` runs, fills the cache with every signature the corruptions use.
+
+Where the cache is written: the first of ``NUMBA_CACHE_DIR``, the package's own
+``__pycache__`` folders, numba's user cache (``~/.cache/numba``) and a per-user folder
+under the system temporary folder that can be written. Where it is read: there, and then
+the package's ``__pycache__`` folders even when they cannot be written, so that an install
+warmed up before it was made read-only compiles nothing either. An entry is used only by the
+same source file (numba keys it on the file's sha256), numba version, Python version and CPU
+(name and features): another CPU compiles, once, into the writable cache.
+"""
 
 from __future__ import annotations
 
+import inspect
 import os
+import stat
 import tempfile
 
 import numba
-
+from numba.core.caching import (
+    CompileResultCacheImpl,
+    FunctionCache,
+    IndexDataCacheFile,
+    InTreeCacheLocator,
+    UserProvidedCacheLocator,
+    UserWideCacheLocator,
+)
 
 def _fallback_cache_dir() -> str:
     uid = os.getuid() if hasattr(os, "getuid") else "user"
     return os.path.join(tempfile.gettempdir(), f"robodepth-numba-{uid}")
 
 
-def njit(fn):
-    """``numba.njit(cache=True, nogil=True)(fn)``, usable as a decorator.
-
-    The compiled code is cached on disk so that each worker process of a build loads it
-    instead of compiling again (about a second per kernel). numba caches next to the
-    module, else under ``NUMBA_CACHE_DIR`` or ``~/.cache/numba``; when none of these is
-    writable (read-only install and home) it raises at decoration time, so the cache then
-    goes to a per-user directory under the system temporary directory, and if even that
-    fails the kernel is compiled without a cache, once per process.
-    """
+def _own_private_dir(path: str) -> bool:
+    """Whether ``path`` is a folder of this user that no one else may write: the cache holds
+    pickles and machine code, so a folder in a shared /tmp that someone else made (or may
+    write into) must not be read."""
     try:
-        return numba.njit(cache=True, nogil=True)(fn)
+        st = os.lstat(path)
+    except OSError:
+        return False
+    mine = not hasattr(os, "getuid") or st.st_uid == os.getuid()
+    return stat.S_ISDIR(st.st_mode) and mine and not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
+
+
+class _TempDirLocator(UserProvidedCacheLocator):
+    """The last writable place: ``robodepth-numba-UID`` under the system temporary folder,
+    made with mode 0700 and used only while it is this user's alone."""
+
+    def __init__(self, py_func, py_file):
+        super().__init__(py_func, py_file)
+        self._cache_path = os.path.join(_fallback_cache_dir(), self.get_suitable_cache_subpath(py_file))
+
+    def ensure_cache_path(self):
+        root = _fallback_cache_dir()
+        os.makedirs(root, mode=0o700, exist_ok=True)
+        if not _own_private_dir(root):
+            raise OSError(f"{root}: not this user's private folder")
+        super().ensure_cache_path()
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        # The mixin's from_function, not UserProvidedCacheLocator's (which needs NUMBA_CACHE_DIR).
+        return super(UserProvidedCacheLocator, cls).from_function(py_func, py_file)
+
+
+class _Impl(CompileResultCacheImpl):
+    _locator_classes = [UserProvidedCacheLocator, InTreeCacheLocator, UserWideCacheLocator, _TempDirLocator]
+
+
+class _Cache(FunctionCache):
+    """numba's cache in the first writable place above, read from there and then from the
+    package's own ``__pycache__``; a cache that cannot be saved costs a compile, never an
+    error."""
+
+    _impl_class = _Impl
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        shipped = os.path.join(os.path.dirname(os.path.abspath(inspect.getfile(py_func))), "__pycache__")
+        self._shipped = None
+        if os.path.abspath(self._cache_path) != shipped and os.path.isdir(shipped):
+            self._shipped = IndexDataCacheFile(shipped, self._impl.filename_base,
+                                               self._impl.locator.get_source_stamp())
+
+    def _load_overload(self, sig, target_context):
+        data = super()._load_overload(sig, target_context)
+        if data is None and self._enabled and self._shipped is not None:
+            data = self._shipped.load(self._index_key(sig, target_context.codegen()))
+            if data is not None:
+                data = self._impl.rebuild(target_context, data)
+        return data
+
+    def save_overload(self, sig, data):
+        try:
+            super().save_overload(sig, data)
+        except OSError:  # the folder became unwritable (or full) since: the code is compiled
+            pass
+
+
+def njit(fn):
+    """``numba.njit(cache=True, nogil=True)(fn)``, usable as a decorator, with the cache
+    above; when no folder at all can be written, the kernel is compiled once per process."""
+    dispatcher = numba.njit(nogil=True)(fn)
+    try:
+        dispatcher._cache = _Cache(fn)  # what cache=True's enable_caching() sets, our class
     except RuntimeError:  # "cannot cache function ...: no locator available"
         pass
-    if not numba.config.CACHE_DIR:
-        path = _fallback_cache_dir()
-        try:
-            os.makedirs(path, mode=0o700, exist_ok=True)
-            numba.config.CACHE_DIR = path
-            return numba.njit(cache=True, nogil=True)(fn)
-        except (OSError, RuntimeError):
-            numba.config.CACHE_DIR = ""
-    return numba.njit(cache=False, nogil=True)(fn)
+    return dispatcher

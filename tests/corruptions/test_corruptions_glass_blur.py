@@ -73,45 +73,28 @@ def test_pipeline_matches_scikit_image_with_same_offsets(level, monkeypatch):
 
 
 # --- the numba cache fallback used by the kernels (corruptions/_jit.py) ------------------
+# Only the last resort is offered (no NUMBA_CACHE_DIR, no package or user folder), pointed
+# at a folder of the test's own; tests/test_warmup.py runs the whole order in subprocesses.
 
-def _fake_numba_njit(calls, fail_dirs):
-    import numba
-
-    real = numba.njit
-
-    def fake(**options):
-        calls.append((options["cache"], numba.config.CACHE_DIR))
-        if options["cache"] and numba.config.CACHE_DIR in fail_dirs:
-            raise RuntimeError("cannot cache function 'f': no locator available for file")
-        return real(**{**options, "cache": False})  # never write a real cache from a test
-
-    return fake
-
-
-def test_njit_caches_in_a_temporary_directory_when_numba_has_no_writable_place(monkeypatch, tmp_path):
-    import numba
+def _last_resort_only(monkeypatch, folder):
     from robodepth_cli.corruptions import _jit
 
-    calls = []
-    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
-    monkeypatch.setattr(numba, "njit", _fake_numba_njit(calls, fail_dirs={""}))
-    monkeypatch.setattr(_jit, "_fallback_cache_dir", lambda: str(tmp_path / "cache"))
+    monkeypatch.setattr(_jit._Impl, "_locator_classes", [_jit._TempDirLocator])
+    monkeypatch.setattr(_jit, "_fallback_cache_dir", lambda: str(folder))
+    return _jit
+
+
+def test_njit_caches_in_a_private_temporary_folder_when_nothing_else_is_writable(monkeypatch, tmp_path):
+    _jit = _last_resort_only(monkeypatch, tmp_path / "cache")
     add_one = _jit.njit(lambda a: a + 1)
     assert add_one(1) == 2
-    assert calls == [(True, ""), (True, str(tmp_path / "cache"))]
-    assert (tmp_path / "cache").is_dir()
+    assert add_one.stats.cache_path.startswith(str(tmp_path / "cache"))
+    assert (tmp_path / "cache").stat().st_mode & 0o777 == 0o700
+    assert sorted(p.suffix for p in (tmp_path / "cache").rglob("*.nb*")) == [".nbc", ".nbi"]
 
 
-def test_njit_compiles_without_cache_when_nothing_is_writable(monkeypatch, tmp_path):
-    import numba
-    from robodepth_cli.corruptions import _jit
-
-    calls = []
-    blocked = str(tmp_path / "cache")
-    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
-    monkeypatch.setattr(numba, "njit", _fake_numba_njit(calls, fail_dirs={"", blocked}))
-    monkeypatch.setattr(_jit, "_fallback_cache_dir", lambda: blocked)
+def test_njit_compiles_without_cache_when_nothing_is_writable(monkeypatch, read_only_dir):
+    _jit = _last_resort_only(monkeypatch, read_only_dir / "cache")
     add_one = _jit.njit(lambda a: a + 1)
     assert add_one(1) == 2
-    assert calls == [(True, ""), (True, blocked), (False, "")]
-    assert numba.config.CACHE_DIR == ""
+    assert add_one.stats.cache_path is None  # numba's NullCache: compiled once per process

@@ -39,3 +39,27 @@ def read_only_reason(where: Path) -> str:
     except OSError as exc:
         return exc.strerror
     raise AssertionError(f"{where} is writable")
+
+
+@contextmanager
+def read_only_tree(tree: Path):
+    """``tree`` read-only for every user while the block runs: remounted on itself as a
+    read-only bind mount where this machine allows a mount, else (a non-root user) each of
+    its folders without write permission."""
+    if subprocess.run(["mount", "--bind", str(tree), str(tree)], capture_output=True).returncode == 0:
+        try:
+            if subprocess.run(["mount", "-o", "remount,ro,bind", str(tree)], capture_output=True).returncode == 0:
+                yield tree
+                return
+        finally:
+            subprocess.run(["umount", str(tree)], capture_output=True)
+    if os.geteuid() == 0:
+        pytest.skip("root without mount: no folder is read-only for this process")
+    folders = [tree, *(p for p in tree.rglob("*") if p.is_dir())]
+    for folder in folders:
+        folder.chmod(0o555)
+    try:
+        yield tree
+    finally:
+        for folder in folders:
+            folder.chmod(0o755)
