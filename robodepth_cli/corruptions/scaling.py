@@ -57,37 +57,6 @@ def scale_factor(shape: tuple[int, int], size: tuple[int, int] | None) -> float 
     return math.sqrt((h * w) / (size[0] * size[1]))
 
 
-# A results CSV made on a build with a severity size has a last column saying so on every
-# row (a text column, which every reader of results takes); one without it was made with
-# none, or before the option.
-COLUMN = "severity_size"
-
-
-def with_column(text: str, size: str | None) -> str:
-    """The results CSV ``text`` with the column :data:`COLUMN` of ``size`` (a build's
-    ``severity_size`` text) added to every row; unchanged for none (the CSV stays as it
-    always was)."""
-    if size in (None, NONE):
-        return text
-    lines = text.splitlines()
-    out = [f"{lines[0]},{COLUMN}"] + [f"{line},{size}" for line in lines[1:] if line]
-    return "\n".join(out) + "\n"
-
-
-def in_results(text: str) -> str:
-    """The severity size a results CSV (its ``text``) was made at: its :data:`COLUMN`'s
-    first value, else ``none``."""
-    import csv
-    import io
-
-    rows = csv.reader(line for line in io.StringIO(text) if line.strip() and not line.lstrip().startswith("#"))
-    header = [c.strip().lower() for c in next(rows, [])]
-    if COLUMN not in header:
-        return NONE
-    first = next(rows, None)
-    return first[header.index(COLUMN)].strip() if first and len(first) > header.index(COLUMN) else NONE
-
-
 def mixed_note(sizes) -> str:
     """One line when results made at different severity sizes meet in one table; ""
     otherwise."""

@@ -20,6 +20,7 @@ from typing import Callable, Sequence
 
 from .. import __version__
 from ..errors import counted
+from ..evaluation.csvrows import ResultsTable
 from . import inputs as I
 from . import published as P
 from . import flicker as FL
@@ -66,28 +67,28 @@ def check_writable(out: Path) -> None:
     check(out / "index.html" if out.is_dir() else out, "--out")
 
 
-def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None, context: str,
+def assemble(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: str | None, context: str,
              dataset: Path | None = None, *, on: Sequence[str] = (), pairs: Sequence[Path] = (),
              baseline: str | None = None, metric: str = "dee", n_boot: int = 2000,
              seed: int = 0, n_pred: int = 0) -> Report:
-    """Read, check and score everything (no figure yet). Results of one of the paper's
+    """Check and score every results table (no figure yet). Results of one of the paper's
     benchmarks make the report as before; results of several datasets add a section per
     dataset beyond the first of the paper's (or per dataset, with none of them), a table
     across the datasets and, where the pairs table resolves, synthetic against real."""
     from . import datasets as D
     from . import synreal as X
 
-    keys = D.keys_of(paths, on, benchmark)
+    keys = D.keys_of(tables, on, benchmark)
     if len(set(keys)) == 1 and keys[0][0] in D.PUBLISHED and not keys[0][1]:
-        I.model_names(paths, names)  # flag mistakes first: they need no file read
+        I.model_names([Path(t.source) for t in tables], names)  # flag mistakes first
         bench = keys[0][0]
-        report = _main(bench, I.load(paths, names, bench), context,
+        report = _main(bench, I.load(tables, names, bench), context,
                        I.dataset_info(dataset, bench) if dataset is not None else None)
         if baseline is not None:
             raise I.ReportError(f"--baseline: {bench} has a published baseline; --baseline names "
                                 "the model to score datasets without one against")
         return report
-    entries = D.load(paths, names, keys, baseline)
+    entries = D.load(tables, names, keys, baseline)
     by_key = D.groups(entries)
     main = next((k for k in by_key if k[0] in D.PUBLISHED and not k[1]), None)
     if n_pred and main is None:

@@ -4,6 +4,7 @@ sources decoded once, the model, the evaluation setup, the resumable state and t
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -13,12 +14,11 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
         keep: Path | None, progress: bool, note: Callable[[str], None],
         on_state: Callable[[Path], None]):
     """Judge model ``spec`` on ``dataset`` made in memory from ``root``; write the results CSV
-    ``out`` and return ``(result, its CSV text, the benchmark scored, whether out was
+    ``out`` and return ``(result, its results table, the benchmark scored, whether out was
     replaced)``. ``evaluation``: the evaluate flags (stereo, align, align_space, crop,
     min_depth, max_depth); ``note`` prints a line for the user; ``on_state`` is told the
     state file once the decoding is done (the run then resumes from it)."""
     from ..building.config import resolve
-    from ..evaluation import evaluate as E
     from ..evaluation.setup import evaluation_setup, scored_benchmark
     from ..files import check_writable
     from ..models import load_model
@@ -61,12 +61,10 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
         note(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
              f"{state.path} (finished by an earlier run)")
     replacing = out.exists()
-    from ..corruptions.scaling import with_column
-
-    text = with_column(result.csv_text(), cfg.extra.get("severity_size"))
-    E.write_results(out, text)
+    table = replace(result.table(cfg.extra.get("severity_size")), source=str(out))
+    table.write(out)
     state.remove()
-    return result, text, bench, replacing
+    return result, table, bench, replacing
 
 
 def _early_warning(bench, setup, note: Callable[[str], None]):

@@ -4,6 +4,8 @@ them. Rank correlations are checked against scipy's and against values worked ou
 
 from __future__ import annotations
 
+from tests.helpers.report import tables as _tables
+
 import json
 from pathlib import Path
 
@@ -128,10 +130,10 @@ def test_synthetic_against_real_in_the_report(synreal_report):
     files = [Path(a) for a in args if a.endswith(".csv")]
     names = [b for a, b in zip(args, args[1:]) if a == "--name"]
     on = [b for a, b in zip(args, args[1:]) if a == "--on"]
-    again = W.to_json(W.assemble(files, names, None, "all", on=on, n_boot=300))
+    again = W.to_json(W.assemble(_tables(files), names, None, "all", on=on, n_boot=300))
     assert json.loads(json.dumps(again))["synthetic_vs_real"] == doc["synthetic_vs_real"]
     # By AbsRel: the files have abs_rel = 2 DEE - 1 + a1 (a1 0.85 on KITTI-C, 0.9 on foggy).
-    by_abs = W.assemble(files, names, None, "all", on=on, metric="abs_rel", n_boot=100).synreal
+    by_abs = W.assemble(_tables(files), names, None, "all", on=on, metric="abs_rel", n_boot=100).synreal
     (fog_abs,) = [c for c in by_abs if c.pair.corruption == "fog"]
     assert fog_abs.synthetic == pytest.approx([2 * d - 0.15 for d in FOG])
     assert fog_abs.real == pytest.approx([2 * d - 0.1 for d in FOGGY])
