@@ -67,7 +67,9 @@ FORBIDDEN = {
                  "export"},
     "models": {"building", "commands", "cli", "evaluation", "torch", "running", "report", "export",
                "groundtruth", "sources"},
-    "api": {"building", "commands", "cli", "torch", "running", "evaluation", "report", "models"},
+    # api reads a build; the package's open_dataset hands it an export's store.
+    "api": {"building", "commands", "cli", "torch", "running", "evaluation", "report", "models",
+            "export"},
     # `robodepth run` joins the build's inputs, the models and the evaluation; only the
     # commands use it.
     "running": {"commands", "cli", "torch", "building.executors", "building.cluster", "report",
@@ -235,8 +237,8 @@ def _violations() -> set[tuple[str, str]]:
                 found.add((importer, target))  # a command shares through common.py, not another command
             if importer in FOUNDATION and top not in FOUNDATION:
                 found.add((importer, target))
-            if importer == "" and target != "api":
-                found.add((importer, target))  # the package's face: open_dataset, lazily
+            if importer == "" and target not in ("api", "export.reader"):
+                found.add((importer, target))  # the package's face: open_dataset (build or export), lazily
             for prefix, banned in FORBIDDEN.items():
                 if _under(importer, prefix) and any(_under(target, b) for b in banned):
                     found.add((importer, target))
@@ -447,3 +449,28 @@ def test_no_folder_named_like_build_output():
                and p.name != "__pycache__"}
     clashes = sorted(f for f in folders if Path(f).name in TOOLING_OUTPUT_NAMES)
     assert clashes == [], f"rename: {clashes} (tooling skips or ignores such folders)"
+
+
+# ------------------------------------------------------------------ what a command loads
+
+_NOT_FOR_JUDGING = ["robodepth_cli.building", "robodepth_cli.groundtruth", "robodepth_cli.corruptions",
+                    "torch"]
+
+
+def test_score_and_report_load_no_build_ground_truth_corruption_or_torch(tmp_path):
+    """Judging results needs none of what makes a dataset: ``score`` and ``report`` run in a
+    fresh interpreter load no module of building/, groundtruth/ or corruptions/, nor torch."""
+    from tests.helpers.imports import imported_by_command
+    from tests.helpers.report import evaluate_csv
+
+    csv = evaluate_csv(tmp_path / "m.csv", "kitti-c", "MonoDepth2 R18")
+    assert imported_by_command(["score", csv], _NOT_FOR_JUDGING, stdout_has="mCE") == []
+    assert imported_by_command(["report", csv, "--out", tmp_path / "rep"], _NOT_FOR_JUDGING) == []
+    assert (tmp_path / "rep" / "index.html").is_file()
+
+
+def test_the_build_reader_does_not_know_the_export():
+    """api.py reads a build; an export's store is handed to it by the package's open_dataset,
+    so the evaluation (which reads builds through api) sits below the export."""
+    assert not any(_under(t, "export") for t in GRAPH["api"])
+    assert not any(_under(t, "export") for t in GRAPH["evaluation.evaluate"])

@@ -81,7 +81,7 @@ def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     """The corruptions ``value`` selects ('all': the benchmarks' 18; a name or a comma list
     of any, the depth-aware ones included), in order."""
     from ..benchmarks import ALL_CORRUPTIONS, CORRUPTIONS
-    from ..building.config import ALL, choose_names
+    from ..building.choices import ALL, choose_names
 
     if value == ALL:
         return list(CORRUPTIONS)

@@ -78,7 +78,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     from ..evaluation import evaluate as E
     from ..evaluation.setup import evaluation_setup, scored_benchmark
     from ..workers import default_jobs
-    from ..api import open_dataset
+    from .. import open_dataset
     from ..files import check_writable
 
     if out is None:

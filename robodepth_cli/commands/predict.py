@@ -53,7 +53,7 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
       robodepth predict KITTI_C -m hf:depth-anything/Depth-Anything-V2-Small-hf -o DA
       robodepth predict NYU_C -m python:mymodel.py:predict --kind depth --metric -o P
     """
-    from ..api import open_dataset
+    from .. import open_dataset
     from ..models import load_model
     from ..models import predict as P
     from ..progress import bar as progress_bar

@@ -55,13 +55,3 @@ def scale_factor(shape: tuple[int, int], size: tuple[int, int] | None) -> float 
         return None
     h, w = shape[:2]
     return math.sqrt((h * w) / (size[0] * size[1]))
-
-
-def mixed_note(sizes) -> str:
-    """One line when results made at different severity sizes meet in one table; ""
-    otherwise."""
-    distinct = sorted(set(sizes))
-    if len(distinct) < 2:
-        return ""
-    return (f"These results were made at different severity sizes ({', '.join(distinct)}): a level "
-            "is not the same corruption across them")

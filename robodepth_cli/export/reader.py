@@ -34,6 +34,15 @@ def is_export(path: Path) -> bool:
     return (Path(path) / META / RECORD).is_file()
 
 
+def opening(path: Path) -> dict:
+    """How :func:`robodepth_cli.api.open_dataset` opens ``path`` when it is an export: the
+    folder holding the build's record and manifest (``meta``) and the maker of the store
+    its images are read from (``store``); {} for anything else (a build)."""
+    if not is_export(path):
+        return {}
+    return {"meta": Path(path) / META, "store": lambda keys, manifest: ExportStore(path, keys, manifest)}
+
+
 def shard_rows(path: Path, fmt: str, prefix: str) -> Iterator[tuple[str, bytes]]:
     """(path in the build, bytes) of every image in one shard, in order. Raises whatever
     the shard's reader raises for a damaged file (the caller names the shard)."""

@@ -244,9 +244,7 @@ def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Sec
 
 def _mixed(entries: Sequence[Entry]) -> str:
     """The caption's sentence when ``entries`` were made at different severity sizes."""
-    from ..corruptions.scaling import mixed_note
-
-    note = mixed_note(e.severity_size for e in entries)
+    note = T.mixed_note(e.severity_size for e in entries)
     return f" {note}." if note else ""
 
 

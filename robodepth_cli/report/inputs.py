@@ -181,7 +181,7 @@ def dataset_info(path: Path, benchmark: str) -> dict:
     same bytes have the same fingerprint whatever their order of work)."""
     import hashlib
 
-    from ..api import open_dataset
+    from .. import open_dataset
     from ..output.manifest import read_manifest
 
     ds = open_dataset(path)
