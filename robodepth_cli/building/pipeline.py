@@ -160,7 +160,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
           gt: bool = True) -> Summary:
     """Build dataset ``cfg`` from ``root`` into ``out`` (see the module docstring).
 
-    ``executor`` runs the tasks; by default a :class:`LocalExecutor` with ``cfg.jobs``
+    ``executor`` runs the tasks; by default a :class:`.executors.LocalExecutor` with ``cfg.jobs``
     workers (never more than there are source images). With ``gt``, the images are
     followed by the dataset's ground truth (:func:`add_ground_truth`).
 

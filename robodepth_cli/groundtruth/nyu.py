@@ -186,11 +186,6 @@ def decode_jpeg(data: bytes) -> np.ndarray:
         return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
 
 
-def clean_image(rgb: np.ndarray) -> np.ndarray:
-    """The clean source image of a labeled frame: BTS's JPEG of it, decoded."""
-    return decode_jpeg(bts_jpeg(rgb))
-
-
 def sync_depth(depth: np.ndarray) -> np.ndarray:
     """BTS's ``sync_depth`` pixels: ``depth * 1000`` computed in float32 (as the float32
     ``rawDepths`` times 1000.0 is in numpy), then truncated to uint16."""
