@@ -1,6 +1,6 @@
 """robodepth: build the RoboDepth robustness benchmark datasets."""
 
-__version__ = "0.1.0"
+from .formats import RELEASE as __version__  # noqa: F401 (the release, kept with the formats)
 
 
 def open_dataset(path, *, warn: bool = True):

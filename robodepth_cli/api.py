@@ -276,7 +276,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True, meta: Path | Non
         ds = get_dataset(record.dataset)
     except InvalidValueError as exc:
         raise DatasetError(f"{record_path}: {exc}") from None
-    keys = _split_keys(record, record_path, ds)
+    keys = _split_keys(record, record_path)
     try:
         rows = read_manifest(meta)
     except ManifestError as exc:
@@ -335,25 +335,11 @@ def failed_text(failed: dict[str, str], total: int, shown: int = 3) -> str:
             f"({listed}{more})")
 
 
-def _split_keys(record: BuildRecord, record_path: Path, ds) -> tuple[str, ...]:
-    """The split's image keys in order: from the record, or (a build made before records
-    listed them) re-read from the recorded split file if it is unchanged."""
-    if record.keys:
-        return tuple(record.keys)
-    split = record.split
-    from .sources.datasets import read_split
-    from .files import sha256_bytes
-
-    file = split.get("path")
-    try:
-        data = Path(file).read_bytes()
-    except (TypeError, OSError):
-        raise DatasetError(f"{record_path}: lists no split keys and its split file {file} cannot "
-                           "be read; rebuild with this version to record them") from None
-    if sha256_bytes(data) != split.get("sha256"):
-        raise DatasetError(f"{record_path}: lists no split keys and its split file {file} has "
-                           "changed since the build; rebuild with this version to record them")
-    return tuple(e.key for e in read_split(Path(file), ds.split_format, data)[:record.limit])
+def _split_keys(record: BuildRecord, record_path: Path) -> tuple[str, ...]:
+    """The split's image keys in order, as the record lists them."""
+    if not record.keys:
+        raise DatasetError(f"{record_path}: lists no split keys; not a finished robodepth build record")
+    return tuple(record.keys)
 
 
 def bts_depth_name(key: str) -> str:

@@ -14,12 +14,14 @@ from __future__ import annotations
 
 from .errors import RobodepthError
 
+RELEASE = "0.1.0"  # robodepth's version (``robodepth_cli.__version__``; pyproject.toml's too)
+
 # schema -> the layout version this release writes and reads
 VERSIONS = {
     "robodepth-build": 1,  # build.json and the manifest.csv beside it
     "robodepth-predictions": 1,  # predictions.json
     "robodepth-results": 1,  # a results CSV's sidecar
-    "robodepth-export": 1,  # an export's robodepth/export.json
+    "robodepth-export": 2,  # an export's robodepth/export.json (2: the ground truth one map a row)
     "robodepth-report": 1,  # scores.json
 }
 
@@ -31,22 +33,20 @@ class FormatError(RobodepthError):
 def stamp(schema: str) -> dict:
     """The fields a file of ``schema`` carries first: ``schema``, ``schema_version``,
     ``robodepth``."""
-    from . import __version__
-
-    return {"schema": schema, "schema_version": VERSIONS[schema], "robodepth": __version__}
+    return {"schema": schema, "schema_version": VERSIONS[schema], "robodepth": RELEASE}
 
 
 def check(doc: dict, schema: str, where: str, redo: str) -> None:
     """Refuse ``doc`` (a file's parsed JSON, named ``where``) unless it is of ``schema`` at
     this release's version: one line saying which release wrote it and what to do
     (``redo``: "rebuild", "run predict again", ...)."""
-    from . import __version__
-
     if doc.get("schema") == schema and doc.get("schema_version") == VERSIONS[schema]:
         return
-    made = doc.get("robodepth")
-    if not isinstance(made, str) or not made:
-        raise FormatError(f"{where}: not a {schema} file of version {VERSIONS[schema]} (it names no "
-                          f"robodepth release); {redo} with robodepth {__version__}")
-    raise FormatError(f"{where}: made by robodepth {made} ({schema} version {doc.get('schema_version')}, "
-                      f"this one reads {VERSIONS[schema]}); {redo} or use robodepth {made}")
+    made = doc.get("robodepth") if isinstance(doc.get("robodepth"), str) else ""
+    if doc.get("schema") != schema or "schema_version" not in doc:
+        raise FormatError(f"{where}: not a {schema} file of a format version (made by "
+                          f"{'robodepth ' + made if made else 'another program'}, before files "
+                          f"carried one?); {redo} with robodepth {RELEASE}")
+    raise FormatError(f"{where}: made by robodepth {made or '(unnamed)'} ({schema} version "
+                      f"{doc.get('schema_version')}, this one reads {VERSIONS[schema]}); {redo} or "
+                      f"use robodepth {made or 'that made it'}")

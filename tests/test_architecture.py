@@ -227,7 +227,7 @@ def _violations() -> set[tuple[str, str]]:
                 found.add((importer, target))  # a command shares through common.py, not another command
             if importer in FOUNDATION and top not in FOUNDATION:
                 found.add((importer, target))
-            if importer == "" and target not in ("api", "export.reader"):
+            if importer == "" and target not in ("api", "export.reader", "formats"):
                 found.add((importer, target))  # the package's face: open_dataset (build or export), lazily
             for prefix, banned in FORBIDDEN.items():
                 if _under(importer, prefix) and any(_under(target, b) for b in banned):
@@ -323,10 +323,12 @@ def test_corruptions_stand_alone():
 
 
 def test_the_evaluation_is_numpy():
-    """evaluation/ computes with numpy (and OpenCV's resize, as the reference evaluators);
-    plotting is the report's, models are torch's."""
+    """evaluation/ computes with numpy (and OpenCV's resize, as the reference evaluators; the
+    rank statistics are SciPy's); plotting is the report's, models are torch's."""
     used = set().union(*(_imports(n, p)[1] for n, p in MODULES.items() if _under(n, "evaluation")))
-    assert used & HEAVY <= {"numpy", "cv2"}, sorted(used & HEAVY)
+    assert used & HEAVY <= {"numpy", "cv2", "scipy"}, sorted(used & HEAVY)
+    assert "scipy" not in set().union(*(_imports(n, p)[1] for n, p in MODULES.items()
+                                        if _under(n, "evaluation") and n != "evaluation.ranking"))
 
 
 @pytest.mark.parametrize("init", sorted(str(p.relative_to(PKG)) for p in PKG.rglob("__init__.py")))

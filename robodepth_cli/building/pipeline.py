@@ -183,11 +183,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     out = prepare_out(out)
     with manifest.BuildLock(out):
         claim_out(out)
-        # Outputs of a custom build made before EXIF orientation was applied show tagged
-        # photos as stored: those are made again, upright.
-        reorient = (ds.discovers_sources and previous is not None
-                    and previous.exif_orientation is None)
-        tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer, reorient=reorient)
+        tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer)
         executor = checked_executor(executor, cfg.jobs, len(tasks), root, out, worker_files(cfg),
                                     ds.libraries())
         if any(e is None for t in tasks for e in t.expected):
@@ -249,21 +245,16 @@ def claim_out(out: Path) -> None:
 
 
 def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, Row],
-         renderer: Renderer, *, reorient: bool = False) -> list[Task]:
+         renderer: Renderer) -> list[Task]:
     """One task per source. An output counts as possibly done (its sha256 goes into the
     task) when ``done``, the manifest, has a row for it without an error, from the same
-    source, seed, size and renderer fingerprint; the worker still checks the file.
-    ``reorient``: the rows were made without EXIF orientation, so nothing of a source with
-    one counts as done."""
+    source, seed, size and renderer fingerprint; the worker still checks the file."""
     jobs = tuple(ds.jobs(cfg.variants, cfg.levels))
     fingerprints = {job.variant: fingerprint(renderer, job) for job in jobs}  # once, not per source
     keyed = {v: f.startswith(DEPTH) for v, f in fingerprints.items()}
     tasks = []
     for src in sources:
         size = cfg.size or native_size(src)
-        if reorient and src.orientation != 1:
-            tasks.append(Task(src, jobs, (None,) * len(jobs), "", False, size))
-            continue
         expected, hashes, stamps, refresh = [], set(), set(), False
         for job in jobs:
             r = done.get(job.path(src.key))

@@ -17,7 +17,8 @@ from pathlib import Path
 
 from ..files import atomic_output, check_writable, sha256_file, write_atomic
 from ..output.layout import MANIFEST, RECORD as BUILD_RECORD
-from .layout import CARD, DATA, EXPORT_VERSION, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
+from ..formats import stamp
+from .layout import CARD, DATA, FORMATS, GT_CONFIG, JOURNAL, META, RECORD, SCHEMA
 from .plan import ExportError, Shard, plan
 from .card import holdings
 from .reader import read_export_record
@@ -97,10 +98,10 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, open_dataset, pro
     manifest = (out / MANIFEST).read_bytes()
     shards = plan(out, dataset, rows, shard_bytes)
     entries = [_entry(s, fmt) for s in shards]
-    header = {"export": EXPORT_VERSION, "format": fmt, "shard_size": shard_bytes,
+    header = {**stamp(SCHEMA), "format": fmt, "shard_size": shard_bytes,
               "dataset": dataset.name, "build_manifest_sha256": sha256_bytes(manifest)}
     _resume(to, header, entries)
-    record = {**header, "robodepth": version, "status": "running", "shards": entries}
+    record = {**header, "status": "running", "shards": entries}
     try:
         write_atomic(to / META / MANIFEST, manifest)
         write_atomic(to / META / BUILD_RECORD, (out / BUILD_RECORD).read_bytes())

@@ -1,15 +1,11 @@
 """The build record, ``OUT/build.json``: what was built, how, and how it ended.
 
 A build writes its record when it starts (status ``running``) and again when it ends
-(``finished``, ``incomplete``, ``interrupted`` or ``stopped``, with the run's summary).
+(``finished``, ``interrupted`` or ``stopped``, with the run's summary).
 :class:`BuildRecord` is the one typed form of the file: the builder writes it, ``verify``,
 :func:`robodepth_cli.open_dataset`, the build checks and ``robodepth_cli.torch`` read it.
-Keys a record holds that this version does not know (written by a newer robodepth) are kept
-in ``other`` and written back unchanged.
-
-Records written by older versions still read: one without ``plans`` describes its single
-request through ``config`` and ``split.keys``; one without a top-level ``dataset`` or ``seed``
-has them in ``config``.
+It carries its format version (``schema`` ``robodepth-build``, :mod:`robodepth_cli.formats`),
+which covers the manifest beside it; a record of another version is refused in one line.
 """
 
 from __future__ import annotations
@@ -22,7 +18,10 @@ from typing import Any
 
 from ..errors import RobodepthError
 from ..files import write_atomic
+from ..formats import FormatError, check
 from .layout import RECORD
+
+SCHEMA = "robodepth-build"
 
 
 class RecordError(RobodepthError):
@@ -59,7 +58,7 @@ class BuildRecord:
     out: str = ""
     versions: dict[str, str] = field(default_factory=dict)
     png_compress_level: int | None = None
-    png: str | None = None  # how the PNGs are written (--png); None: before --png existed
+    png: str | None = None  # how the PNGs are written (--png)
     png_encoder: str | None = None
     executor: dict[str, Any] = field(default_factory=dict)
     started: str | None = None
@@ -67,28 +66,25 @@ class BuildRecord:
     status: str = ""
     summary: dict[str, Any] | None = None  # absent until the build ends
     # A custom build: {"applied": true, "turned": [the sources turned upright by their EXIF
-    # orientation]}; absent for the presets (read as stored) and before orientation applied.
+    # orientation]}; absent for the presets (read as stored).
     exif_orientation: dict[str, Any] | None = None
     # Where the depth-aware corruptions' depth came from ({"kind", "method", "version"});
     # absent when the build has none.
     depth: dict[str, Any] | None = None
-    other: dict[str, Any] = field(default_factory=dict)  # keys this version does not know
 
     # ----------------------------------------------------------------------- reading
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "BuildRecord":
-        known = {f.name for f in fields(cls)} - {"other"}
+        known = {f.name for f in fields(cls)}
         values = {k: v for k, v in data.items() if k in known}
-        config = data.get("config") if isinstance(data.get("config"), dict) else {}
-        values["config"] = config
-        values.setdefault("dataset", config.get("dataset"))
-        values.setdefault("seed", config.get("seed"))
+        values["config"] = data.get("config") if isinstance(data.get("config"), dict) else {}
         if not isinstance(values.get("split"), dict):
             values["split"] = {}
         if not isinstance(values.get("plans"), list):
             values["plans"] = None
-        return cls(**values, other={k: v for k, v in data.items() if k not in known})
+        values.setdefault("dataset", None)
+        return cls(**values)
 
     @property
     def keys(self) -> list[str] | None:
@@ -114,23 +110,19 @@ class BuildRecord:
         return self.config.get("limit")
 
     def requests(self) -> list[dict[str, list]]:
-        """The requests recorded: ``plans``, or for a record written before they were kept,
-        the one its config and split keys describe ([] if it has neither)."""
-        if self.plans is not None:
-            return self.plans
-        if "keys" in self.split and "variants" in self.config:
-            return [plan_entry(self.config["variants"], self.config.get("levels") or [],
-                               self.split["keys"])]
-        return []
+        """The requests recorded (``plans``; [] before the first is recorded)."""
+        return self.plans or []
 
     # ----------------------------------------------------------------------- writing
 
     def to_dict(self) -> dict[str, Any]:
-        data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "other"}
+        from ..formats import stamp
+
+        data = {f.name: getattr(self, f.name) for f in fields(self)}
         for optional in ("summary", "plans", "png", "exif_orientation", "depth"):  # absent, not null, when unset
             if data[optional] is None:
                 del data[optional]
-        return {**self.other, **data}
+        return {**data, **stamp(SCHEMA)}
 
 
 def read_record(out: Path) -> BuildRecord | None:
@@ -150,6 +142,10 @@ def read_record(out: Path) -> BuildRecord | None:
                           f"reuse, delete the file") from None
     if not isinstance(data, dict):
         raise RecordError(f"{path}: not a build record (a JSON {type(data).__name__})")
+    try:
+        check(data, SCHEMA, str(path), "build again into a new folder")
+    except FormatError as exc:
+        raise RecordError(str(exc)) from None
     return BuildRecord.from_dict(data)
 
 

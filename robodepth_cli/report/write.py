@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from .. import __version__
+from ..formats import stamp
 from ..errors import counted
 from ..evaluation.csvrows import ResultsTable
 from . import inputs as I
@@ -28,8 +29,7 @@ from . import tables as T
 from .page import PageFigure
 from .page import render as render_page
 
-SCHEMA = "robodepth-report"
-SCHEMA_VERSION = 1
+SCHEMA = "robodepth-report"  # its version: robodepth_cli/formats.py
 
 
 @dataclass
@@ -229,7 +229,7 @@ def S_mean(values: dict) -> float:
 def to_json(report: Report) -> dict:
     """The versioned leaderboard entry (schema ``robodepth-report`` version 1, in
     docs/report.md): one object per model of the user's, nothing of the published ones."""
-    doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "robodepth": __version__,
+    doc = {**stamp(SCHEMA),
            "benchmark": report.benchmark if report.models else None, "dataset": report.dataset,
            "models": []}
     if report.note:
