@@ -44,7 +44,7 @@ from ..imageio import PNG_ENCODERS, check_png
 from ..output import manifest, record as build_record
 from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
-from ..output.record import BuildRecord, plan_entry
+from ..output.record import BuildRecord, BuildStatus, plan_entry
 from ..sources.datasets import Dataset, get_dataset
 from .renderers import Renderer, make_renderer as renderer_of
 from .scenedepth import DEPTH
@@ -101,10 +101,10 @@ class Summary:
         return not (self.failed or self.fatal or self.interrupted)
 
     @property
-    def status(self) -> str:
+    def status(self) -> BuildStatus:
         """The build record's ``status`` once the run is over."""
-        return ("interrupted" if self.interrupted else "stopped" if self.fatal
-                else "finished" if self.complete else "finished with failures")
+        return (BuildStatus.INTERRUPTED if self.interrupted else BuildStatus.STOPPED if self.fatal
+                else BuildStatus.FINISHED if self.complete else BuildStatus.FAILURES)
 
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in ("total", "written", "skipped", "failed", "images",
@@ -312,7 +312,7 @@ def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: di
         split=split, plans=plans or [plan_entry(cfg.variants, cfg.levels, split["keys"])],
         versions=library_versions(ds), png_compress_level=PNG_COMPRESS_LEVEL,
         png=png, png_encoder=PNG_ENCODERS[png], executor=executor.describe(),
-        started=build_record.now(), finished=None, status="running",
+        started=build_record.now(), finished=None, status=BuildStatus.RUNNING,
         exif_orientation=exif_orientation, depth=depth.describe() if depth else None,
     )
     try:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..files import atomic_output, check_writable, sha256_file, write_atomic
 from ..output.layout import MANIFEST, RECORD as BUILD_RECORD
+from ..output.record import BuildStatus
 from ..formats import stamp
 from .layout import CARD, DATA, FORMATS, GT_CONFIG, JOURNAL, META, RECORD, SCHEMA
 from .plan import ExportError, Shard, plan
@@ -55,10 +56,10 @@ def _open_build(out: Path, open_dataset):
     # Images whose depth map is unusable have no ground truth and no depth-aware outputs;
     # a rerun cannot make them, so the build is exported without those files.
     status = dataset.record.status
-    if status == "finished with failures" and not _unexplained(dataset, rows):
-        status = "finished"
-    if dataset.failed or status not in ("finished", ""):
-        why = dataset.incomplete() or f"{out}: the build's status is {dataset.record.status!r}"
+    if status is BuildStatus.FAILURES and not _unexplained(dataset, rows):
+        status = BuildStatus.FINISHED
+    if dataset.failed or status not in (BuildStatus.FINISHED, None):
+        why = dataset.incomplete() or f"{out}: the build's status is {getattr(status, 'value', '')!r}"
         raise ExportError(f"{why}; export a finished build (rerun the build command to finish it)")
     return dataset, rows
 

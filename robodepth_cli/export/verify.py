@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..files import sha256_bytes, sha256_file
 from ..output.manifest import ManifestError, read_manifest
+from ..output.record import BuildStatus
 from ..output.verify import VerifyReport
 from ..output.layout import GT_FILE
 from .layout import DATA, GT_CONFIG, META
@@ -68,7 +69,7 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
     missing = sorted(p for p in expected if p not in seen and p not in gt_files)
     missing += sorted(_label(m) for m in maps if m not in seen)
     return VerifyReport(checked, missing, changed, sorted(extra), [],
-                        status=record.get("status", ""))
+                        status=BuildStatus(record["status"]) if record.get("status") == "running" else None)
 
 
 def _rows(file: Path, fmt: str, entry: dict):

@@ -1,7 +1,8 @@
 """The build record, ``OUT/build.json``: what was built, how, and how it ended.
 
 A build writes its record when it starts (status ``running``) and again when it ends
-(``finished``, ``interrupted`` or ``stopped``, with the run's summary).
+(``finished``, ``finished with failures``, ``interrupted`` or ``stopped``, with the run's
+summary): :class:`BuildStatus`.
 :class:`BuildRecord` is the one typed form of the file: the builder writes it, ``verify``,
 :func:`robodepth_cli.open_dataset`, the build checks and ``robodepth_cli.torch`` read it.
 It carries its format version (``schema`` ``robodepth-build``, :mod:`robodepth_cli.formats`),
@@ -13,6 +14,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field, fields
 from datetime import datetime, timezone
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +28,16 @@ SCHEMA = "robodepth-build"
 
 class RecordError(RobodepthError):
     """A ``build.json`` that cannot be read or is not a build record."""
+
+
+class BuildStatus(str, Enum):
+    """How a build stands, as its record says (a ``str``: JSON writes its value)."""
+
+    RUNNING = "running"  # started, not ended (or killed: the next build resumes it)
+    FINISHED = "finished"  # every planned output made
+    FAILURES = "finished with failures"  # ran to the end; some images could not be made
+    INTERRUPTED = "interrupted"  # Ctrl-C or SIGTERM
+    STOPPED = "stopped"  # an error that stops every worker (a full disk, a lost cluster)
 
 
 def now() -> str:
@@ -63,7 +75,7 @@ class BuildRecord:
     executor: dict[str, Any] = field(default_factory=dict)
     started: str | None = None
     finished: str | None = None
-    status: str = ""
+    status: BuildStatus | None = None
     summary: dict[str, Any] | None = None  # absent until the build ends
     # A custom build: {"applied": true, "turned": [the sources turned upright by their EXIF
     # orientation]}; absent for the presets (read as stored).
@@ -84,6 +96,7 @@ class BuildRecord:
         if not isinstance(values.get("plans"), list):
             values["plans"] = None
         values.setdefault("dataset", None)
+        values["status"] = BuildStatus(values["status"]) if values.get("status") else None
         return cls(**values)
 
     @property
@@ -119,7 +132,7 @@ class BuildRecord:
         from ..formats import stamp
 
         data = {f.name: getattr(self, f.name) for f in fields(self)}
-        for optional in ("summary", "plans", "png", "exif_orientation", "depth"):  # absent, not null, when unset
+        for optional in ("summary", "plans", "png", "exif_orientation", "depth", "status"):  # absent, not null, when unset
             if data[optional] is None:
                 del data[optional]
         return {**data, **stamp(SCHEMA)}
@@ -146,6 +159,9 @@ def read_record(out: Path) -> BuildRecord | None:
         check(data, SCHEMA, str(path), "build again into a new folder")
     except FormatError as exc:
         raise RecordError(str(exc)) from None
+    if data.get("status") and data["status"] not in {s.value for s in BuildStatus}:
+        raise RecordError(f"{path}: unknown status {data['status']!r}; valid: "
+                          + ", ".join(s.value for s in BuildStatus))
     return BuildRecord.from_dict(data)
 
 
