@@ -27,8 +27,6 @@ from typing import Sequence
 import numpy as np
 
 from .errors import InvalidValueError, RobodepthError
-from .export.layout import META as EXPORT_META
-from .export.reader import ExportStore, is_export
 from .output.layout import (GT_DIR, GT_FILE, MANIFEST, RECORD, depth_gt_name, output_path,
                             variant_dir, variant_order)
 from .output.record import BuildRecord
@@ -271,9 +269,12 @@ class BuiltDataset:
         return path if path.exists() else None
 
 
-def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
-    """Open a dataset directory written by ``robodepth build``, or its export (``robodepth
-    export``: the same variants, images read with :meth:`Variant.read`).
+def open_dataset(path: str | os.PathLike, *, warn: bool = True, meta: Path | None = None,
+                 store=None) -> BuiltDataset:
+    """Open a dataset directory written by ``robodepth build``; with ``meta`` (the folder
+    holding its record and manifest) and ``store`` (``store(keys, manifest)``: the files by
+    their path in the build), the export of one, whose images are read with
+    :meth:`Variant.read` (:func:`robodepth_cli.open_dataset` passes them for an export).
 
     Reads ``build.json`` (the dataset and the split's image keys in order) and
     ``manifest.csv`` (which variants and levels were built, and which images failed).
@@ -290,8 +291,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     path = Path(path)
     if not path.is_dir():
         raise DatasetError(f"{path}: not a directory (expected a dataset made by robodepth build)")
-    export = is_export(path)  # it carries the build's record
-    meta = path / EXPORT_META if export else path  # and manifest
+    meta = path if meta is None else meta
     record_path = meta / RECORD
     record = read_record(meta)
     if record is None:
@@ -302,7 +302,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
         ds = get_dataset(record.dataset)
     except InvalidValueError as exc:
         raise DatasetError(f"{record_path}: {exc}") from None
-    keys = _split_keys(record, record_path, ds)
+    keys = _split_keys(record, record_path)
     try:
         rows = read_manifest(meta)
     except ManifestError as exc:
@@ -310,7 +310,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True) -> BuiltDataset:
     if not rows:
         raise DatasetError(f"{path}: no {MANIFEST} (or an empty one); was the build run to the end?")
     variants = variant_order(ds, {(r.variant, r.level) for r in rows.values()})
-    store = ExportStore(path, keys, rows) if export else None
+    store = store(keys, rows) if store is not None else None
     dataset = BuiltDataset(path, record, keys, variants, _missing(rows, keys, variants), store,
                            _no_depth(rows, keys) if ds.discovers_sources else None)
     if dataset.failed and warn:
@@ -361,25 +361,11 @@ def failed_text(failed: dict[str, str], total: int, shown: int = 3) -> str:
             f"({listed}{more})")
 
 
-def _split_keys(record: BuildRecord, record_path: Path, ds) -> tuple[str, ...]:
-    """The split's image keys in order: from the record, or (a build made before records
-    listed them) re-read from the recorded split file if it is unchanged."""
-    if record.keys:
-        return tuple(record.keys)
-    split = record.split
-    from .sources.datasets import read_split
-    from .files import sha256_bytes
-
-    file = split.get("path")
-    try:
-        data = Path(file).read_bytes()
-    except (TypeError, OSError):
-        raise DatasetError(f"{record_path}: lists no split keys and its split file {file} cannot "
-                           "be read; rebuild with this version to record them") from None
-    if sha256_bytes(data) != split.get("sha256"):
-        raise DatasetError(f"{record_path}: lists no split keys and its split file {file} has "
-                           "changed since the build; rebuild with this version to record them")
-    return tuple(e.key for e in read_split(Path(file), ds.split_format, data)[:record.limit])
+def _split_keys(record: BuildRecord, record_path: Path) -> tuple[str, ...]:
+    """The split's image keys in order, as the record lists them."""
+    if not record.keys:
+        raise DatasetError(f"{record_path}: lists no split keys; not a finished robodepth build record")
+    return tuple(record.keys)
 
 
 def bts_depth_name(key: str) -> str:

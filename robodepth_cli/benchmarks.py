@@ -131,3 +131,9 @@ def get_benchmark(name: str) -> Benchmark:
         return BENCHMARKS[name]
     except KeyError:
         raise InvalidValueError(f"unknown benchmark {name!r}; valid: {', '.join(BENCHMARKS)}") from None
+
+
+def looks_like_chain(text: str) -> bool:
+    """Whether a variant name is meant as a chain (it has a ``:`` or a ``+``) rather than a
+    single corruption's name."""
+    return isinstance(text, str) and (":" in text or "+" in text)

@@ -91,7 +91,7 @@ def atomic_directory(path: str | os.PathLike) -> Iterator[Path]:
 
 def check_writable(path: str | os.PathLike, flag: str | None = None) -> None:
     """Refuse, before any work, an output that could not be created at ``path`` (a file, or
-    a folder written under a temporary name and renamed): :class:`RobodepthError` with
+    a folder written under a temporary name and renamed): :class:`~.errors.RobodepthError` with
     :func:`~robodepth_cli.errors.cannot_write`'s message when a parent is not a directory
     or the nearest existing parent does not let us create an entry. Leaves nothing behind.
     """

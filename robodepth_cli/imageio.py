@@ -302,13 +302,16 @@ def read_png16(source: Path | bytes) -> np.ndarray:
     return raw
 
 
-def read_depth_png(file: Path, what: str, error: type[RobodepthError]) -> np.ndarray:
-    """:func:`read_png16` of ``file`` with the refusals as ``error`` naming it; ``what``
-    says whose file it is (``ground truth of image 3``)."""
-    if not file.is_file():
+def read_depth_png(file: Path, what: str, error: type[RobodepthError], data: bytes | None = None) -> np.ndarray:
+    """The one reader of a 16-bit depth PNG (ground truth, predictions, a dataset's depth
+    maps): :func:`read_png16` of ``file`` (or of its bytes ``data``, already read) with the
+    refusals as ``error`` naming it; ``what`` says whose file it is (``ground truth of
+    image 3``)."""
+    file = Path(file)
+    if data is None and not file.is_file():
         raise error(f"{file}: no such file ({what})")
     try:
-        return read_png16(file)
+        return read_png16(file if data is None else data)
     except OSError as exc:
         raise error(f"{file}: cannot read ({os_reason(exc)}) ({what})") from None
     except Png16Error as exc:

@@ -30,10 +30,12 @@ from typing import Sequence
 import numpy as np
 
 from .errors import RobodepthError, cannot_write, os_reason
+from .formats import FormatError, check, stamp
 from .files import read_npy_header
 from .imageio import read_depth_png
 
 RECORD = "predictions.json"
+SCHEMA = "robodepth-predictions"
 
 
 class PredictionsError(RobodepthError):
@@ -71,7 +73,21 @@ def read_record(pred: Path) -> dict | None:
         raise PredictionsError(f"{path}: not valid JSON ({exc})") from None
     if not isinstance(record, dict) or not isinstance(record.get("evaluate"), dict):
         raise PredictionsError(f"{path}: not a robodepth predictions record (no 'evaluate' entry)")
+    try:
+        check(record, SCHEMA, str(path), "run robodepth predict again")
+    except FormatError as exc:
+        raise PredictionsError(str(exc)) from None
     return record
+
+
+def write_record(pred: Path, record: dict) -> None:
+    """Write ``PRED/predictions.json`` atomically, its format version first."""
+    from .files import write_atomic
+
+    try:
+        write_atomic(Path(pred) / RECORD, (json.dumps({**stamp(SCHEMA), **record}, indent=2) + "\n").encode())
+    except OSError as exc:
+        raise PredictionsError(cannot_write(Path(pred) / RECORD, exc)) from None
 
 
 def prediction_file(pred, relpath: str) -> Path:

@@ -128,3 +128,24 @@ def test_fast_files_are_larger_but_not_much(fixtures_dir):
 def test_unknown_method_refused():
     with pytest.raises(ValueError, match="unknown PNG method 'tiny'"):
         encode_png(np.zeros((40, 40, 3), np.uint8), method="tiny")
+
+
+def test_every_depth_png_goes_through_one_reader(tmp_path):
+    """Ground truth, predictions, a dataset's depth maps and NYU's sync_depth files: the same
+    8-bit PNG where a 16-bit one belongs is refused with the same words, naming the file."""
+    from robodepth_cli.groundtruth.nyu import NyuError, sync_depth_file
+    from robodepth_cli.groundtruth.read import GroundTruthError, load_ground_truth
+    from robodepth_cli.sources.depth_io import read_depth
+
+    bad = tmp_path / "d.png"
+    Image.fromarray(np.zeros((4, 5), np.uint8)).save(bad)
+    expected = f"{bad}: 8-bit; expected a 16-bit single-channel PNG"
+    with pytest.raises(NyuError, match=f"^{expected} \\(depth\\)$"):
+        sync_depth_file(bad)
+    with pytest.raises(GroundTruthError, match=f"^{expected} \\(ground truth of image 0\\)$"):
+        load_ground_truth(tmp_path, ["d.png"], "nyu", lambda gt: gt > 0)
+    with pytest.raises(Exception, match=f"^{expected} \\(depth map\\)$"):
+        read_depth(bad)
+    good = tmp_path / "g.png"
+    Image.fromarray(np.full((4, 5), 1234, np.uint16)).save(good)
+    assert sync_depth_file(good)[1] == (4, 5) and read_depth(good, scale=1000.0).shape == (4, 5)

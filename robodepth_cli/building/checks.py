@@ -68,16 +68,14 @@ def check_sources_outside(paths: Iterable[str | None], out: Path) -> None:
 
 def png_method(out: Path, requested: str | None, previous: BuildRecord | None) -> str:
     """How this build writes its PNGs: ``requested`` (``--png``), else the way the build in
-    ``out`` was written (a build made before ``--png`` existed wrote compact PNGs), else
-    fast. A request for the other way than ``out``'s build is refused: its files would be
+    ``out`` was written, else fast. A request for the other way than ``out``'s build is refused: its files would be
     left as they are (same pixels, so they pass verify) while new ones came out the other
     way, and the record can name only one."""
     from ..imageio import DEFAULT_PNG
 
-    if not previous:
+    if not previous or not previous.png:
         return requested or DEFAULT_PNG
-    # Records of builds before --png existed name no method: they were written by libpng.
-    own = previous.png or "compact"
+    own = previous.png
     if requested and requested != own:
         raise OutputDirError(f"{out}: built with --png {own}; --png {requested} would mix two PNG "
                              f"encoders in one build (same pixels, other bytes): leave --png out "
@@ -125,8 +123,8 @@ def built_keys(entries: list[dict[str, list]]) -> list[str]:
 
 
 def planned_outputs(record: BuildRecord | None) -> set[str] | None:
-    """Every output path the recorded plans ask for, or None when the record keeps no plan
-    (a build made before plans were recorded: only the manifest can be checked)."""
+    """Every output path the recorded plans ask for, or None without a record (or one that
+    records no plan yet): then only the manifest can be checked."""
     entries = record.requests() if record else []
     if not entries:
         return None

@@ -68,7 +68,7 @@ class BuildConfig:
         d = asdict(self)
         del d["notes"]
         if not self.frames:
-            del d["frames"]  # the record of a single-frame build is as it always was
+            del d["frames"]  # a single-frame build's record has no frames key
         else:
             d["frames"] = list(self.frames)
         d["size"] = None if self.size is None else list(self.size)

@@ -44,7 +44,7 @@ from ..imageio import PNG_ENCODERS, check_png
 from ..output import manifest, record as build_record
 from ..output.layout import MANIFEST, RECORD
 from ..output.manifest import Row
-from ..output.record import BuildRecord, plan_entry
+from ..output.record import BuildRecord, BuildStatus, plan_entry
 from ..sources.datasets import Dataset, get_dataset
 from .renderers import Renderer, make_renderer as renderer_of
 from .scenedepth import DEPTH
@@ -102,10 +102,10 @@ class Summary:
         return not (self.failed or self.fatal or self.interrupted)
 
     @property
-    def status(self) -> str:
+    def status(self) -> BuildStatus:
         """The build record's ``status`` once the run is over."""
-        return ("interrupted" if self.interrupted else "stopped" if self.fatal
-                else "finished" if self.complete else "finished with failures")
+        return (BuildStatus.INTERRUPTED if self.interrupted else BuildStatus.STOPPED if self.fatal
+                else BuildStatus.FINISHED if self.complete else BuildStatus.FAILURES)
 
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in ("total", "written", "skipped", "failed", "images",
@@ -161,7 +161,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
           gt: bool = True) -> Summary:
     """Build dataset ``cfg`` from ``root`` into ``out`` (see the module docstring).
 
-    ``executor`` runs the tasks; by default a :class:`LocalExecutor` with ``cfg.jobs``
+    ``executor`` runs the tasks; by default a :class:`.executors.LocalExecutor` with ``cfg.jobs``
     workers (never more than there are source images). With ``gt``, the images are
     followed by the dataset's ground truth (:func:`add_ground_truth`).
 
@@ -185,11 +185,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     with manifest.BuildLock(out):
         claim_out(out)
         previous, dropped = prune(ds, out, root, sources, previous)
-        # Outputs of a custom build made before EXIF orientation was applied show tagged
-        # photos as stored: those are made again, upright.
-        reorient = (ds.discovers_sources and previous is not None
-                    and previous.exif_orientation is None)
-        tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer, reorient=reorient)
+        tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer)
         executor = checked_executor(executor, cfg.jobs, len(tasks), root, out, worker_files(cfg),
                                     ds.libraries())
         if any(e is None for t in tasks for e in t.expected):
@@ -251,21 +247,16 @@ def claim_out(out: Path) -> None:
 
 
 def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, Row],
-         renderer: Renderer, *, reorient: bool = False) -> list[Task]:
+         renderer: Renderer) -> list[Task]:
     """One task per source. An output counts as possibly done (its sha256 goes into the
     task) when ``done``, the manifest, has a row for it without an error, from the same
-    source, seed, size and renderer fingerprint; the worker still checks the file.
-    ``reorient``: the rows were made without EXIF orientation, so nothing of a source with
-    one counts as done."""
+    source, seed, size and renderer fingerprint; the worker still checks the file."""
     jobs = tuple(ds.jobs(cfg.variants, cfg.levels))
     fingerprints = {job.variant: fingerprint(renderer, job) for job in jobs}  # once, not per source
     keyed = {v: f.startswith(DEPTH) for v, f in fingerprints.items()}
     tasks = []
     for src in sources:
         size = cfg.size or native_size(src)
-        if reorient and src.orientation != 1:
-            tasks.append(Task(src, jobs, (None,) * len(jobs), "", False, size))
-            continue
         expected, hashes, stamps, refresh = [], set(), set(), False
         for job in jobs:
             r = done.get(job.path(src.key))
@@ -323,7 +314,7 @@ def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: di
         split=split, plans=plans or [plan_entry(cfg.variants, cfg.levels, split["keys"])],
         versions=library_versions(ds), png_compress_level=PNG_COMPRESS_LEVEL,
         png=png, png_encoder=PNG_ENCODERS[png], executor=executor.describe(),
-        started=build_record.now(), finished=None, status="running",
+        started=build_record.now(), finished=None, status=BuildStatus.RUNNING,
         exif_orientation=exif_orientation, depth=depth.describe() if depth else None,
     )
     try:

@@ -147,7 +147,7 @@ _SEQUENCES_LOCK = threading.Lock()
 
 
 class CorruptionRenderer:
-    """Applies the corruptions, each job with its own generator (see :mod:`.seeding`);
+    """Applies the corruptions, each job with its own generator (see :mod:`robodepth_cli.seeding`);
     the depth-aware ones get the source's depth from ``depth`` (a
     :class:`~.scenedepth.DepthSource`), read once per source and only when a job needs it."""
 

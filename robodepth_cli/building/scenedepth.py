@@ -11,12 +11,12 @@ chooses it for a build.
   ``sync_depth`` PNG (millimetres, 0 missing) under a BTS test folder, or the labeled
   ``.mat``'s ``rawDepths`` (metres, 0 missing).
 - :class:`KittiLidarDepth`: KITTI's velodyne scan projected into camera 2 (the rules of
-  the ground truth, :func:`~.kitti_raw.depth_map`), then *densified at the output size*:
+  the ground truth, :func:`~robodepth_cli.groundtruth.kitti.depth_map`), then *densified at the output size*:
   each output pixel takes the nearest return (smallest depth) among the projected points
   falling in it, and every pixel without one takes the depth of the nearest pixel with one
   (Euclidean distance, the engine's fill rule), so the sky continues the highest returns.
 - :class:`FolderDepth`: a custom build's ``--depth DIR`` or a zero-shot preset's ground
-  truth, paired and read as its ground truth is (:mod:`.depth_pairs`), turned upright with
+  truth, paired and read as its ground truth is (:mod:`robodepth_cli.sources.depth_pairs`), turned upright with
   its image (EXIF orientation), then brought to the output size by :func:`at_size`.
 - :class:`PredictedDepth` (``--scene-depth PRED``): a model's predictions for
   the clean images, in metres by the rule of :mod:`robodepth_cli.sources.predicted`.

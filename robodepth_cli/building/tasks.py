@@ -318,9 +318,7 @@ def same_source(row: Row, src: Source) -> bool:
     """Whether ``row`` was made from the source as it is now, as far as its size and time
     tell: a different size always means a change; with a recorded hash (compared by the
     worker) the time does not matter, so a copied root is not rebuilt; without one, a
-    different time counts as a change. Rows written before sources were recorded pass."""
-    if row.source_size is None:
-        return True
+    different time counts as a change."""
     if row.source_size != src.size:
         return False
     return bool(row.source_sha256) or row.source_mtime == src.mtime

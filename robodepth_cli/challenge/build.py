@@ -87,7 +87,8 @@ def ground_truth_maps(built) -> dict:
     """Per source key of a build with ground truth, a function giving its full depth map
     (float32 metres, 0 or NaN where invalid): KITTI's ``gt_depths.npz`` (split order), NYU's
     16-bit PNGs in millimetres, a build with depth's ``gt/<key>.npy``."""
-    from ..groundtruth.read import read_depth_maps, read_png16
+    from ..groundtruth.read import GroundTruthError, read_depth_maps
+    from ..imageio import read_depth_png
 
     gt = built.ground_truth()
     if gt is None:
@@ -105,7 +106,7 @@ def ground_truth_maps(built) -> dict:
         if name.endswith(".npy"):
             out[key] = lambda p=path: np.load(p, allow_pickle=False).astype(np.float32)
         else:
-            out[key] = lambda p=path: read_png16(p, "ground truth").astype(np.float32) / 1000.0
+            out[key] = lambda p=path: read_depth_png(p, "ground truth", GroundTruthError).astype(np.float32) / 1000.0
     return out
 
 

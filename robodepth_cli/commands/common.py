@@ -81,7 +81,7 @@ def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     """The corruptions ``value`` selects ('all': the benchmarks' 18; a name or a comma list
     of any, the depth-aware ones included), in order."""
     from ..benchmarks import ALL_CORRUPTIONS, CORRUPTIONS
-    from ..building.config import ALL, choose_names
+    from ..building.choices import ALL, choose_names
 
     if value == ALL:
         return list(CORRUPTIONS)
@@ -317,8 +317,8 @@ def evaluation_options(command):
     return command
 
 
-def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: bool) -> None:
-    """Print an evaluation written to ``out`` as ``text``: its table (or JSON), the warnings
+def show_results(result, table, out: Path, bench, as_json: bool, replacing: bool) -> None:
+    """Print an evaluation written to ``out`` as the results ``table``: its table (or JSON), the warnings
     it calls for, and with ``bench`` the robustness scores, as ``robodepth score`` prints them."""
     import json
 
@@ -342,7 +342,7 @@ def show_results(result, text: str, out: Path, bench, as_json: bool, replacing: 
     implausible = _implausible_clean(result) if bench is not None else ""
     scored = None
     if bench is not None and not implausible:
-        res = R.parse_results(text, str(out), bench)
+        res = R.parse_results(table, bench)
         missing = R.missing_message(res, bench)
         if missing:
             click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)

@@ -3,6 +3,7 @@ the scores)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -77,9 +78,10 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     from ..evaluation import evaluate as E
     from ..evaluation.setup import evaluation_setup, scored_benchmark
     from ..workers import default_jobs
-    from ..api import open_dataset
+    from .. import open_dataset
     from ..files import check_writable
     from ..predictions import RECORD
+    from ..evaluation.modelsize import with_size
 
     if out is None:
         out = Path(DEFAULT_OUT)
@@ -106,39 +108,14 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
         result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs(), flicker=flicker)
-    text = _with_size(pred, _with_severity(dataset, result.csv_text()))
-    E.write_results(out, _own_depth_lines(dataset, pred) + text)
-    common.show_results(result, text, out, bench, as_json, replacing)
+    table = result.table(((dataset.record.config or {}).get("extra") or {}).get("severity_size"),
+                         _own_depth_lines(dataset, pred))
+    table = with_size(table, _record(pred))
+    table.write(out)
+    common.show_results(result, replace(table, source=str(out)), out, bench, as_json, replacing)
 
 
-def implausible_dee(metrics: dict, setup) -> str:
-    """``"clean DEE 1.234 is implausible (...); check --kind, ..."`` for clean metrics whose
-    DEE is at least 1, else ""."""
-    from ..evaluation.results import dee
-
-    value = dee(metrics["abs_rel"], metrics["a1"])
-    if value < 1:
-        return ""
-    return (f"clean DEE {value:.3f} is implausible (at least 1, with {setup.describe()}); "
-            "check --kind, --stereo and --png-scale")
-
-
-def _with_severity(dataset, text: str) -> str:
-    """The results CSV with the build's severity size as its last column (none: as it was)."""
-    from ..corruptions.scaling import with_column
-
-    return with_column(text, ((dataset.record.config or {}).get("extra") or {}).get("severity_size"))
-
-
-def _with_size(pred: Path, text: str) -> str:
-    """The results CSV with the model's ``params`` and ``flops`` columns when
-    ``PRED/predictions.json`` records its size (evaluation/modelsize.py)."""
-    from ..evaluation.modelsize import with_size
-
-    return with_size(text, _record(pred))
-
-
-def _own_depth_lines(dataset, pred: Path) -> str:
+def _own_depth_lines(dataset, pred: Path) -> tuple[str, ...]:
     """The results CSV's comment lines naming the scene depth's model and this one, for a
     build whose depth-aware corruptions took a model's depth (evaluation/owndepth.py)."""
     from ..evaluation.owndepth import csv_lines

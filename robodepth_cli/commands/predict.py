@@ -60,7 +60,7 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
 
     if is_public_folder(dataset_dir):
         return _challenge(dataset_dir, spec, pred, variants, batch_size, device, post_process, kind, metric, progress)
-    from ..api import open_dataset
+    from .. import open_dataset
     from ..models import load_model
     from ..models import predict as P
     from ..progress import bar as progress_bar

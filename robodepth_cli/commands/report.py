@@ -116,7 +116,9 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     check_kinds(kinds, preds)
     load_matplotlib()  # refuse before anything is created when matplotlib is missing
     W.check_writable(out)
-    report = W.assemble(list(results), list(names), benchmark, context, dataset, on=on,
+    from ..evaluation.csvrows import ResultsTable
+
+    report = W.assemble([ResultsTable.read(p) for p in results], list(names), benchmark, context, dataset, on=on,
                         pairs=pairs, baseline=baseline, metric=metric, n_boot=n_boot, seed=seed,
                         n_pred=len(preds))
 

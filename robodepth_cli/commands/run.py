@@ -76,9 +76,9 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
 
     evaluation = dict(stereo=stereo, align=align, align_space=align_space, crop=crop,
                       min_depth=min_depth, max_depth=max_depth)
-    result, text, bench, replacing = run(
+    result, table, bench, replacing = run(
         dataset, root, out, config_file, flags, spec=spec, engine=engine, batch_size=batch_size,
         device=device, post_process=post_process, kind=kind, metric=metric, evaluation=evaluation,
         keep=keep_predictions, progress=progress, note=lambda line: click.echo(line, err=True),
         on_state=on_state)
-    common.show_results(result, text, out, bench, as_json, replacing)
+    common.show_results(result, table, out, bench, as_json, replacing)

@@ -41,6 +41,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
       robodepth score monovit.csv --benchmark kitti-c --json
     """
     from ..evaluation import results as R, scores as S
+    from ..evaluation.csvrows import ResultsTable
 
     plot_file = None
     if plot_path is not None:
@@ -48,12 +49,13 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 
         plot_file = common.figure_output(plot_path, f"{results.stem}_ce.png", "--plot")
         load_matplotlib()  # refuse before scoring when matplotlib is missing
-    bench = _benchmark(results, benchmark)
-    res = R.read_results(results, bench)
-    _warn_own_depth(results)
+    table = ResultsTable.read(results)
+    bench = _benchmark(table, benchmark)
+    res = R.read_results(table, bench)
+    _warn_own_depth(table)
     base = None
     if baseline_file is not None:
-        base = R.baseline_from_results(R.read_results(baseline_file, bench), bench)
+        base = R.baseline_from_results(R.read_results(ResultsTable.read(baseline_file), bench), bench)
     missing = R.missing_message(res, bench)
     if missing and not allow_partial:
         raise RobodepthError(missing if res.looks_like else f"{missing} (--allow-partial scores what is there)")
@@ -68,29 +70,29 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         fig = ce_figure([Model(results.stem, result)], bench.name)
         common.write_bytes(plot_file, render(fig, plot_file.suffix.lower().lstrip(".")))
         common.wrote(plot_file)
-    _show(results, result, as_json)
+    _show(table, result, as_json)
 
 
-def _benchmark(results, benchmark: str | None):
+def _benchmark(table, benchmark: str | None):
     """The benchmark the results are scored on: ``--benchmark``, or the dataset the CSV
     names, or the one their rows name; KITTI-S results are refused (no CE or RR)."""
     from .. import benchmarks as B
     from ..evaluation import results as R
 
-    benchmark = _benchmark_of(results, benchmark)
+    benchmark = _benchmark_of(table, benchmark)
     if benchmark is None:
         from ..report.inputs import style_names
 
-        benchmark = R.infer_benchmark(results, style_names())
+        benchmark = R.infer_benchmark(table, style_names())
     if benchmark not in B.BENCHMARKS and benchmark not in UNPUBLISHED:
-        raise RobodepthError(f"{results}: KITTI-S results (styles) have no CE or RR to score; "
+        raise RobodepthError(f"{table.source}: KITTI-S results (styles) have no CE or RR to score; "
                              "robodepth report shows their DEE per style and mDEE")
     if benchmark in UNPUBLISHED:
-        return _unpublished(benchmark, R.read_results(results, B.unpublished(benchmark)))
+        return _unpublished(benchmark, R.read_results(table, B.unpublished(benchmark)))
     return B.get_benchmark(benchmark)
 
 
-def _show(results, result, as_json: bool) -> None:
+def _show(table, result, as_json: bool) -> None:
     """The scores as a table (or JSON), with the flicker when the CSV has evaluate
     --flicker's columns."""
     import json
@@ -98,7 +100,7 @@ def _show(results, result, as_json: bool) -> None:
     from ..evaluation import scores as S
     from ..evaluation.flicker import format_flicker, read_flicker
 
-    flicker = read_flicker(results)
+    flicker = read_flicker(table)
     if as_json:
         click.echo(json.dumps({**result.to_json(), **({"flicker": flicker} if flicker else {})},
                               indent=2, allow_nan=False))
@@ -108,16 +110,14 @@ def _show(results, result, as_json: bool) -> None:
             click.echo(format_flicker(flicker), nl=False)
 
 
-def _benchmark_of(path: Path, given: str | None) -> str | None:
-    """``given``, or the dataset RESULTS name in their dataset column (None: neither);
-    refused when the two differ."""
-    from ..evaluation import results as R
-    from ..evaluation.csvrows import dataset_of
-
+def _benchmark_of(table, given: str | None) -> str | None:
+    """``given``, or the dataset the results ``table`` names in its dataset column (None:
+    neither); refused when the two differ."""
     from .. import benchmarks as B
     from ..report.inputs import KITTI_S
 
-    own = dataset_of(R.read_text(path), str(path))
+    path = table.source
+    own = table.dataset()
     if own is None:
         return given
     if own[0] not in (*B.BENCHMARKS, *UNPUBLISHED, KITTI_S):
@@ -137,11 +137,10 @@ def _unpublished(name: str, res):
     return B.unpublished(name, tuple(res.dee), levels=[lv for d in res.dee.values() for lv in d])
 
 
-def _warn_own_depth(path: Path) -> None:
+def _warn_own_depth(table) -> None:
     """One line on stderr when RESULTS judge a model on corruptions made from its own depth."""
-    from ..evaluation import results as R
     from ..evaluation.owndepth import warning
 
-    text = warning(R.read_text(path), str(path))
+    text = warning(table)
     if text:
         click.echo(f"robodepth: warning: {text}", err=True)

@@ -55,7 +55,7 @@ def corrupt(image: np.ndarray, name: str, level, rng: np.random.Generator, depth
 
     ``depth`` is the scene's depth in metres (H x W; NaN, 0 or inf where missing), which a
     depth-aware corruption needs (:class:`DepthError` without it) and the others ignore;
-    it is prepared by :func:`~._depth.scene_depth` (filled, sized to the image).
+    it is prepared by :func:`~.depth.scene_depth` (filled, sized to the image).
 
     ``severity_size`` ``(H0, W0)``: the size at which the level's spatial parameters are
     defined, scaled to the image's by :func:`~.scaling.scale_factor`; None: as tabulated.

@@ -37,6 +37,9 @@ import re
 from dataclasses import dataclass
 
 from ..benchmarks import ALL_CATEGORY, ALL_CORRUPTIONS, N_LEVELS
+# The test of a chain's name is a benchmark fact (output/ orders variants by it without
+# loading the corruptions); chains' users find it here too.
+from ..benchmarks import looks_like_chain  # noqa: F401
 from ..errors import RobodepthError
 from .severity import LevelError, level_text, parse_level
 
@@ -79,12 +82,6 @@ class Chain:
 
     def __str__(self) -> str:
         return self.text
-
-
-def looks_like_chain(text: str) -> bool:
-    """Whether a variant name is meant as a chain (it has a ``:`` or a ``+``) rather than a
-    single corruption's name."""
-    return isinstance(text, str) and (":" in text or "+" in text)
 
 
 def parse_chain(text: str, *, top: int = N_LEVELS, where: str = "") -> Chain:

@@ -106,8 +106,9 @@ def _tables(h: int, w: int, factors, keep_h: int, keep_w: int, *, crop: bool = T
 
 @lru_cache(maxsize=16)
 def zoom_table(h: int, w: int, factors: tuple) -> tuple:
-    """Resampling tables of :func:`clipped_zoom` by every factor in ``factors`` for an
-    ``h`` x ``w`` image, keeping only the outputs inside the top-left ``h`` x ``w``.
+    """Resampling tables of the clipped zoom (the centre crop of :func:`zoom_axis` zoomed as
+    :func:`linear_zoom` does) by every factor in ``factors`` for an ``h`` x ``w`` image,
+    keeping only the outputs inside the top-left ``h`` x ``w``.
 
     Returns ``(nrows, r0, r1, wy, nruns, runs, wx)``: per factor the number of rows kept and
     their taps, the column taps as runs (:func:`column_runs`) and the column weights.
@@ -167,19 +168,6 @@ def linear_zoom(img: np.ndarray, z: float) -> np.ndarray:
     tables = _tables(h, w, (z,), oh, ow, crop=False)
     out = _accumulate(src, *tables, np.zeros((oh, ow, src.shape[2]), np.float32))
     return out[..., 0] if flat else out
-
-
-def clipped_zoom(img: np.ndarray, z: float) -> np.ndarray:
-    """Centre crop of ``ceil(H / z)`` x ``ceil(W / z)`` (offsets ``(H - ch) // 2``,
-    ``(W - cw) // 2``) zoomed by ``z`` with :func:`linear_zoom`.
-
-    ``img`` is H x W or H x W x C. The result is the full zoomed crop, float32, of
-    ``round(ch * z)`` x ``round(cw * z)``, which may exceed H x W by a pixel or two.
-    """
-    h, w = img.shape[:2]
-    top, ch, _ = zoom_axis(h, z)
-    left, cw, _ = zoom_axis(w, z)
-    return linear_zoom(img[top:top + ch, left:left + cw], z)
 
 
 @register(("start", "stop", "step"), LEVELS, rules=(BLEND,) * 3, deterministic=True)

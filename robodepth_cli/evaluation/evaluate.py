@@ -11,8 +11,6 @@ time (one map for a ``.npy`` or per-image files, the whole array for a ``.npz``)
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
@@ -21,12 +19,12 @@ import numpy as np
 
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
-from ..errors import cannot_write, counted
+from ..errors import counted
 from ..groundtruth.depthmaps import NoValidPixel
 from ..groundtruth.read import GroundTruth, load_ground_truth
 from ..predictions import Predictions, find_predictions
 from .aspect import aspect_warnings
-from .csvrows import DATASET_COLUMNS
+from .csvrows import DATASET_COLUMNS, SEVERITY_COLUMN, ResultsTable
 from .protocols import EvaluationError, Setup, kitti_image, nyu_image
 
 # A worker takes about a second to start (a fresh interpreter importing numpy and OpenCV),
@@ -78,18 +76,19 @@ class Evaluation:
 
         return self.setup.metrics + (COLUMNS if self.pairs else ())
 
-    def csv_text(self) -> str:
+    def table(self, severity_size: str | None = None, comments=()) -> ResultsTable:
         """The results CSV: ``corruption,level`` then the metrics (and the flicker
         measures), full float precision (``repr``), then the ``dataset`` and ``split`` the
-        results are on; one row per variant."""
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        w.writerow(("corruption", "level") + self.columns + DATASET_COLUMNS)
+        results are on, and with a ``severity_size`` (a build's, not none) a last column of
+        it; one row per variant, under the ``comments`` lines."""
+        rows = []
         for r in self.results:
             name, level = r.csv_key
             values = {**r.metrics, **(r.flicker or {})}
-            w.writerow([name, level] + [repr(values[m]) for m in self.columns] + [self.dataset, self.split])
-        return buf.getvalue()
+            rows.append([name, level] + [repr(values[m]) for m in self.columns] + [self.dataset, self.split])
+        table = ResultsTable.of(("corruption", "level") + self.columns + DATASET_COLUMNS, rows, comments,
+                                source=self.dataset)
+        return table if severity_size in (None, "none") else table.with_column(SEVERITY_COLUMN, severity_size)
 
     def to_json(self) -> dict:
         rows = []
@@ -404,16 +403,6 @@ def variant_result(variant: Variant, errors: Sequence, ratios: Sequence, setup: 
     return VariantResult(variant, {k: float(v) for k, v in zip(setup.metrics, means)},
                          np.array(ratios, dtype=np.float64) if setup.median_scaling else None,
                          flicker)
-
-
-def write_results(path: Path, text: str) -> None:
-    """Write the results CSV atomically (a temporary file, then a rename)."""
-    from ..files import write_atomic
-
-    try:
-        write_atomic(path, text.encode("utf-8"))
-    except OSError as exc:
-        raise EvaluationError(cannot_write(path, exc)) from None
 
 
 def check_values(m: np.ndarray, where: str, kind: str = "depth",

@@ -83,26 +83,19 @@ def check_pairs(keys, protocol: str, frames=None) -> list[tuple[int, int]]:
     return pairs
 
 
-def read_flicker(path) -> list[dict]:
-    """The flicker columns of a results CSV that has them (``evaluate --flicker``), one
+def read_flicker(table) -> list[dict]:
+    """The flicker columns of a results table that has them (``evaluate --flicker``), one
     ``{corruption, level, flicker_scale, flicker_abs_rel}`` per row; [] when it has none.
-    The file was already read and checked as a results CSV (``results.read_results``)."""
-    import csv
-
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        lines = [ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")]
-    reader = csv.reader(lines)
-    header = [c.strip().lower() for c in next(reader, [])]
-    if not set(COLUMNS) <= set(header):
+    The table was already checked as a results CSV (``results.read_results``)."""
+    if not set(COLUMNS) <= set(table.header):
         return []
-    at = {c: header.index(c) for c in ("corruption", "level", *COLUMNS)}
     out = []
-    for row in reader:
+    for row in table.records():
         try:
-            out.append({"corruption": row[at["corruption"]].strip(), "level": row[at["level"]].strip(),
-                        **{c: float(row[at[c]]) for c in COLUMNS}})
-        except (IndexError, ValueError):
-            raise EvaluationError(f"{path}: a row without numbers in {', '.join(COLUMNS)}") from None
+            out.append({"corruption": row["corruption"].strip(), "level": row["level"].strip(),
+                        **{c: float(row[c]) for c in COLUMNS}})
+        except (AttributeError, TypeError, ValueError):
+            raise EvaluationError(f"{table.source}: a row without numbers in {', '.join(COLUMNS)}") from None
     return out
 
 

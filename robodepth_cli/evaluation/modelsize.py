@@ -9,17 +9,17 @@ are the same CSV as before.
 
 from __future__ import annotations
 
+from .csvrows import ResultsTable
+
 COLUMNS = ("params", "flops")
 
 
-def with_size(text: str, record: dict | None) -> str:
-    """The results CSV ``text`` with the :data:`COLUMNS` of ``record["size"]`` (a
-    predictions.json) added to every row; unchanged without a recorded size."""
+def with_size(table: ResultsTable, record: dict | None) -> ResultsTable:
+    """``table`` with the :data:`COLUMNS` of ``record["size"]`` (a predictions.json) as its
+    last columns on every row; unchanged without a recorded size."""
     size = (record or {}).get("size")
     if not isinstance(size, dict) or not all(isinstance(size.get(c), int) for c in COLUMNS):
-        return text
-    lines = text.splitlines()
-    cells = ",".join(str(size[c]) for c in COLUMNS)
-    out = [f"{lines[0]},{','.join(COLUMNS)}"] + [f"{line},{cells}" for line in lines[1:] if line]
-    return "\n".join(out) + "\n"
-
+        return table
+    for c in COLUMNS:
+        table = table.with_column(c, str(size[c]))
+    return table

@@ -16,35 +16,33 @@ SCENE = "# scene depth: predictions of "
 EVALUATED = "# evaluated: predictions of "
 
 
-def csv_lines(depth: dict | None, pred_record: dict | None) -> str:
+def csv_lines(depth: dict | None, pred_record: dict | None) -> tuple[str, ...]:
     """The comment lines for a build whose record's ``depth`` entry is ``depth``, evaluated
-    with the predictions whose ``predictions.json`` is ``pred_record``; "" unless the
+    with the predictions whose ``predictions.json`` is ``pred_record``; none unless the
     build's depth came from predictions."""
     from ..predictions import model_identity
 
     if not isinstance(depth, dict) or depth.get("kind") != "predictions":
-        return ""
+        return ()
     evaluated = model_identity(pred_record) if pred_record else "unknown"
     name = f" ({pred_record.get('model')})" if pred_record else ""
-    return (f"{SCENE}{depth.get('identity')} ({depth.get('model')})\n"
-            f"{EVALUATED}{evaluated}{name}\n")
+    return (f"{SCENE}{depth.get('identity')} ({depth.get('model')})", f"{EVALUATED}{evaluated}{name}")
 
 
 def _identity(line: str, prefix: str) -> str:
     return line[len(prefix):].split(" (")[0].strip()
 
 
-def warning(text: str, source: str) -> str:
-    """One line when the results in ``text`` (a results CSV read from ``source``) are of
-    the model whose predictions made the build's scene depth; "" otherwise."""
+def warning(table) -> str:
+    """One line when the results ``table`` (a :class:`.csvrows.ResultsTable`) are of the
+    model whose predictions made the build's scene depth; "" otherwise."""
     scene = evaluated = ""
-    for line in text.splitlines():
+    for line in table.comments:
         if line.startswith(SCENE):
             scene = _identity(line, SCENE)
         elif line.startswith(EVALUATED):
             evaluated = _identity(line, EVALUATED)
-        elif line.strip() and not line.startswith("#"):
-            break  # the header: the comment lines are above it
+    source = table.source
     if not scene or scene != evaluated:
         return ""
     return (f"{source}: this model was evaluated on depth-aware corruptions made from its own "

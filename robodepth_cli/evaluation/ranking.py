@@ -1,7 +1,7 @@
 """Rank agreement of two sequences of scores (models' errors under two conditions):
 Spearman's rho (the Pearson correlation of the ranks, ties given the mean of the ranks they
 span), Kendall's tau-b (concordant minus discordant pairs over the geometric mean of the
-pairs untied on each side) and their percentile bootstrap intervals. Pure numpy; no file,
+pairs untied on each side), both SciPy's, and their percentile bootstrap intervals. No file,
 no flag: the callers say what the values are.
 """
 
@@ -14,33 +14,26 @@ import numpy as np
 LEVEL = 0.95
 
 
-def ranks(values) -> np.ndarray:
-    """1-based ranks; tied values share the mean of the ranks they span."""
-    x = np.asarray(values, dtype=np.float64)
-    order = np.argsort(x, kind="stable")
-    out = np.empty(len(x))
-    out[order] = np.arange(1, len(x) + 1)
-    for v in np.unique(x):
-        tied = x == v
-        out[tied] = out[tied].mean()
-    return out
+def _ranked(x, y) -> bool:
+    """Whether both sides rank something (neither has every value tied)."""
+    return len(x) > 1 and np.ptp(x) > 0 and np.ptp(y) > 0
 
 
 def spearman(x, y) -> float:
-    """Spearman's rho; NaN when one side has every value tied (no ranking)."""
-    rx, ry = ranks(x), ranks(y)
-    dx, dy = rx - rx.mean(), ry - ry.mean()
-    denom = math.sqrt(float(dx @ dx) * float(dy @ dy))
-    return float(dx @ dy) / denom if denom > 0 else math.nan
+    """Spearman's rho (``scipy.stats.spearmanr``); NaN when one side has every value tied
+    (no ranking)."""
+    from scipy.stats import spearmanr
+
+    x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    return float(spearmanr(x, y).statistic) if _ranked(x, y) else math.nan
 
 
 def kendall(x, y) -> float:
-    """Kendall's tau-b; NaN when one side has every value tied."""
+    """Kendall's tau-b (``scipy.stats.kendalltau``); NaN when one side has every value tied."""
+    from scipy.stats import kendalltau
+
     x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    i, j = np.triu_indices(len(x), k=1)
-    sx, sy = np.sign(x[i] - x[j]), np.sign(y[i] - y[j])
-    denom = math.sqrt(float(np.count_nonzero(sx)) * float(np.count_nonzero(sy)))
-    return float(np.sum(sx * sy)) / denom if denom > 0 else math.nan
+    return float(kendalltau(x, y).statistic) if _ranked(x, y) else math.nan
 
 
 def bootstrap(x, y, n: int = 2000, seed: int = 0,
@@ -49,7 +42,9 @@ def bootstrap(x, y, n: int = 2000, seed: int = 0,
     ``n`` resamples: each draws ``len(x)`` indices with replacement from a generator seeded
     by ``seed`` (the same inputs and seed give the same intervals); a resample in which one
     side has every value tied has no ranking and is drawn again. None for both when fewer
-    than ``n`` such resamples turn up in ``50 n`` draws."""
+    than ``n`` such resamples turn up in ``50 n`` draws. (``scipy.stats.bootstrap`` cannot
+    draw a resample again: with a handful of models many resamples tie a side, and its
+    percentile of their NaN would be NaN.)"""
     x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
     rng = np.random.default_rng(seed)
     rhos, taus = [], []

@@ -4,7 +4,7 @@ into :class:`Results`, and the per-variant formulas (DEE, CE, RR) its rows need.
 Results CSV
     A header row is required; columns are found by name (case-insensitive, surrounding
     spaces ignored, in any order; the other columns are not scored, but their numbers are
-    checked: :mod:`.csvrows`).
+    checked: :class:`.csvrows.ResultsTable`, which reads and writes the file).
     Required: ``corruption``, ``level`` and either both ``abs_rel`` and ``a1`` or ``dee``
     (not both, which would be ambiguous). One row per (corruption, level); the clean row has
     corruption ``clean`` and level ``0``. Blank lines and lines starting with ``#`` are
@@ -23,16 +23,12 @@ Results CSV
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Iterable, Iterator, Mapping
 
 from ..benchmarks import ALL_CORRUPTIONS, BENCHMARKS, CATEGORY, CLEAN, DEPTH_AWARE, Baseline, Benchmark
-from ..errors import os_reason
-from .csvrows import ScoreError, data_rows, level as _level, normalise_name, number
+from .csvrows import ResultsTable, ScoreError, level as _level, normalise_name, number
 
 
 class FitError(ScoreError):
@@ -105,7 +101,7 @@ class Results:
                 if lv not in self.dee.get(n, {})]
 
 
-def checked_rows(text: str, source: str, benchmark: Benchmark | None,
+def checked_rows(table: ResultsTable, benchmark: Benchmark | None,
                  needs_clean: str) -> Iterator[tuple[int, str, str, int | float | None, float]]:
     """The one check of a results CSV's rows: ``(line, where, name, level, dee)`` for each,
     in file order; :class:`ScoreError` for the first row that fails.
@@ -118,7 +114,7 @@ def checked_rows(text: str, source: str, benchmark: Benchmark | None,
     canonical text as the name, level None). After the last row, a file without the clean
     row is refused, ``needs_clean`` saying what needs it."""
     seen: dict[tuple[str, int | float | None], int] = {}
-    for line, where, cells, use_dee in data_rows(text, source):
+    for line, where, cells, use_dee in table.data_rows():
         if benchmark is not None and (":" in cells["corruption"] or "+" in cells["corruption"]):
             name, level = _chain(cells, benchmark, where), None
         else:
@@ -133,7 +129,7 @@ def checked_rows(text: str, source: str, benchmark: Benchmark | None,
         seen[name, level] = line
         yield line, where, name, level, row_dee(cells, use_dee, where)
     if (CLEAN, 0) not in seen:
-        raise ScoreError(f"{source}: no clean row (corruption 'clean', level 0); {needs_clean}")
+        raise ScoreError(f"{table.source}: no clean row (corruption 'clean', level 0); {needs_clean}")
 
 
 def _check_variant(name: str, level: int | float, cells: Mapping[str, str], where: str,
@@ -157,18 +153,19 @@ def _check_variant(name: str, level: int | float, cells: Mapping[str, str], wher
                        f"1..{benchmark.n_levels} for {benchmark.name}")
 
 
-def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
-    """Parse a results CSV (format in the module docstring) for ``benchmark``.
+def parse_results(table: ResultsTable, benchmark: Benchmark) -> Results:
+    """Read a results CSV's rows (format in the module docstring) for ``benchmark``.
 
     Every row is checked (:func:`checked_rows`), and the clean DEE is below 1.
     Completeness is not checked here: see :meth:`Results.missing`. Raises
     :class:`ScoreError`.
     """
     clean: float | None = None
-    table: dict[str, dict[int, float]] = {}
+    levels: dict[str, dict[int, float]] = {}
     decimal: dict[str, dict[float, float]] = {}
     chains: dict[str, float] = {}
-    for _, where, name, level, value in checked_rows(text, source, benchmark, "RR needs the clean DEE"):
+    source = table.source
+    for _, where, name, level, value in checked_rows(table, benchmark, "RR needs the clean DEE"):
         if level is None:  # a chain
             chains[name] = value
         elif name == CLEAN:
@@ -179,11 +176,11 @@ def parse_results(text: str, source: str, benchmark: Benchmark) -> Results:
         elif isinstance(level, float) or name in DEPTH_AWARE:  # a severity curve
             decimal.setdefault(name, {})[level] = value
         else:
-            table.setdefault(name, {})[level] = value
-    if not table and not decimal and not chains:
+            levels.setdefault(name, {})[level] = value
+    if not levels and not decimal and not chains:
         raise ScoreError(f"{source}: no corruption rows, only the clean one")
-    return Results(source, clean, {n: dict(sorted(table[n].items()))
-                                   for n in benchmark.corruptions if n in table},
+    return Results(source, clean, {n: dict(sorted(levels[n].items()))
+                                   for n in benchmark.corruptions if n in levels},
                    decimal={n: dict(sorted(decimal[n].items())) for n in (*benchmark.corruptions, *DEPTH_AWARE) if n in decimal},
                    chains=dict(sorted(chains.items())))
 
@@ -206,13 +203,13 @@ def _chain(cells: Mapping[str, str], benchmark: Benchmark, where: str) -> str:
     return chain.text
 
 
-def other_benchmark(text: str, source: str, benchmark: Benchmark) -> str:
-    """The name of another benchmark of which ``text`` holds every variant, or ""."""
+def other_benchmark(table: ResultsTable, benchmark: Benchmark) -> str:
+    """The name of another benchmark of which ``table`` holds every variant, or ""."""
     for other in BENCHMARKS.values():
         if other.name == benchmark.name:
             continue
         try:
-            if not parse_results(text, source, other).missing(other):
+            if not parse_results(table, other).missing(other):
                 return other.name
         except ScoreError:
             pass
@@ -225,55 +222,28 @@ def _looks_like(name: str) -> str:
             f"{b.n_levels} levels): use --benchmark {name}")
 
 
-def read_text(path: str | Path) -> str:
-    """A results file's text; I/O and decoding problems become ScoreError."""
+def read_results(table: ResultsTable, benchmark: Benchmark) -> Results:
+    """A results CSV's rows for ``benchmark``. When they do not fit it but are a complete set
+    of another one, the error (or :attr:`Results.looks_like`, for rows that merely leave
+    variants missing) says so."""
     try:
-        return Path(path).read_bytes().decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise ScoreError(f"{path}: not a UTF-8 text file") from None
-    except IsADirectoryError:
-        raise ScoreError(f"{path}: is a directory, not a results CSV") from None
-    except OSError as exc:
-        raise ScoreError(f"{path}: cannot read: {os_reason(exc)}") from None
-
-
-def read_results(path: str | Path, benchmark: Benchmark) -> Results:
-    """Read and parse a results CSV file; I/O and decoding problems become ScoreError.
-    When the rows do not fit ``benchmark`` but are a complete set of another one, the error
-    (or :attr:`Results.looks_like`, for rows that merely leave variants missing) says so."""
-    text = read_text(path)
-    try:
-        results = parse_results(text, str(path), benchmark)
+        results = parse_results(table, benchmark)
     except ScoreError as exc:
-        other = other_benchmark(text, str(path), benchmark)
+        other = other_benchmark(table, benchmark)
         if other:
             raise ScoreError(f"{exc}; {_looks_like(other)}") from None
         raise
     if results.missing(benchmark):
-        results.looks_like = other_benchmark(text, str(path), benchmark)
+        results.looks_like = other_benchmark(table, benchmark)
     return results
 
 
-def _row_names(text: str) -> list[str]:
-    """The normalised corruption cells of a results CSV, header and comments skipped; []
-    when there is no ``corruption`` column to read."""
-    rows = [r for r in csv.reader(io.StringIO(text))
-            if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
-    if not rows:
-        return []
-    header = [c.strip().lower() for c in rows[0]]
-    if "corruption" not in header:
-        return []
-    i = header.index("corruption")
-    return [normalise_name(r[i]) for r in rows[1:] if i < len(r)]
-
-
-def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
+def infer_benchmark(table: ResultsTable, styles: Iterable[str] = ()) -> str:
     """The benchmark a results file is on, from its rows: ``kitti-s`` when they name
     ``styles``; else the one benchmark of which they are a complete set, or the only one
     whose corruptions and levels they fit. ScoreError when the rows fit none or both."""
-    text = read_text(path)
-    names = set(_row_names(text)) - {CLEAN}
+    path = table.source
+    names = set(table.corruption_names()) - {CLEAN}
     styles = set(styles)
     if styles and names and names <= styles:
         return "kitti-s"
@@ -283,7 +253,7 @@ def infer_benchmark(path: str | Path, styles: Iterable[str] = ()) -> str:
     fits, complete, errors = [], [], []
     for bench in BENCHMARKS.values():
         try:
-            results = parse_results(text, str(path), bench)
+            results = parse_results(table, bench)
         except ScoreError as exc:
             errors.append(exc)
             continue
@@ -316,13 +286,14 @@ class StyleResults:
         return mean(self.dee.values())
 
 
-def parse_style_results(text: str, source: str, styles: tuple[str, ...]) -> StyleResults:
+def parse_style_results(table: ResultsTable, styles: tuple[str, ...]) -> StyleResults:
     """Parse KITTI-S results (rows ``<style>,0`` and optionally ``clean,0``, in the same
     columns as any results CSV; a style has no levels). Every style of ``styles`` must have
     a row; anything else is a ScoreError naming the line."""
     seen: dict[str, int] = {}
     values: dict[str, float] = {}
-    for line, where, cells, use_dee in data_rows(text, source):
+    source = table.source
+    for line, where, cells, use_dee in table.data_rows():
         name = normalise_name(cells["corruption"])
         if name != CLEAN and name not in styles:
             raise ScoreError(f"{where}: unknown style {cells['corruption'].strip()!r}; "

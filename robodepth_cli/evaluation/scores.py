@@ -81,7 +81,7 @@ class Scores:
         if self.note:
             doc["note"] = self.note
         if self.curves or self.chains:
-            from ..corruptions.severity import level_text
+            from ..keys import level_text
 
             doc["beyond_benchmark"] = {
                 "severity_curves": {n: {level_text(lv): d for lv, d in curve.items()}
@@ -194,7 +194,7 @@ def _beyond(s: Scores) -> list[str]:
     """The section of rows beyond the benchmark: severity curves and chains."""
     if not s.curves and not s.chains:
         return []
-    from ..corruptions.severity import level_text
+    from ..keys import level_text
 
     lines = ["", "Beyond the benchmark (not in mCE, mRR or mDEE)"]
     if s.curves:

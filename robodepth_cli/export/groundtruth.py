@@ -56,7 +56,8 @@ def read_maps(file: Path, path: str, parts) -> dict[int, np.ndarray]:
     """The maps ``parts`` (indices; 0 for a file of one map) of the build's ground-truth file
     ``file`` (its path in the build: ``path``) in metres, NaN where there is no measurement.
     Only those maps are kept: KITTI's 1.3 GB of maps are never in memory together."""
-    from ..groundtruth.read import read_gt_file, read_png16
+    from ..groundtruth.read import GroundTruthError, read_gt_file
+    from ..imageio import read_depth_png
 
     try:
         if path == GT_FILE:
@@ -67,7 +68,7 @@ def read_maps(file: Path, path: str, parts) -> dict[int, np.ndarray]:
                 raise ExportError(f"{file}: holds no map {min(lacking)}; rerun the build command")
             return {i: _nan_where_zero(m) for i, m in maps.kept.items()}
         if path.endswith(".png"):
-            return {0: _nan_where_zero(read_png16(file, "ground truth") / MM)}
+            return {0: _nan_where_zero(read_depth_png(file, "ground truth", GroundTruthError) / MM)}
         return {0: from_npy(file.read_bytes(), str(file))}
     except ExportError:
         raise

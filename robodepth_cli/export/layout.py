@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from ..corruptions.severity import level_text
 
-EXPORT_VERSION = 2  # of the export record; 2: the ground truth as one depth map per row
+SCHEMA = "robodepth-export"  # the export record's (its version: robodepth_cli/formats.py)
 CARD = "README.md"
 DATA = "data"
 META = "robodepth"  # the folder with the build's record and manifest and the export record

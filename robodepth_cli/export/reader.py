@@ -15,23 +15,39 @@ from typing import Iterator
 
 from ..files import sha256_bytes
 from ..output.layout import GT_DIR, GT_FILE
-from .layout import EXPORT_VERSION, GT_CONFIG, META, NEIGHBOURS, RECORD
+from ..formats import FormatError, check
+from .layout import GT_CONFIG, META, NEIGHBOURS, RECORD, SCHEMA
 from .plan import ExportError, neighbour_outputs
 
 
 def read_export_record(to: Path) -> dict | None:
-    """The export record of ``to``, or None when there is none."""
+    """The export record of ``to``, or None when there is none; ExportError naming the file
+    when it cannot be read or is of another format version."""
     path = Path(to) / META / RECORD
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        record = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         return None
     except (OSError, ValueError) as exc:
         raise ExportError(f"{path}: cannot be read as an export record ({exc})") from None
+    try:
+        check(record if isinstance(record, dict) else {}, SCHEMA, str(path), "export the build again")
+    except FormatError as exc:
+        raise ExportError(str(exc)) from None
+    return record
 
 
 def is_export(path: Path) -> bool:
     return (Path(path) / META / RECORD).is_file()
+
+
+def opening(path: Path) -> dict:
+    """How :func:`robodepth_cli.api.open_dataset` opens ``path`` when it is an export: the
+    folder holding the build's record and manifest (``meta``) and the maker of the store
+    its images are read from (``store``); {} for anything else (a build)."""
+    if not is_export(path):
+        return {}
+    return {"meta": Path(path) / META, "store": lambda keys, manifest: ExportStore(path, keys, manifest)}
 
 
 def shard_rows(path: Path, fmt: str, prefix: str) -> Iterator[tuple[str, bytes]]:
@@ -108,9 +124,6 @@ class ExportStore:
         if record.get("status") != "finished":
             raise ExportError(f"{self.path}: the export did not finish; rerun the robodepth export "
                               "command that made it")
-        if record.get("export") != EXPORT_VERSION:
-            raise ExportError(f"{self.path}: an export of another version of robodepth (its ground "
-                              "truth is stored otherwise); export the build again")
         self.format = record.get("format")
         self.shards = record.get("shards") or []
         self._sha = {p: r.sha256 for p, r in manifest.items() if not r.error}

@@ -17,7 +17,9 @@ from pathlib import Path
 
 from ..files import atomic_output, check_writable, sha256_file, write_atomic
 from ..output.layout import MANIFEST, RECORD as BUILD_RECORD
-from .layout import CARD, DATA, EXPORT_VERSION, FORMATS, GT_CONFIG, JOURNAL, META, RECORD
+from ..output.record import BuildStatus
+from ..formats import stamp
+from .layout import CARD, DATA, FORMATS, GT_CONFIG, JOURNAL, META, RECORD, SCHEMA
 from .plan import ExportError, Shard, plan
 from .card import holdings
 from .reader import read_export_record
@@ -54,10 +56,10 @@ def _open_build(out: Path, open_dataset):
     # Images whose depth map is unusable have no ground truth and no depth-aware outputs;
     # a rerun cannot make them, so the build is exported without those files.
     status = dataset.record.status
-    if status == "finished with failures" and not _unexplained(dataset, rows):
-        status = "finished"
-    if dataset.failed or status not in ("finished", ""):
-        why = dataset.incomplete() or f"{out}: the build's status is {dataset.record.status!r}"
+    if status is BuildStatus.FAILURES and not _unexplained(dataset, rows):
+        status = BuildStatus.FINISHED
+    if dataset.failed or status not in (BuildStatus.FINISHED, None):
+        why = dataset.incomplete() or f"{out}: the build's status is {getattr(status, 'value', '')!r}"
         raise ExportError(f"{why}; export a finished build (rerun the build command to finish it)")
     return dataset, rows
 
@@ -98,10 +100,10 @@ def export(out: Path, to: Path, fmt: str, shard_bytes: int, *, open_dataset, pro
     manifest = (out / MANIFEST).read_bytes()
     shards = plan(out, dataset, rows, shard_bytes)
     entries = [_entry(s, fmt) for s in shards]
-    header = {"export": EXPORT_VERSION, "format": fmt, "shard_size": shard_bytes,
+    header = {**stamp(SCHEMA), "format": fmt, "shard_size": shard_bytes,
               "dataset": dataset.name, "build_manifest_sha256": sha256_bytes(manifest)}
     _resume(to, header, entries)
-    record = {**header, "robodepth": version, "status": "running", "shards": entries}
+    record = {**header, "status": "running", "shards": entries}
     try:
         write_atomic(to / META / MANIFEST, manifest)
         write_atomic(to / META / BUILD_RECORD, (out / BUILD_RECORD).read_bytes())

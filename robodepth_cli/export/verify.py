@@ -18,6 +18,7 @@ from pathlib import Path
 from ..errors import reraise_interrupt
 from ..files import sha256_bytes, sha256_file
 from ..output.manifest import ManifestError, read_manifest
+from ..output.record import BuildStatus
 from ..output.verify import VerifyReport
 from ..output.layout import GT_FILE
 from .layout import DATA, GT_CONFIG, META
@@ -79,7 +80,8 @@ def verify_export(to: Path, *, progress=None) -> VerifyReport:
                       "rerun the export command to finish it")
         missing = []
     return VerifyReport(checked, missing, changed, sorted(extra), [],
-                        status=record.get("status", ""), unfinished=unfinished)
+                        status=BuildStatus(record["status"]) if record.get("status") == "running" else None,
+                        unfinished=unfinished)
 
 
 def _rows(file: Path, fmt: str, entry: dict):

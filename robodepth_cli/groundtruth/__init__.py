@@ -2,4 +2,4 @@
 raw's velodyne scans, :mod:`.kitti`; NYU Depth V2's labeled file and BTS's 16-bit depth
 PNGs, :mod:`.nyu`), written beside a build's images (:mod:`.write`) and read back for an
 evaluation (:mod:`.read`; a build with depth's per-image maps, :mod:`.depthmaps`). Its
-16-bit PNGs are read by :func:`robodepth_cli.imageio.read_png16`, as every depth PNG is."""
+16-bit PNGs are read by :func:`robodepth_cli.imageio.read_depth_png`, as every depth PNG is."""

@@ -186,11 +186,6 @@ def decode_jpeg(data: bytes) -> np.ndarray:
         return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
 
 
-def clean_image(rgb: np.ndarray) -> np.ndarray:
-    """The clean source image of a labeled frame: BTS's JPEG of it, decoded."""
-    return decode_jpeg(bts_jpeg(rgb))
-
-
 def sync_depth(depth: np.ndarray) -> np.ndarray:
     """BTS's ``sync_depth`` pixels: ``depth * 1000`` computed in float32 (as the float32
     ``rawDepths`` times 1000.0 is in numpy), then truncated to uint16."""
@@ -207,26 +202,19 @@ def encode_depth_png(depth_mm: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def read_depth_png(path: Path) -> tuple[bytes, tuple[int, int]]:
-    """The bytes of a BTS ``sync_depth`` file, checked to be a single-channel 16-bit PNG,
-    and its size (H, W)."""
-    from ..imageio import Png16Error, read_png16
+def sync_depth_file(path: Path) -> tuple[bytes, tuple[int, int]]:
+    """The bytes of a BTS ``sync_depth`` file, checked to be a single-channel 16-bit PNG
+    (:func:`robodepth_cli.imageio.read_depth_png`), and its size (H, W)."""
+    from ..imageio import read_depth_png
 
     path = Path(path)
     try:
         data = path.read_bytes()
     except FileNotFoundError:
-        raise NyuError(f"{path}: no such depth file") from None
+        raise NyuError(f"{path}: no such file (depth)") from None
     except OSError as exc:
-        raise NyuError(f"{path}: cannot read ({os_reason(exc)})") from None
-    try:
-        img = read_png16(data)
-    except Png16Error as exc:
-        if exc.raw is None:
-            raise NyuError(f"{path}: not a PNG file OpenCV can read") from None
-        raise NyuError(f"{path}: a {exc.raw.dtype} PNG with {1 if exc.raw.ndim == 2 else exc.raw.shape[2]} channel(s); "
-                       f"depth is a 16-bit single-channel PNG") from None
-    return data, img.shape
+        raise NyuError(f"{path}: cannot read ({os_reason(exc)}) (depth)") from None
+    return data, read_depth_png(path, "depth", NyuError, data).shape
 
 
 def frame_index(labeled: LabeledFile, rgb: str) -> int:
@@ -325,11 +313,11 @@ def _export(root, frames, out, split_name, rgb, progress):
     root = Path(root)
     for f in frames:  # all of them checked (and decoded) before anything is written
         try:
-            read_depth_png(root / f.depth)
+            sync_depth_file(root / f.depth)
         except NyuError as exc:
             raise NyuError(f"{split_name}:{f.line}: {exc}") from None
     for f in frames:
-        data, _ = read_depth_png(root / f.depth)
+        data, _ = sync_depth_file(root / f.depth)
         write_atomic(out / f.depth, data)
         written.append((f.depth, sha256_bytes(data)))
         if progress:

@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import os_reason
 from .kitti import KEYS_MEMBER, GroundTruthError, frame_key
 from ..files import read_npy_header
+from ..imageio import read_depth_png
 
 
 class GroundTruth:
@@ -152,7 +153,7 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
     if path.is_dir():
         for i, name in enumerate(names):
             file = path / name
-            raw = read_png16(file, f"ground truth of image {i}")
+            raw = read_depth_png(file, f"ground truth of image {i}", GroundTruthError)
             gt.add(raw.astype(np.float32) / 1000.0, raw, 1000.0,
                    f"{file} (ground truth of image {i})")
         return gt
@@ -366,11 +367,3 @@ class _MapUnpickler:
         memo = self._unpickler.memo
         for k in [k for k, v in memo.items() if large(v)]:
             memo[k] = None  # not deleted: new entries are numbered by the memo's length
-
-
-def read_png16(file: Path, what: str) -> np.ndarray:
-    """A 16-bit single-channel PNG of the ground truth; ``what`` says in messages whose
-    file it is."""
-    from ..imageio import read_depth_png
-
-    return read_depth_png(file, what, GroundTruthError)

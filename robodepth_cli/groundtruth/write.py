@@ -278,7 +278,7 @@ def _run_nyu(plan: GtPlan, job: GtJob, out: Path):
             depth = gt_nyu.sync_depth(labeled.depth(gt_nyu.frame_index(labeled, frame.rgb)))
             data, size = gt_nyu.encode_depth_png(depth), depth.shape
         else:
-            data, size = gt_nyu.read_depth_png(plan.root / frame.depth)
+            data, size = gt_nyu.sync_depth_file(plan.root / frame.depth)
     except RobodepthError as exc:
         target.unlink(missing_ok=True)
         return "failed", _row(job, error=str(exc))

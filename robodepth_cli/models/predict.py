@@ -33,7 +33,6 @@ whole variant, and its activations, at once (:func:`batch_limit`).
 from __future__ import annotations
 
 import functools
-import json
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -46,7 +45,7 @@ from .. import __version__
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
 from ..errors import cannot_write
-from ..predictions import (RECORD, ImageFilesWriter, PredictionWriter, finished, read_record,
+from ..predictions import (RECORD, ImageFilesWriter, PredictionWriter, finished, read_record, write_record,
                            remove_leftovers, split_digest)
 from .errors import ModelError
 from .size import measured
@@ -335,15 +334,6 @@ def _opens(dataset: BuiltDataset, v: Variant, lacking: set[int]):
 def _no_prediction(m: np.ndarray) -> np.ndarray:
     """The prediction written for an image that does not exist: NaN (0 for integer maps)."""
     return np.full_like(m, np.nan) if m.dtype.kind == "f" else np.zeros_like(m)
-
-
-def write_record(pred: Path, record: dict) -> None:
-    from ..files import write_atomic
-
-    try:
-        write_atomic(pred / RECORD, (json.dumps(record, indent=2) + "\n").encode("utf-8"))
-    except OSError as exc:
-        raise ModelError(cannot_write(pred / RECORD, exc)) from None
 
 
 def _remove_empty(pred: Path) -> None:

@@ -5,10 +5,9 @@
   last row for a path wins. A torn last line (a build killed mid-write) is ignored when
   reading and cut off before appending. A finished build rewrites the file with one row per
   path, sorted, so the same build gives the same manifest whatever the worker count.
-  A row with an ``error`` is a job that failed; its file does not exist.
-  Columns are read by the header's names: a manifest written before a column existed
-  (e.g. without the source's size, time and hash) still reads, the missing values empty,
-  and is rewritten with every column before anything is appended to it.
+  A row with an ``error`` is a job that failed; its file does not exist. Its format
+  version is the build record's (``robodepth-build``, :mod:`robodepth_cli.formats`): the
+  header must be :data:`HEADER` exactly.
 - ``OUT/build.json``: the build record, :mod:`.record`.
 - ``OUT/.robodepth.journal/``: while a build runs, each worker appends the row of every
   output to a file of its own here right after writing the output (:class:`Journal`), so a
@@ -58,8 +57,8 @@ class Row:
     # alpha, style size); "" when seed and size say it all (the corruptions).
     params: str = ""
     # The source when this output was made: size in bytes, modification time (ns since the
-    # epoch) and sha256 of its bytes; None/"" in rows written before these were recorded.
-    # A source whose size or hash changed since redoes its outputs.
+    # epoch) and sha256 of its bytes. A source whose size or hash changed since redoes its
+    # outputs.
     source_size: int | None = None
     source_mtime: int | None = None
     source_sha256: str = ""
@@ -67,7 +66,6 @@ class Row:
 
 FIELDS = tuple(f.name for f in fields(Row))
 HEADER = ",".join(FIELDS) + "\n"
-_REQUIRED = ("output", "source", "variant", "level", "seed", "height", "width", "sha256", "error")
 _INTS = ("seed", "height", "width")
 _OPTIONAL_INTS = ("source_size", "source_mtime")
 
@@ -76,17 +74,16 @@ def _to_fields(row: Row) -> list[str]:
     return ["" if v is None else str(v) for v in (getattr(row, f) for f in FIELDS)]
 
 
-def _from_fields(values: list[str], names: tuple[str, ...] = FIELDS) -> Row:
-    """Parse one CSV record whose columns are ``names``; ``ValueError`` if it is not a
-    complete row."""
-    if len(values) != len(names):
-        raise ValueError(f"{len(values)} fields, expected {len(names)}")
-    d: dict = dict(zip(names, values))
+def _from_fields(values: list[str]) -> Row:
+    """Parse one CSV record of the :data:`FIELDS`; ``ValueError`` if it is not a complete
+    row."""
+    if len(values) != len(FIELDS):
+        raise ValueError(f"{len(values)} fields, expected {len(FIELDS)}")
+    d: dict = dict(zip(FIELDS, values))
     for k in _INTS:
         d[k] = int(d[k])
     for k in _OPTIONAL_INTS:
-        if k in d:
-            d[k] = int(d[k]) if d[k] else None
+        d[k] = int(d[k]) if d[k] else None
     d["level"] = _level(d["level"])
     row = Row(**d)
     if not row.output or bool(row.error) == bool(_SHA.fullmatch(row.sha256)):
@@ -105,13 +102,11 @@ def _level(text: str) -> int | float | None:
     return whole if is_int(whole) else v
 
 
-def _header(line: str, path: Path) -> tuple[str, ...]:
-    """The column names of a manifest's first line; :class:`ManifestError` unless they are
-    robodepth's (the current columns or an older subset of them)."""
-    names = tuple(next(csv.reader([line])))
-    if not set(_REQUIRED) <= set(names) or not set(names) <= set(FIELDS) or len(set(names)) != len(names):
-        raise ManifestError(f"{path}: not a robodepth manifest (first line should be {HEADER.strip()!r})")
-    return names
+def _check_header(line: str, path: Path) -> None:
+    """:class:`ManifestError` unless ``line`` is this version's :data:`HEADER`."""
+    if line.rstrip("\r\n") != HEADER.strip():
+        raise ManifestError(f"{path}: not a manifest of this robodepth (first line should be "
+                            f"{HEADER.strip()!r}); rebuild into a new folder")
 
 
 def format_rows(rows) -> str:
@@ -137,13 +132,13 @@ def read_manifest_file(path: Path) -> dict[str, Row]:
     if not text:
         return {}
     lines = text.splitlines(keepends=True)
-    names = _header(lines[0], path)
+    _check_header(lines[0], path)
     if not lines[-1].endswith("\n"):
         lines.pop()
     rows: dict[str, Row] = {}
     for n, values in enumerate(csv.reader(lines[1:]), 2):
         try:
-            row = _from_fields(values, names)
+            row = _from_fields(values)
         except (ValueError, TypeError) as exc:
             raise ManifestError(
                 f"{path}:{n}: damaged row ({exc}); to recover, delete that line (or the whole "
@@ -153,24 +148,12 @@ def read_manifest_file(path: Path) -> dict[str, Row]:
     return rows
 
 
-def manifest_is_current(out: Path) -> bool:
-    """Whether ``out``'s manifest is absent, empty or has every current column."""
-    try:
-        with open(Path(out) / MANIFEST, encoding="utf-8") as fh:
-            first = fh.readline()
-    except FileNotFoundError:
-        return True
-    return first in ("", HEADER)
-
-
 class ManifestWriter:
     """Appends rows to ``out``'s manifest, flushing after every batch."""
 
     def __init__(self, out: Path):
         self.path = Path(out) / MANIFEST
         read_manifest(out)  # refuse a foreign or damaged file before touching it
-        if not manifest_is_current(out):
-            compact_manifest(out)  # an older manifest gets every column before rows are appended
         self._fh = open(self.path, "a+b")
         self._fh.seek(0)
         data = self._fh.read()

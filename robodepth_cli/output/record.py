@@ -1,15 +1,12 @@
 """The build record, ``OUT/build.json``: what was built, how, and how it ended.
 
 A build writes its record when it starts (status ``running``) and again when it ends
-(``finished``, ``incomplete``, ``interrupted`` or ``stopped``, with the run's summary).
+(``finished``, ``finished with failures``, ``interrupted`` or ``stopped``, with the run's
+summary): :class:`BuildStatus`.
 :class:`BuildRecord` is the one typed form of the file: the builder writes it, ``verify``,
 :func:`robodepth_cli.open_dataset`, the build checks and ``robodepth_cli.torch`` read it.
-Keys a record holds that this version does not know (written by a newer robodepth) are kept
-in ``other`` and written back unchanged.
-
-Records written by older versions still read: one without ``plans`` describes its single
-request through ``config`` and ``split.keys``; one without a top-level ``dataset`` or ``seed``
-has them in ``config``.
+It carries its format version (``schema`` ``robodepth-build``, :mod:`robodepth_cli.formats`),
+which covers the manifest beside it; a record of another version is refused in one line.
 """
 
 from __future__ import annotations
@@ -17,16 +14,30 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field, fields
 from datetime import datetime, timezone
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
 from ..errors import RobodepthError
 from ..files import write_atomic
+from ..formats import FormatError, check
 from .layout import RECORD
+
+SCHEMA = "robodepth-build"
 
 
 class RecordError(RobodepthError):
     """A ``build.json`` that cannot be read or is not a build record."""
+
+
+class BuildStatus(str, Enum):
+    """How a build stands, as its record says (a ``str``: JSON writes its value)."""
+
+    RUNNING = "running"  # started, not ended (or killed: the next build resumes it)
+    FINISHED = "finished"  # every planned output made
+    FAILURES = "finished with failures"  # ran to the end; some images could not be made
+    INTERRUPTED = "interrupted"  # Ctrl-C or SIGTERM
+    STOPPED = "stopped"  # an error that stops every worker (a full disk, a lost cluster)
 
 
 def now() -> str:
@@ -59,36 +70,34 @@ class BuildRecord:
     out: str = ""
     versions: dict[str, str] = field(default_factory=dict)
     png_compress_level: int | None = None
-    png: str | None = None  # how the PNGs are written (--png); None: before --png existed
+    png: str | None = None  # how the PNGs are written (--png)
     png_encoder: str | None = None
     executor: dict[str, Any] = field(default_factory=dict)
     started: str | None = None
     finished: str | None = None
-    status: str = ""
+    status: BuildStatus | None = None
     summary: dict[str, Any] | None = None  # absent until the build ends
     # A custom build: {"applied": true, "turned": [the sources turned upright by their EXIF
-    # orientation]}; absent for the presets (read as stored) and before orientation applied.
+    # orientation]}; absent for the presets (read as stored).
     exif_orientation: dict[str, Any] | None = None
     # Where the depth-aware corruptions' depth came from ({"kind", "method", "version"});
     # absent when the build has none.
     depth: dict[str, Any] | None = None
-    other: dict[str, Any] = field(default_factory=dict)  # keys this version does not know
 
     # ----------------------------------------------------------------------- reading
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "BuildRecord":
-        known = {f.name for f in fields(cls)} - {"other"}
+        known = {f.name for f in fields(cls)}
         values = {k: v for k, v in data.items() if k in known}
-        config = data.get("config") if isinstance(data.get("config"), dict) else {}
-        values["config"] = config
-        values.setdefault("dataset", config.get("dataset"))
-        values.setdefault("seed", config.get("seed"))
+        values["config"] = data.get("config") if isinstance(data.get("config"), dict) else {}
         if not isinstance(values.get("split"), dict):
             values["split"] = {}
         if not isinstance(values.get("plans"), list):
             values["plans"] = None
-        return cls(**values, other={k: v for k, v in data.items() if k not in known})
+        values.setdefault("dataset", None)
+        values["status"] = BuildStatus(values["status"]) if values.get("status") else None
+        return cls(**values)
 
     @property
     def keys(self) -> list[str] | None:
@@ -114,23 +123,19 @@ class BuildRecord:
         return self.config.get("limit")
 
     def requests(self) -> list[dict[str, list]]:
-        """The requests recorded: ``plans``, or for a record written before they were kept,
-        the one its config and split keys describe ([] if it has neither)."""
-        if self.plans is not None:
-            return self.plans
-        if "keys" in self.split and "variants" in self.config:
-            return [plan_entry(self.config["variants"], self.config.get("levels") or [],
-                               self.split["keys"])]
-        return []
+        """The requests recorded (``plans``; [] before the first is recorded)."""
+        return self.plans or []
 
     # ----------------------------------------------------------------------- writing
 
     def to_dict(self) -> dict[str, Any]:
-        data = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "other"}
-        for optional in ("summary", "plans", "png", "exif_orientation", "depth"):  # absent, not null, when unset
+        from ..formats import stamp
+
+        data = {f.name: getattr(self, f.name) for f in fields(self)}
+        for optional in ("summary", "plans", "png", "exif_orientation", "depth", "status"):  # absent, not null, when unset
             if data[optional] is None:
                 del data[optional]
-        return {**self.other, **data}
+        return {**data, **stamp(SCHEMA)}
 
 
 def read_record(out: Path) -> BuildRecord | None:
@@ -150,6 +155,13 @@ def read_record(out: Path) -> BuildRecord | None:
                           f"reuse, delete the file") from None
     if not isinstance(data, dict):
         raise RecordError(f"{path}: not a build record (a JSON {type(data).__name__})")
+    try:
+        check(data, SCHEMA, str(path), "build again into a new folder")
+    except FormatError as exc:
+        raise RecordError(str(exc)) from None
+    if data.get("status") and data["status"] not in {s.value for s in BuildStatus}:
+        raise RecordError(f"{path}: unknown status {data['status']!r}; valid: "
+                          + ", ".join(s.value for s in BuildStatus))
     return BuildRecord.from_dict(data)
 
 

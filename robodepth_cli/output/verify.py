@@ -15,7 +15,7 @@ from ..files import sha256_file
 from ..lock import build_note
 from .layout import BOOKKEEPING, JOURNAL, MANIFEST
 from .manifest import ManifestError, lock_holder, read_recorded
-from .record import read_record
+from .record import BuildStatus, read_record
 
 
 @dataclass
@@ -29,7 +29,7 @@ class VerifyReport:
     planned: int | None = None  # outputs the recorded plan asks for (None: no plan recorded)
     unbuilt: list[str] = field(default_factory=list)  # planned, with no manifest row at all
     built: int = 0  # planned outputs with a manifest row and no error
-    status: str = ""  # the build record's status
+    status: BuildStatus | None = None  # the build record's status
     versions_note: str = ""  # the recorded versions that differ from the lock's, in one line
     unfinished: str = ""  # an export's: why it is not finished (its line), else ""
 
@@ -46,8 +46,8 @@ class VerifyReport:
             return self.unfinished
         if not self.unbuilt:
             return ""
-        why = {"running": "build interrupted", "interrupted": "build interrupted",
-               "stopped": "build stopped by an error"}.get(self.status, "not built yet")
+        why = {BuildStatus.RUNNING: "build interrupted", BuildStatus.INTERRUPTED: "build interrupted",
+               BuildStatus.STOPPED: "build stopped by an error"}.get(self.status, "not built yet")
         return (f"incomplete: {self.built} of {self.planned} outputs ({why}; rerun the build "
                 f"command to finish)")
 
@@ -110,7 +110,7 @@ def verify(out: Path, *, planned_outputs, threads: int = 4, progress=None,
                 progress(1)
     report = VerifyReport(len(present), missing, changed, extra, failed,
                           reasons={p: rows[p].error for p in failed},
-                          status=record.status if record else "",
+                          status=record.status if record else None,
                           versions_note=build_note(record.versions) if record else "")
     if planned is not None:
         report.planned = len(planned)

@@ -19,7 +19,7 @@ from typing import Sequence
 from .. import benchmarks as B
 from ..errors import counted
 from ..evaluation import results as R, scores as S
-from ..evaluation.csvrows import ScoreError, dataset_of
+from ..evaluation.csvrows import ResultsTable, ScoreError
 from . import inputs as I
 from . import synreal as X
 from . import tables as T
@@ -60,21 +60,21 @@ def _error(row: dict, metric: str) -> float:
     return R.dee(row["abs_rel"], row["a1"]) if metric == "dee" else row["abs_rel"]
 
 
-def keys_of(paths: Sequence[Path], on: Sequence[str], benchmark: str | None) -> list[tuple[str, str]]:
+def keys_of(tables: Sequence[ResultsTable], on: Sequence[str], benchmark: str | None) -> list[tuple[str, str]]:
     """Each file's (dataset, split): from ``--on`` (once per file, or once for all), else
     the one the file names, else its benchmark as inferred from its rows. A file that names
     another than ``--on`` (or ``--benchmark``) is refused."""
-    if on and len(on) not in (1, len(paths)):
+    if on and len(on) not in (1, len(tables)):
         raise I.ReportError(f"--on given {counted(len(on), 'time')} for "
-                            f"{counted(len(paths), 'results file')}; give it "
+                            f"{counted(len(tables), 'results file')}; give it "
                             "once per file, in the same order, or once for all")
-    given = [X.parse_key(t) for t in (on * len(paths) if len(on) == 1 else on)]
+    given = [X.parse_key(t) for t in (on * len(tables) if len(on) == 1 else on)]
     for text, key in zip(on, given):
         if not key[0]:
             raise I.ReportError(f"--on {text!r}: expected DATASET or DATASET:SPLIT")
     out = []
-    for i, p in enumerate(paths):
-        own = dataset_of(R.read_text(p), str(p))  # an unreadable file says so first
+    for i, table in enumerate(tables):
+        p, own = table.source, table.dataset()
         key = given[i] if given else own
         if own is not None and own != key:
             raise I.ReportError(f"--on {X.key_text(key)}: {p} says its results are on "
@@ -84,7 +84,7 @@ def keys_of(paths: Sequence[Path], on: Sequence[str], benchmark: str | None) -> 
                                 f"{X.key_text(own)} (its dataset column)")
         if key is None:
             try:
-                key = (I.infer([p], benchmark), "")
+                key = (I.infer([table], benchmark), "")
             except ScoreError as exc:
                 raise I.ReportError(f"{exc} (results on another dataset: name it with --on "
                                     "DATASET[:SPLIT])") from None
@@ -92,13 +92,12 @@ def keys_of(paths: Sequence[Path], on: Sequence[str], benchmark: str | None) -> 
     return out
 
 
-def load(paths: Sequence[Path], names: Sequence[str], keys: Sequence[tuple[str, str]],
+def load(tables: Sequence[ResultsTable], names: Sequence[str], keys: Sequence[tuple[str, str]],
          baseline: str | None) -> list[Entry]:
-    """Read every file (a model's name may repeat across datasets, never within one) and
-    score it: a published benchmark as ``robodepth score`` does, another dataset's
+    """Check every results table (a model's name may repeat across datasets, never within
+    one) and score it: a published benchmark as ``robodepth score`` does, another dataset's
     corruption rows against ``baseline``'s results on the same dataset, if given."""
-    from ..files import sha256_bytes
-
+    paths = [Path(t.source) for t in tables]
     chosen = list(names) if names else [p.stem for p in paths]
     if names and len(names) != len(paths):
         raise I.ReportError(f"--name given {counted(len(names), 'time')} for "
@@ -114,18 +113,14 @@ def load(paths: Sequence[Path], names: Sequence[str], keys: Sequence[tuple[str, 
                                 f"{seen[n, k]}{hint}")
         seen[n, k] = p
     entries = []
-    for n, p, k in zip(chosen, paths, keys):
+    for n, p, k, t in zip(chosen, paths, keys, tables):
         if k[0] in PUBLISHED:
-            (model,) = I.load([p], [n], k[0])
+            (model,) = I.load([t], [n], k[0])
             entries.append(Entry(n, p, k, model.variants, model.sha256, model=model,
                                  severity_size=model.severity_size))
         else:
-            from ..corruptions.scaling import in_results
-
-            text = R.read_text(p)
-            _check(text, str(p))
-            entries.append(Entry(n, p, k, I._variant_rows(text), sha256_bytes(text.encode()),
-                                 severity_size=in_results(text)))
+            _check(t)
+            entries.append(Entry(n, p, k, I.variant_rows(t), t.sha256, severity_size=t.severity_size()))
     if baseline is not None and baseline not in chosen:
         raise I.ReportError(f"--baseline {baseline!r}: no results file has that model name "
                             f"(the names: {', '.join(dict.fromkeys(chosen))})")
@@ -145,10 +140,10 @@ def _corrupted(e: Entry) -> bool:
     return any(v["corruption"] in B.CORRUPTIONS and isinstance(v["level"], int) for v in e.variants)
 
 
-def _check(text: str, source: str) -> None:
+def _check(table: ResultsTable) -> None:
     """Every number checked (as ``score`` checks them), corruptions known, one row per
     variant, a clean row."""
-    for _ in R.checked_rows(text, source, None, "the report needs the clean error"):
+    for _ in R.checked_rows(table, None, "the report needs the clean error"):
         pass
 
 
@@ -249,9 +244,7 @@ def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Sec
 
 def _mixed(entries: Sequence[Entry]) -> str:
     """The caption's sentence when ``entries`` were made at different severity sizes."""
-    from ..corruptions.scaling import mixed_note
-
-    note = mixed_note(e.severity_size for e in entries)
+    note = T.mixed_note(e.severity_size for e in entries)
     return f" {note}." if note else ""
 
 

@@ -7,15 +7,13 @@ then the published ones. Nothing here imports matplotlib.
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
 from .. import benchmarks as B
 from ..evaluation import results as R, scores as S
-from ..evaluation.csvrows import normalise_name
+from ..evaluation.csvrows import ResultsTable, normalise_name
 from ..errors import RobodepthError, counted
 from . import published as P
 
@@ -87,12 +85,12 @@ def model_names(paths: Sequence[Path], names: Sequence[str]) -> list[str]:
     return chosen
 
 
-def infer(paths: Sequence[Path], benchmark: str | None) -> str:
-    """The benchmark of every file: ``benchmark`` when given, else inferred from the rows
-    (as ``robodepth score`` infers it); files of different benchmarks are refused."""
+def infer(tables: Sequence[ResultsTable], benchmark: str | None) -> str:
+    """The benchmark of every results table: ``benchmark`` when given, else inferred from
+    the rows (as ``robodepth score`` infers it); files of different benchmarks are refused."""
     if benchmark:
         return benchmark
-    found = {p: R.infer_benchmark(p, style_names()) for p in paths}
+    found = {t.source: R.infer_benchmark(t, style_names()) for t in tables}
     kinds = sorted(set(found.values()))
     if len(kinds) > 1:
         first = {k: next(p for p, v in found.items() if v == k) for k in kinds}
@@ -102,17 +100,13 @@ def infer(paths: Sequence[Path], benchmark: str | None) -> str:
     return kinds[0]
 
 
-def _variant_rows(text: str) -> list[dict]:
-    """The results CSV's rows with every numeric cell as a float (already validated by the
-    score parser, which read the same text)."""
+def variant_rows(table: ResultsTable) -> list[dict]:
+    """The results table's rows with every numeric cell as a float (already validated by
+    the score parser, which read the same table)."""
     out = []
-    for raw in csv.DictReader(line for line in io.StringIO(text)
-                              if line.strip() and not line.lstrip().startswith("#")):
+    for raw in table.records():
         row: dict = {}
-        for k, v in raw.items():
-            if k is None:
-                continue
-            key = k.strip().lower()
+        for key, v in raw.items():
             if key == "corruption":
                 chained = ":" in (v or "") or "+" in (v or "")  # a chain keeps its canonical text
                 row[key] = "".join((v or "").split()) if chained else normalise_name(v or "")
@@ -128,29 +122,26 @@ def _variant_rows(text: str) -> list[dict]:
     return out
 
 
-def load(paths: Sequence[Path], names: Sequence[str], benchmark: str) -> list[Model]:
-    """Read and score every results file; a file missing variants is refused (a report
-    compares complete results only)."""
-    from ..files import sha256_bytes
+def load(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: str) -> list[Model]:
+    """Score every results table; a file missing variants is refused (a report compares
+    complete results only)."""
+    from ..evaluation.owndepth import warning
 
     out = []
-    for name, path in zip(model_names(paths, names), paths):
-        text = R.read_text(path)
+    paths = [Path(t.source) for t in tables]
+    for name, path, table in zip(model_names(paths, names), paths, tables):
         if benchmark == KITTI_S:
-            res = R.parse_style_results(text, str(path), style_names())
+            res = R.parse_style_results(table, style_names())
             row = Row(name, "yours", res.clean, styles=res.dee, source=str(path))
         else:
             bench = B.get_benchmark(benchmark)
-            res = R.read_results(path, bench)
+            res = R.read_results(table, bench)
             missing = R.missing_message(res, bench)
             if missing:
                 raise ReportError(missing)
             row = Row(name, "yours", res.clean, scores=S.score(res, bench), source=str(path))
-        from ..corruptions.scaling import in_results
-        from ..evaluation.owndepth import warning
-
-        out.append(Model(name, path, row, _variant_rows(text), sha256_bytes(text.encode()),
-                         warning(text, str(path)), in_results(text)))
+        out.append(Model(name, path, row, variant_rows(table), table.sha256, warning(table),
+                         table.severity_size()))
     return out
 
 
@@ -190,7 +181,7 @@ def dataset_info(path: Path, benchmark: str) -> dict:
     same bytes have the same fingerprint whatever their order of work)."""
     import hashlib
 
-    from ..api import open_dataset
+    from .. import open_dataset
     from ..output.manifest import read_manifest
 
     ds = open_dataset(path)

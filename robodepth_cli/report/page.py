@@ -8,10 +8,9 @@ import re
 from dataclasses import dataclass
 from typing import Sequence
 
-from ..corruptions.scaling import mixed_note
 from .. import __version__
 from . import published as P
-from .tables import Table, bench_name, to_html
+from .tables import Table, bench_name, mixed_note, to_html
 
 CSS = """
 :root { --ink:#1e1e1e; --muted:#666; --rule:#d0d0d0; --mine:#eef5fb; --context:#8a8a8a; }

@@ -8,7 +8,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..api import open_dataset
+from .. import open_dataset
 from ..benchmarks import CLEAN
 from ..errors import counted
 from .inputs import KITTI_S, ReportError

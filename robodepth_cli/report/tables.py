@@ -128,7 +128,7 @@ def beyond_table(rows: Sequence[Row], benchmark: str, clean: bool = False) -> Ta
     """Rows beyond the benchmark (decimal levels, chains) of the user's models: DEE at every
     level of each severity curve, then each chain's DEE (after the clean DEE if ``clean``).
     None when there are none."""
-    from ..corruptions.severity import level_text
+    from ..keys import level_text
 
     curves: dict[str, set] = {}
     chains: dict[str, None] = {}
@@ -303,3 +303,13 @@ def to_markdown(t: Table) -> str:
             cells.append(f"**{text}**" if mark == "best" else f"*{text}*" if mark == "second" else text)
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def mixed_note(sizes) -> str:
+    """One line when results made at different severity sizes meet in one table; ""
+    otherwise."""
+    distinct = sorted(set(sizes))
+    if len(distinct) < 2:
+        return ""
+    return (f"These results were made at different severity sizes ({', '.join(distinct)}): a level "
+            "is not the same corruption across them")

@@ -19,7 +19,9 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from .. import __version__
+from ..formats import stamp
 from ..errors import counted
+from ..evaluation.csvrows import ResultsTable
 from . import inputs as I
 from . import published as P
 from . import flicker as FL
@@ -27,8 +29,7 @@ from . import tables as T
 from .page import PageFigure
 from .page import render as render_page
 
-SCHEMA = "robodepth-report"
-SCHEMA_VERSION = 1
+SCHEMA = "robodepth-report"  # its version: robodepth_cli/formats.py
 
 
 @dataclass
@@ -66,28 +67,28 @@ def check_writable(out: Path) -> None:
     check(out / "index.html" if out.is_dir() else out, "--out")
 
 
-def assemble(paths: Sequence[Path], names: Sequence[str], benchmark: str | None, context: str,
+def assemble(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: str | None, context: str,
              dataset: Path | None = None, *, on: Sequence[str] = (), pairs: Sequence[Path] = (),
              baseline: str | None = None, metric: str = "dee", n_boot: int = 2000,
              seed: int = 0, n_pred: int = 0) -> Report:
-    """Read, check and score everything (no figure yet). Results of one of the paper's
+    """Check and score every results table (no figure yet). Results of one of the paper's
     benchmarks make the report as before; results of several datasets add a section per
     dataset beyond the first of the paper's (or per dataset, with none of them), a table
     across the datasets and, where the pairs table resolves, synthetic against real."""
     from . import datasets as D
     from . import synreal as X
 
-    keys = D.keys_of(paths, on, benchmark)
+    keys = D.keys_of(tables, on, benchmark)
     if len(set(keys)) == 1 and keys[0][0] in D.PUBLISHED and not keys[0][1]:
-        I.model_names(paths, names)  # flag mistakes first: they need no file read
+        I.model_names([Path(t.source) for t in tables], names)  # flag mistakes first
         bench = keys[0][0]
-        report = _main(bench, I.load(paths, names, bench), context,
+        report = _main(bench, I.load(tables, names, bench), context,
                        I.dataset_info(dataset, bench) if dataset is not None else None)
         if baseline is not None:
             raise I.ReportError(f"--baseline: {bench} has a published baseline; --baseline names "
                                 "the model to score datasets without one against")
         return report
-    entries = D.load(paths, names, keys, baseline)
+    entries = D.load(tables, names, keys, baseline)
     by_key = D.groups(entries)
     main = next((k for k in by_key if k[0] in D.PUBLISHED and not k[1]), None)
     if n_pred and main is None:
@@ -228,7 +229,7 @@ def S_mean(values: dict) -> float:
 def to_json(report: Report) -> dict:
     """The versioned leaderboard entry (schema ``robodepth-report`` version 1, in
     docs/report.md): one object per model of the user's, nothing of the published ones."""
-    doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "robodepth": __version__,
+    doc = {**stamp(SCHEMA),
            "benchmark": report.benchmark if report.models else None, "dataset": report.dataset,
            "models": []}
     if report.note:
@@ -304,7 +305,7 @@ class Written:
 def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None,
           published: Callable[[], None] = lambda: None) -> Written:
     """Write every output of ``report`` under ``out``, whole or not at all (an interrupt or
-    a write error leaves ``out`` as it was); :class:`ReportError` when a file cannot be
+    a write error leaves ``out`` as it was); :class:`~.inputs.ReportError` when a file cannot be
     written. ``published`` is called once the report is in place, before an interrupt
     held meanwhile acts (so the command can say what an interrupt leaves)."""
     import shutil

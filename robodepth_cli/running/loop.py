@@ -5,8 +5,8 @@ Variant by variant in the order of the results CSV, each in split order and in t
 ``robodepth predict`` makes (:func:`~robodepth_cli.models.predict.batch_limit`), so the
 model sees the same batches and every number equals build -> predict -> evaluate's. A
 model on a GPU gets the next batch rendered in a second thread while it runs on this one; a
-model on the CPU gets them one after the other, since its threads already use every core
-(on the 2-core development machine the overlap only added contention). A finished
+model on the CPU gets them one after the other: its threads already use every core, and an
+overlap would only add contention. A finished
 variant's row goes into the state (:mod:`.state`) before the next one starts.
 """
 
@@ -42,9 +42,7 @@ def settings(inputs: RunInputs, model, setup, batch: int, engine: str) -> dict:
             "keys": split_digest(inputs.keys), "size": list(cfg.size) if cfg.size else None,
             "seed": cfg.seed, "engine": engine, "batch": batch,
             "model": {k: record[k] for k in ("model", "adapter", "identity", "options", "evaluate")},
-            "setup": asdict(setup),
-            # Only when set: a run's state from before the option stays valid.
-            **({"severity_size": sev} if (sev := cfg.extra.get("severity_size", "none")) != "none" else {})}
+            "setup": asdict(setup), "severity_size": cfg.extra.get("severity_size", "none")}
 
 
 def render_batch(renderer: Renderer, cleans: Sequence[np.ndarray], keys: Sequence[str],

@@ -4,6 +4,7 @@ sources decoded once, the model, the evaluation setup, the resumable state and t
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -13,13 +14,13 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
         keep: Path | None, progress: bool, note: Callable[[str], None],
         on_state: Callable[[Path], None]):
     """Judge model ``spec`` on ``dataset`` made in memory from ``root``; write the results CSV
-    ``out`` and return ``(result, its CSV text, the benchmark scored, whether out was
+    ``out`` and return ``(result, its results table, the benchmark scored, whether out was
     replaced)``. ``evaluation``: the evaluate flags (stereo, align, align_space, crop,
     min_depth, max_depth); ``note`` prints a line for the user; ``on_state`` is told the
     state file once the decoding is done (the run then resumes from it)."""
     from ..building.config import resolve
-    from ..evaluation import evaluate as E
     from ..evaluation.setup import evaluation_setup, scored_benchmark
+    from ..evaluation.modelsize import with_size
     from ..files import check_writable
     from ..models import load_model
     from ..models.predict import BATCH_PIXELS, batch_limit
@@ -62,19 +63,11 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
         note(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
              f"{state.path} (finished by an earlier run)")
     replacing = out.exists()
-    text = _csv(result, cfg, model, cleans)
-    E.write_results(out, text)
+    table = replace(with_size(result.table(cfg.extra.get("severity_size")), {"size": _size(model, cleans)}),
+                    source=str(out))
+    table.write(out)
     state.remove()
-    return result, text, bench, replacing
-
-
-def _csv(result, cfg, model, cleans) -> str:
-    """The results CSV as evaluate writes it: the build's severity size, the model's size."""
-    from ..corruptions.scaling import with_column
-    from ..evaluation.modelsize import with_size
-
-    return with_size(with_column(result.csv_text(), cfg.extra.get("severity_size")),
-                     {"size": _size(model, cleans)})
+    return result, table, bench, replacing
 
 
 def _size(model, cleans) -> dict | None:

@@ -40,6 +40,7 @@ infinity, KITTI and the PNG forms with 0), and where ``mask`` (a second map of t
 
 from __future__ import annotations
 
+import errno
 import struct
 import zipfile
 from pathlib import Path
@@ -191,18 +192,13 @@ def _two_d(values: np.ndarray, path: Path) -> np.ndarray:
 
 
 def _png(path: Path, shape) -> np.ndarray:
-    from ..imageio import Png16Error, read_png16
+    """A 16-bit depth PNG (:func:`robodepth_cli.imageio.read_depth_png`); a missing one
+    raises FileNotFoundError, which the caller turns into a missing depth map."""
+    from ..imageio import read_depth_png
 
-    try:
-        return read_png16(path).astype(np.int64)
-    except Png16Error as exc:
-        if not exc.got:
-            raise DepthError(f"{path}: not a readable PNG (truncated or damaged)") from None
-        raise DepthError(f"{path}: {exc.got}; depth PNGs are 16-bit, one channel") from None
-    except OSError as exc:
-        if isinstance(exc, FileNotFoundError):
-            raise
-        raise DepthError(f"{path}: not a readable PNG ({os_reason(exc)})") from None
+    if not Path(path).exists():
+        raise FileNotFoundError(errno.ENOENT, "No such file or directory", str(path))
+    return read_depth_png(path, "depth map", DepthError).astype(np.int64)
 
 
 NPY_MAGIC = b"\x93NUMPY"

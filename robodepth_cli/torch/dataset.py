@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..api import failed_text, open_dataset, read_neighbours
+from .. import open_dataset
+from ..api import failed_text, read_neighbours
 from ..output.layout import CLEAN, GT_FILE, variant_dir
 from .errors import TorchAPIError
 from .transforms import Corrupt

@@ -250,24 +250,6 @@ def test_exif_orientation_is_applied_and_recorded(tmp_path, build, cli):
     assert cli("verify", out).exit_code == 0
 
 
-def test_build_made_before_orientation_redoes_only_turned_images(tmp_path, build):
-    stored = random_image(48, 64, seed=8)
-    root = tmp_path / "phone"
-    _tagged_png(root / "mirror.png", stored, 2)  # same size either way
-    save(root / "plain.png", stored)
-    out = tmp_path / "out"
-    assert build(root, out).exit_code == 0
-    # As a build of an older version left it: mirror.png's outputs as stored, no record.
-    record = json.loads((out / "build.json").read_text())
-    del record["exif_orientation"]
-    (out / "build.json").write_text(json.dumps(record))
-    r = build(root, out)
-    assert r.exit_code == 0, r.output
-    per_image = 1 + 3 * 2
-    assert f"{per_image} written, {per_image} skipped" in r.output
-    np.testing.assert_array_equal(load(out / "clean" / "mirror.png"), stored[:, ::-1])
-
-
 def _stop_at_write(monkeypatch, n, exc=KeyboardInterrupt):
     """Make the build's ``n``-th PNG write raise ``exc`` (the earlier ones are written): a
     stop in the middle of one source image's outputs."""

@@ -3,7 +3,6 @@ OUT, changed sources redone, verify against the plan, limits on jobs and sizes."
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import shutil
@@ -232,38 +231,6 @@ def test_touched_or_copied_sources_are_not_rebuilt(kitti, tmp_path, build_kitti)
     copy = tmp_path / "copy"
     shutil.copytree(root, copy, copy_function=shutil.copyfile)  # new times again
     assert "0 written, 6 skipped" in build_kitti(copy, split, out, *SMALL).output
-
-
-def test_manifest_of_an_older_build_still_reads_and_gains_the_source_columns(kitti, tmp_path, cli,
-                                                                            build_kitti):
-    root, split = kitti
-    out = tmp_path / "out"
-    assert build_kitti(root, split, out, *SMALL).exit_code == 0
-    old_columns = ["output", "source", "variant", "level", "seed", "height", "width", "sha256",
-                   "error", "params"]
-    with open(out / "manifest.csv", newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    with open(out / "manifest.csv", "w", newline="") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(old_columns)
-        w.writerows([r[c] for c in old_columns] for r in rows)
-    record = json.loads((out / "build.json").read_text())
-    del record["plans"]  # as a build made before plans were recorded
-    (out / "build.json").write_text(json.dumps(record))
-    assert cli("verify", out).exit_code == 0
-    res = build_kitti(root, split, out, *SMALL)
-    assert "0 written, 6 skipped" in res.output, res.output
-    with open(out / "manifest.csv", newline="") as fh:
-        upgraded = list(csv.DictReader(fh))
-    assert len(upgraded) == 6
-    for r in upgraded:
-        src = root / r["source"]
-        assert int(r["source_size"]) == src.stat().st_size
-        assert int(r["source_mtime"]) == src.stat().st_mtime_ns
-        assert len(r["source_sha256"]) == 64
-    # And a source changed after the upgrade is noticed.
-    save(root / rows[0]["source"], random_image(60, 200, seed=43))
-    assert "3 written, 3 skipped" in build_kitti(root, split, out, *SMALL).output
 
 
 # --- defect 9: limits ------------------------------------------------------------------------

@@ -85,22 +85,6 @@ def test_resume_keeps_the_builds_own_encoder(tmp_path, cli, build_kitti):
     assert cli("verify", out).exit_code == 0
 
 
-def test_build_from_before_png_existed_counts_as_compact(tmp_path, build_kitti):
-    root, split = _kitti(tmp_path)
-    out = tmp_path / "out"
-    flags = ["--size", "64x96", "--levels", "1", "--jobs", "1"]
-    assert build_kitti(root, split, out, *flags, "--corruptions", "contrast", "--png", "compact").exit_code == 0
-    record = _record(out)
-    del record["png"]  # as written before --png
-    (out / "build.json").write_text(json.dumps(record))
-    res = build_kitti(root, split, out, *flags, "--corruptions", "contrast,pixelate")
-    assert res.exit_code == 0 and "2 written, 4 skipped" in res.output, res.output
-    assert _record(out)["png"] == "compact"
-    new = {p: d for p, d in tree(out).items() if p.startswith("pixelate/")}
-    assert len(new) == 2
-    assert all(d == encode_png(_pixels(d), method="compact") for d in new.values())
-
-
 def test_fast_without_fpng_is_one_line_error(tmp_path, build_kitti, monkeypatch):
     import sys
 

@@ -334,20 +334,16 @@ def test_the_report_names_each_files_severity_size_and_a_mixed_table_says_so(tmp
 def test_evaluate_writes_the_builds_severity_size_into_the_results():
     import csv
     import io
-    from types import SimpleNamespace
 
-    from robodepth_cli.commands.evaluate import _with_severity
-    from robodepth_cli.corruptions.scaling import in_results
-
-    def built(extra):
-        return SimpleNamespace(record=SimpleNamespace(config={"extra": extra}))
+    from robodepth_cli.evaluation.csvrows import ResultsTable
 
     text = "corruption,level,abs_rel,a1\nclean,0,0.1,0.9\nfog,1,0.2,0.8\n"
-    scaled = _with_severity(built({"severity_size": "192x640"}), text)
+    plain = ResultsTable.parse(text, "r.csv")
+    scaled = plain.with_column("severity_size", "192x640").text()
     rows = list(csv.DictReader(io.StringIO(scaled)))  # any CSV reader still reads it
     assert [r["severity_size"] for r in rows] == ["192x640", "192x640"] and rows[1]["a1"] == "0.8"
-    assert in_results(scaled) == "192x640" and in_results(text) == "none"
-    assert _with_severity(built({"severity_size": "none"}), text) == text == _with_severity(built({}), text)
+    assert ResultsTable.parse(scaled, "r.csv").severity_size() == "192x640"
+    assert plain.severity_size() == "none" and plain.text() == text
 
 
 def test_the_transforms_take_the_severity_size():

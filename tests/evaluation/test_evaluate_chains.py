@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from robodepth_cli.evaluation.csvrows import ResultsTable
+
 import csv
 import json
 
@@ -65,9 +67,9 @@ def full_csv(extra: str = "") -> str:
 
 
 def test_extra_rows_change_no_benchmark_score():
-    plain = score(parse_results(full_csv(), "r.csv", KITTI), KITTI)
-    extra = score(parse_results(full_csv("fog,2.5,0.5\nfog,1.25,0.45\nfog:3 + snow:2,0,0.6\ndark:1+contrast:5,,0.7\n"),
-                                "r.csv", KITTI), KITTI)
+    plain = score(parse_results(ResultsTable.parse(full_csv(), "r.csv"), KITTI), KITTI)
+    extra = score(parse_results(ResultsTable.parse(full_csv("fog,2.5,0.5\nfog,1.25,0.45\nfog:3 + snow:2,0,0.6\ndark:1+contrast:5,,0.7\n"),
+                                                    "r.csv"), KITTI), KITTI)
     assert (extra.overall, extra.categories, extra.corruptions) == (plain.overall, plain.categories, plain.corruptions)
     assert list(extra.curves) == ["fog"]
     assert list(extra.curves["fog"].items()) == [(1, pytest.approx(0.112)), (1.25, 0.45),
@@ -85,7 +87,7 @@ def test_extra_rows_change_no_benchmark_score():
 ])
 def test_bad_extra_rows(extra, message):
     with pytest.raises(ScoreError) as info:
-        parse_results(full_csv(extra), "r.csv", KITTI)
+        parse_results(ResultsTable.parse(full_csv(extra), "r.csv"), KITTI)
     assert message in str(info.value)
 
 
@@ -93,7 +95,7 @@ def test_nyu_chains_keep_nyus_corruptions():
     nyu = BENCHMARKS["nyudepth2-c"]
     text = "corruption,level,dee\nclean,0,0.1\ndark,1,0.2\nfog:1+dark:2,0,0.4\n"
     with pytest.raises(ScoreError, match="chain fog:1\\+dark:2: fog is not a corruption of nyudepth2-c"):
-        parse_results(text, "r.csv", nyu)
+        parse_results(ResultsTable.parse(text, "r.csv"), nyu)
 
 
 @pytest.fixture(scope="module")

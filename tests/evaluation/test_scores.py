@@ -7,6 +7,8 @@ output.
 
 from __future__ import annotations
 
+from robodepth_cli.evaluation.csvrows import ResultsTable
+
 import json
 import numpy as np
 import pytest
@@ -163,7 +165,7 @@ SMALL_CSV = """a1, Level ,corruption,rmse,abs_rel
 
 
 def test_small_case_by_hand():
-    s = S.score(R.parse_results(SMALL_CSV, "small.csv", SMALL), SMALL)
+    s = S.score(R.parse_results(ResultsTable.parse(SMALL_CSV, "small.csv"), SMALL), SMALL)
     got = {c.name: (c.dee, c.ce, c.rr) for c in s.corruptions}
     assert got["brightness"] == pytest.approx((0.2, 100.0, 100 * 16 / 18))
     assert got["dark"] == pytest.approx((0.3, 75.0, 100 * 14 / 18))
@@ -185,7 +187,7 @@ def test_partial_scores_average_what_is_present():
     # Drop dark level 2 and all of defocus_blur. dark: DEE .2 -> CE .2/.4 = 50, RR .8/.9.
     text = "\n".join(l for l in SMALL_CSV.splitlines()
                      if not (",2,dark" in l or "defocus" in l)) + "\n"
-    res = R.parse_results(text, "p.csv", SMALL)
+    res = R.parse_results(ResultsTable.parse(text, "p.csv"), SMALL)
     assert res.missing(SMALL) == [("dark", 2), ("defocus_blur", 1), ("defocus_blur", 2)]
     with pytest.raises(R.ScoreError, match=r"p.csv: missing 3 of 6 variants: dark 2, defocus_blur \(all levels\)"):
         S.score(res, SMALL)
@@ -551,7 +553,7 @@ def test_plot_not_written_when_scoring_fails(tmp_path, cli):
 
 
 def test_plot_of_partial_results_renders(tmp_path):
-    s = S.score(R.parse_results(SMALL_CSV, "small.csv", SMALL), SMALL)
+    s = S.score(R.parse_results(ResultsTable.parse(SMALL_CSV, "small.csv"), SMALL), SMALL)
     path = tmp_path / "small.png"
     path.write_bytes(render(ce_figure([Model("small", s)], "small"), "png"))
     img = _png(path)

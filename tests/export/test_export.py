@@ -392,13 +392,13 @@ def test_report_draws_a_frame_of_an_export_as_of_the_build(build, exports, tmp_p
     pytest.importorskip("matplotlib")
     from robodepth_cli.report import write as W
     from robodepth_cli.report.qualitative import qualitative
-    from tests.helpers.report import evaluate_csv  # a whole KITTI-C results file (the paper's figures)
+    from tests.helpers.report import evaluate_csv, tables  # a whole KITTI-C results file (the paper's figures)
 
     module = tmp_path / "m.py"
     module.write_text(MODEL)
     pred = tmp_path / "P"
     assert cli("predict", build, "-m", f"python:{module}:brightness", "--kind", "disp", "-o", pred).exit_code == 0
-    report = W.assemble([evaluate_csv(tmp_path / "r.csv", "kitti-c", "MonoViT")], ["m"], None, "none", build)
+    report = W.assemble(tables([evaluate_csv(tmp_path / "r.csv", "kitti-c", "MonoViT")]), ["m"], None, "none", build)
 
     def pixels(where):
         (_, _, _, fig), _ = qualitative(report, where, [pred], 1)

@@ -11,6 +11,13 @@ from pathlib import Path
 from robodepth_cli.report import published as P
 
 
+def tables(paths) -> list:
+    """The results files ``paths`` read, as the report command hands them on."""
+    from robodepth_cli.evaluation.csvrows import ResultsTable
+
+    return [ResultsTable.read(p) for p in paths]
+
+
 KITTI_COLUMNS = ["corruption", "level", "abs_rel", "sq_rel", "rmse", "rmse_log", "a1", "a2", "a3"]
 
 

@@ -9,6 +9,8 @@ the form `robodepth evaluate` writes (abs_rel, a1 and the other metrics).
 
 from __future__ import annotations
 
+from tests.helpers.report import tables as _tables
+
 import csv
 import json
 import re
@@ -288,7 +290,7 @@ def test_no_text_overlaps_in_any_figure(tmp_path, cli):
 
     files = [evaluate_csv(tmp_path / f"m{i}.csv", "kitti-c", m)
              for i, m in enumerate(("MonoViT", "Lite-Mono Large", "DIFFNet", "CADepth"))]
-    report = W.assemble(files, ["a long model name for the legend", "b", "c", "d"], None, "all")
+    report = W.assemble(_tables(files), ["a long model name for the legend", "b", "c", "d"], None, "all")
     W.draw(report)
     assert [f[0] for f in report.figures] == ["radar", "ce", "levels", "summary"]
     for _, _, _, fig in report.figures:

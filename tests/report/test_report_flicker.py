@@ -4,6 +4,8 @@ flicker columns give the same report as before."""
 
 from __future__ import annotations
 
+from tests.helpers.report import tables as _tables
+
 import csv
 import json
 
@@ -81,7 +83,7 @@ def test_flicker_figure_bars_are_the_values_and_legible(two_models):
 
     from robodepth_cli.report import write as W
 
-    report = W.assemble(list(two_models), ["a long model name for the legend", "B"], None, "all")
+    report = W.assemble(_tables(list(two_models)), ["a long model name for the legend", "B"], None, "all")
     W.draw(report)
     assert [f[0] for f in report.figures][-1] == "flicker"
     fig = report.figures[-1][3]
@@ -130,7 +132,7 @@ def test_a_model_without_flicker_beside_one_with_it(tmp_path, two_models):
     from robodepth_cli.report import write as W
 
     plain = evaluate_csv(tmp_path / "plain.csv", "kitti-c", "CADepth")
-    report = W.assemble([plain, two_models[0]], ["plain", "A"], None, "all")
+    report = W.assemble(_tables([plain, two_models[0]]), ["plain", "A"], None, "all")
     W.draw(report)
     assert [f.model for f in report.flicker] == ["A"]
     assert report.flicker[0].row.name == "A"

@@ -4,6 +4,8 @@ near"; model names of any length readable above their rows (issue 26 items 2, 3)
 
 from __future__ import annotations
 
+from tests.helpers.report import tables as _tables
+
 import json
 
 import numpy as np
@@ -43,7 +45,7 @@ def test_depth_and_disparity_models_drawn_alike(small_build, tmp_path, cli):  # 
     depth = _preds(small_build, tmp_path / "DEPTH", "depth")
     a = evaluate_csv(tmp_path / "a.csv", "kitti-c", "MonoViT")
     b = evaluate_csv(tmp_path / "b.csv", "kitti-c", "DIFFNet")
-    report = W.assemble([a, b], ["disparity model", "metric depth model"], None, "none", small_build)
+    report = W.assemble(_tables([a, b]), ["disparity model", "metric depth model"], None, "none", small_build)
     (_, _, caption, fig), guessed = qualitative(report, small_build, [disp, depth], 0)
     assert guessed == []
     assert "metric depth model (depth, drawn inverted, as its predictions.json records)" in caption

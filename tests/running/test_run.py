@@ -98,7 +98,7 @@ def test_nyu_run_writes_the_csv_of_build_predict_evaluate(tmp_path, cli, py_mode
     assert res.exit_code == 0, res.output
     expected = (tmp_path / "e.csv").read_bytes()
     assert (tmp_path / "r.csv").read_bytes() == expected and expected.count(b"\n") == 6
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["B", "P", "e.csv", "r.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["B", "P", "e.csv", "e.csv.json", "r.csv", "r.csv.json"]
 
 
 def test_a_weak_model_gets_warnings_and_its_csv_not_a_refusal(tmp_path, cli):

@@ -62,7 +62,7 @@ def hwc_order(u: torch.Tensor) -> torch.Tensor:
 
 
 def sample_law(x: torch.Tensor, table, u: torch.Tensor) -> torch.Tensor:
-    """:meth:`~..._sampling.ValueTable.sample` on tensors: element ``i`` of uint8 ``x`` is
+    """:meth:`~.._sampling.ValueTable.sample` on tensors: element ``i`` of uint8 ``x`` is
     the first ``j`` with ``u[i] < cdf[x[i], j]`` (float64 comparisons, so the very same
     ``j``), ``u`` float64 shaped like ``x``.
 
