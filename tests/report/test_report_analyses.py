@@ -28,7 +28,9 @@ def _assemble(files, names, **kw):
     from robodepth_cli.report import write as W
     from robodepth_cli.report.analyses import add
 
-    report = W.assemble(files, names, None, "all")
+    from robodepth_cli.evaluation.csvrows import ResultsTable
+
+    report = W.assemble([ResultsTable.read(f) for f in files], names, None, "all")
     before = len(report.figures)
     add(report, **kw)
     return {stem: fig for stem, _, _, fig in report.figures[before:]}
@@ -178,7 +180,9 @@ def test_finetune_matrix_cells_are_the_level_means_of_abs_rel(tmp_path, cli):
     from robodepth_cli.report import write as W
     from robodepth_cli.report.tags import parse_tags
 
-    report = W.assemble([snow, base, fog], ["S", "B", "F"], None, "all")
+    from robodepth_cli.evaluation.csvrows import ResultsTable
+
+    report = W.assemble([ResultsTable.read(f) for f in (snow, base, fog)], ["S", "B", "F"], None, "all")
     mx = FT.matrix(report.models, parse_tags(["F:finetune=fog", "S:finetune=Snow"], ["S", "B", "F"]),
                    "kitti-c")
     assert mx.rows == ("none", "fog", "snow") and mx.models == ("B", "F", "S")

@@ -8,6 +8,8 @@ from tests.helpers.report import tables as _tables
 
 import json
 
+from robodepth_cli.formats import stamp
+
 import numpy as np
 import pytest
 
@@ -29,7 +31,7 @@ def _preds(build, where, kind, record=True):
         v.save_predictions(where, [disp if kind == "disp" else 1 / disp] * len(ds.keys))
     if record:
         (where / "predictions.json").write_text(json.dumps(
-            {"model": "test", "evaluate": {"kind": kind, "align": "none", "align_space": "depth"}}))
+            {**stamp("robodepth-predictions"), "model": "test", "evaluate": {"kind": kind, "align": "none", "align_space": "depth"}}))
     return where
 
 
