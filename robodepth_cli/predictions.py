@@ -109,14 +109,14 @@ class Predictions:
 
 
 class ArrayPredictions(Predictions):
-    """Form 1: one N x h x w array per variant. A ``.npy`` (C order) is read one map at a
-    time from the file; a ``.npz`` (compressed, no random access) is loaded once for its
-    variant."""
+    """Form 1: one N x h x w array per variant. A ``.npy`` is memory-mapped (read-only) and
+    each map handed out as a view of it, with no copy: the page cache holds the file once;
+    a ``.npz`` (compressed, no random access) is loaded once for its variant."""
 
     def __init__(self, variant, source: Path):
         self.variant = variant
         self.source = source
-        shape, fortran, dtype, self._offset = _array_header(source)
+        shape, fortran, dtype, offset = _array_header(source)
         n = len(variant)
         if len(shape) != 3:
             hint = (" (one axis too many: squeeze it)" if len(shape) == 4 and 1 in shape[1:2]
@@ -128,22 +128,15 @@ class ArrayPredictions(Predictions):
                                   f"{variant.label} (one per image, in split order)")
         if dtype.kind not in "fiu":
             raise PredictionsError(f"{source}: dtype {dtype}; expected numbers")
-        self._shape, self._dtype = shape, dtype
-        self._direct = source.suffix == ".npy" and not fortran
+        if source.suffix == ".npy":
+            have, need = source.stat().st_size, offset + int(np.prod(shape)) * dtype.itemsize
+            if have < need:
+                raise PredictionsError(f"{source}: the file ends early (truncated?): {have:,} "
+                                      f"bytes, its header says {need:,}")
         self._array = None
-        self._fh = None
 
     def read(self, i):
         where = f"{self.source}: prediction {i}"
-        if self._direct:
-            if self._fh is None:
-                self._fh = open(self.source, "rb")
-            count = self._shape[1] * self._shape[2]
-            self._fh.seek(self._offset + i * count * self._dtype.itemsize)
-            m = np.fromfile(self._fh, dtype=self._dtype, count=count)
-            if m.size != count:
-                raise PredictionsError(f"{where}: the file ends early (truncated?)")
-            return m.reshape(self._shape[1:]), where, False
         if self._array is None:
             try:
                 if self.source.suffix == ".npz":
@@ -155,13 +148,10 @@ class ArrayPredictions(Predictions):
                 reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
                 raise PredictionsError(f"{self.source}: cannot read its array, damaged? "
                                       f"({reason})") from None
-        return np.array(self._array[i]), where, False
+        return self._array[i], where, False
 
     def close(self):
         self._array = None
-        if self._fh is not None:
-            self._fh.close()
-            self._fh = None
 
 
 def _array_header(path: Path) -> tuple[tuple[int, ...], bool, np.dtype, int]:
