@@ -1,5 +1,6 @@
 """The numba tools every kernel of the package shares: :func:`njit` (compiled once, cached
-on disk) and :func:`fma` (a multiply-add rounded once, the same on every CPU). Public so
+on disk), :func:`fma` (a multiply-add rounded once, the same on every CPU) and :func:`div`
+(IEEE division, no zero check). Public so
 that kernels outside the corruptions (the evaluation's) compile the same way."""
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from numba.extending import intrinsic
 
 from ._jit import njit
 
-__all__ = ["fma", "njit"]
+__all__ = ["div", "fma", "njit"]
 
 
 @intrinsic
@@ -23,3 +24,14 @@ def fma(typingctx, a, b, c):
         return builder.call(fn, args)
 
     return a(a, b, c), codegen
+
+
+@intrinsic
+def div(typingctx, a, b):
+    """``a / b`` as IEEE divides (infinity or NaN for ``b = 0``) for float32 or float64
+    operands of one type, as numpy does: numba's own ``/`` checks each divisor for zero to
+    raise ZeroDivisionError, which also keeps a loop from vectorising."""
+    def codegen(context, builder, signature, args):
+        return builder.fdiv(args[0], args[1])
+
+    return a(a, b), codegen

@@ -29,7 +29,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..corruptions.jit import fma, njit
+from llvmlite import ir
+from numba.core import types
+from numba.extending import intrinsic
+
+from ..corruptions.jit import div, fma, njit
 
 
 @lru_cache(maxsize=64)
@@ -58,10 +62,10 @@ def _fma_positions(d, s, t):
 
 
 @njit
-def _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, span, out):
+def _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, span, invert, one, out):
     """``out[k]`` = the prediction at flat ground-truth pixel ``index[k]`` (``width`` per
     row): interpolated from its four inputs (``resize``) or read; each input first through
-    ``lo + span * v`` (``sigmoid``)."""
+    ``lo + span * v`` (``sigmoid``); then ``one / v`` (``invert``)."""
     row = -1
     start = 0
     for k in range(index.size):
@@ -82,7 +86,7 @@ def _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, spa
             v = pred[row, c]
             if sigmoid:
                 v = lo + span * v
-        out[k] = v
+        out[k] = div(one, v) if invert else v
     return out
 
 
@@ -104,12 +108,8 @@ def sample_linear(pred: np.ndarray, gt_shape: tuple[int, int], index: np.ndarray
     y0, y1, wy = linear_axis(pred.shape[0], height, double) if resize else _NONE[double]
     lo, span = sigmoid if sigmoid is not None else (0.0, 1.0)
     out = np.empty(index.size, pred.dtype)
-    _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid is not None, dt(lo),
-            dt(span), out)
-    if invert:  # numpy's 1 / v (numba's division would raise on a 0)
-        with np.errstate(divide="ignore"):
-            np.divide(1, out, out=out)
-    return out
+    return _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid is not None,
+                   dt(lo), dt(span), invert, dt(1), out)
 
 
 _NONE = {d: (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, t))
@@ -170,85 +170,123 @@ def median(values: np.ndarray):
     return values.dtype.type(_median(values, values.dtype.type(2)))
 
 
+_SQRT2 = math.sqrt(2.0)
+_LN2 = math.log(2.0)
+_C = tuple(1.0 / n for n in (3, 5, 7, 9, 11, 13, 15, 17, 19, 21))
+
+
+@intrinsic
+def _bits(typingctx, x):
+    """The bits of a float64, as an int64."""
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+
+    return types.int64(types.float64), codegen
+
+
+@intrinsic
+def _from_bits(typingctx, i):
+    """The float64 of the bits ``i``."""
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.DoubleType())
+
+    return types.float64(types.int64), codegen
+
+
 @njit
-def _terms(g, a):
-    """One pixel's terms of the metrics: ``|g - a| / g``, ``(g - a)^2 / g``, ``(g - a)^2``
-    and ``t = max(g / a, a / g)`` in the dtype of ``g`` and ``a`` (promoted, as numpy
-    computes them), and ``e = log(a / g)`` in float64 (one logarithm per pixel:
-    ``log a - log g``, ``log10 a - log10 g = e / ln 10``)."""
-    diff = g - a
-    sq = diff * diff
-    return abs(diff) / g, sq / g, sq, max(g / a, a / g), math.log(np.float64(a) / np.float64(g))
+def _log(x):
+    """``log x`` of a positive normal float64 to within a few units in the last place, in
+    plain arithmetic that vectorises (the C library's ``log`` is a call per value):
+    ``x = m 2^k``, ``m`` in ``[sqrt(1/2), sqrt(2))``, ``log m = 2 atanh s`` with ``s = (m -
+    1) / (m + 1)``, the series to ``s^21`` (``|s| < 0.172``: the next term is < 1e-17)."""
+    i = _bits(x)
+    k = np.float64(((i >> 52) & 0x7FF) - 1023)
+    m = _from_bits((i & 0xFFFFFFFFFFFFF) | 0x3FF0000000000000)
+    big = m > _SQRT2
+    m = m * 0.5 if big else m
+    k = k + 1.0 if big else k
+    s = div(m - 1.0, m + 1.0)
+    z = s * s
+    c = _C
+    q = ((((((((c[9] * z + c[8]) * z + c[7]) * z + c[6]) * z + c[5]) * z + c[4]) * z + c[3]) * z
+          + c[2]) * z + c[1]) * z + c[0]
+    return k * _LN2 + 2.0 * s * (q * z + 1.0)
+
+
+_BLOCK = 256  # pixels whose logarithms are taken together, in one vectorised loop
 
 
 @njit
 def _scaled_errors(gt, p, scale, lo, hi, zero):
-    """The sums over the pixels of :func:`_terms` of ``gt`` and ``d = clamp(p * scale, lo,
-    hi)``, both promoted to the dtype of ``zero``: (abs_rel, sq_rel, squares, counts below
-    the three thresholds, e, e^2, |e|); the NaN flag ``bad`` when a ``d`` is NaN."""
-    s0 = s1 = s2 = s4 = s5 = s6 = 0.0
-    n1 = n2 = n3 = 0
-    bad = False
-    for k in range(p.size):
-        d = p[k] * scale
-        if d != d:
-            bad = True
-            break
-        if d < lo:
-            d = lo
-        if d > hi:
-            d = hi
-        t0, t1, t2, t, e = _terms(gt[k] + zero, d + zero)
-        s0 += t0
-        s1 += t1
-        s2 += t2
-        n1 += t < 1.25
-        n2 += t < 1.25 ** 2
-        n3 += t < 1.25 ** 3
-        s4 += e
-        s5 += e * e
-        s6 += abs(e)
-    return (s0, s1, s2, n1, n2, n3, s4, s5, s6), p.size, bad
-
-
-@njit
-def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, zero):
-    """:func:`_scaled_errors` of a whole map in one pass: the ground truth ``raw[r, c] /
-    divisor`` (float32), valid where ``vlo < g < vhi`` inside the slice bounds ``box``
-    (top, bottom, left, right), the prediction ``pred[r, c]`` clamped to ``[lo, hi]``;
-    with the count of valid pixels."""
-    s0 = s1 = s2 = s4 = s5 = s6 = 0.0
-    n1 = n2 = n3 = n = 0
-    bad = False
-    for r in range(box[0], box[1]):
-        for c in range(box[2], box[3]):
-            g = np.float32(raw[r, c]) / divisor
-            if not (g > vlo and g < vhi):
-                continue
-            d = pred[r, c]
+    """The sums over the pixels of ``g = gt`` and ``d = clamp(p * scale, lo, hi)``, both in
+    the dtype of ``zero`` (numpy's arithmetic): ``|g - d| / g``, ``(g - d)^2 / g``, ``(g -
+    d)^2``, the counts of ``max(g / d, d / g)`` under the three thresholds, then of ``e =
+    log(d / g)`` in float64 (``log d - log g``; ``log10 d - log10 g`` is ``e / ln 10``),
+    ``e``, ``e^2`` and ``|e|``, each summed in pixel order; and whether a ``d`` is NaN."""
+    s0 = s1 = s2 = s6 = s7 = s8 = 0.0
+    n1 = n2 = n3 = 0.0
+    ratio = np.empty(_BLOCK)
+    for start in range(0, p.size, _BLOCK):
+        m = min(_BLOCK, p.size - start)
+        for j in range(m):
+            d = p[start + j] * scale
             if d != d:
-                bad = True
-            if d < lo:
-                d = lo
-            if d > hi:
-                d = hi
-            t0, t1, t2, t, e = _terms(g + zero, d + zero)
-            s0 += t0
-            s1 += t1
-            s2 += t2
+                return (s0, s1, s2, n1, n2, n3, s6, s7, s8), True
+            d = lo if d < lo else d
+            d = hi if d > hi else d
+            g, d = gt[start + j] + zero, d + zero
+            diff = g - d
+            sq = diff * diff
+            t = max(div(g, d), div(d, g))
+            s0 += div(abs(diff), g)
+            s1 += div(sq, g)
+            s2 += sq
             n1 += t < 1.25
             n2 += t < 1.25 ** 2
             n3 += t < 1.25 ** 3
-            s4 += e
-            s5 += e * e
-            s6 += abs(e)
-            n += 1
-    return (s0, s1, s2, n1, n2, n3, s4, s5, s6), n, bad
+            ratio[j] = div(np.float64(d), np.float64(g))
+        for j in range(m):
+            ratio[j] = _log(ratio[j])
+        for j in range(m):
+            e = ratio[j]
+            s6 += e
+            s7 += e * e
+            s8 += abs(e)
+    return (s0, s1, s2, n1, n2, n3, s6, s7, s8), False
+
+
+@njit
+def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, gbuf, pbuf):
+    """:func:`_scaled_errors` of a whole map in one pass, with no per-pixel array: the
+    ground truth ``raw[r, c] / divisor`` (float32), valid where ``vlo < g < vhi`` inside
+    the slice bounds ``box`` (top, bottom, left, right), and the prediction ``pred[r, c]``
+    clamped to ``[lo, hi]``, a row's valid pixels at a time (copied into the row buffers
+    ``gbuf``, ``pbuf``). Returns the sums, the count of valid pixels and whether a
+    prediction is NaN."""
+    total = np.zeros(9)
+    n = 0
+    for r in range(box[0], box[1]):
+        k = 0
+        for c in range(box[2], box[3]):
+            g = div(np.float32(raw[r, c]), divisor)
+            if g > vlo and g < vhi:
+                gbuf[k] = g
+                pbuf[k] = pred[r, c]
+                k += 1
+        if not k:
+            continue
+        sums, bad = _scaled_errors(gbuf[:k], pbuf[:k], one, lo, hi, zero)
+        if bad:
+            return total, n, True
+        for i in range(9):
+            total[i] += sums[i]
+        n += k
+    return total, n, False
 
 
 def _means(sums: tuple, n: int, nyu: bool) -> tuple:
     """The metrics from :func:`_scaled_errors`' sums over ``n`` pixels."""
-    abs_rel, sq_rel, sq, n1, n2, n3, e, e2, abs_e = (v / n for v in sums)
+    abs_rel, sq_rel, sq, n1, n2, n3, e, e2, abs_e = (float(v) / n for v in sums)
     errs = (abs_rel, sq_rel, math.sqrt(sq), math.sqrt(e2), n1, n2, n3)
     if not nyu:
         return errs
@@ -270,8 +308,8 @@ def scaled_errors(gt: np.ndarray, p: np.ndarray, scale, low: float, high: float,
     ``d`` is NaN."""
     scale = p.dtype.type(1) if scale is None else scale
     dt = np.result_type(p, scale).type
-    sums, n, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), np.result_type(gt, dt).type(0))
-    return None if bad else _means(sums, n, nyu)
+    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), np.result_type(gt, dt).type(0))
+    return None if bad else _means(sums, p.size, nyu)
 
 
 def dense_errors(pred: np.ndarray, raw: np.ndarray, divisor: float, box, valid: tuple,
@@ -281,9 +319,12 @@ def dense_errors(pred: np.ndarray, raw: np.ndarray, divisor: float, box, valid: 
     (slice bounds top, bottom, left, right) whose depth ``g`` has ``valid[0] < g <
     valid[1]``, the prediction clamped to ``[low, high]``. Returns ``(metrics, count)``
     (metrics None without a valid pixel), None when a prediction is NaN."""
-    f32, dt = np.float32, np.result_type(pred, np.float32).type
+    f32, dt = np.float32, pred.dtype.type
+    width = max(box[3] - box[2], 0)
     sums, n, bad = _dense_errors(pred, raw, f32(divisor), np.asarray(box, np.int64), f32(valid[0]),
-                                 f32(valid[1]), dt(low), dt(high), dt(0))
+                                 f32(valid[1]), dt(low), dt(high), dt(1),
+                                 np.result_type(pred, f32).type(0), np.empty(width, f32),
+                                 np.empty(width, pred.dtype))
     if bad:
         return None
     return (_means(sums, n, nyu) if n else None), n
