@@ -217,37 +217,43 @@ _BLOCK = 256  # pixels whose logarithms are taken together, in one vectorised lo
 
 
 @njit
-def _scaled_errors(gt, p, scale, lo, hi, zero):
+def _scaled_errors(gt, p, scale, lo, hi, zero, work, ratio):
     """The sums over the pixels of ``g = gt`` and ``d = clamp(p * scale, lo, hi)``, both in
     the dtype of ``zero`` (numpy's arithmetic): ``|g - d| / g``, ``(g - d)^2 / g``, ``(g -
     d)^2``, the counts of ``max(g / d, d / g)`` under the three thresholds, then of ``e =
     log(d / g)`` in float64 (``log d - log g``; ``log10 d - log10 g`` is ``e / ln 10``),
-    ``e``, ``e^2`` and ``|e|``, each summed in pixel order; and whether a ``d`` is NaN."""
-    s0 = s1 = s2 = s6 = s7 = s8 = 0.0
-    n1 = n2 = n3 = 0.0
-    ratio = np.empty(_BLOCK)
-    for start in range(0, p.size, _BLOCK):
-        m = min(_BLOCK, p.size - start)
+    ``e``, ``e^2`` and ``|e|``, each summed in pixel order; and whether a ``d`` is NaN.
+
+    A block of pixels at a time: their terms into the rows of ``work`` (4 x block) and
+    ``ratio`` (block, float64) in loops that vectorise, then summed one by one."""
+    s0 = s1 = s2 = s6 = s7 = s8 = n1 = n2 = n3 = 0.0
+    block = ratio.size
+    for start in range(0, p.size, block):
+        m = min(block, p.size - start)
+        nan = 0
         for j in range(m):
             d = p[start + j] * scale
-            if d != d:
-                return (s0, s1, s2, n1, n2, n3, s6, s7, s8), True
+            nan += d != d
             d = lo if d < lo else d
             d = hi if d > hi else d
             g, d = gt[start + j] + zero, d + zero
             diff = g - d
             sq = diff * diff
-            t = max(div(g, d), div(d, g))
-            s0 += div(abs(diff), g)
-            s1 += div(sq, g)
-            s2 += sq
+            work[0, j] = div(abs(diff), g)
+            work[1, j] = div(sq, g)
+            work[2, j] = sq
+            work[3, j] = max(div(g, d), div(d, g))
+            ratio[j] = _log(div(np.float64(d), np.float64(g)))
+        if nan:
+            return (s0, s1, s2, n1, n2, n3, s6, s7, s8), True
+        for j in range(m):
+            s0 += work[0, j]
+            s1 += work[1, j]
+            s2 += work[2, j]
+            t = work[3, j]
             n1 += t < 1.25
             n2 += t < 1.25 ** 2
             n3 += t < 1.25 ** 3
-            ratio[j] = div(np.float64(d), np.float64(g))
-        for j in range(m):
-            ratio[j] = _log(ratio[j])
-        for j in range(m):
             e = ratio[j]
             s6 += e
             s7 += e * e
@@ -256,7 +262,7 @@ def _scaled_errors(gt, p, scale, lo, hi, zero):
 
 
 @njit
-def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, gbuf, pbuf):
+def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, gbuf, pbuf, work, ratio):
     """:func:`_scaled_errors` of a whole map in one pass, with no per-pixel array: the
     ground truth ``raw[r, c] / divisor`` (float32), valid where ``vlo < g < vhi`` inside
     the slice bounds ``box`` (top, bottom, left, right), and the prediction ``pred[r, c]``
@@ -275,13 +281,18 @@ def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, gbuf, pb
                 k += 1
         if not k:
             continue
-        sums, bad = _scaled_errors(gbuf[:k], pbuf[:k], one, lo, hi, zero)
+        sums, bad = _scaled_errors(gbuf[:k], pbuf[:k], one, lo, hi, zero, work, ratio)
         if bad:
             return total, n, True
         for i in range(9):
             total[i] += sums[i]
         n += k
     return total, n, False
+
+
+def _buffers(dtype) -> tuple[np.ndarray, np.ndarray]:
+    """The work rows of :func:`_scaled_errors` for pixels of ``dtype``."""
+    return np.empty((4, _BLOCK), dtype), np.empty(_BLOCK)
 
 
 def _means(sums: tuple, n: int, nyu: bool) -> tuple:
@@ -308,7 +319,8 @@ def scaled_errors(gt: np.ndarray, p: np.ndarray, scale, low: float, high: float,
     ``d`` is NaN."""
     scale = p.dtype.type(1) if scale is None else scale
     dt = np.result_type(p, scale).type
-    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), np.result_type(gt, dt).type(0))
+    t = np.result_type(gt, dt)
+    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), t.type(0), *_buffers(t))
     return None if bad else _means(sums, p.size, nyu)
 
 
@@ -320,11 +332,11 @@ def dense_errors(pred: np.ndarray, raw: np.ndarray, divisor: float, box, valid: 
     valid[1]``, the prediction clamped to ``[low, high]``. Returns ``(metrics, count)``
     (metrics None without a valid pixel), None when a prediction is NaN."""
     f32, dt = np.float32, pred.dtype.type
+    t = np.result_type(pred, f32)
     width = max(box[3] - box[2], 0)
     sums, n, bad = _dense_errors(pred, raw, f32(divisor), np.asarray(box, np.int64), f32(valid[0]),
-                                 f32(valid[1]), dt(low), dt(high), dt(1),
-                                 np.result_type(pred, f32).type(0), np.empty(width, f32),
-                                 np.empty(width, pred.dtype))
+                                 f32(valid[1]), dt(low), dt(high), dt(1), t.type(0), np.empty(width, f32),
+                                 np.empty(width, pred.dtype), *_buffers(t))
     if bad:
         return None
     return (_means(sums, n, nyu) if n else None), n
