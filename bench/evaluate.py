@@ -128,21 +128,24 @@ def measure(tmp: Path, protocol: str, jobs: int, tag: str) -> None:
     t0 = time.perf_counter()
     res = E.evaluate(open_dataset(ds_dir), pred, make_setup(protocol), jobs=jobs,
                      on_total=lambda n: marks.append((time.perf_counter(), time.process_time())),
-                     progress=lambda k: done.append((time.perf_counter(), k)))
+                     progress=lambda k: done.append((time.perf_counter(), k, time.process_time())))
     dt = time.perf_counter() - t0
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = time.process_time() - marks[0][1] + children.ru_utime + children.ru_stime
     sampler.stop()
     t_gt = marks[0][0] - t0  # reading the ground truth: once, whatever the number of maps
     n, images = res.images, res.images * len(res.results)
     # The first results pay for starting (workers' imports, first reads); the steady rate
     # is that of the maps finished after them. A worker reports whole variants, so "first"
     # is the first result of each worker.
-    times = [t for t, _ in done]
-    counts = np.cumsum([k for _, k in done])
+    times = [t for t, _, _ in done]
+    counts = np.cumsum([k for _, k, _ in done])
     first = min(jobs, len(done) - 1)
     t_first = times[first - 1] - marks[0][0]
     rate = (counts[-1] - counts[first - 1]) / (times[-1] - times[first - 1])
+    # CPU per map after the first results, this process's (--jobs 1; with workers, theirs
+    # in all, start-up included, as they report it when they end)
+    cpu = ((done[-1][2] - done[first - 1][2]) / (counts[-1] - counts[first - 1]) if jobs == 1
+           else (children.ru_utime + children.ru_stime) / images)
     full = t_gt + t_first + (FULL_MAPS[protocol] - counts[first - 1]) / rate
     worker_mb = children.ru_maxrss / 1024
     # A worker's RSS counts the ground truth it maps, whose pages exist once (the page
@@ -154,11 +157,11 @@ def measure(tmp: Path, protocol: str, jobs: int, tag: str) -> None:
     where = "reference" if tag == "reference" else "this tree"
     print(f"{protocol} {where} --jobs {jobs}: {images} maps ({len(res.results)} variants x {n}) in {dt:.1f} s "
           f"(ground truth {t_gt:.1f} s, first {counts[first - 1]} maps {t_first:.1f} s, then "
-          f"{rate:.0f} maps/s, CPU {cpu / images * 1e3:.2f} ms per map); peak RSS {rss_mb():.0f} MB{workers}; "
+          f"{rate:.0f} maps/s, CPU {cpu * 1e3:.2f} ms per map); peak RSS {rss_mb():.0f} MB{workers}; "
           f"full benchmark ({FULL_MAPS[protocol]:,} maps) ~{full:.0f} s; load {load[0]:.1f} "
           f"[{Path(robodepth_cli.__file__).parent.parent}]", flush=True)
     (tmp / f"metrics-{tag}.json").write_text(json.dumps({r.variant.label: r.metrics for r in res.results}))
-    print(f"{full:.3f} {cpu / images:.6f}")
+    print(f"{full:.3f} {cpu:.6f}")
 
 
 def extract(commit: str, dest: Path) -> Path:

@@ -27,6 +27,7 @@ from ..groundtruth.read import GroundTruth, load_ground_truth
 from ..predictions import Predictions, find_predictions
 from .csvrows import DATASET_COLUMNS
 from .image import image_errors
+from .kernels import median
 from .protocols import EvaluationError, Setup
 
 # A worker takes about a second to start (a fresh interpreter importing numpy and OpenCV),
@@ -211,10 +212,10 @@ def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTru
             # The workers map the file: keeping the maps here too would hold them twice.
             del truth
             return _evaluate_in_workers(found, shared, setup, image_size, progress, pairs, jobs)
-    results = []
+    results, medians = [], {}
     for v, p in found:
         try:
-            results.append(_evaluate_variant(v, p, truth, setup, image_size, progress, pairs))
+            results.append(_evaluate_variant(v, p, truth, setup, image_size, progress, pairs, medians))
         finally:
             p.close()
     return results
@@ -299,6 +300,7 @@ def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], shared, setup
 
 
 _WORKER_TRUTH: GroundTruth | None = None
+_WORKER_MEDIANS: dict[int, object] = {}
 
 
 def _start_worker(shared) -> None:
@@ -312,14 +314,17 @@ def _start_worker(shared) -> None:
 def _worker_variant(variant: Variant, preds: Predictions, setup: Setup, image_size,
                     pairs=None) -> VariantResult:
     try:
-        return _evaluate_variant(variant, preds, _WORKER_TRUTH, setup, image_size, None, pairs)
+        return _evaluate_variant(variant, preds, _WORKER_TRUTH, setup, image_size, None, pairs,
+                                 _WORKER_MEDIANS)
     finally:
         preds.close()
 
 
 def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, setup: Setup,
-                      image_size, progress, pairs=None) -> VariantResult:
-    """The metrics of one variant; with ``pairs`` (consecutive frames), its flicker too."""
+                      image_size, progress, pairs=None, medians: dict | None = None) -> VariantResult:
+    """The metrics of one variant; with ``pairs`` (consecutive frames), its flicker too.
+    ``medians``: each image's ground-truth median by position, kept across the variants
+    of one evaluation (median scaling divides by it; the ground truth does not change)."""
     errors = []
     ratios = []
     scales = []
@@ -339,7 +344,12 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
                 progress(1)
             continue
         m, where, is_png = preds.read(i)
-        errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, whole=whole)
+        if medians is not None and gt is not None and setup.median_scaling and setup.align_space == "depth":
+            if i not in medians:
+                medians[i] = median(gt[2])
+            errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, gt_median=medians[i])
+        else:
+            errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, whole=whole)
         if ratio is not None:
             ratios.append(ratio)
         errors.append(errs)

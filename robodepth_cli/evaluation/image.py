@@ -11,12 +11,13 @@ from .protocols import EvaluationError, Setup, kitti_image, nyu_image, whole_map
 
 
 def image_errors(m: np.ndarray, where: str, truth: tuple | None, setup: Setup, image_size,
-                 is_png: bool = False, *, whole: tuple | None = None) -> tuple:
+                 is_png: bool = False, *, whole: tuple | None = None, gt_median=None) -> tuple:
     """The metrics of one prediction ``m`` (read from ``where``, which messages name) against
     ``truth`` (:meth:`GroundTruth.get` of its image), and its median-scaling ratio (None
     unless the protocol has one); :class:`EvaluationError` for a map that cannot be judged.
     ``whole`` instead of ``truth``: the map kept whole (:meth:`GroundTruth.dense`), judged
     in one pass where :func:`.protocols.whole_map_image` can (the same numbers).
+    ``gt_median``: the median of the ground truth's depths, when known (kitti_image).
     ``robodepth run`` calls this on maps it never writes, so its numbers are these."""
     if m.dtype not in (np.float32, np.float64):
         m = m.astype(np.float32)  # OpenCV and the reference code work in float32
@@ -41,7 +42,8 @@ def image_errors(m: np.ndarray, where: str, truth: tuple | None, setup: Setup, i
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         try:
             if setup.protocol == "kitti":
-                errs, ratio = kitti_image(m, setup.kind, setup.stereo, shape, index, gt, setup)
+                errs, ratio = kitti_image(m, setup.kind, setup.stereo, shape, index, gt, setup,
+                                          gt_median=gt_median)
             else:
                 errs, ratio = nyu_image(m, shape, index, gt, setup), None
         except EvaluationError as exc:  # raised by the alignment, which knows no file

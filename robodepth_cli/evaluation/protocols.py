@@ -176,13 +176,15 @@ def align_prediction(values: np.ndarray, is_disp: bool, gt: np.ndarray, align: s
     return d, s
 
 
-def median_ratio(g: np.ndarray, p: np.ndarray, space: str = "depth", is_disp: bool = True):
-    """``median(g) / median(p)`` (monodepth2's median scaling) in the arrays' dtype, as
-    numpy computes it; :class:`EvaluationError` unless it is positive and finite."""
+def median_ratio(g: np.ndarray, p: np.ndarray, space: str = "depth", is_disp: bool = True,
+                 g_median=None):
+    """``median(g) / median(p)`` (monodepth2's median scaling; ``g_median``: ``median(g)``
+    when known) in the arrays' dtype, as numpy computes it; :class:`EvaluationError`
+    unless it is positive and finite."""
     from .kernels import median
 
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = median(g) / median(p)
+        s = (median(g) if g_median is None else g_median) / median(p)
     if not (np.isfinite(s) and s > 0):
         raise EvaluationError(
             f"median scaling needs a positive finite median {space} at the valid "
@@ -338,29 +340,27 @@ def make_setup(protocol: str, kind: str | None = None, stereo: bool = False,
 
 
 def kitti_image(pred: np.ndarray, kind: str, stereo: bool, gt_shape: tuple[int, int],
-                index: np.ndarray, gt: np.ndarray, setup: Setup | None = None
-                ) -> tuple[tuple, float | None]:
+                index: np.ndarray, gt: np.ndarray, setup: Setup | None = None, *,
+                gt_median=None) -> tuple[tuple, float | None]:
     """One image under the kitti protocol; returns (the :func:`depth_errors`, the median
     scaling ratio or None).
 
     ``pred`` (any size) is a disparity (``kind="disp"``, already scaled as monodepth2 saves
     it), a raw sigmoid output (``"sigmoid"``: first :func:`disp_to_depth`) or a depth
-    (``"depth"``). It is resized to the ground truth's ``gt_shape`` as :func:`resize_bilinear`
-    resizes, but only at the pixels compared (:func:`.kernels.sample_linear`, the same
-    values); a disparity is then inverted, ``depth = 1 / disp``. ``index``
-    holds the flat indices of the valid pixels (:func:`kitti_valid`) and ``gt`` their depths.
-    Mono: ``depth *= median(gt) / median(depth)`` (the ratio); stereo: ``depth *= 5.4``.
-    Then ``depth`` is clamped to [1e-3, 80]. A ``setup`` with another alignment, space or
-    depth range aligns by :func:`align_prediction` instead (the median rule is its
-    ``median`` in depth space).
+    (``"depth"``), resized to ``gt_shape`` as :func:`resize_bilinear` does, but only at the
+    pixels compared (:func:`.kernels.sample_linear`: the same values); a disparity is then
+    inverted. ``index``: the flat indices of the valid pixels (:func:`kitti_valid`), ``gt``
+    their depths (``gt_median``: its median, when known). Mono: ``depth *= median(gt) /
+    median(depth)`` (the ratio); stereo: ``depth *= 5.4``. Then ``depth`` is clamped to
+    [1e-3, 80]. A ``setup`` with another alignment, space or depth range aligns by
+    :func:`align_prediction` (the median rule is its ``median`` in depth space).
     """
     if setup is None:
         setup = Setup("kitti", kind, stereo)
     from .kernels import sample_linear, scaled_errors
 
     is_disp = kind != "depth"
-    # Mono median scaling and stereo's factor are taken in one pass over the sampled
-    # pixels; any other alignment goes through align_prediction.
+    # Median scaling and stereo's factor in one pass; other alignments by align_prediction.
     direct = setup.align_space == "depth" and setup.alignment in ("none", "median")
     values = sample_linear(pred, gt_shape, index, invert=direct and is_disp,
                            sigmoid=_SIGMOID if kind == "sigmoid" else None)
@@ -370,7 +370,7 @@ def kitti_image(pred: np.ndarray, kind: str, stereo: bool, gt_shape: tuple[int, 
                                     STEREO_SCALE if stereo else None)
         return depth_errors(gt, depth), (s if setup.alignment == "median" else None)
     if setup.alignment == "median":
-        s = median_ratio(gt, values, "depth", is_disp)
+        s = median_ratio(gt, values, "depth", is_disp, gt_median)
     else:
         s = values.dtype.type(STEREO_SCALE) if stereo else None  # numpy's p * 5.4
     errs = scaled_errors(gt, values, s, setup.min_depth, setup.depth_cap)
@@ -379,8 +379,7 @@ def kitti_image(pred: np.ndarray, kind: str, stereo: bool, gt_shape: tuple[int, 
     return errs, (s if setup.alignment == "median" else None)
 
 
-# disp_to_depth's (min_disp, max_disp - min_disp) with the default depths
-_SIGMOID = (1 / SIGMOID_MAX_DEPTH, 1 / SIGMOID_MIN_DEPTH - 1 / SIGMOID_MAX_DEPTH)
+_SIGMOID = (1 / SIGMOID_MAX_DEPTH, 1 / SIGMOID_MIN_DEPTH - 1 / SIGMOID_MAX_DEPTH)  # disp_to_depth's
 
 
 def kitti_valid(gt: np.ndarray) -> np.ndarray:
