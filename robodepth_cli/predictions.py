@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import mmap
 import os
 import zipfile
 import zlib
@@ -134,6 +135,7 @@ class ArrayPredictions(Predictions):
                 raise PredictionsError(f"{source}: the file ends early (truncated?): {have:,} "
                                       f"bytes, its header says {need:,}")
         self._array = None
+        self._previous = None  # the map read last, whose pages the next read releases
 
     def read(self, i):
         where = f"{self.source}: prediction {i}"
@@ -148,10 +150,27 @@ class ArrayPredictions(Predictions):
                 reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
                 raise PredictionsError(f"{self.source}: cannot read its array, damaged? "
                                       f"({reason})") from None
+        if self._previous is not None:
+            self._release(self._previous)
+        self._previous = i
         return self._array[i], where, False
+
+    def _release(self, i: int) -> None:
+        """Drop map ``i``'s pages from this process's mapping (not from the page cache): a
+        variant's maps are read once each, and the pages would otherwise count in its RSS
+        to the end of the variant. A later read of the map maps them again."""
+        mm = getattr(self._array, "_mmap", None)
+        if mm is None or not hasattr(mm, "madvise") or not hasattr(mmap, "MADV_DONTNEED"):
+            return
+        size = self._array[i].nbytes
+        start = self._array.offset % mmap.ALLOCATIONGRANULARITY + i * size  # in the mapping
+        lo, hi = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE, (start + size) // mmap.PAGESIZE * mmap.PAGESIZE
+        if hi > lo:
+            mm.madvise(mmap.MADV_DONTNEED, lo, hi - lo)
 
     def close(self):
         self._array = None
+        self._previous = None
 
 
 def _array_header(path: Path) -> tuple[tuple[int, ...], bool, np.dtype, int]:

@@ -15,21 +15,9 @@ import pytest
 from robodepth_cli.evaluation.image import image_errors
 from robodepth_cli.evaluation.kernels import median, sample_linear
 from robodepth_cli.evaluation.protocols import crop_box, make_setup
+from tests.helpers.evaluation import ref_errors
 
 METRICS = ("abs_rel", "sq_rel", "rmse", "rmse_log", "a1", "a2", "a3", "log10", "silog")
-
-
-def reference_errors(g, d, nyu):
-    """compute_errors of the reference scripts (float32 numpy, as they compute it), silog's
-    logarithms in float64: float32 cancels most of its digits when e varies little."""
-    t = np.maximum(g / d, d / g)
-    out = [np.mean(np.abs(g - d) / g), np.mean((g - d) ** 2 / g), np.sqrt(np.mean((g - d) ** 2)),
-           np.sqrt(np.mean((np.log(g) - np.log(d)) ** 2)),
-           np.mean(t < 1.25), np.mean(t < 1.25 ** 2), np.mean(t < 1.25 ** 3)]
-    if nyu:
-        e = np.log(d.astype(np.float64)) - np.log(g.astype(np.float64))
-        out += [np.mean(np.abs(np.log10(d) - np.log10(g))), np.sqrt(np.mean(e ** 2) - np.mean(e) ** 2) * 100]
-    return out
 
 
 def reference_align(v, g, is_disp, align, space, stereo, lo, hi):
@@ -72,7 +60,7 @@ def reference_image(pred, gt, protocol, kind, stereo, align, space, crop, lo, hi
     inside[top:bottom, left:right] = True
     mask = (gt > lo) & (gt < hi) & inside
     d, ratio = reference_align(pred[mask], gt[mask], kind != "depth", align, space, stereo, lo, hi)
-    return reference_errors(gt[mask], d, protocol == "nyu"), ratio
+    return ref_errors(gt[mask], d, protocol == "nyu"), ratio
 
 
 def near_thresholds(gt, rng, factor=1.0):
@@ -229,3 +217,26 @@ def test_a_prediction_with_nan_is_still_refused_in_the_one_pass():
     pred[100, 100] = np.nan
     with pytest.raises(EvaluationError, match="contains NaN"):
         image_errors(pred, "p.npy", None, setup, None, whole=(raw, 1000.0))
+
+
+# --------------------------------------------------------------------------- predictions
+
+def test_a_variants_npy_is_mapped_not_copied(tmp_path):
+    """Each map of a variant's N x H x W .npy is a read-only view of the mapped file (no
+    copy), the same values read in any order, including a map read again after its pages
+    were released; a file shorter than its header says is refused before any map is read."""
+    from robodepth_cli.predictions import ArrayPredictions, PredictionsError
+
+    arr = np.random.default_rng(0).uniform(0, 1, (6, 48, 64)).astype(np.float32)
+    np.save(tmp_path / "clean.npy", arr)
+    variant = type("V", (), {"label": "clean", "__len__": lambda self: 6})()
+    preds = ArrayPredictions(variant, tmp_path / "clean.npy")
+    for i in (0, 1, 2, 5, 1, 0, 4):
+        m, where, is_png = preds.read(i)
+        assert not m.flags.writeable and not m.flags.owndata and isinstance(m.base, np.memmap)
+        np.testing.assert_array_equal(m, arr[i])
+    preds.close()
+    data = (tmp_path / "clean.npy").read_bytes()
+    (tmp_path / "cut.npy").write_bytes(data[:-100])
+    with pytest.raises(PredictionsError, match=r"cut\.npy: the file ends early"):
+        ArrayPredictions(variant, tmp_path / "cut.npy")
