@@ -22,9 +22,9 @@ ground truth (``align``: none, median, scale, scale-shift, in depth or disparity
 depth range, which is also the clamp. The defaults are the protocols' above.
 
 Metrics are computed per image over its valid pixels and averaged over the images
-(:func:`depth_errors`, :func:`nyu_errors`). Arithmetic follows the inputs' dtype, as the
-reference code's does (float32 predictions and ground truth give float32 per-image
-metrics); the average over images is float64.
+(:func:`depth_errors`, :func:`nyu_errors`). Each pixel's arithmetic follows the inputs'
+dtype, as the reference code's does (float32 maps: float32 depths and terms); the sums,
+logarithms and averages are float64.
 """
 
 from __future__ import annotations
