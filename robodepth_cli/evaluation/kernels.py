@@ -226,7 +226,8 @@ def _scaled_errors(gt, p, scale, lo, hi, zero, work, ratio):
 
     A block of pixels at a time: their terms into the rows of ``work`` (4 x block) and
     ``ratio`` (block, float64) in loops that vectorise, then summed one by one."""
-    s0 = s1 = s2 = s6 = s7 = s8 = n1 = n2 = n3 = 0.0
+    s0 = s1 = s2 = s6 = s7 = s8 = 0.0
+    n1 = n2 = n3 = 0  # integer counts: off the floating-point adders
     block = ratio.size
     for start in range(0, p.size, block):
         m = min(block, p.size - start)
@@ -245,7 +246,7 @@ def _scaled_errors(gt, p, scale, lo, hi, zero, work, ratio):
             work[3, j] = max(div(g, d), div(d, g))
             ratio[j] = _log(div(np.float64(d), np.float64(g)))
         if nan:
-            return (s0, s1, s2, n1, n2, n3, s6, s7, s8), True
+            return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), True
         for j in range(m):
             s0 += work[0, j]
             s1 += work[1, j]
@@ -258,7 +259,7 @@ def _scaled_errors(gt, p, scale, lo, hi, zero, work, ratio):
             s6 += e
             s7 += e * e
             s8 += abs(e)
-    return (s0, s1, s2, n1, n2, n3, s6, s7, s8), False
+    return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), False
 
 
 @njit
