@@ -5,11 +5,15 @@ Every per-pixel step is done in the dtype numpy's expression of the reference co
 use (float32 for float32 inputs: the prediction's dtype, promoted with the ground truth's
 and the scale's as numpy promotes), so the depths compared are the same numbers to the
 last bit; only the sums differ: each metric accumulates in float64 in pixel order
-(numpy sums float32 pairwise in float32), and the logarithms are float64.
+(numpy sums float32 pairwise in float32), and the logarithms are float64 (:func:`_log`,
+within a few units in the last place of the C library's). The same code runs on every CPU:
+no fast-math, multiply-adds only where written (``fma``), sums in the order written.
 
 :func:`sample_linear` is ``cv2.resize(pred, (W, H), interpolation=cv2.INTER_LINEAR)`` at
 the valid pixels only. The opencv-python wheel hands a float resize to IPP; its rules,
-found by comparing outputs bit for bit (tests/evaluation/test_fused.py):
+found by comparing outputs bit for bit (tests/evaluation/test_evaluate_paths.py checks
+them on float32 maps; float64 ones agree to ~1e-12, OpenCV rounding some small maps'
+weights on a path of its own):
 
 - output pixel ``d`` of an axis of ``n`` samples the input at ``f = (d + 0.5) n_in / n -
   0.5``, computed in float64 (float64 maps: ``fma(d, s, 0.5 s - 0.5)`` with ``s = n_in /
