@@ -305,6 +305,7 @@ _WORKER_MEDIANS: dict[int, object] = {}
 
 def _start_worker(shared) -> None:
     global _WORKER_TRUTH
+    _WORKER_MEDIANS.clear()  # those of another evaluation's ground truth
     import cv2
 
     cv2.setNumThreads(1)  # one process per core already
