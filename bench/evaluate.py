@@ -1,20 +1,25 @@
-"""`robodepth evaluate` at full size: images per second and peak memory.
+"""`robodepth evaluate` at full size: this tree against the code before its fast paths,
+side by side in one run, and ``--jobs 2`` against ``--jobs 1``.
 
 Synthetic data of the real sizes: KITTI, 697 ground-truth maps of 375 x 1242 with ~5% of
 the pixels set (as lidar leaves them) in a gt_depths.npz, and N x 192 x 640 float32
 disparities per variant; NYU, 654 16-bit 480 x 640 ground-truth PNGs and N x 480 x 640
 depths per variant. The dataset directory is a minimal one (build.json + manifest.csv), so
-no image is built. Each protocol is evaluated with ``--jobs 1`` and then ``--jobs 2`` (the
-previous way and the new one, in the same run; the ratio is printed), each in a fresh
-process. Peak memory: the evaluating process's peak resident set size, the largest of its
-workers', and the peak sums of RSS and PSS over all of them, sampled every 0.2 s (a
-worker's RSS counts the memory-mapped ground truth, whose pages exist once; PSS splits
-them). The full-benchmark estimate is the ground truth's reading time plus the
-time until each worker's first result plus the remaining maps of the benchmark (KITTI-C
-91 x 697, NYUDepth2-C 61 x 654) at the steady rate measured after those first results.
+no image is built. Each protocol is evaluated, each time in a fresh process, by the
+reference commit's code (``--reference``, taken with ``git archive``; default the commit
+before the sampled resize and the one-pass metrics) with ``--jobs 1``, then by this tree
+with each ``--jobs`` value; the ratios are printed, with the largest relative difference
+between the two codes' metrics. Peak memory: the evaluating process's peak resident set
+size, the largest of its workers', and the peak sums of RSS and PSS over all of them,
+sampled every 0.2 s (a worker's RSS counts the memory-mapped ground truth, whose pages
+exist once; PSS splits them). The full-benchmark estimate is the ground truth's reading
+time plus the time until each worker's first result plus the remaining maps of the
+benchmark (KITTI-C 91 x 697, NYUDepth2-C 61 x 654) at the steady rate measured after those
+first results; CPU time per map is printed beside it (the machine is shared: wall time
+moves with the load, CPU time much less).
 
     python -m bench.evaluate [--variants 6] [--images 697] [--protocol kitti|nyu|both]
-                             [--jobs 1,2]
+                             [--jobs 1,2] [--reference COMMIT]
 """
 
 from __future__ import annotations
@@ -31,9 +36,11 @@ from pathlib import Path
 import numpy as np
 
 from robodepth_cli.output import manifest  # noqa: E402
-from robodepth_cli.api import open_dataset  # noqa: E402
-from robodepth_cli.evaluation.evaluate import evaluate  # noqa: E402
-from robodepth_cli.evaluation.protocols import make_setup  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+# The commit before evaluation sampled the prediction at the valid pixels only (the
+# whole map resized with cv2.resize, numpy masks and metrics).
+REFERENCE = "f3c8936"
 
 
 def fake_dataset(root: Path, name: str, keys: list[str], variants: list[tuple[str, int | None]]):
@@ -100,15 +107,18 @@ def make_nyu(tmp: Path, n: int, n_variants: int) -> None:
 
 
 FULL_MAPS = {"kitti": 91 * 697, "nyu": 61 * 654}
-GOAL_S = {"kitti": 50, "nyu": 90}
 
 
-def measure(tmp: Path, protocol: str, jobs: int) -> None:
-    """Evaluate in a fresh process, so its peak RSS is the evaluation's alone; the last
-    line printed is the full-benchmark estimate in seconds, for the parent."""
-    ds_dir, pred = (tmp / "KITTI_C", tmp / "PRED") if protocol == "kitti" else (tmp / "NYU_C", tmp / "PRED_NYU")
+def measure(tmp: Path, protocol: str, jobs: int, tag: str) -> None:
+    """Evaluate in a fresh process, so its peak RSS is the evaluation's alone; the metrics
+    go to ``tmp/metrics-TAG.json``; the last line printed is the full-benchmark estimate in
+    seconds, for the parent."""
+    import robodepth_cli
     import robodepth_cli.evaluation.evaluate as E
+    from robodepth_cli.api import open_dataset
+    from robodepth_cli.evaluation.protocols import make_setup
 
+    ds_dir, pred = (tmp / "KITTI_C", tmp / "PRED") if protocol == "kitti" else (tmp / "NYU_C", tmp / "PRED_NYU")
     E.MAPS_PER_WORKER = 1  # a subset: let every job run, as on the full benchmark
     from bench.build import TreeSampler  # sums RSS and PSS over a process tree
 
@@ -116,46 +126,79 @@ def measure(tmp: Path, protocol: str, jobs: int) -> None:
     sampler.start()
     marks, done = [], []  # when the ground truth was read; (time, maps) as variants finish
     t0 = time.perf_counter()
-    res = evaluate(open_dataset(ds_dir), pred, make_setup(protocol), jobs=jobs,
-                   on_total=lambda n: marks.append(time.perf_counter()),
-                   progress=lambda k: done.append((time.perf_counter(), k)))
+    res = E.evaluate(open_dataset(ds_dir), pred, make_setup(protocol), jobs=jobs,
+                     on_total=lambda n: marks.append((time.perf_counter(), time.process_time())),
+                     progress=lambda k: done.append((time.perf_counter(), k, time.process_time())))
     dt = time.perf_counter() - t0
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
     sampler.stop()
-    t_gt = marks[0] - t0  # reading the ground truth: once, whatever the number of maps
+    t_gt = marks[0][0] - t0  # reading the ground truth: once, whatever the number of maps
     n, images = res.images, res.images * len(res.results)
     # The first results pay for starting (workers' imports, first reads); the steady rate
     # is that of the maps finished after them. A worker reports whole variants, so "first"
     # is the first result of each worker.
-    times = [t for t, _ in done]
-    counts = np.cumsum([k for _, k in done])
+    times = [t for t, _, _ in done]
+    counts = np.cumsum([k for _, k, _ in done])
     first = min(jobs, len(done) - 1)
-    t_first = times[first - 1] - marks[0]
+    t_first = times[first - 1] - marks[0][0]
     rate = (counts[-1] - counts[first - 1]) / (times[-1] - times[first - 1])
+    # CPU per map after the first results, this process's (--jobs 1; with workers, theirs
+    # in all, start-up included, as they report it when they end)
+    cpu = ((done[-1][2] - done[first - 1][2]) / (counts[-1] - counts[first - 1]) if jobs == 1
+           else (children.ru_utime + children.ru_stime) / images)
     full = t_gt + t_first + (FULL_MAPS[protocol] - counts[first - 1]) / rate
-    worker_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    worker_mb = children.ru_maxrss / 1024
     # A worker's RSS counts the ground truth it maps, whose pages exist once (the page
     # cache); the PSS sum splits them between the processes that map them.
     workers = (f", largest worker {worker_mb:.0f} MB; all processes: PSS sum "
                f"{sampler.peak_pss / 2 ** 20:.0f} MB, RSS sum {sampler.peak_rss / 2 ** 20:.0f} MB"
                if jobs > 1 else "")
     load = os.getloadavg()
-    print(f"{protocol} --jobs {jobs}: {images} maps ({len(res.results)} variants x {n}) in {dt:.1f} s "
+    where = "reference" if tag == "reference" else "this tree"
+    print(f"{protocol} {where} --jobs {jobs}: {images} maps ({len(res.results)} variants x {n}) in {dt:.1f} s "
           f"(ground truth {t_gt:.1f} s, first {counts[first - 1]} maps {t_first:.1f} s, then "
-          f"{rate:.0f} maps/s); peak RSS {rss_mb():.0f} MB{workers}; full benchmark "
-          f"({FULL_MAPS[protocol]:,} maps) ~{full:.0f} s; load {load[0]:.1f}", flush=True)
-    print(f"{full:.3f}")
+          f"{rate:.0f} maps/s, CPU {cpu * 1e3:.2f} ms per map); peak RSS {rss_mb():.0f} MB{workers}; "
+          f"full benchmark ({FULL_MAPS[protocol]:,} maps) ~{full:.0f} s; load {load[0]:.1f} "
+          f"[{Path(robodepth_cli.__file__).parent.parent}]", flush=True)
+    (tmp / f"metrics-{tag}.json").write_text(json.dumps({r.variant.label: r.metrics for r in res.results}))
+    print(f"{full:.3f} {cpu:.6f}")
+
+
+def extract(commit: str, dest: Path) -> Path:
+    """The package as it was at ``commit``, under ``dest`` (``git archive``)."""
+    import io
+    import subprocess
+    import tarfile
+
+    data = subprocess.run(["git", "-C", str(REPO), "archive", commit, "robodepth_cli"], check=True,
+                          capture_output=True).stdout
+    with tarfile.open(fileobj=io.BytesIO(data)) as tar:
+        tar.extractall(dest, filter="data")
+    return dest
+
+
+def largest_difference(tmp: Path) -> float:
+    """The largest relative difference between the reference's and this tree's metrics."""
+    ref = json.loads((tmp / "metrics-reference.json").read_text())
+    new = json.loads((tmp / "metrics-new-1.json").read_text())
+    return max(abs(new[v][m] - ref[v][m]) / max(abs(ref[v][m]), 1e-300) for v in ref for m in ref[v])
 
 
 def main() -> int:
     import subprocess
 
+    from bench import cpu_name
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variants", type=int, default=6, help="variants per dataset (clean + N-1)")
-    ap.add_argument("--jobs", default="1,2", help="--jobs values to compare, the first is the baseline")
+    ap.add_argument("--jobs", default="1,2", help="--jobs values of this tree, the first is the baseline")
     ap.add_argument("--images", type=int, default=0, help="images per variant (default: the real split)")
     ap.add_argument("--protocol", choices=["kitti", "nyu", "both"], default="both")
+    ap.add_argument("--reference", default=REFERENCE, help="the commit whose code is the reference "
+                    "('' for none)")
     ap.add_argument("--_make", help=argparse.SUPPRESS)
     ap.add_argument("--_measure", help=argparse.SUPPRESS)
+    ap.add_argument("--_tag", default="new", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._make:
         proto, tmp = args.protocol, Path(args._make)
@@ -164,26 +207,44 @@ def main() -> int:
         return 0
     jobs = [int(j) for j in args.jobs.split(",")]
     if args._measure:
-        measure(Path(args._measure), args.protocol, jobs[0])
+        measure(Path(args._measure), args.protocol, jobs[0], args._tag)
         return 0
     protocols = ["kitti", "nyu"] if args.protocol == "both" else [args.protocol]
     load = os.getloadavg()
-    print(f"{os.cpu_count()} CPUs, load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
+    print(f"{os.cpu_count()} CPUs ({cpu_name()}), load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
     with tempfile.TemporaryDirectory(prefix="robodepth-bench-eval-") as tmp:
+        tmp = Path(tmp)
+        ref = None
+        if args.reference:
+            try:
+                ref = extract(args.reference, tmp / "reference")
+            except (subprocess.CalledProcessError, OSError) as exc:
+                print(f"no reference: cannot take {args.reference} from git ({exc}); this tree only")
+        script = str(REPO / "bench" / "evaluate.py")
         for proto in protocols:
-            common = [sys.executable, "-m", "bench.evaluate", "--protocol", proto, "--variants", str(args.variants),
-                      "--images", str(args.images)]
-            subprocess.run(common + ["--_make", tmp], check=True)
-            fulls = []
-            for j in jobs:
-                out = subprocess.run(common + ["--_measure", tmp, "--jobs", str(j)], check=True,
-                                     capture_output=True, text=True).stdout.splitlines()
+            common = [script, "--protocol", proto, "--variants", str(args.variants), "--images", str(args.images)]
+            subprocess.run([sys.executable] + common + ["--_make", str(tmp)], check=True,
+                           env={**os.environ, "PYTHONPATH": str(REPO)})
+            runs = ([("reference", ref, 1)] if ref else []) + [(f"new-{j}", REPO, j) for j in jobs]
+            got = {}
+            for tag, root, j in runs:
+                path = str(root) if root == REPO else f"{root}{os.pathsep}{REPO}"
+                out = subprocess.run([sys.executable] + common + ["--_measure", str(tmp), "--jobs", str(j),
+                                                                  "--_tag", tag],
+                                     check=True, capture_output=True, text=True,
+                                     env={**os.environ, "PYTHONPATH": path}).stdout.splitlines()
                 print("\n".join(out[:-1]), flush=True)
-                fulls.append(float(out[-1]))
-            for j, full in zip(jobs[1:], fulls[1:]):
-                print(f"{proto}: --jobs {j} against --jobs {jobs[0]}: {fulls[0] / full:.2f}x on the full "
-                      f"benchmark; goal <= {GOAL_S[proto]} s: {full:.0f} s -> "
-                      f"{'met' if full <= GOAL_S[proto] else 'NOT met'}")
+                got[tag] = tuple(float(x) for x in out[-1].split())
+            base = got[f"new-{jobs[0]}"]
+            if ref:
+                r = got["reference"]
+                print(f"{proto}: this tree against {args.reference}, --jobs 1: {r[0] / base[0]:.1f}x on the full "
+                      f"benchmark ({r[0]:.0f} s -> {base[0]:.0f} s), {r[1] / base[1]:.1f}x in CPU per map; "
+                      f"metrics differ by at most {largest_difference(tmp):.1e} relative", flush=True)
+            for j in jobs[1:]:
+                full = got[f"new-{j}"][0]
+                print(f"{proto}: --jobs {j} against --jobs {jobs[0]}: {base[0] / full:.2f}x on the full "
+                      f"benchmark ({base[0]:.0f} s -> {full:.0f} s)", flush=True)
     load = os.getloadavg()
     print(f"load average at the end {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}")
     return 0

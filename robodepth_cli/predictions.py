@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import mmap
 import os
 import zipfile
 import zlib
@@ -125,14 +126,14 @@ class Predictions:
 
 
 class ArrayPredictions(Predictions):
-    """Form 1: one N x h x w array per variant. A ``.npy`` (C order) is read one map at a
-    time from the file; a ``.npz`` (compressed, no random access) is loaded once for its
-    variant."""
+    """Form 1: one N x h x w array per variant. A ``.npy`` is memory-mapped (read-only) and
+    each map handed out as a view of it, with no copy: the page cache holds the file once;
+    a ``.npz`` (compressed, no random access) is loaded once for its variant."""
 
     def __init__(self, variant, source: Path):
         self.variant = variant
         self.source = source
-        shape, fortran, dtype, self._offset = _array_header(source)
+        shape, fortran, dtype, offset = _array_header(source)
         n = len(variant)
         if len(shape) != 3:
             hint = (" (one axis too many: squeeze it)" if len(shape) == 4 and 1 in shape[1:2]
@@ -144,22 +145,16 @@ class ArrayPredictions(Predictions):
                                   f"{variant.label} (one per image, in split order)")
         if dtype.kind not in "fiu":
             raise PredictionsError(f"{source}: dtype {dtype}; expected numbers")
-        self._shape, self._dtype = shape, dtype
-        self._direct = source.suffix == ".npy" and not fortran
+        if source.suffix == ".npy":
+            have, need = source.stat().st_size, offset + int(np.prod(shape)) * dtype.itemsize
+            if have < need:
+                raise PredictionsError(f"{source}: the file ends early (truncated?): {have:,} "
+                                      f"bytes, its header says {need:,}")
         self._array = None
-        self._fh = None
+        self._previous = None  # the map read last, whose pages the next read releases
 
     def read(self, i):
         where = f"{self.source}: prediction {i}"
-        if self._direct:
-            if self._fh is None:
-                self._fh = open(self.source, "rb")
-            count = self._shape[1] * self._shape[2]
-            self._fh.seek(self._offset + i * count * self._dtype.itemsize)
-            m = np.fromfile(self._fh, dtype=self._dtype, count=count)
-            if m.size != count:
-                raise PredictionsError(f"{where}: the file ends early (truncated?)")
-            return m.reshape(self._shape[1:]), where, False
         if self._array is None:
             try:
                 if self.source.suffix == ".npz":
@@ -171,13 +166,27 @@ class ArrayPredictions(Predictions):
                 reason = os_reason(exc) if isinstance(exc, OSError) else str(exc)
                 raise PredictionsError(f"{self.source}: cannot read its array, damaged? "
                                       f"({reason})") from None
-        return np.array(self._array[i]), where, False
+        if self._previous is not None:
+            self._release(self._previous)
+        self._previous = i
+        return self._array[i], where, False
+
+    def _release(self, i: int) -> None:
+        """Drop map ``i``'s pages from this process's mapping (not from the page cache): a
+        variant's maps are read once each, and the pages would otherwise count in its RSS
+        to the end of the variant. A later read of the map maps them again."""
+        mm = getattr(self._array, "_mmap", None)
+        if mm is None or not hasattr(mm, "madvise") or not hasattr(mmap, "MADV_DONTNEED"):
+            return
+        size = self._array[i].nbytes
+        start = self._array.offset % mmap.ALLOCATIONGRANULARITY + i * size  # in the mapping
+        lo, hi = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE, (start + size) // mmap.PAGESIZE * mmap.PAGESIZE
+        if hi > lo:
+            mm.madvise(mmap.MADV_DONTNEED, lo, hi - lo)
 
     def close(self):
         self._array = None
-        if self._fh is not None:
-            self._fh.close()
-            self._fh = None
+        self._previous = None
 
 
 def _array_header(path: Path) -> tuple[tuple[int, ...], bool, np.dtype, int]:

@@ -38,7 +38,7 @@ FOUNDATION = {"errors", "files", "keys", "values", "progress", "benchmarks"}
 # or anything in the subpackage x/. From the ground up: the foundation; the corruptions;
 # seeding; sources (where images and depth come from) with output (the names a build
 # leaves); the ground truth (groundtruth/: made, written, read) and the predictions folder
-# (predictions.py); the evaluation (numpy); the build (building/); api, export, models,
+# (predictions.py); the evaluation (numpy, numba); the build (building/); api, export, models,
 # report, running; the torch package; commands; cli.
 FORBIDDEN = {
     # The corruptions are the library's core, usable without the rest (torch transforms,
@@ -323,10 +323,11 @@ def test_corruptions_stand_alone():
 
 
 def test_the_evaluation_is_numpy():
-    """evaluation/ computes with numpy (and OpenCV's resize, as the reference evaluators; the
-    rank statistics are SciPy's); plotting is the report's, models are torch's."""
+    """evaluation/ computes with numpy, numba (its inner loops, evaluation/kernels.py) and
+    OpenCV's resize (as the reference evaluators; the rank statistics are SciPy's); plotting
+    is the report's, models are torch's."""
     used = set().union(*(_imports(n, p)[1] for n, p in MODULES.items() if _under(n, "evaluation")))
-    assert used & HEAVY <= {"numpy", "cv2", "scipy"}, sorted(used & HEAVY)
+    assert used & HEAVY <= {"numpy", "numba", "cv2", "scipy"}, sorted(used & HEAVY)
     assert "scipy" not in set().union(*(_imports(n, p)[1] for n, p in MODULES.items()
                                         if _under(n, "evaluation") and n != "evaluation.ranking"))
 

@@ -19,23 +19,8 @@ import cv2
 import numpy as np
 import scipy.fft
 
-from llvmlite import ir
-from numba.extending import intrinsic
-
 from ._jit import njit
-
-@intrinsic
-def fma(typingctx, a, b, c):
-    """``a * b + c`` rounded once (LLVM's ``llvm.fma``: the CPU's fused multiply-add, or
-    the C library's exact ``fma`` on a CPU without one), for float32 or float64 operands
-    of one type."""
-    def codegen(context, builder, signature, args):
-        ty = args[0].type
-        fn = builder.module.declare_intrinsic("llvm.fma", [ty], ir.FunctionType(ty, [ty, ty, ty]))
-        return builder.call(fn, args)
-
-    return a(a, b, c), codegen
-
+from .jit import fma
 
 # Up to this kernel side a direct correlation is cheaper than the FFT.
 DIRECT_MAX = 11

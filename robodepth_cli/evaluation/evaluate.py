@@ -25,7 +25,9 @@ from ..groundtruth.read import GroundTruth, load_ground_truth
 from ..predictions import Predictions, find_predictions
 from .aspect import aspect_warnings
 from .csvrows import DATASET_COLUMNS, SEVERITY_COLUMN, ResultsTable
-from .protocols import EvaluationError, Setup, kitti_image, nyu_image
+from .image import image_errors
+from .kernels import median
+from .protocols import EvaluationError, Setup
 
 # A worker takes about a second to start (a fresh interpreter importing numpy and OpenCV),
 # the time of some 500 maps: a smaller evaluation gets fewer workers, down to none.
@@ -213,10 +215,10 @@ def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTru
             # The workers map the file: keeping the maps here too would hold them twice.
             del truth
             return _evaluate_in_workers(found, shared, setup, image_size, progress, pairs, jobs)
-    results = []
+    results, medians = [], {}
     for v, p in found:
         try:
-            results.append(_evaluate_variant(v, p, truth, setup, image_size, progress, pairs))
+            results.append(_evaluate_variant(v, p, truth, setup, image_size, progress, pairs, medians))
         finally:
             p.close()
     return results
@@ -301,10 +303,12 @@ def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], shared, setup
 
 
 _WORKER_TRUTH: GroundTruth | None = None
+_WORKER_MEDIANS: dict[int, object] = {}
 
 
 def _start_worker(shared) -> None:
     global _WORKER_TRUTH
+    _WORKER_MEDIANS.clear()  # those of another evaluation's ground truth
     import cv2
 
     cv2.setNumThreads(1)  # one process per core already
@@ -314,31 +318,42 @@ def _start_worker(shared) -> None:
 def _worker_variant(variant: Variant, preds: Predictions, setup: Setup, image_size,
                     pairs=None) -> VariantResult:
     try:
-        return _evaluate_variant(variant, preds, _WORKER_TRUTH, setup, image_size, None, pairs)
+        return _evaluate_variant(variant, preds, _WORKER_TRUTH, setup, image_size, None, pairs,
+                                 _WORKER_MEDIANS)
     finally:
         preds.close()
 
 
 def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, setup: Setup,
-                      image_size, progress, pairs=None) -> VariantResult:
-    """The metrics of one variant; with ``pairs`` (consecutive frames), its flicker too."""
+                      image_size, progress, pairs=None, medians: dict | None = None) -> VariantResult:
+    """The metrics of one variant; with ``pairs`` (consecutive frames), its flicker too.
+    ``medians``: each image's ground-truth median by position, kept across the variants
+    of one evaluation (median scaling divides by it; the ground truth does not change)."""
     errors = []
     ratios = []
     scales = []
     left_out = {}
     for i in range(len(variant)):
+        # A map kept whole is judged in one pass over it (image_errors); flicker's scale
+        # needs the valid pixels themselves.
+        whole = None if pairs else truth.dense(i)
         try:
-            gt = truth.get(i)  # once: flicker's scale below reads the same map
+            gt = truth.get(i) if whole is None else None  # once: flicker reads it too
         except NoValidPixel as exc:
             if pairs:
                 raise
             gt, left_out[i] = None, str(exc)
-        if gt is None:  # an image without ground truth (Evaluation.left_out)
+        if gt is None and whole is None:  # an image without ground truth (Evaluation.left_out)
             if progress:
                 progress(1)
             continue
         m, where, is_png = preds.read(i)
-        errs, ratio = image_errors(m, where, gt, setup, image_size, is_png)
+        if medians is not None and gt is not None and setup.median_scaling and setup.align_space == "depth":
+            if i not in medians:
+                medians[i] = median(gt[2])
+            errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, gt_median=medians[i])
+        else:
+            errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, whole=whole)
         if ratio is not None:
             ratios.append(ratio)
         errors.append(errs)
@@ -365,37 +380,6 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
     return result
 
 
-def image_errors(m: np.ndarray, where: str, truth: tuple, setup: Setup, image_size,
-                 is_png: bool = False) -> tuple:
-    """The metrics of one prediction ``m`` (read from ``where``, which messages name) against
-    ``truth`` (:meth:`GroundTruth.get` of its image), and its median-scaling ratio (None
-    unless the protocol has one); :class:`EvaluationError` for a map that cannot be judged.
-    ``robodepth run`` calls this on maps it never writes, so its numbers are these."""
-    if m.dtype not in (np.float32, np.float64):
-        m = m.astype(np.float32)  # OpenCV and the reference code work in float32
-    check_values(m, where, setup.kind, allow_negative=setup.alignment == "scale-shift")
-    shape, index, gt = truth
-    if is_png and shape != m.shape and tuple(m.shape) != tuple(image_size or ()):
-        raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}; a PNG prediction must "
-                              f"have the ground truth's size {shape[0]} x {shape[1]} or the "
-                              "image's")
-    if setup.protocol == "nyu" and (m.shape[0] > shape[0] or m.shape[1] > shape[1]):
-        raise EvaluationError(f"{where} is {m.shape[0]} x {m.shape[1]}, larger than its "
-                              f"ground truth ({shape[0]} x {shape[1]})")
-    # 0 is a valid value (see ZERO_AND_INF); what it leads to is checked below instead.
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        try:
-            if setup.protocol == "kitti":
-                errs, ratio = kitti_image(m, setup.kind, setup.stereo, shape, index, gt, setup)
-            else:
-                errs, ratio = nyu_image(m, shape, index, gt, setup), None
-        except EvaluationError as exc:  # raised by the alignment, which knows no file
-            raise EvaluationError(f"{where}: {exc}") from None
-    if not np.all(np.isfinite(np.asarray(errs, dtype=np.float64))):
-        raise EvaluationError(f"{where}: the metrics of this map are not finite numbers")
-    return errs, ratio
-
-
 def variant_result(variant: Variant, errors: Sequence, ratios: Sequence, setup: Setup,
                    flicker=None) -> VariantResult:
     """A variant's row from its images' metrics (:func:`image_errors`), in split order."""
@@ -405,33 +389,3 @@ def variant_result(variant: Variant, errors: Sequence, ratios: Sequence, setup: 
                          flicker)
 
 
-def check_values(m: np.ndarray, where: str, kind: str = "depth",
-                 allow_negative: bool = False) -> None:
-    """Refuse a map that cannot give finite metrics (the rule is :data:`ZERO_AND_INF`):
-    NaN, inf, negative values (unless ``allow_negative``: a prediction aligned by a scale
-    and a shift may have them), a sigmoid output outside [0, 1], or (disp, depth) no
-    positive value at all, a dead map."""
-    low = np.min(m)
-    if np.isnan(low):
-        raise EvaluationError(f"{where} contains NaN")
-    if low < 0 and not allow_negative:
-        raise EvaluationError(f"{where} has negative values (min {float(low):g})")
-    high = np.max(m)
-    if np.isinf(high):
-        raise EvaluationError(f"{where} contains inf ({int(np.isinf(m).sum())} pixels); give "
-                              "finite values (a far pixel as a large depth or a 0 disparity)")
-    if kind == "sigmoid":
-        if high > 1:
-            raise EvaluationError(f"{where}: values up to {float(high):g}; --kind sigmoid is a "
-                                  "network's sigmoid output, in [0, 1] (a disparity or a depth? "
-                                  "give --kind disp or --kind depth)")
-    elif high == 0:
-        raise EvaluationError(f"{where}: no positive finite value (all 0); a dead map cannot be "
-                              "evaluated")
-
-
-ZERO_AND_INF = ("0 and inf: a disparity (--kind disp) of 0 is infinitely far, a depth of 0 is "
-                "distance 0; either is clamped to the protocol's depth range (1e-3 to 80 m kitti, "
-                "10 m nyu) as the reference evaluators clamp. inf and NaN are refused, as are "
-                "negative values, sigmoid outputs outside [0, 1], a map with no positive value "
-                "and (median scaling) a map that is 0 at half of the valid pixels or more.")

@@ -23,7 +23,7 @@ from pathlib import PurePosixPath
 
 import numpy as np
 
-from .protocols import EvaluationError, disp_to_depth, resize_bilinear
+from .protocols import EvaluationError, disp_to_depth
 
 COLUMNS = ("flicker_scale", "flicker_abs_rel")
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
@@ -44,9 +44,11 @@ def consecutive_pairs(keys) -> list[tuple[int, int]]:
 def frame_scale(pred: np.ndarray, kind: str, gt_shape, index: np.ndarray, gt: np.ndarray) -> float:
     """``median(gt) / median(depth)`` of one KITTI-protocol image: the prediction resized to
     the ground truth as the protocol does, a disparity inverted."""
+    from .kernels import sample_linear
+
     if kind == "sigmoid":
         pred = disp_to_depth(pred)
-    values = resize_bilinear(pred, *gt_shape).reshape(-1)[index].astype(np.float64)
+    values = sample_linear(pred, gt_shape, index).astype(np.float64)
     with np.errstate(divide="ignore"):
         depth = values if kind == "depth" else 1 / values
     return float(np.median(gt) / np.median(depth))

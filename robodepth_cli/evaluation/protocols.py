@@ -22,9 +22,9 @@ ground truth (``align``: none, median, scale, scale-shift, in depth or disparity
 depth range, which is also the clamp. The defaults are the protocols' above.
 
 Metrics are computed per image over its valid pixels and averaged over the images
-(:func:`depth_errors`, :func:`nyu_errors`). Arithmetic follows the inputs' dtype, as the
-reference code's does (float32 predictions and ground truth give float32 per-image
-metrics); the average over images is float64.
+(:func:`depth_errors`, :func:`nyu_errors`). Each pixel's arithmetic follows the inputs'
+dtype, as the reference code's does (float32 maps: float32 depths and terms); the sums,
+logarithms and averages are float64.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import RobodepthError
+from .resample import resize_bilinear, upsample_corners  # noqa: F401  (public here too)
 
 MIN_DEPTH = 1e-3
 KITTI_MAX_DEPTH = 80.0
@@ -151,12 +152,7 @@ def align_prediction(values: np.ndarray, is_disp: bool, gt: np.ndarray, align: s
         if align == "none":
             a = p if factor is None else p * factor
         elif align == "median":
-            s = np.median(g) / np.median(p)
-            if not (np.isfinite(s) and s > 0):
-                raise EvaluationError(
-                    f"median scaling needs a positive finite median {space} at the valid "
-                    "pixels, and this map is 0 at half of them or more "
-                    f"({'infinitely far' if is_disp else 'distance 0'})")
+            s = median_ratio(g, p, space, is_disp)
             a = p * s
         else:
             p64, g64 = p.astype(np.float64), g.astype(np.float64)
@@ -174,12 +170,33 @@ def align_prediction(values: np.ndarray, is_disp: bool, gt: np.ndarray, align: s
         else:
             d = a.copy() if a is values else a
     if np.isnan(d).any():
-        # e.g. a zero disparity inverted for the depth space: no number to report
-        raise EvaluationError(f"not a number after --align {align} in {space} space (zero or "
-                              "infinite values where 1/x is taken?)")
+        raise _not_a_number(align, space)
     d[d < min_depth] = min_depth
     d[d > max_depth] = max_depth
     return d, s
+
+
+def median_ratio(g: np.ndarray, p: np.ndarray, space: str = "depth", is_disp: bool = True,
+                 g_median=None):
+    """``median(g) / median(p)`` (monodepth2's median scaling; ``g_median``: ``median(g)``
+    when known) in the arrays' dtype, as numpy computes it; :class:`EvaluationError`
+    unless it is positive and finite."""
+    from .kernels import median
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (median(g) if g_median is None else g_median) / median(p)
+    if not (np.isfinite(s) and s > 0):
+        raise EvaluationError(
+            f"median scaling needs a positive finite median {space} at the valid "
+            "pixels, and this map is 0 at half of them or more "
+            f"({'infinitely far' if is_disp else 'distance 0'})")
+    return s
+
+
+def _not_a_number(align: str, space: str) -> EvaluationError:
+    # e.g. a zero disparity inverted for the depth space: no number to report
+    return EvaluationError(f"not a number after --align {align} in {space} space (zero or "
+                           "infinite values where 1/x is taken?)")
 
 
 def depth_errors(gt: np.ndarray, pred: np.ndarray) -> tuple:
@@ -193,18 +210,13 @@ def depth_errors(gt: np.ndarray, pred: np.ndarray) -> tuple:
     - ``rmse_log = sqrt(mean((log gt - log pred)^2))``
     - ``a1, a2, a3 = mean(t < 1.25), mean(t < 1.25^2), mean(t < 1.25^3)``
 
-    Returned in that order (:data:`KITTI_METRICS`).
+    Returned in that order (:data:`KITTI_METRICS`), as float64: each pixel's terms in the
+    arrays' (promoted) dtype, as numpy would compute them, the sums and logarithms in
+    float64, in one pass (:func:`.kernels.errors`).
     """
-    thresh = np.maximum(gt / pred, pred / gt)
-    a1 = (thresh < 1.25).mean()
-    a2 = (thresh < 1.25 ** 2).mean()
-    a3 = (thresh < 1.25 ** 3).mean()
-    diff = gt - pred
-    abs_rel = np.mean(np.abs(diff) / gt)
-    sq_rel = np.mean(diff ** 2 / gt)
-    rmse = np.sqrt(np.mean(diff ** 2))
-    rmse_log = np.sqrt(np.mean((np.log(gt) - np.log(pred)) ** 2))
-    return abs_rel, sq_rel, rmse, rmse_log, a1, a2, a3
+    from .kernels import errors
+
+    return errors(gt, pred)
 
 
 def nyu_errors(gt: np.ndarray, pred: np.ndarray) -> tuple:
@@ -213,49 +225,9 @@ def nyu_errors(gt: np.ndarray, pred: np.ndarray) -> tuple:
     - ``log10 = mean(|log10 gt - log10 pred|)``
     - ``silog = sqrt(mean(e^2) - mean(e)^2) * 100`` with ``e = log pred - log gt``
     """
-    e = np.log(pred) - np.log(gt)
-    silog = np.sqrt(np.mean(e ** 2) - np.mean(e) ** 2) * 100
-    log10 = np.mean(np.abs(np.log10(pred) - np.log10(gt)))
-    return depth_errors(gt, pred) + (log10, silog)
+    from .kernels import errors
 
-
-def resize_bilinear(img: np.ndarray, height: int, width: int) -> np.ndarray:
-    """``cv2.resize(img, (width, height))``: bilinear, pixel centres aligned (OpenCV's
-    ``INTER_LINEAR``), as monodepth2 resizes a disparity to the ground truth's size."""
-    import cv2
-
-    return cv2.resize(img, (width, height), interpolation=cv2.INTER_LINEAR)
-
-
-def upsample_corners(img: np.ndarray, height: int, width: int) -> np.ndarray:
-    """Bilinear resize with the corner pixels aligned, as PyTorch's
-    ``interpolate(mode="bilinear", align_corners=True)`` (AdaBins's evaluation).
-
-    Output pixel ``(i, j)`` samples the input at ``(y, x) = (s_y i, s_x j)`` with
-    ``s_y = (h - 1) / (H - 1)`` and ``s_x = (w - 1) / (W - 1)`` (0 when the output side is
-    1): ``out = (1 - ly) ((1 - lx) a[y0, x0] + lx a[y0, x1]) + ly ((1 - lx) a[y1, x0] +
-    lx a[y1, x1])`` with ``y0 = floor(y)``, ``y1 = min(y0 + 1, h - 1)``, ``ly = y - y0``,
-    likewise for x. Like PyTorch on a float32 tensor, the positions and weights are
-    float32 (their rounding moves samples by up to ~1e-5 pixel on a 480-row map, which
-    float64 would not reproduce); the result is float32.
-    """
-    h, w = img.shape
-    one = np.float32(1)
-
-    def axis(n_in: int, n_out: int):
-        scale = np.float32(n_in - 1) / np.float32(n_out - 1) if n_out > 1 else np.float32(0)
-        pos = scale * np.arange(n_out, dtype=np.float32)
-        lo = np.minimum(pos.astype(np.intp), n_in - 1)
-        hi = np.minimum(lo + 1, n_in - 1)
-        return lo, hi, pos - lo.astype(np.float32)
-
-    y0, y1, ly = axis(h, height)
-    x0, x1, lx = axis(w, width)
-    src = img.astype(np.float32, copy=False)
-    top, bottom = src[y0], src[y1]  # separable gathers: rows first, then columns
-    lx0, ly0, ly1 = one - lx, (one - ly)[:, None], ly[:, None]
-    return (ly0 * (lx0 * top[:, x0] + lx * top[:, x1])
-            + ly1 * (lx0 * bottom[:, x0] + lx * bottom[:, x1]))
+    return errors(gt, pred, nyu=True)
 
 
 # --------------------------------------------------------------------------- protocols
@@ -368,30 +340,46 @@ def make_setup(protocol: str, kind: str | None = None, stereo: bool = False,
 
 
 def kitti_image(pred: np.ndarray, kind: str, stereo: bool, gt_shape: tuple[int, int],
-                index: np.ndarray, gt: np.ndarray, setup: Setup | None = None
-                ) -> tuple[tuple, float | None]:
+                index: np.ndarray, gt: np.ndarray, setup: Setup | None = None, *,
+                gt_median=None) -> tuple[tuple, float | None]:
     """One image under the kitti protocol; returns (the :func:`depth_errors`, the median
     scaling ratio or None).
 
     ``pred`` (any size) is a disparity (``kind="disp"``, already scaled as monodepth2 saves
     it), a raw sigmoid output (``"sigmoid"``: first :func:`disp_to_depth`) or a depth
-    (``"depth"``). It is resized to the ground truth's ``gt_shape`` with
-    :func:`resize_bilinear`; a disparity is then inverted, ``depth = 1 / disp``. ``index``
-    holds the flat indices of the valid pixels (:func:`kitti_valid`) and ``gt`` their depths.
-    Mono: ``depth *= median(gt) / median(depth)`` (the ratio); stereo: ``depth *= 5.4``.
-    Then ``depth`` is clamped to [1e-3, 80]. A ``setup`` with another alignment, space or
-    depth range aligns by :func:`align_prediction` instead (the median rule is its
-    ``median`` in depth space).
+    (``"depth"``), resized to ``gt_shape`` as :func:`resize_bilinear` does, but only at the
+    pixels compared (:func:`.kernels.sample_linear`: the same values); a disparity is then
+    inverted. ``index``: the flat indices of the valid pixels (:func:`kitti_valid`), ``gt``
+    their depths (``gt_median``: its median, when known). Mono: ``depth *= median(gt) /
+    median(depth)`` (the ratio); stereo: ``depth *= 5.4``. Then ``depth`` is clamped to
+    [1e-3, 80]. A ``setup`` with another alignment, space or depth range aligns by
+    :func:`align_prediction` (the median rule is its ``median`` in depth space).
     """
     if setup is None:
         setup = Setup("kitti", kind, stereo)
-    if kind == "sigmoid":
-        pred = disp_to_depth(pred)
-    pred = resize_bilinear(pred, *gt_shape)
-    depth, s = align_prediction(pred.reshape(-1)[index], kind != "depth", gt, setup.alignment,
-                                setup.align_space, setup.min_depth, setup.depth_cap,
-                                STEREO_SCALE if stereo else None)
-    return depth_errors(gt, depth), (s if setup.alignment == "median" else None)
+    from .kernels import sample_linear, scaled_errors
+
+    is_disp = kind != "depth"
+    # Median scaling and stereo's factor in one pass; other alignments by align_prediction.
+    direct = setup.align_space == "depth" and setup.alignment in ("none", "median")
+    values = sample_linear(pred, gt_shape, index, invert=direct and is_disp,
+                           sigmoid=_SIGMOID if kind == "sigmoid" else None)
+    if not direct:
+        depth, s = align_prediction(values, is_disp, gt, setup.alignment, setup.align_space,
+                                    setup.min_depth, setup.depth_cap,
+                                    STEREO_SCALE if stereo else None)
+        return depth_errors(gt, depth), (s if setup.alignment == "median" else None)
+    if setup.alignment == "median":
+        s = median_ratio(gt, values, "depth", is_disp, gt_median)
+    else:
+        s = values.dtype.type(STEREO_SCALE) if stereo else None  # numpy's p * 5.4
+    errs = scaled_errors(gt, values, s, setup.min_depth, setup.depth_cap)
+    if errs is None:
+        raise _not_a_number(setup.alignment, "depth")
+    return errs, (s if setup.alignment == "median" else None)
+
+
+_SIGMOID = (1 / SIGMOID_MAX_DEPTH, 1 / SIGMOID_MIN_DEPTH - 1 / SIGMOID_MAX_DEPTH)  # disp_to_depth's
 
 
 def kitti_valid(gt: np.ndarray) -> np.ndarray:
@@ -423,10 +411,39 @@ def nyu_image(pred: np.ndarray, gt_shape: tuple[int, int], index: np.ndarray,
         pred = disp_to_depth(pred)
     if pred.shape != gt_shape:
         pred = upsample_corners(pred, *gt_shape)
-    depth, _ = align_prediction(pred.reshape(-1)[index], kind != "depth", gt,
-                                setup.alignment, setup.align_space, setup.min_depth,
-                                setup.depth_cap)
+    values = pred.reshape(-1)[index]
+    if kind == "depth" and setup.alignment == "none":  # clamped and compared in one pass
+        from .kernels import scaled_errors
+
+        errs = scaled_errors(gt, values, None, setup.min_depth, setup.depth_cap, nyu=True)
+        if errs is None:
+            raise _not_a_number("none", setup.align_space)
+        return errs
+    depth, _ = align_prediction(values, kind != "depth", gt, setup.alignment,
+                                setup.align_space, setup.min_depth, setup.depth_cap)
     return nyu_errors(gt, depth)
+
+
+def whole_map_image(pred: np.ndarray, kept: np.ndarray, divisor: float | None,
+                    setup: Setup) -> tuple | None:
+    """The metrics of one image whose ground truth is a whole map, ``depth = kept /
+    divisor`` in float32 (``divisor`` None: ``kept`` as it is), in one pass with no
+    per-pixel arrays: :func:`nyu_image`'s (or :func:`kitti_image`'s) numbers at the map's
+    :meth:`Setup.valid` pixels. None where it does not apply: a prediction of another size,
+    a setup that aligns, scales or converts it, a map neither integer nor float32."""
+    if (pred.shape != kept.shape or setup.kind != "depth" or setup.stereo
+            or setup.alignment != "none"
+            or not (kept.dtype.kind in "iu" or kept.dtype == np.float32)):
+        return None
+    from .kernels import dense_errors
+
+    result = dense_errors(pred, kept, 1.0 if divisor is None else divisor,
+                          crop_box(setup.crop_name, setup.protocol, *kept.shape),
+                          (setup.min_depth, setup.depth_cap), setup.min_depth, setup.depth_cap,
+                          nyu=setup.protocol == "nyu")
+    if result is None:
+        raise _not_a_number("none", setup.align_space)
+    return result[0]
 
 
 VALID = {"kitti": kitti_valid, "nyu": nyu_valid}

@@ -77,6 +77,10 @@ class DepthMaps:
                                "the crop and depth range")
         return self.shapes[i], index, np.asarray(depth.reshape(-1)[index])
 
+    def dense(self, i: int) -> None:
+        """None: each map is read by :meth:`get` (which also says when it has no valid pixel)."""
+        return None
+
     def share(self, path: Path) -> DepthMaps:
         return self  # paths only: each worker reads the maps it evaluates
 

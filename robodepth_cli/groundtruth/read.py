@@ -79,10 +79,13 @@ class GroundTruth:
         item = self._items[i]
         if isinstance(item[1], np.ndarray):
             return self.shapes[i], item[0], item[1]
-        kept, divisor = item
-        depth = kept if divisor is None else kept.astype(np.float32) / divisor
-        index = self._valid(depth)
-        return self.shapes[i], index, depth.reshape(-1)[index]
+        return pixels_of(item[0], item[1], self._valid)
+
+    def dense(self, i: int) -> tuple[np.ndarray, float | None] | None:
+        """Map ``i`` as kept whole, ``(kept, divisor)`` (:func:`pixels_of` reads it), or
+        None when it is kept as its valid pixels."""
+        item = self._items[i]
+        return None if isinstance(item[1], np.ndarray) else item
 
     def share(self, path: Path) -> "SharedGroundTruth":
         """Write every kept array into the file ``path`` (each at a 64-byte boundary, as
@@ -105,6 +108,15 @@ class GroundTruth:
                 entries.append((pixels, placed, None if pixels else item[1]))
         return SharedGroundTruth(str(path), self.source, self.protocol, list(self.shapes), entries,
                                  self._valid)
+
+
+def pixels_of(kept: np.ndarray, divisor: float | None, valid) -> tuple:
+    """(shape, flat indices of the valid pixels, their depths) of a map kept whole: depth
+    ``kept.astype(float32) / divisor`` (``divisor`` None: ``kept`` as it is), valid pixels
+    by the rule ``valid``."""
+    depth = kept if divisor is None else kept.astype(np.float32) / divisor
+    index = valid(depth)
+    return depth.shape, index, depth.reshape(-1)[index]
 
 
 class SharedGroundTruth:

@@ -23,7 +23,8 @@ import numpy as np
 from ..api import Variant
 from ..benchmarks import CLEAN
 from ..errors import failure_reason
-from ..evaluation.evaluate import Evaluation, VariantResult, image_errors, variant_result
+from ..evaluation.evaluate import Evaluation, VariantResult, variant_result
+from ..evaluation.image import image_errors
 from ..models import predict as P
 from ..predictions import PredictionWriter, finished, remove_leftovers, split_digest
 from ..building.renderers import Renderer

@@ -66,3 +66,19 @@ def write_form1(pred, preds_by_variant, ext=".npy"):
 
 
 KEY69 = "kitti_data/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
+
+
+def ref_errors(g, d, nyu=False):
+    """compute_errors of the reference scripts on the valid pixels (numpy, in the arrays'
+    dtype as they compute it; silog's logarithms in float64, see below)."""
+    t = np.maximum(g / d, d / g)
+    out = [np.mean(np.abs(g - d) / g), np.mean((g - d) ** 2 / g), np.sqrt(np.mean((g - d) ** 2)),
+           np.sqrt(np.mean((np.log(g) - np.log(d)) ** 2)),
+           np.mean(t < 1.25), np.mean(t < 1.25 ** 2), np.mean(t < 1.25 ** 3)]
+    if nyu:
+        # float64: the difference of two means cancels most digits (the variance of e is
+        # small beside its mean's square), and float32 keeps only ~1e-5 of silog then
+        e = np.log(d.astype(np.float64)) - np.log(g.astype(np.float64))
+        out += [np.mean(np.abs(np.log10(d) - np.log10(g))),
+                np.sqrt(np.mean(e ** 2) - np.mean(e) ** 2) * 100]
+    return out
