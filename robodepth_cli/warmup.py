@@ -6,7 +6,8 @@ corruptions give it (numba compiles one specialisation per dtype, dimension coun
 and writability), by running them: every corruption, the depth-aware ones with a depth map,
 at every whole level and a decimal one, on small frames of :data:`SHAPES` (each layout a
 kernel meets at some image size), and those with a size rule also at a severity size
-smaller and larger than the frame (their scaled paths). The cache is the one the package reads at run time
+smaller and larger than the frame (their scaled paths); then small maps judged as
+``evaluate`` judges them (the evaluation's kernels). The cache is the one the package reads at run time
 (``robodepth_cli/corruptions/_jit.py`` says where). Run it again after upgrading numba, on
 another CPU, or with ``NUMBA_CACHE_DIR`` set to the folder the commands will use.
 """
@@ -66,8 +67,42 @@ def warm_up() -> tuple[dict[str, object], dict[str, str]]:
                                severity_size=size)
                     except RobodepthError as exc:
                         refused[name] = str(exc)
+    _warm_evaluation(rng)
     return kernels(), refused
 
+
+def _warm_evaluation(rng) -> None:
+    """Judge small maps as ``evaluate`` does (the evaluation's kernels): float32 and
+    float64 predictions, writable and read-only (a mapped ``.npy``), under the kitti
+    protocol's modes and the nyu protocol, against ground truth as sparse pixels (int32
+    indices) and as a whole 16-bit map."""
+    import numpy as np
+
+    from .evaluation.image import image_errors
+    from .evaluation.protocols import make_setup
+
+    h, w = 48, 160
+    gt = np.zeros((h, w), np.float32)
+    index = np.flatnonzero(rng.random(h * w) < 0.3).astype(np.int32)
+    gt.reshape(-1)[index] = rng.uniform(1.0, 70.0, index.size).astype(np.float32)
+    truth = ((h, w), index, gt.reshape(-1)[index])
+    raw = (rng.uniform(0.5, 9.0, (480, 640)) * 1000).astype(np.uint16)  # NYU's size (its crop)
+    nyu_index = np.flatnonzero(raw > 0).astype(np.int32)
+    nyu_truth = (raw.shape, nyu_index, (raw.reshape(-1)[nyu_index] / np.float32(1000)).astype(np.float32))
+    setups = [make_setup("kitti", kind, stereo, align=align) for kind, stereo, align in
+              (("disp", False, None), ("disp", True, None), ("depth", False, None),
+               ("sigmoid", False, None), ("disp", False, "scale-shift"), ("depth", False, "none"))]
+    nyu = make_setup("nyu", "depth")
+    for dtype in (np.float32, np.float64):
+        for readonly in (False, True):
+            pred = rng.uniform(0.05, 0.9, (h // 2, w // 2)).astype(dtype)
+            dense = rng.uniform(0.5, 9.0, raw.shape).astype(dtype)
+            for p in (pred, dense):
+                p.flags.writeable = not readonly
+            for setup in setups:
+                image_errors(pred, "warmup", truth, setup, None)
+            image_errors(dense, "warmup", None, nyu, None, whole=(raw, 1000.0))
+            image_errors(dense, "warmup", nyu_truth, nyu, None)
 
 def main() -> int:
     """Warm up and say what was done in one line (and one per corruption that refused:

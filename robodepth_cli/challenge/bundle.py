@@ -33,7 +33,7 @@ from .scoring import RANK
 from .npzfile import write_npz
 
 DOCKER_IMAGE = "codalab/codalab-legacy:py39"  # Codabench's documented default (Python 3.9, numpy)
-PROGRAM_FILES = ("errors.py", "benchmarks.py", "evaluation/protocols.py",
+PROGRAM_FILES = ("errors.py", "benchmarks.py", "evaluation/protocols.py", "evaluation/resample.py",
                  "challenge/__init__.py", "challenge/layout.py", "challenge/submission.py",
                  "challenge/resize.py", "challenge/scoring.py", "challenge/page.py",
                  "challenge/server.py")

@@ -96,10 +96,10 @@ def test_breakdowns_follow_the_key(cli, tmp_path):
     got = json.loads(res.output)
     fog = official_evaluate(disps[:2], gts[:2])
     snow = official_evaluate(disps[3:], gts[3:])
-    assert got["abs_rel_fog"] == pytest.approx(fog[0], rel=1e-9)
-    assert got["dee_snow"] == pytest.approx((snow[0] - snow[4] + 1) / 2, rel=1e-9)
+    assert got["abs_rel_fog"] == pytest.approx(fog[0], rel=1e-6)
+    assert got["dee_snow"] == pytest.approx((snow[0] - snow[4] + 1) / 2, rel=1e-6)
     level1 = official_evaluate(disps[[0, 2, 5]], [gts[0], gts[2], gts[5]])
-    assert got["dee_level1"] == pytest.approx((level1[0] - level1[4] + 1) / 2, rel=1e-9)
+    assert got["dee_level1"] == pytest.approx((level1[0] - level1[4] + 1) / 2, rel=1e-6)
     # weather & lighting holds fog, dark and snow here: the mean of their DEEs
     dees = [got[f"dee_{c}"] for c in ("fog", "dark", "snow")]
     assert got["dee_weather_lighting"] == pytest.approx(np.mean(dees))
@@ -114,7 +114,7 @@ def test_only_the_key_rows_are_scored_but_every_map_is_checked(cli, tmp_path):
     (ref / "key.csv").write_text("\n".join(key[:3]) + "\n")  # the first two images only
     res = cli("challenge", "score", _zip(tmp_path / "d.zip", "disp.npy", disps), "--reference", ref, "--json")
     got = json.loads(res.output)
-    np.testing.assert_allclose(got["abs_rel"], official_evaluate(disps[:2], gts[:2])[0], rtol=1e-9)
+    np.testing.assert_allclose(got["abs_rel"], official_evaluate(disps[:2], gts[:2])[0], rtol=1e-6)
     bad = disps.copy()
     bad[5, 0, 0] = np.nan  # an unscored image's map is still refused, as the final phase would
     res = cli("challenge", "score", _zip(tmp_path / "b.zip", "disp.npy", bad), "--reference", ref)

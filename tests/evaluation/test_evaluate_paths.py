@@ -240,3 +240,17 @@ def test_a_variants_npy_is_mapped_not_copied(tmp_path):
     (tmp_path / "cut.npy").write_bytes(data[:-100])
     with pytest.raises(PredictionsError, match=r"cut\.npy: the file ends early"):
         ArrayPredictions(variant, tmp_path / "cut.npy")
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_metrics_without_numba_are_the_kernels(dtype):
+    """A scoring program on an image without numba (Codabench's) takes numpy's form of the
+    metrics: the same terms and float64 sums, so the same numbers to far below 1e-6."""
+    from robodepth_cli.evaluation import protocols as P
+
+    rng = np.random.default_rng(3)
+    gt = rng.uniform(1e-3, 80, 5000).astype(dtype)
+    ratio = np.concatenate([rng.uniform(0.5, 2.0, 4000), np.repeat([1.25, 1.25 ** 2, 1.25 ** 3, 1.0], 250)])
+    pred = (gt * ratio.astype(dtype)).astype(dtype)
+    assert P._numpy_errors(gt, pred, True) == pytest.approx(P.nyu_errors(gt, pred), rel=1e-9)
+    assert P._numpy_errors(gt, pred, False) == pytest.approx(P.depth_errors(gt, pred), rel=1e-9)
