@@ -13,9 +13,9 @@ from .protocols import EvaluationError, Setup, kitti_image, nyu_image, whole_map
 def image_errors(m: np.ndarray, where: str, truth: tuple | None, setup: Setup, image_size,
                  is_png: bool = False, *, whole: tuple | None = None, gt_median=None) -> tuple:
     """The metrics of one prediction ``m`` (read from ``where``, which messages name) against
-    ``truth`` (:meth:`GroundTruth.get` of its image), and its median-scaling ratio (None
+    ``truth`` (:meth:`robodepth_cli.groundtruth.read.GroundTruth.get` of its image), and its median-scaling ratio (None
     unless the protocol has one); :class:`EvaluationError` for a map that cannot be judged.
-    ``whole`` instead of ``truth``: the map kept whole (:meth:`GroundTruth.dense`), judged
+    ``whole`` instead of ``truth``: the map kept whole (:meth:`robodepth_cli.groundtruth.read.GroundTruth.dense`), judged
     in one pass where :func:`.protocols.whole_map_image` can (the same numbers).
     ``gt_median``: the median of the ground truth's depths, when known (kitti_image).
     ``robodepth run`` calls this on maps it never writes, so its numbers are these."""

@@ -313,7 +313,7 @@ def _means(sums: tuple, n: int, nyu: bool) -> tuple:
 def errors(gt: np.ndarray, pred: np.ndarray, nyu: bool = False) -> tuple:
     """The seven metrics (``nyu``: nine) of :func:`~.protocols.depth_errors` over the
     valid pixels' depths ``gt`` and ``pred`` (1-D, same length), as float64: each pixel's
-    terms in the two arrays' promoted dtype (:func:`_terms`), the sums in float64."""
+    terms in the two arrays' promoted dtype (:func:`_scaled_errors`), the sums in float64."""
     return scaled_errors(gt, pred, None, -np.inf, np.inf, nyu)
 
 
