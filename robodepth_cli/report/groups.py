@@ -41,7 +41,9 @@ class Group:
 
     @property
     def title(self) -> str:
-        fixed = ", ".join(v for _, v in self.fixed if v)
+        # The published file writes "None" for a model trained from scratch.
+        fixed = ", ".join("no pre-training" if k == "pretrain" and v == "None" else v
+                          for k, v in self.fixed if v)
         return (self.base or "your models") + (f" ({fixed})" if fixed else "")
 
 
