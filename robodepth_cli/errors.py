@@ -16,15 +16,30 @@ import os
 
 
 class RobodepthError(ValueError):
-    """A problem with the user's input or environment; the message is one line."""
+    """A problem with the user's input or environment; the message is one line.
+
+    ``where`` is the file, ``FILE:LINE`` or flag the problem is about, once it is known:
+    a check that does not know it raises the problem alone, and the caller that does says
+    it once, ``raise exc.at("--flag") from None``, instead of a new error of its own."""
+
+    where: str = ""
+
+    def at(self, where) -> "RobodepthError":
+        """This refusal, about ``where``: its message becomes ``WHERE: MESSAGE``; unchanged
+        when it already names its place. (The place goes into ``args`` too, so that the
+        message survives a worker process's pickling.)"""
+        if not self.where:
+            self.where = str(where)
+            self.args = (f"{where}: {self.args[0]}" if self.args else self.where, *self.args[1:])
+        return self
 
 
 class InvalidValueError(RobodepthError):
     """A value refused by a check that does not know where the value was given (a flag, a
     configuration key, a line of a split or list file): the message says what is wrong
-    with the value; a caller that knows the place catches this class and raises its own
-    error naming it (``--split: ...``, ``config.yaml: size: ...``, ``split.txt:3: ...``).
-    Uncaught, it is still a complete refusal."""
+    with the value; a caller that knows the place catches this class and names it with
+    :meth:`RobodepthError.at` (``--split: ...``, ``config.yaml: size: ...``,
+    ``split.txt:3: ...``). Uncaught, it is still a complete refusal."""
 
 
 def os_reason(exc: OSError) -> str:

@@ -89,3 +89,16 @@ def test_the_same_refusal_still_names_the_flag(tmp_path, fixtures_dir, cli):
     res = cli(*args)
     assert res.exit_code == 2
     assert res.output.startswith("robodepth: error: --split: no standard split named 'eigen'")
+
+
+def test_a_refusal_names_its_place_once_and_keeps_it_through_pickling():
+    import pickle
+
+    from robodepth_cli.errors import InvalidValueError, RobodepthError
+
+    exc = InvalidValueError("expected HxW such as 192x640, got 'x'")
+    assert exc.at("--severity-size") is exc and exc.where == "--severity-size"
+    assert str(exc) == "--severity-size: expected HxW such as 192x640, got 'x'"
+    assert str(exc.at("config.yaml")) == str(exc)  # its place, once
+    assert str(pickle.loads(pickle.dumps(exc))) == str(exc)  # as a worker's refusal comes back
+    assert isinstance(exc, RobodepthError) and str(RobodepthError("plain")) == "plain"

@@ -43,7 +43,7 @@ from ..files import probe_writable
 from ..imageio import PNG_ENCODERS, check_png
 from ..output import manifest, record as build_record
 from ..output.layout import MANIFEST, RECORD
-from ..output.manifest import Row
+from ..output.manifest import Params, Row
 from ..output.record import BuildRecord, BuildStatus, plan_entry
 from ..sources.datasets import Dataset, get_dataset
 from .renderers import Renderer, make_renderer as renderer_of
@@ -55,7 +55,7 @@ from .executors import Executor, ExecutorError, checked_executor
 from .gather import check_root, gather_sources, orientation_record
 from .vanished import prune
 from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, for_source,
-                    run_task, same_source, split_stamp)
+                    run_task, same_source)
 
 MAX_ERRORS_SHOWN = 10
 
@@ -260,7 +260,8 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
         expected, hashes, stamps, refresh = [], set(), set(), False
         for job in jobs:
             r = done.get(job.path(src.key))
-            params, stamp = split_stamp(r.params) if r is not None else ("", "")
+            parts = r.parsed if r is not None else Params()
+            params, stamp = replace(parts, depth_stamp="").text(), parts.depth_stamp
             # A source that has gone missing does not spoil the outputs already made from it.
             same = (r is not None and not r.error
                     and ((r.source == src.rel and same_source(r, src)) or bool(src.error))

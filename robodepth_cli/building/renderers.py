@@ -91,7 +91,7 @@ def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -
     try:
         chosen = resolve_device(device or "auto")
     except InvalidValueError as exc:
-        raise InvalidValueError(f"{where.get('device', '--device')}: {exc}") from None
+        raise exc.at(where.get("device", "--device")) from None
     return {**extra, "engine": engine, "device": chosen.type}, notes
 
 

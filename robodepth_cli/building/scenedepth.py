@@ -264,7 +264,7 @@ class PredictedDepth(DepthSource):
             record = P.read_record(pred)
             rule = P.conversion(record, pred)
         except InvalidValueError as exc:
-            raise RobodepthError(f"--scene-depth: {exc}") from None
+            raise exc.at("--scene-depth") from None
         if rule == "median" and own is None:
             raise RobodepthError(f"--scene-depth: {pred}: the maps of {record.get('model')} are relative "
                                  "(median-scaled to the dataset's own depth) and this build has no depth "

@@ -16,7 +16,7 @@ from pathlib import Path
 from ..errors import RobodepthError, cannot_write, failure_reason, os_reason, reraise_interrupt
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
-from ..output.manifest import Journal, Row
+from ..output.manifest import Journal, Params, Row
 from ..sources.datasets import CLEAN, Entry, Job, locate
 from .executors import stopping
 from .renderers import Renderer
@@ -249,23 +249,9 @@ def for_source(params: str, src: Source, job: Job, stamp: str = "") -> str:
     ``sequence=<id>`` (its sequence's files); a depth-aware output's with ``map=<stamp>`` (the
     sha256 of its depth's files). A single-frame build's are unchanged otherwise."""
     from ..benchmarks import TEMPORAL
-    from ..output.layout import NEIGHBOUR_OF
 
-    parts = ([f"{NEIGHBOUR_OF}{src.anchor}"] if src.anchor else []) + ([params] if params else [])
-    if src.sequence_id and job.variant in TEMPORAL:
-        parts.append(f"sequence={src.sequence_id}")
-    if stamp:
-        parts.append(MAP + stamp)
-    return ";".join(parts)
-
-
-MAP = "map="  # the last part of a depth-aware output's params: its depth stamp
-
-
-def split_stamp(params: str) -> tuple[str, str]:
-    """A manifest row's ``params`` without its depth stamp, and the stamp ("" if none)."""
-    head, sep, stamp = params.rpartition(";" + MAP)
-    return (head, stamp) if sep else (params, "")
+    sequence = src.sequence_id if src.sequence_id and job.variant in TEMPORAL else ""
+    return Params(params, src.anchor or "", sequence or "", stamp).text()
 
 
 def load_source(src: Source, size: tuple[int, int] | None):

@@ -287,7 +287,7 @@ def severity_size(value: str | None, flag: str = "--severity-size") -> tuple[int
     try:
         return parse_severity_size(value)
     except InvalidValueError as exc:
-        raise RobodepthError(f"{flag}: {exc}") from None
+        raise exc.at(flag) from None
 
 
 def evaluation_options(command):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ..errors import InvalidValueError, RobodepthError
+from ..errors import InvalidValueError
 from . import common
 
 @click.command("stylize")
@@ -42,7 +42,7 @@ def stylize_command(image, style, vgg, decoder, alpha, style_size, size, device,
         try:
             opts[key] = check_option(key, value, Path())  # paths kept as typed
         except InvalidValueError as exc:
-            raise RobodepthError(f"--{key.replace('_', '-')}: {exc}") from None
+            raise exc.at(f"--{key.replace('_', '-')}") from None
     content = common.load_input(image, size)
     style_img = load_style(style, opts["style_size"])
     from ..styles.adain import Stylizer, choose_device, describe_device

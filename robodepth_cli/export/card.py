@@ -73,7 +73,7 @@ def holdings(shards, rows: dict) -> dict[str, dict]:
                 h["levels"].add(item.level)
             h["seeds"].add(item.seed)
             if s.config not in ("clean", GT_CONFIG):
-                params = rows[item.output].params.split(";")
+                params = rows[item.output].parsed.parts()
                 h["engines"].add("torch" if TORCH_FINGERPRINT in params else "numpy")
                 if scaled:
                     h["severity"].add(next((p[len(SEVERITY_SIZE):] for p in params

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InvalidValueError, RobodepthError
-from ..output.layout import GT_DIR, GT_FILE, NEIGHBOUR_OF, output_path, variant_dir
+from ..output.layout import GT_DIR, GT_FILE, output_path, variant_dir
 from .layout import GT_CONFIG, NEIGHBOURS, NO_LEVEL, shard_name, split_name
 
 DEFAULT_SHARD_SIZE = 500_000_000
@@ -124,7 +124,7 @@ def neighbour_outputs(rows: dict) -> dict[str, list[str]]:
     frame they were rendered for), by variant directory, each list sorted by path."""
     found: dict[str, list[str]] = {}
     for path, r in rows.items():
-        if r.params.startswith(NEIGHBOUR_OF) and not r.error:
+        if r.parsed.neighbour_of and not r.error:
             found.setdefault(variant_dir(r.variant, r.level), []).append(path)
     return {d: sorted(paths) for d, paths in found.items()}
 

@@ -31,13 +31,57 @@ from pathlib import Path
 from ..files import is_temporary, write_atomic
 from ..errors import RobodepthError
 from ..values import int_from_text, is_int
-from .layout import JOURNAL, LOCK, MANIFEST
+from .layout import JOURNAL, LOCK, MANIFEST, NEIGHBOUR_OF
+
+SEQUENCE = "sequence="  # a params part: a corruption over time's sequence
+MAP = "map="  # the last params part of a depth-aware output: its depth stamp
 
 _SHA = re.compile(r"[0-9a-f]{64}")
 
 
 class ManifestError(RobodepthError):
     """An output directory whose bookkeeping cannot be used."""
+
+
+@dataclass(frozen=True)
+class Params:
+    """A row's ``params`` cell as its parts, parsed once here (:meth:`parse`, :meth:`text`):
+    ``[neighbour_of=KEY;][FINGERPRINT][;sequence=ID][;map=STAMP]``, each part only when
+    set. ``fingerprint`` is what the renderer says decides the pixels besides the seed and
+    size (KITTI-S: checkpoints, style, alpha; a corruption's engine and severity size:
+    ``;``-separated itself); ``neighbour_of``: the test frame a neighbour frame (--frames)
+    was rendered for; ``sequence``: a corruption over time's sequence; ``depth_stamp``: the
+    sha256 of a depth-aware output's depth files."""
+
+    fingerprint: str = ""
+    neighbour_of: str = ""
+    sequence: str = ""
+    depth_stamp: str = ""
+
+    @classmethod
+    def parse(cls, text: str) -> "Params":
+        neighbour = ""
+        if text.startswith(NEIGHBOUR_OF):
+            neighbour, _, text = text[len(NEIGHBOUR_OF):].partition(";")
+        parts = {}
+        for name, tag in (("depth_stamp", MAP), ("sequence", SEQUENCE)):  # from the end
+            if text.startswith(tag):
+                text, parts[name] = "", text[len(tag):]
+            else:
+                head, sep, value = text.rpartition(";" + tag)
+                if sep:
+                    text, parts[name] = head, value
+        return cls(text, neighbour, **parts)
+
+    def text(self) -> str:
+        return ";".join(p for p in ((NEIGHBOUR_OF + self.neighbour_of) if self.neighbour_of else "",
+                                    self.fingerprint,
+                                    (SEQUENCE + self.sequence) if self.sequence else "",
+                                    (MAP + self.depth_stamp) if self.depth_stamp else "") if p)
+
+    def parts(self) -> list[str]:
+        """The fingerprint's own ``;``-separated parts (``engine=torch``, ``severity_size=...``)."""
+        return self.fingerprint.split(";") if self.fingerprint else []
 
 
 @dataclass(frozen=True)
@@ -62,6 +106,11 @@ class Row:
     source_size: int | None = None
     source_mtime: int | None = None
     source_sha256: str = ""
+
+    @property
+    def parsed(self) -> Params:
+        """The ``params`` cell's parts."""
+        return Params.parse(self.params)
 
 
 FIELDS = tuple(f.name for f in fields(Row))

@@ -295,8 +295,8 @@ def test_worker_with_other_robodepth_is_refused_before_any_work(build, cluster, 
     shadow = tmp_path / "shadow"
     pkg = Path(__import__("robodepth_cli").__file__).parent
     shutil.copytree(pkg, shadow / "robodepth_cli", ignore=shutil.ignore_patterns("__pycache__"))
-    init = shadow / "robodepth_cli" / "__init__.py"
-    init.write_text(init.read_text().replace('__version__ = "', '__version__ = "0.0.0+other'))
+    release = shadow / "robodepth_cli" / "formats.py"  # robodepth_cli.__version__ is its RELEASE
+    release.write_text(release.read_text().replace('RELEASE = "', 'RELEASE = "0.0.0+other'))
     env = {**os.environ, "PYTHONPATH": str(shadow)}
     out = tmp_path / "out"
     with cluster.extra_worker("other", env=env, cwd=shadow) as address:  # python -m puts the cwd first

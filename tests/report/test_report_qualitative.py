@@ -6,9 +6,6 @@ from __future__ import annotations
 
 from tests.helpers.report import tables as _tables
 
-import json
-
-from robodepth_cli.formats import stamp
 
 import numpy as np
 import pytest
@@ -30,8 +27,9 @@ def _preds(build, where, kind, record=True):
     for v in ds.variants():
         v.save_predictions(where, [disp if kind == "disp" else 1 / disp] * len(ds.keys))
     if record:
-        (where / "predictions.json").write_text(json.dumps(
-            {**stamp("robodepth-predictions"), "model": "test", "evaluate": {"kind": kind, "align": "none", "align_space": "depth"}}))
+        from robodepth_cli.predictions import write_record  # as robodepth predict writes it
+
+        write_record(where, {"model": "test", "evaluate": {"kind": kind, "align": "none", "align_space": "depth"}})
     return where
 
 
