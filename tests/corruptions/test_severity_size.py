@@ -293,13 +293,14 @@ def test_the_dataset_card_states_the_severity_size():
     from types import SimpleNamespace
 
     from robodepth_cli.export.card import card, holdings
+    from robodepth_cli.output.manifest import Params
 
     record = SimpleNamespace(dataset="custom", keys=["a.png", "b.png"], seed=0, robodepth="x",
                              command=[], config={"levels": [3], "size": None, "extra": {}})
 
     def text(*params):
         items = [SimpleNamespace(level=3, seed=0, output=f"defocus_blur/3/{k}") for k in ("a.png", "b.png")]
-        rows = {i.output: SimpleNamespace(params=p) for i, p in zip(items, params)}
+        rows = {i.output: SimpleNamespace(params=p, parsed=Params.parse(p)) for i, p in zip(items, params)}
         held = holdings([SimpleNamespace(config="defocus_blur", items=items)], rows)
         return card(record, [{"config": "defocus_blur", "split": "level_3"}], "parquet", "x", held)
 
