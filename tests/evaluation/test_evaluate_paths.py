@@ -254,3 +254,24 @@ def test_the_metrics_without_numba_are_the_kernels(dtype):
     pred = (gt * ratio.astype(dtype)).astype(dtype)
     assert P._numpy_errors(gt, pred, True) == pytest.approx(P.nyu_errors(gt, pred), rel=1e-9)
     assert P._numpy_errors(gt, pred, False) == pytest.approx(P.depth_errors(gt, pred), rel=1e-9)
+
+
+@pytest.mark.slow
+def test_the_results_are_the_same_bytes_with_simd_switched_off(kitti_c, kitti_pred, cli, tmp_path):
+    """The metrics are the same numbers on any CPU: the results CSV of an evaluation run with
+    every library's SIMD paths off (and numba's generic CPU) is byte-equal to this CPU's."""
+    import os
+    import subprocess
+    import sys
+
+    from tests.helpers.paths import REPO
+    from tests.helpers.simd import stand_ins
+
+    build, _ = kitti_c
+    here, there = tmp_path / "here.csv", tmp_path / "there.csv"
+    assert cli("evaluate", build, "--pred", kitti_pred, "--out", here, "--jobs", "1").exit_code == 0
+    done = subprocess.run([sys.executable, "-m", "robodepth_cli.cli", "evaluate", str(build), "--pred",
+                           str(kitti_pred), "--out", str(there), "--jobs", "1"],
+                          env={**os.environ, **stand_ins()["all"]}, cwd=REPO, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert there.read_bytes() == here.read_bytes()
