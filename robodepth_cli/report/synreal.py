@@ -20,17 +20,16 @@ models were compared.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
 from ..benchmarks import CORRUPTIONS
-from ..errors import RobodepthError, os_reason
+from ..errors import RobodepthError
 from ..evaluation.csvrows import normalise_name
 from ..evaluation.ranking import LEVEL, bootstrap, kendall, spearman
+from .tablefile import table_rows
 
 PAIRS = Path(__file__).resolve().parent / "pairs.csv"
 MIN_MODELS = 3  # two models have one pair to order: no ranking to speak of
@@ -67,23 +66,7 @@ def read_pairs(paths: Sequence[Path]) -> list[Pair]:
     with the columns ``synthetic,corruption,real`` (``#`` lines are comments)."""
     pairs: dict[Pair, None] = {}
     for path in paths:
-        try:
-            text = Path(path).read_text(encoding="utf-8-sig")
-        except UnicodeDecodeError:
-            raise PairsError(f"--pairs {path}: not a UTF-8 text file") from None
-        except OSError as exc:
-            raise PairsError(f"--pairs {path}: cannot read: {os_reason(exc)}") from None
-        reader = csv.reader(io.StringIO(text))
-        header = None
-        for row in reader:
-            if not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
-                continue
-            where = f"--pairs {path}:{reader.line_num}"
-            if header is None:
-                header = [c.strip().lower() for c in row]
-                if header != ["synthetic", "corruption", "real"]:
-                    raise PairsError(f"{where}: the header must be synthetic,corruption,real")
-                continue
+        for where, row in table_rows("--pairs", Path(path), ("synthetic", "corruption", "real"), PairsError):
             if len(row) != 3 or not all(c.strip() for c in row):
                 raise PairsError(f"{where}: expected three cells: DATASET[:SPLIT],CORRUPTION,"
                                  "DATASET[:SPLIT]")
@@ -92,8 +75,6 @@ def read_pairs(paths: Sequence[Path]) -> list[Pair]:
                 raise PairsError(f"{where}: unknown corruption {row[1].strip()!r}; valid: "
                                  f"{', '.join(CORRUPTIONS)}")
             pairs[Pair(parse_key(row[0]), corruption, parse_key(row[2]))] = None
-        if header is None:
-            raise PairsError(f"--pairs {path}: no header row (synthetic,corruption,real)")
     return list(pairs)
 
 

@@ -10,8 +10,6 @@ per image, a number with an optional ``k``, ``M``, ``G`` or ``T`` suffix (``14.3
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from pathlib import Path
 from typing import Sequence
@@ -81,34 +79,15 @@ def read_sizes(path: Path, names: Sequence[str]) -> dict[str, dict[str, float]]:
     """A ``--sizes`` CSV: header ``model,params,flops`` (``#`` lines are comments), one row
     per model named as in the report (yours or the paper's), a cell empty where unknown ->
     model -> {"params": n, "flops": n} (the known ones)."""
-    from ..errors import os_reason
+    from .tablefile import table_rows
 
-    try:
-        if path.stat().st_size > SIZES_LIMIT:
-            raise ReportError(f"--sizes {path}: larger than {SIZES_LIMIT >> 10} kB; a table of "
-                              "model sizes is a few lines")
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise ReportError(f"--sizes {path}: not a UTF-8 text file") from None
-    except OSError as exc:
-        raise ReportError(f"--sizes {path}: cannot read: {os_reason(exc)}") from None
-    reader = csv.reader(io.StringIO(text))
-    header, out = None, {}
-    for row in reader:
-        if not any(c.strip() for c in row) or row[0].lstrip().startswith("#"):
-            continue
-        where = f"--sizes {path}:{reader.line_num}"
-        if header is None:
-            header = [c.strip().lower() for c in row]
-            if header != list(SIZES_COLUMNS):
-                raise ReportError(f"{where}: the header must be {','.join(SIZES_COLUMNS)}")
-            continue
+    out = {}
+    for where, row in table_rows("--sizes", path, SIZES_COLUMNS, ReportError,
+                                 (SIZES_LIMIT, "a table of model sizes is a few lines")):
         if len(row) != 3:
             raise ReportError(f"{where}: expected three cells: model,params,flops")
         model = row[0].strip()
         if model not in names:
             raise ReportError(f"{where}: no model of the report is named {model!r}")
         out[model] = {k: count(v, where) for k, v in zip(SIZES_COLUMNS[1:], row[1:]) if v.strip()}
-    if header is None:
-        raise ReportError(f"--sizes {path}: no header row ({','.join(SIZES_COLUMNS)})")
     return out
