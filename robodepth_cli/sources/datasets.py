@@ -424,9 +424,8 @@ DATASETS: dict[str, Dataset] = {
                        **_published("kitti-c")),
     "nyudepth2-c": Dataset("nyudepth2-c", "nyu", split="nyu_test", size="480x640",
                            evaluation=(("protocol", "nyu"),), **_published("nyudepth2-c")),
-    "kitti-s": StyleDataset("kitti-s", "eigen", split="eigen_test", size="192x640", processes=1, settings=(
-        ("styles", None), ("vgg", None), ("decoder", None), ("alpha", 1.0), ("style_size", 512),
-        ("device", "auto"))),
+    "kitti-s": StyleDataset("kitti-s", "eigen", split="eigen_test", size="192x640", processes=1,
+                            settings=(("alpha", 1.0), ("style_size", 512), ("device", "auto"))),
     "custom": CustomDataset("custom"),
     "diode-c": _zero_shot("diode-c", "none", 0.6, 350.0,
                           pattern="indoors/scene_*/scan_*/*.png,outdoor/scene_*/scan_*/*.png",
