@@ -109,13 +109,6 @@ BENCHMARKS: dict[str, Benchmark] = {
 }
 
 
-# Datasets with corruptions but no published baseline: their results are scored against a
-# baseline results CSV the user names (score --baseline), else as DEE and RR only. The names
-# are those of robodepth_cli.sources.datasets' builds with depth.
-UNPUBLISHED = ("custom", "diode-c", "sintel-c", "eth3d-c", "scannet-c", "vkitti2-c",
-               "cityscapes-c", "drivingstereo-c")
-
-
 def unpublished(name: str, corruptions: tuple[str, ...] = CORRUPTIONS,
                 n_levels: int = N_LEVELS, levels: Sequence[int] | None = None) -> Benchmark:
     """The benchmark of a dataset without a published baseline (by default every corruption

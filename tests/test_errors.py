@@ -17,7 +17,7 @@ def _checks(tmp_path):
     from robodepth_cli.imageio import as_rgb, parse_size
     from robodepth_cli.keys import relative_parts
     from robodepth_cli.sources import splits
-    from robodepth_cli.sources.custom import check_option as custom_option, compile_pattern
+    from robodepth_cli.sources.custom import check_list, compile_pattern
     from robodepth_cli.sources.datasets import get_dataset, parse_eigen, parse_nyu
     from robodepth_cli.styles.inputs import check_alpha, check_option as style_option, check_style_size
 
@@ -30,7 +30,7 @@ def _checks(tmp_path):
         "eigen line": (lambda: parse_eigen(["2011_09_26/d", "x", "l"]), InvalidValueError, "frame 'x'"),
         "nyu line": (lambda: parse_nyu(["a.jpg", "b.png", "f"]), InvalidValueError, "focal length 'f'"),
         "pattern": (lambda: compile_pattern("{a,b}.png"), InvalidValueError, "braces"),
-        "custom option": (lambda: custom_option("list", 3, tmp_path), InvalidValueError, "got 3"),
+        "custom option": (lambda: check_list(3, tmp_path), InvalidValueError, "got 3"),
         "split choice": (lambda: splits.check_choice("eigen", "eigen", tmp_path), InvalidValueError,
                          "no standard split named 'eigen'"),
         "alpha": (lambda: check_alpha(1.5), InvalidValueError, "alpha must be between 0 and 1"),

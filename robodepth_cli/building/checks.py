@@ -145,7 +145,7 @@ class BuildError(RobodepthError):
     (or, for a write error mid-build, everything finished so far is kept)."""
 
 
-def check_depth_scale(ds, extra: dict, root: Path, sources) -> None:
+def check_depth_scale(ds, options, root: Path, sources) -> None:
     """A build with depth maps: the scale rule (an integer map needs ``--depth-scale``, a
     float map refuses it) checked on the first map that pairs, before any work, rather
     than failing every image after the build. Later maps follow the same rule as they are
@@ -153,7 +153,7 @@ def check_depth_scale(ds, extra: dict, root: Path, sources) -> None:
     from ..sources.depth_io import DepthError, check_scale, value_kind
     from ..sources.depth_pairs import pair, rule_of
 
-    rule = rule_of(extra, root, getattr(ds, "depth_in_root", False)) if ds.discovers_sources else None
+    rule = rule_of(options, root, ds.depth_in_root) if ds.discovers_sources else None
     if rule is None or rule.fmt == "cityscapes":
         return
     for src in sources:

@@ -1,7 +1,8 @@
-"""Build configurations: YAML presets in ``configs/``, the user's ``--config FILE`` and flags.
+"""Build configurations: presets, the user's ``--config FILE`` and flags.
 
 A configuration is resolved in three layers, each overriding the one before: the preset
-named on the command line (``configs/<preset>.yaml``), the user's file, then the flags.
+named on the command line (``configs/<preset>.yaml``, else a dataset's own preset from its
+spec in :mod:`robodepth_cli.sources.datasets`), the user's file, then the flags.
 Every layer is checked strictly as it is applied (unknown keys, wrong types, unknown
 variant names, impossible levels), so a bad value is reported with the file or flag that
 set it, the key, and the valid choices, before any work starts.
@@ -18,7 +19,9 @@ source images, or null for all), ``scheduler`` (a Dask scheduler address such as
 ``scheduler_file`` (the JSON file a Dask scheduler writes; at most one of the two: a later
 layer's choice replaces an earlier layer's), ``png`` (``fast`` or ``compact``: how the PNGs
 are written; same pixels either way; unset: the encoder OUT was built with, else ``fast``),
-``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame), ``severity_size`` (``HxW`` or ``none``: :mod:`robodepth_cli.corruptions.scaling`). A corruption or level the dataset does not
+``frames`` (KITTI-C: neighbour offsets such as ``-1,1``, written beside every test frame), and
+the dataset's own options (:class:`~robodepth_cli.sources.datasets.Option`: ``severity_size``,
+``engine``, a custom build's ``depth``...). A corruption or level the dataset does not
 have (fog or level 5 for NYUDepth2-C) is refused, naming the dataset's valid set.
 """
 
@@ -35,7 +38,7 @@ import yaml
 from ..benchmarks import TEMPORAL
 from ..files import data_dir
 from ..sources import splits
-from ..sources.datasets import get_dataset
+from ..sources.datasets import DATASETS, Options, get_dataset
 from .scenedepth import missing_depth
 from ..errors import InvalidValueError
 from .choices import (_CHECKS, _VARIANTS, ALL, NONE, ConfigError, check_train,  # noqa: F401
@@ -55,7 +58,7 @@ class BuildConfig:
     seed: int
     jobs: int
     limit: int | None
-    extra: dict[str, Any] = field(default_factory=dict)  # dataset-specific keys (KITTI-S)
+    options: Options = field(default_factory=Options)  # the dataset's own options
     scheduler: str | None = None  # a Dask scheduler's address: build on that cluster
     scheduler_file: str | None = None  # or the scheduler file that holds it
     png: str | None = None  # "fast" or "compact"; None: the build's own, else fast
@@ -66,7 +69,8 @@ class BuildConfig:
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
-        del d["notes"]
+        del d["notes"], d["options"]
+        d["extra"] = self.options.as_dict()  # the record's name for the options that are set
         if not self.frames:
             del d["frames"]  # a single-frame build's record has no frames key
         else:
@@ -78,8 +82,8 @@ class BuildConfig:
 
 
 def presets() -> tuple[str, ...]:
-    """The preset names: the ``configs/*.yaml`` files."""
-    return tuple(sorted(p.stem for p in CONFIG_DIR.glob("*.yaml")))
+    """The preset names: the ``configs/*.yaml`` files and the datasets."""
+    return tuple(sorted({p.stem for p in CONFIG_DIR.glob("*.yaml")} | set(DATASETS)))
 
 
 def load_yaml(path: Path) -> dict[str, Any]:
@@ -123,6 +127,7 @@ class _Resolver:
         self.preset = preset
         self.values: dict[str, Any] = {}
         self.origin: dict[str, str] = {}
+        self.preset_origin = ""  # the first layer applied: the preset
 
     @property
     def dataset(self):
@@ -134,15 +139,13 @@ class _Resolver:
         return (tuple(k for k in cls.KEYS if k != "levels" or ds.leveled)
                 + (ds.variant_key,) + (("compose", "train") if ds.leveled else ())
                 + (("frames",) if takes_frames(ds) else ())
-                + tuple(ds.options()) + cls.ONE_OF)
+                + ds.option_keys() + cls.ONE_OF)
 
     def valid_keys(self) -> tuple[str, ...]:
         return self.keys_of(self.dataset)  # set by the preset, which is applied first
 
     def _elsewhere(self, where: str, key: str) -> str:
         """For a key another dataset takes: the message saying it does not apply here."""
-        from ..sources.datasets import DATASETS
-
         ds = self.dataset
         others = [d.name for d in DATASETS.values() if d.name != ds.name and key in self.keys_of(d)]
         if not others:
@@ -158,6 +161,7 @@ class _Resolver:
         return f"{what} does not apply to {ds.name} (it is a setting of {', '.join(others)}){hint}"
 
     def apply(self, where: str, raw: dict[str, Any], base: Path) -> None:
+        self.preset_origin = self.preset_origin or where
         if "dataset" in raw:
             self._set_dataset(where, raw["dataset"])
         for key, value in raw.items():
@@ -224,26 +228,25 @@ class _Resolver:
                               f"pip install 'robodepth-cli[video]'")
         levels = self.values.get("levels", ds.levels()) if ds.leveled else ()
         notes: list[str] = []
-        extra = {k: v for k, v in self.values.items() if k in ds.options()}
-        lacking = missing_depth(ds, self.values, extra)  # (key, why): a depth-aware variant without depth
+        options = Options(**{k: v for k, v in self.values.items() if k in ds.option_keys()})
+        lacking = missing_depth(ds, self.values, options)  # (key, why): a depth-aware variant without depth
         if lacking:
             raise ConfigError(f"{_loc(self.origin[lacking[0]], lacking[0])}: {lacking[1]}")
-        if "engine" in ds.options():  # the corruption datasets: which engine, on which device
+        if "engine" in ds.option_keys():  # the corruption datasets: which engine, on which device
             from .renderers import settle
 
             try:
-                preset = str(CONFIG_DIR / f"{self.preset}.yaml")  # the keys it set: their defaults
-                extra, notes = settle(extra, {k: _loc(w, k) for k, w in self.origin.items()},
-                                      {k for k, w in self.origin.items() if w == preset})
+                options, notes = settle(options, {k: _loc(w, k) for k, w in self.origin.items()},
+                                        {k for k, w in self.origin.items() if w == self.preset_origin})
             except InvalidValueError as exc:
                 raise ConfigError(str(exc)) from None
-            if extra["engine"] == "torch" and self.values.get("frames"):
+            if options.engine == "torch" and self.values.get("frames"):
                 raise ConfigError(f"{_loc(self.origin['engine'], 'engine')}: the torch engine does not "
                                   f"render neighbour frames (--frames); use --engine numpy")
         return BuildConfig(preset=self.preset, dataset=ds.name, split=self.values.get("split", ""),
                            size=self.values["size"], variants=tuple(variants), levels=tuple(levels),
                            seed=self.values["seed"], jobs=self.values["jobs"],
-                           limit=self.values.get("limit"), extra=extra,
+                           limit=self.values.get("limit"), options=options,
                            scheduler=self.values.get("scheduler"),
                            scheduler_file=self.values.get("scheduler_file"),
                            png=self.values.get("png"), frames=self.values.get("frames", ()),
@@ -258,10 +261,13 @@ def resolve(preset: str, config_file: Path | None = None,
         raise ConfigError(f"unknown dataset {preset!r}; valid: {', '.join(presets())}")
     r = _Resolver(preset)
     preset_file = CONFIG_DIR / f"{preset}.yaml"
-    raw = load_yaml(preset_file)
-    if "dataset" not in raw:
-        raise ConfigError(f"{preset_file}: dataset: missing")
-    r.apply(str(preset_file), raw, preset_file.parent)
+    if preset_file.is_file():
+        raw = load_yaml(preset_file)
+        if "dataset" not in raw:
+            raise ConfigError(f"{preset_file}: dataset: missing")
+        r.apply(str(preset_file), raw, preset_file.parent)
+    else:  # a dataset without a preset file: its spec's
+        r.apply(f"the preset of {preset}", get_dataset(preset).preset(), Path())
     if config_file is not None:
         r.apply(str(config_file), load_yaml(config_file), Path(config_file).parent)
     for key, value in (flags or {}).items():

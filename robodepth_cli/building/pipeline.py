@@ -175,7 +175,7 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     buildchecks.check_apart(typed_root, out)
     sources, split = gather_sources(ds, cfg, root, Path(out), typed_root)
     buildchecks.check_sources_outside((s.path for s in sources), out)
-    buildchecks.check_depth_scale(ds, cfg.extra, root, sources)
+    buildchecks.check_depth_scale(ds, cfg.options, root, sources)
     previous = build_record.read_record(out) if Path(out).is_dir() else None
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
     png = buildchecks.png_method(out, cfg.png, previous)
@@ -286,7 +286,7 @@ def worker_files(cfg: BuildConfig) -> list[str]:
     """Files named in the configuration that workers read besides the images (KITTI-S:
     the checkpoints), as absolute paths; a cluster's workers must see them too."""
     # A custom build's --list is read by the main process only.
-    return [os.path.abspath(v) for k, v in cfg.extra.items()
+    return [os.path.abspath(v) for k, v in cfg.options.as_dict().items()
             if k not in ("list", "engine", "device") and isinstance(v, str) and os.path.isfile(v)]
 
 

@@ -16,6 +16,7 @@ the torch engine is asked for.
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 from typing import Iterator, Protocol, Sequence
 
 import numpy as np
@@ -23,7 +24,7 @@ import numpy as np
 from ..benchmarks import TEMPORAL
 from ..errors import InvalidValueError, reraise_interrupt
 from ..output.layout import SEVERITY_SIZE, TORCH_FINGERPRINT
-from ..sources.datasets import Dataset, Job, StyleDataset
+from ..sources.datasets import Dataset, Job, Options, StyleDataset
 
 
 class Renderer(Protocol):
@@ -50,15 +51,16 @@ def make_renderer(ds: Dataset, config, depth=None) -> Renderer:
     from ..corruptions.scaling import parse_severity_size
 
     numpy_engine = CorruptionRenderer(ds.name, config.seed, depth,
-                                      parse_severity_size(config.extra.get("severity_size")))
-    if config.extra.get("engine") == "torch":
-        return TorchCorruptionRenderer(ds.name, config.seed, config.extra["device"], config.jobs,
+                                      parse_severity_size(config.options.severity_size))
+    if config.options.engine == "torch":
+        return TorchCorruptionRenderer(ds.name, config.seed, config.options.device, config.jobs,
                                        numpy_engine)
     return numpy_engine
 
 
-def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -> tuple[dict, list[str]]:
-    """``extra`` with ``engine`` (default numpy) and ``device`` decided: ``cpu`` for the
+def settle(options: Options, where: dict[str, str],
+           preset: set[str] = frozenset()) -> tuple[Options, list[str]]:
+    """``options`` with ``engine`` (default numpy) and ``device`` decided: ``cpu`` for the
     numpy engine (``cuda`` is refused: it has no GPU path), the device
     ``auto`` picks for torch (``cuda`` refused when torch sees no GPU). ``where`` names the
     flag or file that set each key, for the messages; ``preset``: the keys the preset set.
@@ -67,18 +69,18 @@ def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -
     ``severity_size`` is recorded either way (``none`` when unset); the torch engine does not
     scale the levels to a severity size: a preset's gives way to ``none`` (with a note), one
     asked for is refused."""
-    extra = {**extra, "severity_size": extra.get("severity_size") or "none"}
-    engine = extra.get("engine") or "numpy"
-    device = extra.get("device")
+    options = replace(options, severity_size=options.severity_size or "none")
+    engine = options.engine or "numpy"
+    device = options.device
     if engine == "numpy":
         if device == "cuda":
             raise InvalidValueError(f"{where.get('device', '--device')}: {device} needs --engine torch "
                                     f"(the numpy engine runs on the CPU)")
-        return {**extra, "engine": engine, "device": "cpu"}, []
-    size = extra["severity_size"]
+        return replace(options, engine=engine, device="cpu"), []
+    size = options.severity_size
     notes = []
     if size != "none" and "severity_size" in preset:
-        extra = {**extra, "severity_size": "none"}
+        options = replace(options, severity_size="none")
         notes.append(f"{where.get('engine', '--engine')} torch: the levels are not scaled to the "
                      f"preset's severity size {size} (severity size none: each level as tabulated, "
                      f"at any image size; --engine numpy scales them)")
@@ -92,7 +94,7 @@ def settle(extra: dict, where: dict[str, str], preset: set[str] = frozenset()) -
         chosen = resolve_device(device or "auto")
     except InvalidValueError as exc:
         raise exc.at(where.get("device", "--device")) from None
-    return {**extra, "engine": engine, "device": chosen.type}, notes
+    return replace(options, engine=engine, device=chosen.type), notes
 
 
 class TorchCorruptionRenderer:

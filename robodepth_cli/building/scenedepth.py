@@ -155,12 +155,12 @@ class FolderDepth(DepthSource):
               "holes filled by the nearest valid pixel, then each output pixel the depth under "
               "its centre (nearest neighbour)")
 
-    def __init__(self, kind: str, extra: dict, root: Path, in_root: bool,
+    def __init__(self, kind: str, options, root: Path, in_root: bool,
                  sources: dict[str, tuple[str, int]]):
         from ..sources.depth_pairs import rule_of
 
         self.kind = kind
-        self.rule = rule_of(extra, Path(root), in_root)
+        self.rule = rule_of(options, Path(root), in_root)
         self.root = str(root)
         self.sources = sources  # key -> (path relative to the root, EXIF orientation)
 
@@ -380,8 +380,8 @@ def depth_for(ds, cfg, root: Path, split_path: str | None, sources=()) -> DepthS
     if not depth_aware(ds, cfg.variants):
         return None
     own = own_depth(ds, cfg, root, split_path, sources)
-    if cfg.extra.get("scene_depth"):
-        return PredictedDepth.open(Path(cfg.extra["scene_depth"]), own)
+    if cfg.options.scene_depth:
+        return PredictedDepth.open(Path(cfg.options.scene_depth), own)
     return own
 
 
@@ -394,11 +394,11 @@ def depth_aware(ds, variants) -> list[str]:
     return list(dict.fromkeys(n for n in names if n in aware))
 
 
-def missing_depth(ds, values: dict, extra: dict) -> tuple[str, str] | None:
+def missing_depth(ds, values: dict, options) -> tuple[str, str] | None:
     """``(config key, reason)`` when the variants of a configuration (``values``: its
-    variant key and ``compose``) need depth that a build of ``ds`` with options ``extra``
-    lacks; None otherwise."""
-    if not ds.leveled or ds.has_depth(extra):
+    variant key and ``compose``) need depth that a build of ``ds`` with ``options`` lacks;
+    None otherwise."""
+    if not ds.leveled or ds.has_depth(options):
         return None
     for key in (ds.variant_key, "compose"):
         aware = depth_aware(ds, values.get(key, ()))
@@ -419,8 +419,8 @@ def own_depth(ds, cfg, root: Path, split_path: str | None, sources) -> DepthSour
 
         entries = read_split(Path(split_path or ""), "nyu")
         return NyuDepth(Path(root), {e.key: (e.fields[0], e.fields[1]) for e in entries})
-    if not (cfg.extra.get("depth") or ds.depth_in_root):
+    if not (cfg.options.depth or ds.depth_in_root):
         return None
     kind = f"{ds.name}-ground-truth" if ds.depth_in_root else "depth-folder"
-    return FolderDepth(kind, cfg.extra, Path(root), ds.depth_in_root,
+    return FolderDepth(kind, cfg.options, Path(root), ds.depth_in_root,
                        {s.key: (s.rel, s.orientation) for s in sources if s.rel})

@@ -9,20 +9,33 @@ from pathlib import Path
 import click
 
 from ..errors import RobodepthError
+from ..sources.datasets import DATASETS, CustomDataset, preset_names, zero_shot
 from . import common
 
 _LISTED = 20  # paths shown per kind of problem by verify
+_ZERO_SHOT = ", ".join(zero_shot())
+# The datasets' own split names and their default severity sizes, from their specs
+_SPLITS = "".join(f"; {n}: {', '.join(dict(d.splits))}" for n, d in DATASETS.items() if d.splits)
+_SEVERITY = "".join(f"; {d.severity_size} for {n}" for n, d in DATASETS.items()
+                    if d.depth_in_root and d.severity_size != CustomDataset.severity_size)
+
+
+def _naming_datasets(command):
+    """The docstring with the datasets' names filled in (click reads it as the help)."""
+    names = ", ".join(preset_names(lambda d: not d.depth_in_root))
+    command.__doc__ = command.__doc__.replace("{datasets}", names).replace("{zero_shot}", _ZERO_SHOT)
+    return command
 
 
 @click.command("build")
 @click.argument("dataset", metavar="DATASET")
 @click.option("--root", required=True, type=click.Path(path_type=Path),
               help="KITTI raw root (holds 2011_09_26/...), the NYU Depth V2 test root, (custom) any folder of images, "
-                   "or a zero-shot set's download (diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c).")
+                   f"or a zero-shot set's download ({_ZERO_SHOT}).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output directory; rerunning into it resumes.")
 @common.selection_options
-@click.option("--split", metavar="NAME|FILE", help="Standard split name (eigen_test, kitti_sequences, nyu_test; drivingstereo-c: sunny, cloudy, foggy, rainy, all) or a split file.")
+@click.option("--split", metavar="NAME|FILE", help=f"Standard split name (eigen_test, kitti_sequences, nyu_test{_SPLITS}) or a split file.")
 @click.option("--compose", metavar="CHAIN,CHAIN", help="Also build these chains of corruptions, e.g. "
               "fog:3+gaussian_noise:2.5 (into OUT/fog-3+gaussian_noise-2.5/); --corruptions none: only them.")
 @click.option("--size", metavar="HxW", help="Output size HxW (e.g. 320x1024); custom: each image's own size unless given.")
@@ -48,9 +61,10 @@ _LISTED = 20  # paths shown per kind of problem by verify
 @click.option("--scene-depth", metavar="PRED", help="The depth of the depth-aware corruptions (fog_3d, ...) "
               "from a model's predictions for the clean images (robodepth predict's --out) instead of the "
               "dataset's own; relative maps are median-scaled to the dataset's depth.")
-@common.severity_size_option("default: none for kitti-c, kitti-c-hr, nyudepth2-c, the benchmark's "
-                             "pixels; 480x640 for scannet-c; 192x640 for custom and the other "
-                             "zero-shot sets; see docs/severity-and-chains.md")
+@common.severity_size_option(
+    "default: none for " + ", ".join(preset_names(lambda d: d.leveled and not d.severity_size))
+    + f", the benchmark's pixels{_SEVERITY}; {CustomDataset.severity_size} for custom and the "
+    "other zero-shot sets; see docs/severity-and-chains.md")
 @click.option("--styles", metavar="DIR", help="kitti-s: the style images, <style>.jpg/.jpeg/.png.")
 @click.option("--only-styles", metavar="A,B|all", help="kitti-s: comma-separated style names, or 'all'.")
 @click.option("--vgg", metavar="FILE", help="kitti-s: AdaIN encoder checkpoint (vgg_normalised.pth).")
@@ -77,9 +91,9 @@ _LISTED = 20  # paths shown per kind of problem by verify
                    "the zero-shot sets).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress bar on stderr (only on a terminal).")
+@_naming_datasets
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
-    """Build DATASET (kitti-c, kitti-c-hr, nyudepth2-c, kitti-s, custom, or a zero-shot set:
-    diode-c, sintel-c, eth3d-c, scannet-c, vkitti2-c, cityscapes-c, drivingstereo-c) from ROOT into OUT.
+    """Build DATASET ({datasets}, or a zero-shot set: {zero_shot}) from ROOT into OUT.
 
     Writes OUT/clean/<image>, OUT/<corruption>/<level>/<image> and (--compose)
     OUT/<chain>/<image> (kitti-s: OUT/<style>/<image>) as PNG, where <image> is

@@ -6,13 +6,13 @@ from pathlib import Path
 
 import click
 
-from ..benchmarks import UNPUBLISHED
 from ..errors import RobodepthError
+from ..sources.datasets import DATASETS, unpublished
 from . import common
 
 @click.command("score")
 @click.argument("results", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--benchmark", "-b", type=click.Choice(["kitti-c", "nyudepth2-c", *UNPUBLISHED]),
+@click.option("--benchmark", "-b", type=click.Choice([n for n, d in DATASETS.items() if d.leveled]),
               help="Which benchmark the results are on (sets corruptions, levels, baseline); "
                    "default: the dataset the CSV names (robodepth evaluate writes it), else "
                    "inferred from the rows (the benchmark they are a complete set of). "
@@ -84,10 +84,10 @@ def _benchmark(table, benchmark: str | None):
         from ..report.inputs import style_names
 
         benchmark = R.infer_benchmark(table, style_names())
-    if benchmark not in B.BENCHMARKS and benchmark not in UNPUBLISHED:
+    if benchmark not in B.BENCHMARKS and benchmark not in unpublished():
         raise RobodepthError(f"{table.source}: KITTI-S results (styles) have no CE or RR to score; "
                              "robodepth report shows their DEE per style and mDEE")
-    if benchmark in UNPUBLISHED:
+    if benchmark in unpublished():
         return _unpublished(benchmark, R.read_results(table, B.unpublished(benchmark)))
     return B.get_benchmark(benchmark)
 
@@ -120,9 +120,9 @@ def _benchmark_of(table, given: str | None) -> str | None:
     own = table.dataset()
     if own is None:
         return given
-    if own[0] not in (*B.BENCHMARKS, *UNPUBLISHED, KITTI_S):
+    if own[0] not in (*B.BENCHMARKS, *unpublished(), KITTI_S):
         raise RobodepthError(f"{path}: dataset {own[0]!r} (its dataset column) is none robodepth "
-                             f"scores; valid: {', '.join((*B.BENCHMARKS, *UNPUBLISHED))}")
+                             f"scores; valid: {', '.join((*B.BENCHMARKS, *unpublished()))}")
     if given is not None and given != own[0]:
         raise RobodepthError(f"--benchmark {given}: {path} says its results are on {own[0]} "
                              "(its dataset column)")

@@ -38,12 +38,13 @@ def scored_benchmark(dataset: str, variants):
     """The benchmark whose scores ``--score`` prints for ``dataset`` (its ``variants``: what
     an unpublished one scores); refused for one without."""
     from .. import benchmarks as B
+    from ..sources.datasets import unpublished
 
-    if dataset in B.UNPUBLISHED:  # DEE and RR; CE needs robodepth score --baseline
+    if dataset in unpublished():  # DEE and RR; CE needs robodepth score --baseline
         built = [v for v in variants if v.level is not None and v.level == int(v.level)]
         return B.unpublished(dataset, tuple(v.name for v in built), 1,
                              levels=[int(v.level) for v in built if v.name in B.CORRUPTIONS])
     if dataset not in B.BENCHMARKS:
         raise RobodepthError(f"--score: {dataset} has no robustness scores (they exist "
-                             f"for {', '.join((*B.BENCHMARKS, *B.UNPUBLISHED))})")
+                             f"for {', '.join((*B.BENCHMARKS, *unpublished()))})")
     return B.get_benchmark(dataset)

@@ -102,7 +102,7 @@ def plan_for(ds, cfg, root: Path, split_path: str | None, sources, frames: int,
         return plan_gt(ds.split_format, root, Path(split_path), frames, rerun, lost)
     from ..sources.depth_pairs import rule_of
 
-    rule = rule_of(cfg.extra, root, ds.depth_in_root)
+    rule = rule_of(cfg.options, root, ds.depth_in_root)
     return None if rule is None else plan_depth(rule, root, sources)
 
 

@@ -19,7 +19,7 @@ from ..building.gather import check_root, gather_sources
 from ..building.tasks import Source, load_source
 from ..errors import RobodepthError
 from ..building.renderers import Renderer
-from ..sources.datasets import Dataset, Job, get_dataset
+from ..sources.datasets import Dataset, Job, get_dataset, preset_names
 
 ENGINES = ("numpy", "torch")
 
@@ -57,8 +57,9 @@ def check_dataset(name: str) -> Dataset:
     """The dataset ``run`` can judge a model on: a corruption benchmark with ground truth."""
     ds = get_dataset(name)
     if ds.discovers_sources or not ds.leveled:
-        raise RunError(f"{name}: run judges a model on the corruption benchmarks (kitti-c, "
-                       f"kitti-c-hr, nyudepth2-c); build {name} and use predict and evaluate")
+        benchmarks = ", ".join(preset_names(lambda d: d.leveled and not d.discovers_sources))
+        raise RunError(f"{name}: run judges a model on the corruption benchmarks ({benchmarks}); "
+                       f"build {name} and use predict and evaluate")
     return ds
 
 

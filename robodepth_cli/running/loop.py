@@ -43,7 +43,7 @@ def settings(inputs: RunInputs, model, setup, batch: int, engine: str) -> dict:
             "keys": split_digest(inputs.keys), "size": list(cfg.size) if cfg.size else None,
             "seed": cfg.seed, "engine": engine, "batch": batch,
             "model": {k: record[k] for k in ("model", "adapter", "identity", "options", "evaluate")},
-            "setup": asdict(setup), "severity_size": cfg.extra.get("severity_size", "none")}
+            "setup": asdict(setup), "severity_size": cfg.options.severity_size or "none"}
 
 
 def render_batch(renderer: Renderer, cleans: Sequence[np.ndarray], keys: Sequence[str],

@@ -63,7 +63,7 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
         note(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "
              f"{state.path} (finished by an earlier run)")
     replacing = out.exists()
-    table = replace(with_size(result.table(cfg.extra.get("severity_size")), {"size": _size(model, cleans)}),
+    table = replace(with_size(result.table(cfg.options.severity_size), {"size": _size(model, cleans)}),
                     source=str(out))
     table.write(out)
     state.remove()

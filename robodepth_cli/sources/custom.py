@@ -28,12 +28,9 @@ from pathlib import Path
 
 from ..errors import InvalidValueError, RobodepthError, os_reason
 from ..keys import custom_key, relative_parts
-from .depth_pairs import OPTIONS as DEPTH_OPTIONS
 
 IMAGE_EXTS = ("png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp")
 DEFAULT_PATTERNS = tuple(f"**/*.{e}" for e in IMAGE_EXTS)
-# config keys (and flags --pattern, --list, --depth...) of a custom build
-OPTIONS = ("pattern", "list") + DEPTH_OPTIONS
 
 
 class CustomSourceError(RobodepthError):
@@ -112,22 +109,13 @@ def parse_patterns(text) -> tuple[str, ...]:
     return tuple(dict.fromkeys(out))
 
 
-def check_option(key: str, value, base: Path):
-    """The checked value of config key ``pattern`` (comma-separated text or a list) or
-    ``list`` (a file, relative to ``base``); :class:`InvalidValueError` saying what is wrong."""
-    if key in DEPTH_OPTIONS:
-        from .depth_pairs import check_option as check_depth_option
-
-        return check_depth_option(key, value, base)
-    if key == "pattern":
-        return parse_patterns(value)
-    if key == "list":
-        if value is None:
-            return None
-        if not isinstance(value, str) or not value.strip():
-            raise InvalidValueError(f"expected a file listing one relative image path a line, got {value!r}")
-        return str((base / Path(value).expanduser()).resolve())
-    raise InvalidValueError(f"custom has no option {key!r}")
+def check_list(value, base: Path) -> str | None:
+    """The checked ``list`` (a file, relative to ``base``) as an absolute path."""
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value.strip():
+        raise InvalidValueError(f"expected a file listing one relative image path a line, got {value!r}")
+    return str((base / Path(value).expanduser()).resolve())
 
 
 # --- discovery ---------------------------------------------------------------------------
@@ -205,13 +193,13 @@ def find_sources(root: Path, cfg, out: Path | None = None, split_patterns: str |
     a preset's named split, used unless ``pattern`` or ``list`` is given."""
     from ..files import sha256_bytes
 
-    listed = cfg.extra.get("list")
-    depth = cfg.extra.get("depth")
+    listed = cfg.options.list
+    depth = cfg.options.depth
     if depth and not Path(depth).is_dir():
         raise CustomSourceError(f"{depth}: the depth directory (--depth) does not exist")
-    patterns = (cfg.extra.get("pattern") or (split_patterns and parse_patterns(split_patterns))
+    patterns = (cfg.options.pattern or (split_patterns and parse_patterns(split_patterns))
                 or DEFAULT_PATTERNS)
-    if listed and cfg.extra.get("pattern"):
+    if listed and cfg.options.pattern:
         raise CustomSourceError("--pattern and --list both given: the list alone says which images "
                                 "to build; give one of them")
     if listed:

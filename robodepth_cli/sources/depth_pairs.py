@@ -42,8 +42,6 @@ from ..errors import InvalidValueError
 from ..keys import relative_parts
 from .depth_io import EXTENSIONS, FORMATS
 
-OPTIONS = ("depth", "depth_pattern", "depth_mask", "depth_camera", "depth_scale", "depth_format",
-           "depth_size")
 FIELDS = ("path", "dir", "stem", "name", "ext", "digits", "prefix", "parts")
 SIZES = ("match", "any")
 
@@ -121,15 +119,14 @@ def check_option(key: str, value, base: Path):
     raise InvalidValueError(f"no depth option {key!r}")
 
 
-def rule_of(extra: dict, root: Path, in_root: bool) -> DepthRule | None:
-    """The depth rule of a build's options (``extra``); None when it reads no depth (a custom
-    build without ``depth``). ``in_root``: the dataset's depth lives under its root."""
-    directory = extra.get("depth") or (str(root) if in_root else None)
+def rule_of(options, root: Path, in_root: bool) -> DepthRule | None:
+    """The depth rule of a build's :class:`~.datasets.Options`; None when it reads no depth (a
+    custom build without ``depth``). ``in_root``: the dataset's depth lives under its root."""
+    directory = options.depth or (str(root) if in_root else None)
     if directory is None:
         return None
-    return DepthRule(directory, extra.get("depth_pattern"), extra.get("depth_mask"),
-                     extra.get("depth_camera"), extra.get("depth_scale"), extra.get("depth_format"),
-                     extra.get("depth_size", "match") == "match")
+    return DepthRule(directory, options.depth_pattern, options.depth_mask, options.depth_camera,
+                     options.depth_scale, options.depth_format, options.depth_size in (None, "match"))
 
 
 def fill(template: str, rel: str) -> str:
@@ -193,10 +190,10 @@ def read_pair(rule: DepthRule, found: DepthPair, shape: tuple[int, int] | None =
                       camera=base / found.camera if found.camera else None)
 
 
-def depth_of(extra: dict, root: Path, in_root: bool, rel: str,
+def depth_of(options, root: Path, in_root: bool, rel: str,
              shape: tuple[int, int] | None = None):
-    """The depth map of the image at ``rel`` (relative to ``root``) in a build with options
-    ``extra`` (a configuration's dataset keys), or None when the build reads no depth: where
+    """The depth map of the image at ``rel`` (relative to ``root``) in a build with
+    ``options`` (:class:`~.datasets.Options`), or None when the build reads no depth: where
     the depth of a custom build's or zero-shot set's image comes from, in one call."""
-    rule = rule_of(extra, root, in_root)
+    rule = rule_of(options, root, in_root)
     return None if rule is None else read_pair(rule, pair(rule, rel), shape)

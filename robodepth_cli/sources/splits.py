@@ -19,8 +19,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-import urllib.error
-import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -121,6 +119,8 @@ def count_entries(data: bytes) -> int:
 
 
 def _download(url: str, timeout: float) -> bytes:
+    import urllib.request  # here: naming a dataset (robodepth --help) never loads http
+
     with urllib.request.urlopen(url, timeout=timeout) as resp:  # noqa: S310 (http(s) from our records or the user)
         data = resp.read(MAX_BYTES + 1)
     if len(data) > MAX_BYTES:
@@ -168,6 +168,8 @@ def standard_split(name: str, *, url: str | None = None, cache: Path | None = No
     copy = clone_copy(rec)
     if copy is not None:
         hint += f" (this clone holds a checked copy: --split {copy})"
+    import urllib.error
+
     try:
         data = _download(src, timeout)
     except urllib.error.HTTPError as exc:  # the server answered: not an offline problem

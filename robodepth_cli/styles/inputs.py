@@ -123,8 +123,7 @@ def load_style(path: str | os.PathLike, style_size: int | None = DEFAULT_STYLE_S
     return np.asarray(im, dtype=np.uint8).copy()
 
 
-# KITTI-S build options (config keys; flags --styles, --vgg, --decoder, --alpha, --style-size).
-OPTIONS = ("styles", "vgg", "decoder", "alpha", "style_size", "device")
+# KITTI-S's build options are listed in sources/datasets.py (STYLE_OPTIONS), checked here.
 DEVICES = ("auto", "cpu", "cuda")  # as adain.DEVICES, without importing torch
 
 
@@ -163,18 +162,18 @@ def make_renderer(config) -> "StyleRenderer":
     :class:`~robodepth_cli.styles.adain.CheckpointError` or
     :class:`~robodepth_cli.imageio.ImageError` (naming the file) for anything missing or
     unusable."""
-    opts = config.extra
+    opts = config.options
     for key, flag, what in (("styles", "--styles", "STYLE_DIR (one image per style)"),
                             ("vgg", "--vgg", "vgg_normalised.pth"),
                             ("decoder", "--decoder", "decoder.pth")):
-        if opts.get(key) is None:
+        if getattr(opts, key) is None:
             raise StyleError(f"{config.dataset} needs {flag} {what}")
-    images = find_style_images(opts["styles"], config.variants)
+    images = find_style_images(opts.styles, config.variants)
     cores = os.cpu_count() or 1
     # On a cluster each worker thread renders one image at a time on its own core; locally
     # the cores are shared among the pool's processes.
     on_cluster = config.scheduler or config.scheduler_file
-    choice = opts.get("device") or "auto"
+    choice = opts.device or "auto"
     from . import adain
 
     device = adain.choose_device(choice)  # --device cuda without one: refused here
@@ -189,9 +188,9 @@ def make_renderer(config) -> "StyleRenderer":
         print(f"robodepth: {config.dataset}: AdaIN on {adain.describe_device(device)}{note} "
               f"(--device {choice})", file=sys.stderr)
         where = device.type
-    return StyleRenderer.prepare(opts["vgg"], opts["decoder"], images,
-                                 alpha=opts.get("alpha", 1.0),
-                                 style_size=opts.get("style_size", DEFAULT_STYLE_SIZE),
+    return StyleRenderer.prepare(opts.vgg, opts.decoder, images,
+                                 alpha=1.0 if opts.alpha is None else opts.alpha,
+                                 style_size=DEFAULT_STYLE_SIZE if opts.style_size is None else opts.style_size,
                                  threads=1 if on_cluster else max(1, cores // max(1, config.jobs)),
                                  device=where)
 

@@ -184,13 +184,13 @@ def test_evaluate_and_score_with_and_without_a_baseline(folder, cli, monkeypatch
 
 
 def test_depth_of_is_where_a_builds_depth_comes_from(folder):
+    from robodepth_cli.sources.datasets import Options
     from robodepth_cli.sources.depth_pairs import depth_of
 
     tmp_path, maps = folder
-    extra = {"depth": str(tmp_path / "depth")}
-    got = depth_of(extra, tmp_path / "img", False, "street/a.jpg")
+    got = depth_of(Options(depth=str(tmp_path / "depth")), tmp_path / "img", False, "street/a.jpg")
     assert np.isnan(got[0, 0]) and got[10, 10] == maps["street/a"][10, 10]
-    assert depth_of({}, tmp_path / "img", False, "street/a.jpg") is None  # no --depth
+    assert depth_of(Options(), tmp_path / "img", False, "street/a.jpg") is None  # no --depth
 
 
 def test_a_depth_folder_inside_the_root_is_not_searched_for_images(tmp_path, cli):

@@ -263,10 +263,9 @@ def test_a_scale_on_float_depth_is_refused_before_any_work(tmp_path, cli):
 
 
 def test_the_datasets_without_a_published_baseline_are_the_builds_with_depth():
-    from robodepth_cli.benchmarks import UNPUBLISHED
-    from robodepth_cli.sources.datasets import DATASETS
+    from robodepth_cli.sources.datasets import DATASETS, unpublished
 
-    assert set(UNPUBLISHED) == {n for n, d in DATASETS.items() if d.discovers_sources}
+    assert set(unpublished()) == {n for n, d in DATASETS.items() if d.discovers_sources}
 
 
 def test_a_real_condition_alone(tmp_path, cli):
