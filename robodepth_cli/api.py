@@ -285,15 +285,16 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True, meta: Path | Non
     ``variant.images(missing="skip")`` iterates the ones that exist.
     """
     from .sources.datasets import get_dataset
-    from .output.manifest import ManifestError, read_manifest
-    from .output.record import read_record
+    from .output.folder import OutputFolder
+    from .output.manifest import ManifestError
 
     path = Path(path)
     if not path.is_dir():
         raise DatasetError(f"{path}: not a directory (expected a dataset made by robodepth build)")
     meta = path if meta is None else meta
     record_path = meta / RECORD
-    record = read_record(meta)
+    folder = OutputFolder(meta)
+    record = folder.record()
     if record is None:
         raise DatasetError(f"{path}: no {RECORD}; not a dataset made by robodepth build")
     if not isinstance(record.dataset, str):
@@ -304,7 +305,7 @@ def open_dataset(path: str | os.PathLike, *, warn: bool = True, meta: Path | Non
         raise DatasetError(f"{record_path}: {exc}") from None
     keys = _split_keys(record, record_path)
     try:
-        rows = read_manifest(meta)
+        rows = folder.rows()
     except ManifestError as exc:
         raise DatasetError(str(exc)) from None
     if not rows:

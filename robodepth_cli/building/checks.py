@@ -20,11 +20,8 @@ from pathlib import Path
 from typing import Iterable
 
 from ..errors import RobodepthError
+from ..output.folder import OutputDirError
 from ..output.record import BuildRecord
-
-
-class OutputDirError(RobodepthError):
-    """An output directory this build must not write into."""
 
 
 def _real(path: Path) -> Path:

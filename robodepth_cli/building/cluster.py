@@ -48,6 +48,7 @@ from typing import Any, Callable, Iterator, Sequence
 from .. import __version__
 from ..errors import cannot_write, os_reason
 from ..files import sha256_file
+from ..output.folder import OutputFolder
 from .executors import ExecutorError
 
 CONNECT_TIMEOUT_S = 30  # to reach the scheduler
@@ -268,6 +269,7 @@ class DaskExecutor:
         self.client = None
         self.workers = 0
         self.requirements: Requirements | None = None
+        self.folder: OutputFolder | None = None  # the build's, once checked
         self._connect()
 
     # -- connection
@@ -313,10 +315,11 @@ class DaskExecutor:
 
     # -- the executor seam
 
-    def check(self, root: Path, out: Path, files: Sequence[str], libraries: Sequence[str]) -> None:
+    def check(self, root: Path, folder: OutputFolder, files: Sequence[str],
+              libraries: Sequence[str]) -> None:
         """Probe every connected worker (see the module docstring) before any work;
         :class:`ClusterError` naming the first worker that fails and why."""
-        req = requirements(root, out, files, libraries)
+        req = requirements(root, folder.path, files, libraries)
         try:
             answers = self.client.run(_run_probe, req, on_error="return")
         except Exception as exc:  # the scheduler went away
@@ -332,7 +335,7 @@ class DaskExecutor:
         if not answers:
             remove_token(req)
             raise ClusterError(f"{self.address}: no worker answered the probe")
-        self.requirements = req
+        self.requirements, self.folder = req, folder
         self.workers = sum(self.client.nthreads().values())
 
     def map_unordered(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[Any]:
@@ -363,9 +366,7 @@ class DaskExecutor:
             remove_token(req)
             if done < len(futures) or set(client.nthreads()) != before:
                 # A worker that died or a task cancelled mid-write may leave a temporary file.
-                from ..output.manifest import remove_temporaries
-
-                remove_temporaries(Path(req.out))
+                self.folder.remove_temporaries()
 
     def _task_error(self, fut, task) -> Exception:
         name = getattr(task, "key", None) or getattr(getattr(task, "source", None), "key", "a task")

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Protocol, Sequence
 
 from ..errors import RobodepthError
+from ..output.folder import OutputFolder
 
 
 class ExecutorError(RobodepthError):
@@ -30,10 +31,11 @@ class ExecutorError(RobodepthError):
 class Executor(Protocol):
     workers: int  # how many tasks run at once
 
-    def check(self, root: Path, out: Path, files: Sequence[str], libraries: Sequence[str]) -> None:
+    def check(self, root: Path, folder: OutputFolder, files: Sequence[str],
+              libraries: Sequence[str]) -> None:
         """Before any work: refuse (:class:`ExecutorError`) if the processes that will run
         the tasks cannot read ``root`` and ``files`` with the client's contents, write in the
-        existing directory ``out``, or have other versions of ``libraries``."""
+        existing ``folder``, or have other versions of ``libraries``."""
 
     def map_unordered(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[Any]:
         """``fn(task)`` for every task, yielded as each finishes. Closing the iterator early
@@ -49,7 +51,7 @@ class LocalExecutor:
     def __init__(self, workers: int):
         self.workers = max(1, int(workers))
 
-    def check(self, root, out, files, libraries) -> None:
+    def check(self, root, folder, files, libraries) -> None:
         pass  # this machine's processes: the builder's own checks cover them
 
     def map_unordered(self, fn, tasks):
@@ -134,15 +136,15 @@ def _in_thread(fn, task):
     return box["result"]
 
 
-def checked_executor(executor: Executor | None, jobs: int, n_tasks: int, root: Path, out: Path,
-                     files: Sequence[str], libraries: Sequence[str]) -> Executor:
+def checked_executor(executor: Executor | None, jobs: int, n_tasks: int, root: Path,
+                     folder: OutputFolder, files: Sequence[str], libraries: Sequence[str]) -> Executor:
     """``executor``, or the local pool of ``jobs`` workers (never more than the ``n_tasks``
     images), checked to see the root, OUT and the ``files`` the workers read."""
     if executor is None:
         executor = LocalExecutor(min(jobs, n_tasks))
         _warn_above_cpus(executor.workers, jobs)
     # A labeled .mat root: the workers must see the folder that holds it.
-    executor.check(root if root.is_dir() else root.parent, out, files, libraries)
+    executor.check(root if root.is_dir() else root.parent, folder, files, libraries)
     return executor
 
 

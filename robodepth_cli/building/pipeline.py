@@ -10,8 +10,9 @@ impossible is checked before the first image is touched:
    (:mod:`.checks`); a custom build finds its images under the root instead;
 2. ``Dataset.renderer``: the object that turns a clean image into its variants (KITTI-S
    checks its checkpoints and style images here, still before OUT is touched);
-3. :func:`prepare_out` and :func:`claim_out`: create OUT, prove it writable, take its lock,
-   refuse symlinks in it that lead outside it, delete temporary files a killed build left;
+3. :class:`~robodepth_cli.output.folder.OutputFolder`: create OUT, prove it writable, take
+   its lock, refuse symlinks in it that lead outside it, delete temporary files a killed
+   build left and record what it wrote;
 4. :func:`plan`: one :class:`~.tasks.Task` per source, holding its jobs (clean + variants x levels)
    and, for each output already in the manifest with the current settings and made from
    the source as it is now (same size; same sha256, which the worker checks), the sha256
@@ -39,12 +40,11 @@ from pathlib import Path
 
 from .. import __version__
 from ..errors import cannot_write
-from ..files import probe_writable
 from ..imageio import PNG_ENCODERS, check_png
-from ..output import manifest, record as build_record
-from ..output.layout import MANIFEST, RECORD
+from ..output.folder import OutputFolder
+from ..output.layout import RECORD
 from ..output.manifest import Params, Row
-from ..output.record import BuildRecord, BuildStatus, plan_entry
+from ..output.record import BuildRecord, BuildStatus, now, plan_entry
 from ..sources.datasets import Dataset, get_dataset
 from .renderers import Renderer, make_renderer as renderer_of
 from .scenedepth import DEPTH
@@ -176,17 +176,18 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
     sources, split = gather_sources(ds, cfg, root, Path(out), typed_root)
     buildchecks.check_sources_outside((s.path for s in sources), out)
     buildchecks.check_depth_scale(ds, cfg.options, root, sources)
-    previous = build_record.read_record(out) if Path(out).is_dir() else None
+    folder = OutputFolder(out)
+    previous = folder.record() if folder.path.is_dir() else None
     buildchecks.check_same_build(out, ds.name, cfg.size, cfg.seed, previous)
     png = buildchecks.png_method(out, cfg.png, previous)
     check_png(png)
     renderer = make_renderer(ds, cfg, root, split.get("path"), sources)
-    out = prepare_out(out)
-    with manifest.BuildLock(out):
-        claim_out(out)
-        previous, dropped = prune(ds, out, root, sources, previous)
-        tasks = plan(ds, cfg, sources, manifest.read_manifest(out), renderer)
-        executor = checked_executor(executor, cfg.jobs, len(tasks), root, out, worker_files(cfg),
+    folder.prepare()
+    with folder.lock():
+        folder.claim()
+        previous, dropped = prune(ds, folder, root, sources, previous)
+        tasks = plan(ds, cfg, sources, folder.rows(), renderer)
+        executor = checked_executor(executor, cfg.jobs, len(tasks), root, folder, worker_files(cfg),
                                     ds.libraries())
         if any(e is None for t in tasks for e in t.expected):
             # Work to do: let the renderer get ready once here rather than in every worker
@@ -198,16 +199,16 @@ def build(cfg: BuildConfig, root: Path, out: Path, *, progress: bool = False,
         # look into a finished build must not shrink what evaluation and ground truth see.
         keys = buildchecks.built_keys(plans)
         split = {**split, "images": len(keys), "keys": keys}
-        record = start_record(cfg, ds, root, out, split, executor, command, plans, png,
+        record = start_record(cfg, ds, root, folder, split, executor, command, plans, png,
                               orientation_record(ds, sources), getattr(renderer, "depth", None))
-        ctx = Context(os.path.abspath(out), cfg.size, cfg.seed, renderer,
+        ctx = Context(OutputFolder(os.path.abspath(out)), cfg.size, cfg.seed, renderer,
                       single_thread=executor.workers > 1 and len(tasks) > 1, png=png)
-        summary = run_tasks(tasks, ctx, executor, out, progress)
+        summary = run_tasks(tasks, ctx, executor, folder, progress)
         summary.notes += _upright_note(sources) + ([dropped] if dropped else [])
         if gt and not (summary.interrupted or summary.fatal):
-            add_ground_truth(ds, cfg, root, split.get("path"), sources, len(keys), out, summary,
+            add_ground_truth(ds, cfg, root, split.get("path"), sources, len(keys), folder, summary,
                              progress, rerun=shlex.join(command) if command else None)
-        finish(out, record, summary)
+        finish(folder, record, summary)
     return summary
 
 
@@ -216,34 +217,6 @@ def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | N
     from .scenedepth import depth_for
 
     return renderer_of(ds, cfg, depth_for(ds, cfg, root, split_path, sources))
-
-
-def prepare_out(out: Path) -> Path:
-    """Create ``out`` if needed and prove it writable; :class:`BuildError` otherwise."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise BuildError(f"{out}: exists and is not a directory")
-    try:
-        probe_writable(out)
-    except OSError as exc:
-        raise BuildError(cannot_write(out, exc, what="the output directory")) from None
-    return out
-
-
-def claim_out(out: Path) -> None:
-    """Make the locked ``out`` safe to write into: refuse symlinks that lead outside it (a
-    write or deletion through one would land elsewhere) and delete the temporary files a
-    killed build left behind."""
-    leaving = manifest.links_leaving(out)
-    if leaving:
-        link, target = leaving[0]
-        raise BuildError(f"{out / link}: a symlink to {target}, outside {out}; refused (a build "
-                         f"writes only inside its output directory)")
-    manifest.remove_temporaries(out)
-    try:
-        manifest.merge_journal(out)  # what a killed build wrote is recorded, so kept
-    except OSError as exc:
-        raise BuildError(cannot_write(out / MANIFEST, exc)) from None
 
 
 def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, Row],
@@ -300,7 +273,7 @@ def native_size(src: Source) -> tuple[int, int] | None:
     return stored_size(src.path, src.orientation)
 
 
-def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: dict,
+def start_record(cfg: BuildConfig, ds: Dataset, root: Path, folder: OutputFolder, split: dict,
                  executor: Executor, command: list[str] | None,
                  plans: list[dict] | None = None, png: str = "fast",
                  exif_orientation: dict | None = None, depth=None) -> BuildRecord:
@@ -311,28 +284,28 @@ def start_record(cfg: BuildConfig, ds: Dataset, root: Path, out: Path, split: di
     ``png`` how the PNGs are written; ``depth`` the depth source of the depth-aware variants."""
     record = BuildRecord(
         robodepth=__version__, command=command or [], dataset=ds.name,
-        config=cfg.as_dict(), seed=cfg.seed, root=str(root), out=str(out.resolve()),
+        config=cfg.as_dict(), seed=cfg.seed, root=str(root), out=str(folder.path.resolve()),
         split=split, plans=plans or [plan_entry(cfg.variants, cfg.levels, split["keys"])],
         versions=library_versions(ds), png_compress_level=PNG_COMPRESS_LEVEL,
         png=png, png_encoder=PNG_ENCODERS[png], executor=executor.describe(),
-        started=build_record.now(), finished=None, status=BuildStatus.RUNNING,
+        started=now(), finished=None, status=BuildStatus.RUNNING,
         exif_orientation=exif_orientation, depth=depth.describe() if depth else None,
     )
     try:
-        build_record.write_record(out, record)
+        folder.write_record(record)
     except OSError as exc:
-        raise BuildError(cannot_write(out / RECORD, exc)) from None
+        raise BuildError(cannot_write(folder.record_file, exc)) from None
     return record
 
 
-def run_tasks(tasks: list[Task], ctx: Context, executor: Executor, out: Path,
+def run_tasks(tasks: list[Task], ctx: Context, executor: Executor, folder: OutputFolder,
               progress: bool) -> Summary:
     """Run every task through ``executor``, appending the manifest rows of each as it
     finishes. Stops at the first fatal error; Ctrl-C marks the summary interrupted."""
-    summary = Summary(total=sum(len(t.jobs) for t in tasks), images=len(tasks), out=str(out))
+    summary = Summary(total=sum(len(t.jobs) for t in tasks), images=len(tasks), out=str(folder.path))
     t0 = time.perf_counter()
     try:
-        _run(tasks, ctx, executor, out, summary, progress)
+        _run(tasks, ctx, executor, folder, summary, progress)
     except KeyboardInterrupt:
         summary.interrupted = True
     except ExecutorError as exc:  # e.g. a cluster lost the workers it needs
@@ -341,14 +314,14 @@ def run_tasks(tasks: list[Task], ctx: Context, executor: Executor, out: Path,
     return summary
 
 
-def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary: Summary,
-         progress: bool) -> None:
+def _run(tasks: list[Task], ctx: Context, executor: Executor, folder: OutputFolder,
+         summary: Summary, progress: bool) -> None:
     from ..progress import bar as progress_bar
 
     try:
-        writer = manifest.ManifestWriter(out)
+        writer = folder.writer()
     except OSError as exc:
-        summary.fatal = cannot_write(out / MANIFEST, exc)
+        summary.fatal = cannot_write(folder.manifest, exc)
         return
     bar = progress_bar("img", summary.total, progress=progress, smoothing=0.05)
     # Outputs whose rows predate the source records: written again even when skipped.
@@ -367,9 +340,9 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, out: Path, summary
 
 
 def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | None,
-                     sources: list[Source], frames: int, out: Path, summary: Summary,
+                     sources: list[Source], frames: int, folder: OutputFolder, summary: Summary,
                      progress: bool, rerun: str | None = None) -> None:
-    """Write the ground truth of the first ``frames`` split entries (those in ``out``), or of
+    """Write the ground truth of the first ``frames`` split entries (those in ``folder``), or of
     the ``sources`` of a build with depth (:mod:`robodepth_cli.groundtruth.write`), as
     manifest rows counted in ``summary``; when it cannot be made at all, only a note
     (naming ``rerun``, the command that adds it once the files are there)."""
@@ -383,8 +356,8 @@ def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str 
         return
     summary.total += len(plan.jobs)
     try:
-        with manifest.ManifestWriter(out) as writer:
-            for state, row in build_gt.run_gt(plan, out, manifest.read_manifest(out), progress):
+        with folder.writer() as writer:
+            for state, row in build_gt.run_gt(plan, folder, progress):
                 state = JobState(state)
                 if state is not JobState.SKIPPED:
                     writer.append([row])
@@ -394,34 +367,34 @@ def add_ground_truth(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str 
     except KeyboardInterrupt:
         summary.interrupted = True
     except OSError as exc:
-        summary.fatal = cannot_write(out / MANIFEST, exc)
+        summary.fatal = cannot_write(folder.manifest, exc)
     finally:
         if plan.implausible:
             summary.notes.append(plan.unit_warning())
 
 
-def finish(out: Path, record: BuildRecord, summary: Summary) -> None:
+def finish(folder: OutputFolder, record: BuildRecord, summary: Summary) -> None:
     """Compact the manifest, clear what a stopped pool may have left, write the final
     record. A write error here is kept in ``summary.fatal`` (the outputs themselves are
     fine; a rerun repairs the bookkeeping)."""
     try:
         # Outputs of the images still in flight when the build stopped: written, and now
         # recorded (none after a build that ran to the end).
-        summary.written += len(manifest.merge_journal(out))
+        summary.written += len(folder.merge_journal())
     except OSError as exc:  # the journal stays for the next build to merge
-        summary.fatal = summary.fatal or cannot_write(out / MANIFEST, exc)
+        summary.fatal = summary.fatal or cannot_write(folder.manifest, exc)
     try:
-        manifest.compact_manifest(out)
+        folder.compact()
     except OSError as exc:  # the appended manifest stays valid, only unsorted
-        summary.fatal = summary.fatal or cannot_write(out / MANIFEST, exc)
+        summary.fatal = summary.fatal or cannot_write(folder.manifest, exc)
     if summary.interrupted or summary.fatal:
         # A pool stopped early kills its workers, perhaps in the middle of a write.
-        manifest.remove_temporaries(out)
+        folder.remove_temporaries()
     try:
-        build_record.write_record(out, replace(record, finished=build_record.now(),
-                                               status=summary.status, summary=summary.as_dict()))
+        folder.write_record(replace(record, finished=now(), status=summary.status,
+                                    summary=summary.as_dict()))
     except OSError as exc:
-        summary.fatal = summary.fatal or cannot_write(out / RECORD, exc)
+        summary.fatal = summary.fatal or cannot_write(folder.record_file, exc)
 
 
 def library_versions(ds: Dataset) -> dict[str, str]:

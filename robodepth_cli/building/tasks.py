@@ -16,7 +16,8 @@ from pathlib import Path
 from ..errors import RobodepthError, cannot_write, failure_reason, os_reason, reraise_interrupt
 from ..files import sha256_bytes, sha256_file
 from ..imageio import ImageError, load_clean, resize_lanczos, write_png
-from ..output.manifest import Journal, Params, Row
+from ..output.folder import OutputFolder
+from ..output.manifest import Params, Row
 from ..sources.datasets import CLEAN, Entry, Job, locate
 from .executors import stopping
 from .renderers import Renderer
@@ -96,7 +97,7 @@ class Task:
 class Context:
     """What every task of a build shares."""
 
-    out: str
+    folder: OutputFolder  # absolute: a worker may run elsewhere
     size: tuple[int, int] | None  # None: every image at its own size
     seed: int
     renderer: Renderer
@@ -108,7 +109,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
     """Make the outputs of one source image that are not already done; one
     ``(JobState, manifest row)`` per job (see :class:`JobState`)."""
     _configure_worker(ctx.single_thread)
-    out = Path(ctx.out)
+    out = ctx.folder.path
     src = task.source
     hw = list(task.size or ctx.size or (0, 0))  # the decoded image's own, once decoded
     source_sha, expected = _source_hash(task)
@@ -145,7 +146,7 @@ def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
         ((j, clean) for j in todo if j.variant == CLEAN),
         ctx.renderer.render(clean, src.key, [j for j in todo if j.variant != CLEAN],
                             **_frames_of(src, clean, todo, ctx.size)))
-    with Journal(out) as journal:
+    with ctx.folder.journal() as journal:
         for job, img in rendered:
             if isinstance(img, BaseException):
                 fail(job, f"{src.path}: {_job_name(job)}: {failure_reason(img)}")

@@ -16,8 +16,8 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from ..output import record as build_record
-from ..output.manifest import Row, compact_manifest, read_manifest
+from ..output.folder import OutputFolder
+from ..output.manifest import Row
 from ..output.record import BuildRecord
 
 
@@ -37,27 +37,27 @@ def vanished(rows: dict[str, Row], root: Path, current: set[str]) -> dict[str, s
     return gone
 
 
-def prune(ds, out: Path, root: Path, sources, previous: BuildRecord | None
+def prune(ds, folder: OutputFolder, root: Path, sources, previous: BuildRecord | None
           ) -> tuple[BuildRecord | None, str]:
-    """Drop the images of a custom build in ``out`` whose source files are gone
+    """Drop the images of a custom build in ``folder`` whose source files are gone
     (:func:`vanished`; ``sources``: this build's): first their keys from the record's
     requests (written at once), then their outputs and manifest rows, so a build stopped
     half-way finishes the job when rerun. Returns ``previous`` without those keys and the
     summary's note saying what was dropped ("" when nothing was). Call with the lock held."""
     if not ds.discovers_sources or previous is None:
         return previous, ""
-    rows = read_manifest(out)
+    rows = folder.rows()
     gone = vanished(rows, root, {s.key for s in sources})
     if not gone:
         return previous, ""
     plans = [{**p, "keys": [k for k in p["keys"] if k not in gone]} for p in previous.requests()]
     previous = replace(previous, plans=[p for p in plans if p["keys"]])
-    build_record.write_record(out, previous)
+    folder.write_record(previous)
     files = set(gone.values())
     dropped = {path for path, row in rows.items() if row.source in files}
     for path in dropped:
-        (Path(out) / path).unlink(missing_ok=True)
-    compact_manifest(out, dropped)
+        (folder.path / path).unlink(missing_ok=True)
+    folder.compact(dropped)
     names = sorted(files)
     shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
     images = "1 source image" if len(names) == 1 else f"{len(names)} source images"

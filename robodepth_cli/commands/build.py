@@ -258,9 +258,9 @@ def _against(out: Path, report, other: Path, progress) -> bool:
     """Print OUT's comparison with OTHER, variant by variant; whether every output is identical.
     ``report``: OUT's verify report (its deleted and changed files count)."""
     from ..output.compare import Side, compare, disk_files
-    from ..output.manifest import read_recorded
+    from ..output.folder import OutputFolder
 
-    mine = Side({p: r for p, r in read_recorded(out).items() if not r.error},
+    mine = Side({p: r for p, r in OutputFolder(out).recorded().items() if not r.error},
                 set(report.missing), set(report.changed), disk_files(out))
     variants = compare(mine, _other_side(other, progress))
     total = sum(v.outputs for v in variants.values())

@@ -68,17 +68,18 @@ def run_command(dataset, root, spec, out, config_file, engine, batch_size, devic
       robodepth run kitti-c --root KITTI_RAW -m monodepth2:M --corruptions fog --levels 3 \\
           --limit 50 --keep-predictions PRED --out fog.csv
     """
-    from ..running.session import run
+    from ..running.session import RunSettings, run
 
     def on_state(path):
         common.on_interrupt(f"the finished variants are kept in {path}; rerun the same "
                             "command to continue")
 
-    evaluation = dict(stereo=stereo, align=align, align_space=align_space, crop=crop,
-                      min_depth=min_depth, max_depth=max_depth)
-    result, table, bench, replacing = run(
-        dataset, root, out, config_file, flags, spec=spec, engine=engine, batch_size=batch_size,
-        device=device, post_process=post_process, kind=kind, metric=metric, evaluation=evaluation,
-        keep=keep_predictions, progress=progress, note=lambda line: click.echo(line, err=True),
-        on_state=on_state)
+    settings = RunSettings(
+        dataset, root, out, spec, config_file, flags, engine=engine, batch_size=batch_size,
+        device=device, post_process=post_process, kind=kind, metric=metric,
+        evaluation=dict(stereo=stereo, align=align, align_space=align_space, crop=crop,
+                        min_depth=min_depth, max_depth=max_depth),
+        keep=keep_predictions, progress=progress)
+    result, table, bench, replacing = run(settings, note=lambda line: click.echo(line, err=True),
+                                          on_state=on_state)
     common.show_results(result, table, out, bench, as_json, replacing)

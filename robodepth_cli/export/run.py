@@ -45,14 +45,15 @@ def _inside(a: Path, b: Path) -> bool:
 
 
 def _open_build(out: Path, open_dataset):
-    from ..output.manifest import lock_holder, read_manifest
+    from ..output.folder import OutputFolder
 
     dataset = open_dataset(out, warn=False)
-    holder = lock_holder(out)
+    folder = OutputFolder(out)
+    holder = folder.lock_holder()
     if holder:
         raise ExportError(f"{out}: a build (pid {holder}) is writing here right now; export "
                           "when it has finished")
-    rows = read_manifest(out)
+    rows = folder.rows()
     # Images whose depth map is unusable have no ground truth and no depth-aware outputs;
     # a rerun cannot make them, so the build is exported without those files.
     status = dataset.record.status

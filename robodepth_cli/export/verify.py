@@ -17,7 +17,8 @@ from pathlib import Path
 
 from ..errors import reraise_interrupt
 from ..files import sha256_bytes, sha256_file
-from ..output.manifest import ManifestError, read_manifest
+from ..output.folder import OutputFolder
+from ..output.manifest import ManifestError
 from ..output.record import BuildStatus
 from ..output.verify import VerifyReport
 from ..output.layout import GT_FILE
@@ -28,7 +29,7 @@ from .reader import gt_rows, read_export_record, shard_rows
 def verify_export(to: Path, *, progress=None) -> VerifyReport:
     to = Path(to)
     record = read_export_record(to)
-    rows = read_manifest(to / META)
+    rows = OutputFolder(to / META).rows()
     if not rows:
         raise ManifestError(f"{to / META}: no manifest; not a robodepth export")
     expected = {p: r.sha256 for p, r in rows.items() if not r.error}

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import RobodepthError, cannot_write
+from ..output.folder import OutputFolder
 from ..output.layout import GT_DIR, GT_FILE, depth_gt_name
 from ..output.manifest import Row
 
@@ -212,12 +213,13 @@ def _is_done(job: GtJob, out: Path, done: dict[str, Row]) -> Row | None:
         return None
 
 
-def run_gt(plan: GtPlan, out: Path, done: dict[str, Row], progress: bool = False):
-    """Make the jobs of ``plan`` that are not done. Yields ``(state, row)`` per job, state
-    one of ``"skipped"``, ``"written"``, ``"failed"``, ``"fatal"`` (a write error)."""
+def run_gt(plan: GtPlan, folder: OutputFolder, progress: bool = False):
+    """Make the jobs of ``plan`` that ``folder``'s manifest does not list as done. Yields
+    ``(state, row)`` per job, state one of ``"skipped"``, ``"written"``, ``"failed"``,
+    ``"fatal"`` (a write error)."""
     from ..progress import bar as progress_bar
 
-    out = Path(out)
+    out, done = folder.path, folder.rows()
     todo = []
     for job in plan.jobs:
         r = _is_done(job, out, done)

@@ -24,7 +24,8 @@ from typing import Callable, Iterable, Iterator
 import numpy as np
 
 from .layout import MANIFEST, variant_dir
-from .manifest import ManifestError, Row, read_manifest_file, read_recorded
+from .folder import OutputFolder
+from .manifest import ManifestError, Row, read_manifest_file
 
 
 @dataclass
@@ -104,7 +105,7 @@ def other_rows(other: Path) -> tuple[dict[str, Row], Path]:
         if not (other / MANIFEST).is_file():
             raise ManifestError(f"--against: {other}: no {MANIFEST}; give a robodepth build, "
                                 f"an export or a {MANIFEST}")
-        rows, base = read_recorded(other), other
+        rows, base = OutputFolder(other).recorded(), other
     else:
         raise ManifestError(f"--against: {other}: does not exist")
     if not rows:

@@ -7,7 +7,7 @@ rule that places each output. Nothing else in the package spells these names.
     OUT/build.json               the build record (:data:`RECORD`)
     OUT/.robodepth.lock          held by the build writing here (:data:`LOCK`)
     OUT/.robodepth.journal/      rows of the outputs written, one file per worker, while a
-                                 build runs (:data:`JOURNAL`; see :class:`.manifest.Journal`)
+                                 build runs (:data:`JOURNAL`; see :class:`.folder.Journal`)
     OUT/clean/<key>              the resized clean images
     OUT/<corruption>/<level>/<key>
     OUT/<style>/<key>            KITTI-S: styles have no level

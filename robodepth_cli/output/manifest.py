@@ -1,37 +1,28 @@
-"""The manifest and the lock of an output directory (their names: :mod:`.layout`).
+"""The manifest format: ``OUT/manifest.csv`` and the journal files, whose rows it shares
+(where they lie and who writes them: :mod:`.folder`).
 
-- ``OUT/manifest.csv``: one row per output file (:data:`FIELDS`). Rows are appended and
-  flushed as results arrive, so a killed build keeps the record of what it finished; the
-  last row for a path wins. A torn last line (a build killed mid-write) is ignored when
-  reading and cut off before appending. A finished build rewrites the file with one row per
-  path, sorted, so the same build gives the same manifest whatever the worker count.
-  A row with an ``error`` is a job that failed; its file does not exist. Its format
-  version is the build record's (``robodepth-build``, :mod:`robodepth_cli.formats`): the
-  header must be :data:`HEADER` exactly.
-- ``OUT/build.json``: the build record, :mod:`.record`.
-- ``OUT/.robodepth.journal/``: while a build runs, each worker appends the row of every
-  output to a file of its own here right after writing the output (:class:`Journal`), so a
-  build stopped in the middle of an image (one image has up to 91 outputs) keeps the record
-  of what it wrote. The builder moves those rows into the manifest (and removes the files)
-  when it ends, even interrupted, and when the next build starts; ``verify`` reads them too.
-- ``OUT/.robodepth.lock``: held (``flock``) by the running build, and removed by it when
-  it ends; if the process dies, the kernel releases the lock and the next build reuses the
-  file.
+The manifest holds one row per output file (:data:`FIELDS`). Rows are appended and flushed
+as results arrive, so a killed build keeps the record of what it finished; the last row for
+a path wins. A torn last line (a build killed mid-write) is ignored when reading and cut off
+before appending. A finished build rewrites the file with one row per path, sorted, so the
+same build gives the same manifest whatever the worker count. A row with an ``error`` is a
+job that failed; its file does not exist. Its format version is the build record's
+(``robodepth-build``, :mod:`robodepth_cli.formats`): the header must be :data:`HEADER`
+exactly. A journal file holds the same rows without the header.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-import os
 import re
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from ..files import is_temporary, write_atomic
+from ..files import write_atomic
 from ..errors import RobodepthError
 from ..values import int_from_text, is_int
-from .layout import JOURNAL, LOCK, MANIFEST, NEIGHBOUR_OF
+from .layout import MANIFEST, NEIGHBOUR_OF
 
 SEQUENCE = "sequence="  # a params part: a corruption over time's sequence
 MAP = "map="  # the last params part of a depth-aware output: its depth stamp
@@ -164,14 +155,9 @@ def format_rows(rows) -> str:
     return buf.getvalue()
 
 
-def read_manifest(out: Path) -> dict[str, Row]:
-    """The latest row of every output path in ``out``'s manifest ({} if there is none).
-    A last line without its newline is a torn write and ignored."""
-    return read_manifest_file(Path(out) / MANIFEST)
-
-
 def read_manifest_file(path: Path) -> dict[str, Row]:
-    """:func:`read_manifest` of the manifest file at ``path``, wherever it lies."""
+    """The latest row of every output path in the manifest file at ``path`` ({} if there is
+    none). A last line without its newline is a torn write and ignored."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -198,11 +184,11 @@ def read_manifest_file(path: Path) -> dict[str, Row]:
 
 
 class ManifestWriter:
-    """Appends rows to ``out``'s manifest, flushing after every batch."""
+    """Appends rows to the manifest file at ``path``, flushing after every batch."""
 
-    def __init__(self, out: Path):
-        self.path = Path(out) / MANIFEST
-        read_manifest(out)  # refuse a foreign or damaged file before touching it
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        read_manifest_file(self.path)  # refuse a foreign or damaged file before touching it
         self._fh = open(self.path, "a+b")
         self._fh.seek(0)
         data = self._fh.read()
@@ -232,43 +218,7 @@ class ManifestWriter:
         self.close()
 
 
-class Journal:
-    """A worker's record of the outputs it writes, one row appended right after each file is
-    written, in ``OUT/.robodepth.journal/<host>-<pid>-<thread>.csv`` (no file is shared, so no
-    two writers interleave, on any file system). Use as a context manager around one task;
-    the file is created on the first row."""
-
-    def __init__(self, out: Path):
-        import socket
-        import threading
-
-        self.path = (Path(out) / JOURNAL /
-                     f"{socket.gethostname()}-{os.getpid()}-{threading.get_ident()}.csv")
-        self._fd: int | None = None
-
-    def append(self, row: Row) -> None:
-        if self._fd is None:
-            self.path.parent.mkdir(exist_ok=True)
-            self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-        os.write(self._fd, format_rows([row]).encode("utf-8"))
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        if self._fd is not None:
-            os.close(self._fd)
-            self._fd = None
-
-
-def _journal_files(out: Path) -> list[Path]:
-    try:
-        return sorted(p for p in (Path(out) / JOURNAL).iterdir() if p.suffix == ".csv")
-    except (FileNotFoundError, NotADirectoryError):
-        return []
-
-
-def _journal_rows(path: Path) -> list[Row]:
+def read_journal_file(path: Path) -> list[Row]:
     """The complete rows of one journal file; a torn last line (a worker killed in the
     middle of a write) and anything unreadable are left out: their outputs are made again."""
     try:
@@ -287,139 +237,6 @@ def _journal_rows(path: Path) -> list[Row]:
     return rows
 
 
-def read_recorded(out: Path) -> dict[str, Row]:
-    """:func:`read_manifest` with the rows of a journal a killed build left laid over them:
-    every output recorded so far, changing nothing."""
-    rows = read_manifest(out)
-    for path in _journal_files(out):
-        for row in _journal_rows(path):
-            rows[row.output] = row
-    return rows
-
-
-def merge_journal(out: Path) -> list[Row]:
-    """Move the journal's rows into the manifest (call with the lock held) and delete the
-    journal; return the rows the manifest did not already hold."""
-    files = _journal_files(out)
-    if not files:
-        return []
-    current = read_manifest(out)
-    new: dict[str, Row] = {}
-    for path in files:
-        for row in _journal_rows(path):
-            if current.get(row.output) != row:
-                new[row.output] = row
-    if new:
-        with ManifestWriter(out) as writer:
-            writer.append(list(new.values()))
-    for path in files:
-        path.unlink(missing_ok=True)
-    try:
-        (Path(out) / JOURNAL).rmdir()
-    except OSError:
-        pass  # a straggling worker wrote again: the next build merges it
-    return list(new.values())
-
-
-def compact_manifest(out: Path, drop=frozenset()) -> None:
-    """Rewrite the manifest atomically with the latest row of each path, sorted by path,
-    leaving out the rows of the paths in ``drop``."""
-    rows = read_manifest(out)
-    write_atomic(Path(out) / MANIFEST, (HEADER + format_rows(rows[k] for k in sorted(rows)
-                                                             if k not in drop)).encode("utf-8"))
-
-
-class BuildLock:
-    """An exclusive lock on ``OUT/.robodepth.lock`` for the duration of a ``with`` block.
-    A second build into the same OUT gets :class:`ManifestError` instead of waiting.
-
-    The file is removed when the block ends (a refused or finished build leaves none). A
-    process that opened the file just before it was removed would lock an orphan inode, so
-    after locking, the inode is compared with the path's and the lock taken again if they
-    differ."""
-
-    def __init__(self, out: Path):
-        self.path = Path(out) / LOCK
-        self._fd: int | None = None
-
-    def __enter__(self):
-        import fcntl
-
-        while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
-                os.close(fd)
-                raise ManifestError(f"{self.path.parent}: another build (pid {holder}) is writing here; "
-                                    f"wait for it to finish or choose another --out") from None
-            try:
-                same = os.stat(self.path).st_ino == os.fstat(fd).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                break
-            os.close(fd)  # the file was removed by the build that held it: lock the new one
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
-        self._fd = fd
-        return self
-
-    def __exit__(self, *exc):
-        try:
-            os.unlink(self.path)  # while still locked: see the class docstring
-        except FileNotFoundError:
-            pass
-        os.close(self._fd)
-        self._fd = None
-
-
-def lock_holder(out: Path) -> str | None:
-    """The pid (as written) of the build holding ``out``'s lock, or None if none does."""
-    import fcntl
-
-    try:
-        fd = os.open(Path(out) / LOCK, os.O_RDONLY)
-    except FileNotFoundError:
-        return None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except BlockingIOError:
-        return os.read(fd, 64).decode(errors="replace").strip() or "unknown"
-    finally:
-        os.close(fd)
-    return None
-
-
-def remove_temporaries(out: Path) -> int:
-    """Delete temporary files a killed build left behind (call with the lock held)."""
-    n = 0
-    for dirpath, _, files in os.walk(out):
-        for name in files:
-            if is_temporary(name):
-                try:
-                    os.unlink(os.path.join(dirpath, name))
-                except FileNotFoundError:
-                    # A cluster worker still finishing a cancelled task renamed it meanwhile.
-                    continue
-                n += 1
-    return n
-
-
-def links_leaving(out: Path) -> list[tuple[str, str]]:
-    """Symlinks under ``out`` whose target lies outside it, as (path relative to ``out``,
-    resolved target). A build refuses to start over any: a write or deletion through one
-    would land outside OUT. Links are not followed while searching."""
-    top = os.path.realpath(out)
-    found, stack = [], [top]
-    while stack:
-        with os.scandir(stack.pop()) as entries:
-            for e in entries:
-                if e.is_symlink():
-                    real = os.path.realpath(e.path)
-                    if os.path.commonpath([top, real]) != top:
-                        found.append((os.path.relpath(e.path, top), real))
-                elif e.is_dir():
-                    stack.append(e.path)
-    return sorted(found)
+def write_manifest_file(path: Path, rows) -> None:
+    """Write the manifest file at ``path`` atomically with ``rows``, in their order."""
+    write_atomic(path, (HEADER + format_rows(rows)).encode("utf-8"))

@@ -21,7 +21,6 @@ from typing import Any
 from ..errors import RobodepthError
 from ..files import write_atomic
 from ..formats import FormatError, check
-from .layout import RECORD
 
 SCHEMA = "robodepth-build"
 
@@ -138,10 +137,9 @@ class BuildRecord:
         return {**data, **stamp(SCHEMA)}
 
 
-def read_record(out: Path) -> BuildRecord | None:
-    """The build record of ``out`` (None when there is none); :class:`RecordError` naming
-    the file when it cannot be read or is not a record."""
-    path = Path(out) / RECORD
+def read_record_file(path: Path) -> BuildRecord | None:
+    """The build record in the file at ``path`` (None when there is none);
+    :class:`RecordError` naming the file when it cannot be read or is not a record."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -165,7 +163,8 @@ def read_record(out: Path) -> BuildRecord | None:
     return BuildRecord.from_dict(data)
 
 
-def write_record(out: Path, record: BuildRecord) -> None:
-    """Write ``OUT/build.json`` atomically (sorted keys, so equal records are equal bytes)."""
+def write_record_file(path: Path, record: BuildRecord) -> None:
+    """Write the record to ``path`` atomically (sorted keys, so equal records are equal
+    bytes)."""
     text = json.dumps(record.to_dict(), indent=2, sort_keys=True) + "\n"
-    write_atomic(Path(out) / RECORD, text.encode("utf-8"))
+    write_atomic(path, text.encode("utf-8"))

@@ -14,8 +14,9 @@ from pathlib import Path
 from ..files import sha256_file
 from ..lock import build_note
 from .layout import BOOKKEEPING, JOURNAL, MANIFEST
-from .manifest import ManifestError, lock_holder, read_recorded
-from .record import BuildStatus, read_record
+from .folder import OutputFolder
+from .manifest import ManifestError
+from .record import BuildStatus
 
 
 @dataclass
@@ -80,14 +81,15 @@ def verify(out: Path, *, planned_outputs, threads: int = 4, progress=None,
         raise ManifestError(f"{out}: does not exist")
     if not out.is_dir():
         raise ManifestError(f"{out}: not a directory")
-    holder = lock_holder(out)
+    folder = OutputFolder(out)
+    holder = folder.lock_holder()
     if holder:
         raise ManifestError(f"{out}: a build (pid {holder}) is writing here right now; verify "
                             f"when it has finished")
     if not (out / MANIFEST).is_file():
         raise ManifestError(f"{out}: no {MANIFEST}; not a robodepth build output")
-    rows = read_recorded(out)  # a killed build's journal counts: its files are complete
-    record = read_record(out)
+    rows = folder.recorded()  # a killed build's journal counts: its files are complete
+    record = folder.record()
     planned = planned_outputs(record)
     on_disk = tree_files(out)
     failed = sorted(p for p, r in rows.items() if r.error)

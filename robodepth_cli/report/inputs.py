@@ -182,12 +182,12 @@ def dataset_info(path: Path, benchmark: str) -> dict:
     import hashlib
 
     from .. import open_dataset
-    from ..output.manifest import read_manifest
+    from ..output.folder import OutputFolder
 
     ds = open_dataset(path)
     if ds.name != benchmark:
         raise ReportError(f"--dataset {path}: is a {ds.name} build, but the results are {benchmark}")
-    rows = read_manifest(path)
+    rows = OutputFolder(path).rows()
     digest = hashlib.sha256()
     for out in sorted(rows):
         digest.update(f"{out} {rows[out].sha256}\n".encode())

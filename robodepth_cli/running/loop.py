@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import functools
 from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import nullcontext
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -61,23 +63,45 @@ def render_batch(renderer: Renderer, cleans: Sequence[np.ndarray], keys: Sequenc
     return out
 
 
-def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, truth, setup,
-        state: RunState, *, batch_size: int = 8, keep: Path | None = None,
-        progress: Callable[[int], None] | None = None,
+@dataclass(frozen=True)
+class RunContext:
+    """What the loop judges with, made once by the session (:mod:`.session`): the inputs
+    and their decoded clean images, the renderer, the model, the ground truth, the
+    evaluation setup, the state, ``step`` images per batch (the batches of ``robodepth
+    predict``) and ``keep``, where to also write the predictions (None: nowhere)."""
+
+    inputs: RunInputs
+    cleans: list[np.ndarray]
+    renderer: Renderer
+    model: Any
+    truth: Any  # groundtruth.read.GroundTruth
+    setup: Any  # evaluation.setup.EvaluationSetup
+    state: RunState
+    step: int
+    keep: Path | None = None
+
+    @property
+    def bounds(self) -> list[tuple[int, int]]:
+        """The batches, as (first, end) indices of the images."""
+        n = len(self.cleans)
+        return [(i, min(i + self.step, n)) for i in range(0, n, self.step)]
+
+
+def run(ctx: RunContext, *, progress: Callable[[int], None] | None = None,
         on_total: Callable[[int], None] | None = None,
         on_clean: Callable[[dict], None] | None = None) -> tuple[Evaluation, int]:
-    """Judge ``model`` on every variant of ``inputs``; the evaluation (as
-    ``robodepth evaluate`` makes it) and how many variants an earlier run had finished.
-    ``keep``: also write the predictions there, in ``robodepth predict``'s layout;
-    ``on_clean``: called with the clean variant's metrics when it is computed."""
-    n = len(cleans)
-    keys = inputs.keys
-    paths = [s.path or s.rel for s in inputs.sources]
-    step = P.batch_limit(batch_size, inputs.cfg.size, model.input_size)
-    result = Evaluation(inputs.ds.name, setup, str(keep) if keep else model.spec, truth.source, n)
+    """Judge the model on every variant of the inputs; the evaluation (as ``robodepth
+    evaluate`` makes it) and how many variants an earlier run had finished. With
+    ``ctx.keep``, the predictions are also written there, in ``robodepth predict``'s
+    layout; ``on_clean``: called with the clean variant's metrics when it is computed."""
+    inputs, model, keep, state = ctx.inputs, ctx.model, ctx.keep, ctx.state
+    n = len(ctx.cleans)
+    result = Evaluation(inputs.ds.name, ctx.setup, str(keep) if keep else model.spec,
+                        ctx.truth.source, n)
     record = None
     if keep is not None:
-        record = P.make_record(SimpleNamespace(name=inputs.ds.name, path=inputs.root, keys=keys), model)
+        record = P.make_record(SimpleNamespace(name=inputs.ds.name, path=inputs.root, keys=inputs.keys),
+                               model)
         P.prepare_output(keep, record)
     todo, earlier = [], 0
     for variant, _ in inputs.variants:
@@ -96,13 +120,7 @@ def run(inputs: RunInputs, cleans: list[np.ndarray], renderer: Renderer, model, 
                 metrics, ratios = state.get(variant.relpath)
                 result.results.append(VariantResult(variant, metrics, ratios))
                 continue
-            bounds = [(i, min(i + step, n)) for i in range(0, n, step)]
-            paint = [functools.partial(render_batch, renderer, cleans[a:b], keys[a:b], paths[a:b], job)
-                     for a, b in bounds]
-            writer = (PredictionWriter(variant.prediction_file(keep), n) if keep is not None
-                      else None)
-            r = _judge(variant, bounds, painter, paint, model, truth, setup, inputs.cfg.size,
-                       writer, progress, keep, record)
+            r = _judge(ctx, variant, job, painter, record, progress)
             record = None  # written with the first batch
             state.add(variant.relpath, r.metrics, r.ratios)
             result.results.append(r)
@@ -126,10 +144,17 @@ class _Inline:
         return done
 
 
-def _judge(variant: Variant, bounds, painter, paint, model, truth, setup, size, writer,
-           progress, keep, record) -> VariantResult:
-    from contextlib import nullcontext
-
+def _judge(ctx: RunContext, variant: Variant, job: Job, painter, record,
+           progress: Callable[[int], None] | None) -> VariantResult:
+    """One variant: its batches rendered by ``painter`` (the next while the model predicts
+    this one), predicted and each map judged at once; ``record``: the predictions' record,
+    written with the first batch (None: already written, or nothing kept)."""
+    model, keep, keys = ctx.model, ctx.keep, ctx.inputs.keys
+    paths = [s.path or s.rel for s in ctx.inputs.sources]
+    bounds = ctx.bounds
+    paint = [functools.partial(render_batch, ctx.renderer, ctx.cleans[a:b], keys[a:b], paths[a:b], job)
+             for a, b in bounds]
+    writer = PredictionWriter(variant.prediction_file(keep), len(ctx.cleans)) if keep is not None else None
     errors, ratios = [], []
     with writer if writer is not None else nullcontext() as out:
         pending = painter.submit(paint[0])
@@ -146,7 +171,7 @@ def _judge(variant: Variant, bounds, painter, paint, model, truth, setup, size, 
                     record = None
                 for m in maps:
                     errs, ratio = image_errors(m, f"{model.spec}: {variant.label}: {variant.keys[i]}",
-                                               truth.get(i), setup, size)
+                                               ctx.truth.get(i), ctx.setup, ctx.inputs.cfg.size)
                     errors.append(errs)
                     if ratio is not None:
                         ratios.append(ratio)
@@ -155,4 +180,4 @@ def _judge(variant: Variant, bounds, painter, paint, model, truth, setup, size, 
                     i += 1
                 if progress:
                     progress(len(batch))
-    return variant_result(variant, errors, ratios, setup)
+    return variant_result(variant, errors, ratios, ctx.setup)

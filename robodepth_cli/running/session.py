@@ -4,20 +4,41 @@ sources decoded once, the model, the evaluation setup, the resumable state and t
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
 
-def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: str, engine: str,
-        batch_size: int, device: str, post_process: bool, kind, metric, evaluation: dict,
-        keep: Path | None, progress: bool, note: Callable[[str], None],
-        on_state: Callable[[Path], None]):
-    """Judge model ``spec`` on ``dataset`` made in memory from ``root``; write the results CSV
-    ``out`` and return ``(result, its results table, the benchmark scored, whether out was
-    replaced)``. ``evaluation``: the evaluate flags (stereo, align, align_space, crop,
-    min_depth, max_depth); ``note`` prints a line for the user; ``on_state`` is told the
-    state file once the decoding is done (the run then resumes from it)."""
+@dataclass(frozen=True)
+class RunSettings:
+    """One run's settings, as the command parsed them: the dataset made in memory from
+    ``root`` (``config_file`` and ``flags``, the selection flags, as for build), the model
+    ``spec`` with how it runs and what its maps hold, ``evaluation`` (the evaluate flags:
+    stereo, align, align_space, crop, min_depth, max_depth), the results CSV ``out`` and
+    ``keep``, the predictions' folder (None: not kept)."""
+
+    dataset: str
+    root: Path
+    out: Path
+    spec: str
+    config_file: Path | None = None
+    flags: dict = field(default_factory=dict)
+    engine: str = "numpy"
+    batch_size: int = 8
+    device: str = "auto"
+    post_process: bool = False
+    kind: str | None = None
+    metric: bool | None = None
+    evaluation: dict = field(default_factory=dict)
+    keep: Path | None = None
+    progress: bool = True
+
+
+def run(settings: RunSettings, *, note: Callable[[str], None], on_state: Callable[[Path], None]):
+    """Judge the model on the dataset as ``settings`` say; write the results CSV and return
+    ``(result, its results table, the benchmark scored, whether the CSV was replaced)``.
+    ``note`` prints a line for the user; ``on_state`` is told the state file once the
+    decoding is done (the run then resumes from it)."""
     from ..building.config import resolve
     from ..evaluation.setup import evaluation_setup, scored_benchmark
     from ..evaluation.modelsize import with_size
@@ -29,35 +50,36 @@ def run(dataset: str, root: Path, out: Path, config_file, flags: dict, *, spec: 
     from . import inputs as I, loop
     from .state import RunState
 
+    s, out = settings, settings.out
     check_writable(out, "--out")
-    if keep is not None:
-        check_writable(keep / RECORD, "--keep-predictions")
-    cfg = resolve(dataset, config_file, {**flags, **I.engine_flags(engine, device)})
-    inputs = I.gather(cfg, root, out)
+    if s.keep is not None:
+        check_writable(s.keep / RECORD, "--keep-predictions")
+    cfg = resolve(s.dataset, s.config_file, {**s.flags, **I.engine_flags(s.engine, s.device)})
+    inputs = I.gather(cfg, s.root, out)
     bench = scored_benchmark(cfg.dataset, [v for v, _ in inputs.variants])
-    model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
-    setup, _ = evaluation_setup(cfg.dataset, model.record()["evaluate"], None, kind, png_scale=None,
-                                **evaluation)
+    model = load_model(s.spec, device=s.device, kind=s.kind, metric=s.metric,
+                       post_process=s.post_process)
+    setup, _ = evaluation_setup(cfg.dataset, model.record()["evaluate"], None, s.kind, png_scale=None,
+                                **s.evaluation)
     renderer = I.renderer(inputs)
-    step = batch_limit(batch_size, cfg.size, model.input_size)
-    if step < batch_size:
-        note(f"robodepth: --batch-size {batch_size}: {step} images per batch (a batch "
+    step = batch_limit(s.batch_size, cfg.size, model.input_size)
+    if step < s.batch_size:
+        note(f"robodepth: --batch-size {s.batch_size}: {step} images per batch (a batch "
              f"holds at most {BATCH_PIXELS:,} pixels)")
-    state = RunState.open(out, loop.settings(inputs, model, setup, step, engine))
+    state = RunState.open(out, loop.settings(inputs, model, setup, step, s.engine))
     state.check_writable()
     if state.note:
         note(f"robodepth: {state.note}")
-    with progress_bar("img", len(inputs.sources), progress=progress, desc="decoding") as bar:
+    with progress_bar("img", len(inputs.sources), progress=s.progress, desc="decoding") as bar:
         cleans = I.decode(inputs, bar.update)
     truth = I.ground_truth(inputs, setup)
     on_state(state.path)
-    with progress_bar("img", progress=progress, desc="run") as bar:
+    context = loop.RunContext(inputs, cleans, renderer, model, truth, setup, state, step, s.keep)
+    with progress_bar("img", progress=s.progress, desc="run") as bar:
         def set_total(n):
             bar.reset(total=n)
 
-        result, earlier = loop.run(inputs, cleans, renderer, model, truth, setup, state,
-                                   batch_size=batch_size, keep=keep,
-                                   progress=bar.update, on_total=set_total,
+        result, earlier = loop.run(context, progress=bar.update, on_total=set_total,
                                    on_clean=_early_warning(bench, setup, note))
     if earlier:
         note(f"robodepth: {earlier} of {len(inputs.variants)} variants taken from "

@@ -141,11 +141,11 @@ class Built:
 def built_outputs(work: Path) -> dict[str, Built]:
     """``{"<build>/<output>": Built}`` of every build's manifest."""
     from ..output.layout import variant_dir
-    from ..output.manifest import read_manifest
+    from ..output.folder import OutputFolder
 
     found = {}
     for name, _, _ in BUILDS:
-        for path, row in read_manifest(work / name).items():
+        for path, row in OutputFolder(work / name).rows().items():
             found[f"{name}/{path}"] = Built(row.sha256, row.error,
                                             f"{name}:{variant_dir(row.variant, row.level)}", row.variant)
     return found

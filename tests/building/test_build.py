@@ -15,7 +15,7 @@ from robodepth_cli import corruptions, files, seeding
 from robodepth_cli.building import renderers, tasks
 
 from robodepth_cli.corruptions import NAMES
-from robodepth_cli.output.manifest import BuildLock
+from robodepth_cli.output.folder import OutputFolder
 
 from tests.helpers.imports import imported_by_command
 from tests.helpers.manifest import manifest_rows
@@ -276,7 +276,7 @@ def test_second_build_into_same_out_is_refused(tmp_path, kitti, build_kitti):
     root, split = kitti
     out = tmp_path / "out"
     out.mkdir()
-    with BuildLock(out):
+    with OutputFolder(out).lock():
         res = build_kitti(root, split, out, "--corruptions", "contrast")
     assert res.exit_code == 2 and "another build" in res.output
     assert tree(out) == {}

@@ -15,7 +15,7 @@ from tests.helpers.trees import KITTI_DRIVE, kitti_key, kitti_tree, nyu_tree, ra
 from robodepth_cli.building import pipeline as builder
 from robodepth_cli.building.config import ConfigError, resolve
 from robodepth_cli.output.layout import LOCK
-from robodepth_cli.output.manifest import BuildLock
+from robodepth_cli.output.folder import OutputFolder
 
 SMALL = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1,2", "--jobs", "1"]
 FRAMES = [(1, "l", ".png"), (2, "r", ".png")]
@@ -112,7 +112,7 @@ def test_verify_while_a_build_runs_says_so(kitti, tmp_path, cli, build_kitti):
     root, split = kitti
     out = tmp_path / "out"
     assert build_kitti(root, split, out, *SMALL).exit_code == 0
-    with BuildLock(out):
+    with OutputFolder(out).lock():
         one_line_error(cli("verify", out), f"{out}: a build (pid {os.getpid()}) is writing here right now")
     assert cli("verify", out).exit_code == 0
 
@@ -295,7 +295,7 @@ def test_lock_taken_again_if_its_file_was_removed_meanwhile(tmp_path, monkeypatc
         return real(fd, op)
 
     monkeypatch.setattr(fcntl, "flock", flock)
-    with BuildLock(tmp_path) as lock:
+    with OutputFolder(tmp_path).lock() as lock:
         assert len(calls) == 2  # locked again, on the file now at the path
         assert os.fstat(lock._fd).st_ino == os.stat(tmp_path / LOCK).st_ino
     monkeypatch.undo()

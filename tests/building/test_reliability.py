@@ -31,7 +31,8 @@ from robodepth_cli import imageio
 
 from robodepth_cli.building import gather
 
-from robodepth_cli.output import manifest, record as build_record
+from robodepth_cli.output import manifest
+from robodepth_cli.output.folder import OutputFolder
 
 from tests.helpers.messages import one_line_error
 from tests.helpers.paths import REPO
@@ -270,7 +271,7 @@ def test_per_image_problem_fails_that_image_only(case, tmp_path, cli, build_kitt
     files = tree(out)
     assert set(files) == {f"clean/{good}", f"contrast/2/{good}", f"pixelate/2/{good}"}
     assert all(decodes(b) for b in files.values())
-    failed = {p: r for p, r in manifest.read_manifest(out).items() if r.error}
+    failed = {p: r for p, r in OutputFolder(out).rows().items() if r.error}
     assert set(failed) == {f"clean/{spoilt}", f"contrast/2/{spoilt}", f"pixelate/2/{spoilt}"}
     assert all(r.error.startswith(message) and r.sha256 == "" for r in failed.values())
     v = cli("verify", out)
@@ -427,7 +428,7 @@ def test_full_disk_midway_keeps_only_complete_images_and_resumes(big, reference,
     files = tree(out)
     assert 0 < len(files) < len(reference[0])
     assert all(decodes(b) for b in files.values())
-    rows = manifest.read_manifest(out)  # readable, and never claims an image that is not there
+    rows = OutputFolder(out).rows()  # readable, and never claims an image that is not there
     assert all(files.get(p) == reference[0][p] for p, r in rows.items() if not r.error)
 
     subprocess.run(["mount", "-o", "remount,size=16m", str(mount_point)], check=True)
@@ -502,16 +503,16 @@ def test_bookkeeping_write_failure_is_a_clear_stop(stage, kitti, tmp_path, monke
         monkeypatch.setattr(manifest.ManifestWriter, "append", full)
         named = out / "manifest.csv"
     elif stage == "compact":
-        monkeypatch.setattr(manifest, "compact_manifest", full)
+        monkeypatch.setattr(OutputFolder, "compact", full)
         named = out / "manifest.csv"
     else:  # the build record, when the build starts or when it ends
-        real, calls = build_record.write_record, []
+        real, calls = OutputFolder.write_record, []
 
-        def fails(o, record):
+        def fails(folder, record):
             calls.append(record)
-            return full() if len(calls) == (1 if stage == "start" else 2) else real(o, record)
+            return full() if len(calls) == (1 if stage == "start" else 2) else real(folder, record)
 
-        monkeypatch.setattr(build_record, "write_record", fails)
+        monkeypatch.setattr(OutputFolder, "write_record", fails)
         named = out / "build.json"
     res = build_kitti(root, split, out, *SMALL)
     assert res.exit_code == 2, res.output
@@ -520,7 +521,7 @@ def test_bookkeeping_write_failure_is_a_clear_stop(stage, kitti, tmp_path, monke
         one_line_error(res, start=f"{named}: cannot write (No space left on device)")
         assert tree(out) == {}
     assert "Traceback" not in res.output
-    rows = manifest.read_manifest(out)
+    rows = OutputFolder(out).rows()
     assert all((out / p).is_file() for p, r in rows.items() if not r.error)
     monkeypatch.undo()
     res = build_kitti(root, split, out, *SMALL)
@@ -607,7 +608,7 @@ def signalled_midway(processes, big, out: Path, sig: int):
 
 def completed_rows(out: Path) -> int:
     """Outputs recorded so far: in the manifest, or in the journal of a killed build."""
-    return sum(1 for r in manifest.read_recorded(out).values() if not r.error)
+    return sum(1 for r in OutputFolder(out).recorded().values() if not r.error)
 
 
 @pytest.mark.slow
