@@ -94,7 +94,7 @@ class Plan:
         return dict(counts=counts, index_at=index_at, gt_at=gt_at, shape_of=shape_of, shapes=shapes,
                     gmed=gmed.astype(gdtype), zi=idtype.type(0), zg=gdtype.type(0), kinds=kinds,
                     buffers=(np.empty(size, self.dtype), np.empty(size, self.dtype),
-                             np.empty(size, self.dtype), *K._buffers(t)))
+                             np.empty(size, self.dtype), *K._buffers()))
 
     def _dense(self, truth: GroundTruth, n: int) -> dict | None:
         raw_at, divisors = np.zeros(n, np.int64), np.ones(n, np.float32)
@@ -117,11 +117,10 @@ class Plan:
         s, p = self.setup, self.dtype.type
         t = np.result_type(self.dtype, np.float32)
         box = np.asarray(crop_box(s.crop_name, s.protocol, *self.shape), np.int64)
-        f32, width = np.float32, max(int(box[3] - box[2]), 0)
+        f32 = np.float32
         return dict(raw_at=raw_at, zr=rdtype.type(0), divisors=divisors, box=box,
                     valid=(f32(s.min_depth), f32(s.depth_cap)), clamp=(p(s.min_depth), p(s.depth_cap)),
-                    one=p(1), zero=t.type(0),
-                    buffers=(np.empty(width, f32), np.empty(width, self.dtype), *K._buffers(t)))
+                    one=p(1), zero=t.type(0), buffers=K._buffers())
 
     # ----------------------------------------------------------------- judging
 

@@ -284,6 +284,16 @@ _BLOCK = 256  # pixels whose logarithms are taken together, in one vectorised lo
 
 
 @njit
+def _pixel(g, d):
+    """One pixel's terms: ``|g - d| / g``, ``(g - d)^2 / g``, ``(g - d)^2``, ``max(g / d,
+    d / g)`` in the dtype of ``g`` and ``d``, and ``log(d / g)`` in float64."""
+    diff = g - d
+    sq = diff * diff
+    return (div(abs(diff), g), div(sq, g), sq, max(div(g, d), div(d, g)),
+            _log(div(np.float64(d), np.float64(g))))
+
+
+@njit
 def _terms(gt, p, scale, lo, hi, zero, w0, w1, w2, ratio):
     """:func:`_scaled_errors`' terms of the pixels of ``gt`` and ``p`` (a block) into
     ``w0``, ``w1``, ``w2`` and ``ratio``, in a loop that vectorises; returns the count of
@@ -294,18 +304,35 @@ def _terms(gt, p, scale, lo, hi, zero, w0, w1, w2, ratio):
         nan += d != d
         d = lo if d < lo else d
         d = hi if d > hi else d
-        g, d = gt[j] + zero, d + zero
-        diff = g - d
-        sq = diff * diff
-        w0[j] = div(abs(diff), g)
-        w1[j] = div(sq, g)
-        w2[j] = sq
-        t = max(div(g, d), div(d, g))
+        w0[j], w1[j], w2[j], t, ratio[j] = _pixel(gt[j] + zero, d + zero)
         n1 += t < 1.25
         n2 += t < 1.25 ** 2
         n3 += t < 1.25 ** 3
-        ratio[j] = _log(div(np.float64(d), np.float64(g)))
     return nan, n1, n2, n3
+
+
+@njit
+def _add(sums, w0, w1, w2, ratio, m, nyu):
+    """``sums`` (the six float sums of :func:`_scaled_errors`) plus the first ``m`` terms
+    of the rows, one by one in pixel order (the order fixes the last bits)."""
+    s0, s1, s2, s6, s7, s8 = sums
+    if nyu:
+        for j in range(m):
+            s0 += w0[j]
+            s1 += w1[j]
+            s2 += w2[j]
+            e = ratio[j]
+            s6 += e
+            s7 += e * e
+            s8 += abs(e)
+    else:  # two sums fewer: the means of e and |e| are nyu's
+        for j in range(m):
+            s0 += w0[j]
+            s1 += w1[j]
+            s2 += w2[j]
+            e = ratio[j]
+            s7 += e * e
+    return s0, s1, s2, s6, s7, s8
 
 
 @njit
@@ -318,8 +345,8 @@ def _scaled_errors(gt, p, scale, lo, hi, zero, nyu, work, ratio):
     and whether a ``d`` is NaN.
 
     A block of pixels at a time: their terms into the rows of ``work`` (3 x block) and
-    ``ratio`` (block, float64) (:func:`_terms`), then summed one by one."""
-    s0 = s1 = s2 = s6 = s7 = s8 = 0.0
+    ``ratio`` (block), float64 (:func:`_terms`), then summed one by one."""
+    sums = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     n1 = n2 = n3 = 0
     block = ratio.size
     w0, w1, w2 = work[0], work[1], work[2]
@@ -329,58 +356,72 @@ def _scaled_errors(gt, p, scale, lo, hi, zero, nyu, work, ratio):
                                  ratio)
         n1, n2, n3 = n1 + c1, n2 + c2, n3 + c3
         if nan:
-            return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), True
-        if nyu:
-            for j in range(m):
-                s0 += w0[j]
-                s1 += w1[j]
-                s2 += w2[j]
-                e = ratio[j]
-                s6 += e
-                s7 += e * e
-                s8 += abs(e)
-        else:  # two sums fewer: the means of e and |e| are nyu's
-            for j in range(m):
-                s0 += w0[j]
-                s1 += w1[j]
-                s2 += w2[j]
-                e = ratio[j]
-                s7 += e * e
-    return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), False
+            break
+        sums = _add(sums, w0, w1, w2, ratio, m, nyu)
+    s0, s1, s2, s6, s7, s8 = sums
+    return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), nan > 0
 
 
 @njit
-def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, nyu, gbuf, pbuf, work, ratio):
+def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, w0, w1, w2, ratio):
+    """:func:`_terms` of a block of a row of a whole map: the ground truth ``raw /
+    divisor`` (float32), valid where ``vlo < g < vhi``; an invalid pixel's terms are 0
+    (``g = d = 1``, ``one`` in the prediction's dtype: a sum is the same number with them
+    added), so that the loop has no branch. Returns the counts of NaN, valid pixels and ``t`` under the thresholds."""
+    nan = n = n1 = n2 = n3 = 0
+    for j in range(pred.size):
+        g = div(np.float32(raw[j]), divisor)
+        valid = (g > vlo) & (g < vhi)
+        d = pred[j]
+        nan += valid & (d != d)
+        d = lo if d < lo else d
+        d = hi if d > hi else d
+        g, d = (g if valid else np.float32(1)) + zero, (d if valid else one) + zero
+        w0[j], w1[j], w2[j], t, ratio[j] = _pixel(g, d)
+        n += valid
+        n1 += valid & (t < 1.25)
+        n2 += valid & (t < 1.25 ** 2)
+        n3 += valid & (t < 1.25 ** 3)
+    return nan, n, n1, n2, n3
+
+
+@njit
+def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, nyu, work, ratio):
     """:func:`_scaled_errors` of a whole map in one pass, with no per-pixel array: the
     ground truth ``raw[r, c] / divisor`` (float32), valid where ``vlo < g < vhi`` inside
     the slice bounds ``box`` (top, bottom, left, right), and the prediction ``pred[r, c]``
-    clamped to ``[lo, hi]``, a row's valid pixels at a time (copied into the row buffers
-    ``gbuf``, ``pbuf``). Returns the sums, the count of valid pixels and whether a
+    clamped to ``[lo, hi]`` (:func:`_dense_terms`); each row's sums are added up, then
+    added to the map's. Returns the sums, the count of valid pixels and whether a
     prediction is NaN."""
     total = np.zeros(9)
     n = 0
+    block = ratio.size
+    w0, w1, w2 = work[0], work[1], work[2]
     for r in range(box[0], box[1]):
-        k = 0
-        for c in range(box[2], box[3]):
-            g = div(np.float32(raw[r, c]), divisor)
-            if g > vlo and g < vhi:
-                gbuf[k] = g
-                pbuf[k] = pred[r, c]
-                k += 1
+        sums = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        k = n1 = n2 = n3 = 0
+        for c in range(box[2], box[3], block):
+            m = min(block, box[3] - c)
+            nan, v, c1, c2, c3 = _dense_terms(raw[r, c:c + m], pred[r, c:c + m], divisor, vlo, vhi, lo, hi,
+                                              one, zero, w0, w1, w2, ratio)
+            if nan:
+                return total, n, True
+            if v:
+                sums = _add(sums, w0, w1, w2, ratio, m, nyu)
+                k, n1, n2, n3 = k + v, n1 + c1, n2 + c2, n3 + c3
         if not k:
             continue
-        sums, bad = _scaled_errors(gbuf[:k], pbuf[:k], one, lo, hi, zero, nyu, work, ratio)
-        if bad:
-            return total, n, True
-        for i in range(9):
-            total[i] += sums[i]
+        s0, s1, s2, s6, s7, s8 = sums
+        for i, x in enumerate((s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8)):
+            total[i] += x
         n += k
     return total, n, False
 
 
-def _buffers(dtype) -> tuple[np.ndarray, np.ndarray]:
-    """The work rows of :func:`_scaled_errors` for pixels of ``dtype``."""
-    return np.empty((3, _BLOCK), dtype), np.empty(_BLOCK)
+def _buffers() -> tuple[np.ndarray, np.ndarray]:
+    """The work rows of :func:`_scaled_errors`: float64, so that the terms are converted
+    in the loop that vectorises, not in the sums' (the conversions take the adders)."""
+    return np.empty((3, _BLOCK)), np.empty(_BLOCK)
 
 
 _LN10 = math.log(10)
@@ -428,7 +469,7 @@ def scaled_errors(gt: np.ndarray, p: np.ndarray, scale, low: float, high: float,
     scale = p.dtype.type(1) if scale is None else scale
     dt = np.result_type(p, scale).type
     t = np.result_type(gt, dt)
-    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), t.type(0), nyu, *_buffers(t))
+    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), t.type(0), nyu, *_buffers())
     return None if bad else _means(sums, p.size, nyu)
 
 
@@ -441,10 +482,8 @@ def dense_errors(pred: np.ndarray, raw: np.ndarray, divisor: float, box, valid: 
     (metrics None without a valid pixel), None when a prediction is NaN."""
     f32, dt = np.float32, pred.dtype.type
     t = np.result_type(pred, f32)
-    width = max(box[3] - box[2], 0)
     sums, n, bad = _dense_errors(pred, raw, f32(divisor), np.asarray(box, np.int64), f32(valid[0]),
-                                 f32(valid[1]), dt(low), dt(high), dt(1), t.type(0), nyu, np.empty(width, f32),
-                                 np.empty(width, pred.dtype), *_buffers(t))
+                                 f32(valid[1]), dt(low), dt(high), dt(1), t.type(0), nyu, *_buffers())
     if bad:
         return None
     return (_means(sums, n, nyu) if n else None), n
@@ -513,7 +552,7 @@ def _judge_sparse(pred, first, last, index_at, gt_at, counts, gmed, zi, zg, widt
 
 @njit
 def _judge_dense(pred, first, last, raw_at, zr, divisors, box, vlo, vhi, lo, hi, one, zero, cap,
-                 positive, nyu, gbuf, pbuf, work, ratio, out, ok):
+                 positive, nyu, work, ratio, out, ok):
     """Maps ``first..last-1`` of ``pred`` against ground truth kept whole (image ``i``: a
     map of ``pred``'s size at address ``raw_at[i]``, depth ``raw / divisors[i]``; address
     0: not here): the value check and :func:`_dense_errors`, the metrics into ``out[i]``;
@@ -524,5 +563,5 @@ def _judge_dense(pred, first, last, raw_at, zr, divisors, box, vlo, vhi, lo, hi,
             continue
         raw = carray(_pointer(raw_at[i], zr), shape)
         sums, n, bad = _dense_errors(pred[i], raw, divisors[i], box, vlo, vhi, lo, hi, one, zero, nyu,
-                                     gbuf, pbuf, work, ratio)
+                                     work, ratio)
         ok[i - first] = not bad and n > 0 and _metrics(sums, n, nyu, out[i - first])
