@@ -7,7 +7,7 @@ Predictions come in either of two forms, per variant:
 1. one array per variant, N x h x w in split order: ``PRED/clean.npy``,
    ``PRED/<corruption>/<level>.npy``, KITTI-S ``PRED/<style>.npy``; a ``.npz`` holding one
    array is accepted too.
-   A ``.npy`` is read one map at a time.
+   A ``.npy`` is memory-mapped and read a block of maps at a time.
 2. one file per image, mirroring the dataset tree with the image's name:
    ``PRED/<variant dir>/<image path>`` with the extension ``.npy`` (a 2-D float map) or
    ``.png`` (16-bit, depth = value / ``png_scale``).

@@ -6,7 +6,8 @@ With ``jobs`` > 1 the variants are shared out among worker processes, each evalu
 variants with the same code as one job, so the numbers are the same to the last bit. The
 ground truth is read once, by this process, and handed to the workers as one read-only
 mapped file (the page cache holds it once); a worker holds one variant's predictions at a
-time (one map for a ``.npy`` or per-image files, the whole array for a ``.npz``).
+time (a block of maps for a ``.npy`` (:mod:`.batch`), one for per-image files, the whole
+array for a ``.npz``).
 """
 
 from __future__ import annotations

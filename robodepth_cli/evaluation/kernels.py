@@ -1,5 +1,6 @@
 """The evaluation's inner loops, compiled (numba): a prediction sampled only at the valid
-ground-truth pixels, and the metrics of a map in one pass, with no full-size temporaries.
+ground-truth pixels, and the metrics of a map in one pass, with no full-size temporaries;
+a block of a variant's maps judged in one call (:func:`_judge_sparse`, :func:`_judge_dense`).
 
 Every per-pixel step is done in the dtype numpy's expression of the reference code would
 use (float32 for float32 inputs: the prediction's dtype, promoted with the ground truth's
