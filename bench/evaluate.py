@@ -16,7 +16,8 @@ exist once; PSS splits them). The full-benchmark estimate is the ground truth's 
 time plus the time until each worker's first result plus the remaining maps of the
 benchmark (KITTI-C 91 x 697, NYUDepth2-C 61 x 654) at the steady rate measured after those
 first results; CPU time per map is printed beside it (the machine is shared: wall time
-moves with the load, CPU time much less).
+moves with the load, CPU time much less). A ``--jobs 1`` run, the reference's included, is
+held to one core (its affinity), so OpenCV's threads take no second one.
 
     python -m bench.evaluate [--variants 6] [--images 697] [--protocol kitti|nyu|both]
                              [--jobs 1,2] [--reference COMMIT]
@@ -45,7 +46,11 @@ REFERENCE = "f3c8936"
 
 def fake_dataset(root: Path, name: str, keys: list[str], variants: list[tuple[str, int | None]]):
     root.mkdir(parents=True)
-    record = {"dataset": name, "split": {"keys": keys}, "config": {"size": [192, 640]}}
+    from robodepth_cli.formats import stamp
+    from robodepth_cli.output.record import SCHEMA
+
+    # stamped with the format version this tree reads (older code ignores the stamp)
+    record = {"dataset": name, "split": {"keys": keys}, "config": {"size": [192, 640]}, **stamp(SCHEMA)}
     (root / "build.json").write_text(json.dumps(record))
     rows = [manifest.Row(f"{v}/{lv}/{k}" if lv else f"{v}/{k}", k, v, lv, 0, 1, 1, "0" * 64)
             for v, lv in variants for k in keys]
@@ -119,6 +124,10 @@ def measure(tmp: Path, protocol: str, jobs: int, tag: str) -> None:
     from robodepth_cli.evaluation.protocols import make_setup
 
     ds_dir, pred = (tmp / "KITTI_C", tmp / "PRED") if protocol == "kitti" else (tmp / "NYU_C", tmp / "PRED_NYU")
+    if jobs == 1 and hasattr(os, "sched_setaffinity"):
+        # one core, as the goals are stated: else OpenCV's threads in the reference's
+        # resize take a second core that --jobs 1 of this tree leaves idle
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     E.MAPS_PER_WORKER = 1  # a subset: let every job run, as on the full benchmark
     from bench.build import TreeSampler  # sums RSS and PSS over a process tree
 

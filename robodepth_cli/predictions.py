@@ -7,7 +7,7 @@ Predictions come in either of two forms, per variant:
 1. one array per variant, N x h x w in split order: ``PRED/clean.npy``,
    ``PRED/<corruption>/<level>.npy``, KITTI-S ``PRED/<style>.npy``; a ``.npz`` holding one
    array is accepted too.
-   A ``.npy`` is read one map at a time.
+   A ``.npy`` is memory-mapped and read a block of maps at a time.
 2. one file per image, mirroring the dataset tree with the image's name:
    ``PRED/<variant dir>/<image path>`` with the extension ``.npy`` (a 2-D float map) or
    ``.png`` (16-bit, depth = value / ``png_scale``).
@@ -151,10 +151,17 @@ class ArrayPredictions(Predictions):
                 raise PredictionsError(f"{source}: the file ends early (truncated?): {have:,} "
                                       f"bytes, its header says {need:,}")
         self._array = None
-        self._previous = None  # the map read last, whose pages the next read releases
+        self._previous = None  # the maps read last (first, last), whose pages the next read releases
+        # (shape, dtype) of the maps judged a block at a time (evaluation/batch.py); None
+        # for Fortran order, which the block calls are not compiled for
+        self.header = None if fortran else (tuple(shape), dtype)
 
     def read(self, i):
-        where = f"{self.source}: prediction {i}"
+        return self.block(i, i + 1)[i], f"{self.source}: prediction {i}", False
+
+    def block(self, first: int, last: int) -> np.ndarray:
+        """The N x h x w array, of which maps ``first..last-1`` are read now (a mapped
+        ``.npy``: the pages of the maps read before are released)."""
         if self._array is None:
             try:
                 if self.source.suffix == ".npz":
@@ -167,20 +174,21 @@ class ArrayPredictions(Predictions):
                 raise PredictionsError(f"{self.source}: cannot read its array, damaged? "
                                       f"({reason})") from None
         if self._previous is not None:
-            self._release(self._previous)
-        self._previous = i
-        return self._array[i], where, False
+            self._release(*self._previous)
+        self._previous = (first, last)
+        return self._array
 
-    def _release(self, i: int) -> None:
-        """Drop map ``i``'s pages from this process's mapping (not from the page cache): a
-        variant's maps are read once each, and the pages would otherwise count in its RSS
-        to the end of the variant. A later read of the map maps them again."""
+    def _release(self, first: int, last: int) -> None:
+        """Drop the pages of maps ``first..last-1`` from this process's mapping (not from
+        the page cache): a variant's maps are read once each, and the pages would otherwise
+        count in its RSS to the end of the variant. A later read of a map maps them again."""
         mm = getattr(self._array, "_mmap", None)
         if mm is None or not hasattr(mm, "madvise") or not hasattr(mmap, "MADV_DONTNEED"):
             return
-        size = self._array[i].nbytes
-        start = self._array.offset % mmap.ALLOCATIONGRANULARITY + i * size  # in the mapping
-        lo, hi = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE, (start + size) // mmap.PAGESIZE * mmap.PAGESIZE
+        size = self._array[0].nbytes
+        start = self._array.offset % mmap.ALLOCATIONGRANULARITY + first * size  # in the mapping
+        end = start + (last - first) * size
+        lo, hi = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE, end // mmap.PAGESIZE * mmap.PAGESIZE
         if hi > lo:
             mm.madvise(mmap.MADV_DONTNEED, lo, hi - lo)
 

@@ -73,13 +73,15 @@ def warm_up() -> tuple[dict[str, object], dict[str, str]]:
 
 def _warm_evaluation(rng) -> None:
     """Judge small maps as ``evaluate`` does (the evaluation's kernels): float32 and
-    float64 predictions, writable and read-only (a mapped ``.npy``), under the kitti
-    protocol's modes and the nyu protocol, against ground truth as sparse pixels (int32
-    indices) and as a whole 16-bit map."""
+    float64 predictions, writable and read-only (a mapped ``.npy``), one at a time and a
+    variant's block at a time, under the kitti protocol's modes and the nyu protocol,
+    against ground truth as sparse pixels (int32 indices) and as a whole 16-bit map."""
     import numpy as np
 
+    from .evaluation.batch import Plan
     from .evaluation.image import image_errors
     from .evaluation.protocols import make_setup
+    from .groundtruth.read import GroundTruth
 
     h, w = 48, 160
     gt = np.zeros((h, w), np.float32)
@@ -93,6 +95,14 @@ def _warm_evaluation(rng) -> None:
               (("disp", False, None), ("disp", True, None), ("depth", False, None),
                ("sigmoid", False, None), ("disp", False, "scale-shift"), ("depth", False, "none"))]
     nyu = make_setup("nyu", "depth")
+    # The same maps as a variant's N x h x w array, judged a block at a time (evaluate's
+    # way): against the sparse map, NYU's whole one and NYU's as its pixels.
+    kitti_gt, nyu_gt, nyu_pixels = (GroundTruth("warmup", p, make_setup(p).valid) for p in ("kitti", "nyu", "nyu"))
+    kitti_gt.add(gt)
+    nyu_gt.add(raw / np.float32(1000), raw, 1000.0)
+    few = np.zeros(raw.shape, np.float32)  # valid pixels few enough to be kept as such
+    few[60:400:7, 50:600:7] = rng.uniform(0.5, 9.0, few[60:400:7, 50:600:7].shape)
+    nyu_pixels.add(few)
     for dtype in (np.float32, np.float64):
         for readonly in (False, True):
             pred = rng.uniform(0.05, 0.9, (h // 2, w // 2)).astype(dtype)
@@ -101,8 +111,11 @@ def _warm_evaluation(rng) -> None:
                 p.flags.writeable = not readonly
             for setup in setups:
                 image_errors(pred, "warmup", truth, setup, None)
+                Plan(kitti_gt, setup, pred.shape, pred.dtype).judge(pred[None], 0, 1)
             image_errors(dense, "warmup", None, nyu, None, whole=(raw, 1000.0))
             image_errors(dense, "warmup", nyu_truth, nyu, None)
+            for held in (nyu_gt, nyu_pixels):
+                Plan(held, nyu, dense.shape, dense.dtype).judge(dense[None], 0, 1)
 
 def main() -> int:
     """Warm up and say what was done in one line (and one per corruption that refused:

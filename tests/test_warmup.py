@@ -84,11 +84,12 @@ def warmed(tmp_path_factory):
 def test_numba_is_used_through_the_packages_njit_only():
     # Its njit gives every kernel the cache the warm-up fills and a read-only install reads;
     # jit.py and the evaluation's kernels take numba.extending.intrinsic (an LLVM
-    # instruction) and numba's types, not a kernel decorator; the warm-up only looks the
-    # dispatchers up.
+    # instruction), numba's types and carray (an array over an address), not a kernel
+    # decorator; the warm-up only looks the dispatchers up.
     assert numba_imports() == {"robodepth_cli.corruptions._jit": {"numba", "numba.core.caching"},
                                "robodepth_cli.corruptions.jit": {"numba.extending"},
-                               "robodepth_cli.evaluation.kernels": {"numba.core", "numba.extending"},
+                               "robodepth_cli.evaluation.kernels": {"numba.core", "numba.extending",
+                                                                    "numba.np.numpy_support"},
                                "robodepth_cli.warmup": {"numba.core.registry"}}
 
 

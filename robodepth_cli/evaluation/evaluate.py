@@ -6,7 +6,8 @@ With ``jobs`` > 1 the variants are shared out among worker processes, each evalu
 variants with the same code as one job, so the numbers are the same to the last bit. The
 ground truth is read once, by this process, and handed to the workers as one read-only
 mapped file (the page cache holds it once); a worker holds one variant's predictions at a
-time (one map for a ``.npy`` or per-image files, the whole array for a ``.npz``).
+time (a block of maps for a ``.npy`` (:mod:`.batch`), one for per-image files, the whole
+array for a ``.npz``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from ..groundtruth.read import GroundTruth, load_ground_truth
 from ..predictions import Predictions, find_predictions
 from .aspect import aspect_warnings
 from .csvrows import DATASET_COLUMNS, SEVERITY_COLUMN, ResultsTable
+from .batch import BLOCK, plan
 from .image import image_errors
 from .kernels import median
 from .protocols import EvaluationError, Setup
@@ -215,10 +217,10 @@ def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTru
             # The workers map the file: keeping the maps here too would hold them twice.
             del truth
             return _evaluate_in_workers(found, shared, setup, image_size, progress, pairs, jobs)
-    results, medians = [], {}
+    results, cache = [], {}
     for v, p in found:
         try:
-            results.append(_evaluate_variant(v, p, truth, setup, image_size, progress, pairs, medians))
+            results.append(_evaluate_variant(v, p, truth, setup, image_size, progress, pairs, cache))
         finally:
             p.close()
     return results
@@ -303,12 +305,12 @@ def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], shared, setup
 
 
 _WORKER_TRUTH: GroundTruth | None = None
-_WORKER_MEDIANS: dict[int, object] = {}
+_WORKER_CACHE: dict = {}  # _evaluate_variant's cache
 
 
 def _start_worker(shared) -> None:
     global _WORKER_TRUTH
-    _WORKER_MEDIANS.clear()  # those of another evaluation's ground truth
+    _WORKER_CACHE.clear()  # that of another evaluation's ground truth
     import cv2
 
     cv2.setNumThreads(1)  # one process per core already
@@ -319,51 +321,35 @@ def _worker_variant(variant: Variant, preds: Predictions, setup: Setup, image_si
                     pairs=None) -> VariantResult:
     try:
         return _evaluate_variant(variant, preds, _WORKER_TRUTH, setup, image_size, None, pairs,
-                                 _WORKER_MEDIANS)
+                                 _WORKER_CACHE)
     finally:
         preds.close()
 
 
 def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, setup: Setup,
-                      image_size, progress, pairs=None, medians: dict | None = None) -> VariantResult:
+                      image_size, progress, pairs=None, cache: dict | None = None) -> VariantResult:
     """The metrics of one variant; with ``pairs`` (consecutive frames), its flicker too.
-    ``medians``: each image's ground-truth median by position, kept across the variants
-    of one evaluation (median scaling divides by it; the ground truth does not change)."""
+    ``cache``: what depends on the ground truth only (each image's median, the block
+    calls' plan), kept across the variants of one evaluation."""
+    cache = {} if cache is None else cache
     errors = []
     ratios = []
     scales = []
     left_out = {}
-    for i in range(len(variant)):
-        # A map kept whole is judged in one pass over it (image_errors); flicker's scale
-        # needs the valid pixels themselves.
-        whole = None if pairs else truth.dense(i)
-        try:
-            gt = truth.get(i) if whole is None else None  # once: flicker reads it too
-        except NoValidPixel as exc:
-            if pairs:
-                raise
-            gt, left_out[i] = None, str(exc)
-        if gt is None and whole is None:  # an image without ground truth (Evaluation.left_out)
-            if progress:
-                progress(1)
-            continue
-        m, where, is_png = preds.read(i)
-        if medians is not None and gt is not None and setup.median_scaling and setup.align_space == "depth":
-            if i not in medians:
-                medians[i] = median(gt[2])
-            errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, gt_median=medians[i])
-        else:
-            errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, whole=whole)
-        if ratio is not None:
-            ratios.append(ratio)
-        errors.append(errs)
-        if pairs:
-            from .flicker import frame_scale
-
-            m = m if m.dtype in (np.float32, np.float64) else m.astype(np.float32)
-            scales.append(frame_scale(m, setup.kind, *gt))
+    blocks = None if pairs else plan(preds, truth, setup, cache)
+    for first in range(0, len(variant), BLOCK):
+        last = min(first + BLOCK, len(variant))
+        if blocks is not None:
+            ok, out, block_ratios = blocks.judge(preds.block(first, last), first, last)
+        for i in range(first, last):
+            if blocks is not None and ok[i - first]:
+                errors.append(out[i - first, :len(setup.metrics)])
+                if setup.median_scaling:
+                    ratios.append(block_ratios[i - first])
+                continue
+            _one_image(i, preds, truth, setup, image_size, pairs, cache, errors, ratios, scales, left_out)
         if progress:
-            progress(1)
+            progress(last - first)
     flicker = None
     if pairs:
         from .flicker import measure
@@ -378,6 +364,37 @@ def _evaluate_variant(variant: Variant, preds: Predictions, truth: GroundTruth, 
     result = variant_result(variant, errors, ratios, setup, flicker)
     result.left_out = left_out
     return result
+
+
+def _one_image(i: int, preds: Predictions, truth: GroundTruth, setup: Setup, image_size, pairs,
+               cache: dict, errors: list, ratios: list, scales: list, left_out: dict) -> None:
+    """Image ``i`` judged alone (:func:`image_errors`), its results added to the lists."""
+    # A map kept whole is judged in one pass over it (image_errors); flicker's scale
+    # needs the valid pixels themselves.
+    whole = None if pairs else truth.dense(i)
+    try:
+        gt = truth.get(i) if whole is None else None  # once: flicker reads it too
+    except NoValidPixel as exc:
+        if pairs:
+            raise
+        gt, left_out[i] = None, str(exc)
+    if gt is None and whole is None:  # an image without ground truth (Evaluation.left_out)
+        return
+    m, where, is_png = preds.read(i)
+    if gt is not None and setup.median_scaling and setup.align_space == "depth":
+        if ("median", i) not in cache:
+            cache["median", i] = median(gt[2])
+        errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, gt_median=cache["median", i])
+    else:
+        errs, ratio = image_errors(m, where, gt, setup, image_size, is_png, whole=whole)
+    if ratio is not None:
+        ratios.append(ratio)
+    errors.append(errs)
+    if pairs:
+        from .flicker import frame_scale
+
+        m = m if m.dtype in (np.float32, np.float64) else m.astype(np.float32)
+        scales.append(frame_scale(m, setup.kind, *gt))
 
 
 def variant_result(variant: Variant, errors: Sequence, ratios: Sequence, setup: Setup,

@@ -1,5 +1,6 @@
 """The evaluation's inner loops, compiled (numba): a prediction sampled only at the valid
-ground-truth pixels, and the metrics of a map in one pass, with no full-size temporaries.
+ground-truth pixels, and the metrics of a map in one pass, with no full-size temporaries;
+a block of a variant's maps judged in one call (:func:`_judge_sparse`, :func:`_judge_dense`).
 
 Every per-pixel step is done in the dtype numpy's expression of the reference code would
 use (float32 for float32 inputs: the prediction's dtype, promoted with the ground truth's
@@ -34,6 +35,7 @@ from functools import lru_cache
 import numpy as np
 
 from llvmlite import ir
+from numba.np.numpy_support import carray
 from numba.core import types
 from numba.extending import intrinsic
 
@@ -51,7 +53,7 @@ def linear_axis(n_in: int, n_out: int, double: bool) -> tuple[np.ndarray, np.nda
     i = np.floor(f)
     w = (f - i).astype(np.float64 if double else np.float32)
     i = i.astype(np.int64)
-    lo, hi = np.clip(i, 0, n_in - 1), np.clip(i + 1, 0, n_in - 1)
+    lo, hi = (np.clip(j, 0, n_in - 1).astype(np.uint32) for j in (i, i + 1))
     for a in (lo, hi, w):
         a.setflags(write=False)
     return lo, hi, w
@@ -66,31 +68,50 @@ def _fma_positions(d, s, t):
 
 
 @njit
+def _bilinear(p0, p1, index, start, x0, x1, wx, w, k, end, sigmoid, lo, span, out):
+    """``out[k:end]``: the pixels ``index[k:end]`` of one output row (flat indices from
+    ``start``) interpolated between the input rows ``p0`` and ``p1`` (weight ``w``).
+    Unsigned column numbers: numba checks a signed index for a negative value."""
+    for j in range(k, end):
+        c = np.uint32(index[j] - start)
+        c0, c1 = x0[c], x1[c]
+        a, b, e, f = p0[c0], p0[c1], p1[c0], p1[c1]
+        if sigmoid:
+            a, b, e, f = lo + span * a, lo + span * b, lo + span * e, lo + span * f
+        h0 = fma(b - a, wx[c], a)
+        h1 = fma(f - e, wx[c], e)
+        out[j] = fma(h1 - h0, w, h0)
+
+
+@njit
 def _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, span, invert, one, out):
     """``out[k]`` = the prediction at flat ground-truth pixel ``index[k]`` (``width`` per
     row): interpolated from its four inputs (``resize``) or read; each input first through
-    ``lo + span * v`` (``sigmoid``); then ``one / v`` (``invert``)."""
-    row = -1
-    start = 0
-    for k in range(index.size):
-        q = index[k]
-        if row < 0 or q < start or q >= start + width:  # sorted indices: once per row
-            row = q // width
-            start = row * width
-        c = q - start
+    ``lo + span * v`` (``sigmoid``); then ``one / v`` (``invert``). A run of indices in
+    one row at a time (sorted indices: one run a row)."""
+    n = index.size
+    k = 0
+    while k < n:
+        row = index[k] // width
+        start = row * width
+        end = k + 1
+        while end < n and start <= index[end] < start + width:
+            end += 1
         if resize:
-            r0, r1, c0, c1 = y0[row], y1[row], x0[c], x1[c]
-            a, b, e, f = pred[r0, c0], pred[r0, c1], pred[r1, c0], pred[r1, c1]
-            if sigmoid:
-                a, b, e, f = lo + span * a, lo + span * b, lo + span * e, lo + span * f
-            h0 = fma(b - a, wx[c], a)
-            h1 = fma(f - e, wx[c], e)
-            v = fma(h1 - h0, wy[row], h0)
+            p0, p1 = pred[y0[row]], pred[y1[row]]
+            if sigmoid:  # two loops: the test out of the inner one
+                _bilinear(p0, p1, index, start, x0, x1, wx, wy[row], k, end, True, lo, span, out)
+            else:
+                _bilinear(p0, p1, index, start, x0, x1, wx, wy[row], k, end, False, lo, span, out)
         else:
-            v = pred[row, c]
-            if sigmoid:
-                v = lo + span * v
-        out[k] = div(one, v) if invert else v
+            p0 = pred[row]
+            for j in range(k, end):
+                v = p0[np.uint32(index[j] - start)]
+                out[j] = lo + span * v if sigmoid else v
+        k = end
+    if invert:  # apart: the divisions vectorise, the gathers above do not
+        for j in range(n):
+            out[j] = div(one, out[j])
     return out
 
 
@@ -116,62 +137,105 @@ def sample_linear(pred: np.ndarray, gt_shape: tuple[int, int], index: np.ndarray
                    dt(lo), dt(span), invert, dt(1), out)
 
 
-_NONE = {d: (np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, t))
+_NONE = {d: (np.zeros(1, np.uint32), np.zeros(1, np.uint32), np.zeros(1, t))
          for d, t in ((False, np.float32), (True, np.float64))}
 
 
 @njit
-def _select(a, k):
-    """Reorder ``a`` so that ``a[k]`` is its ``k``-th smallest value (0-based), everything
-    before it no larger; return that value (Hoare partitions, median-of-three pivots)."""
-    lo, hi = 0, a.size - 1
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if a[mid] < a[lo]:
-            a[mid], a[lo] = a[lo], a[mid]
-        if a[hi] < a[lo]:
-            a[hi], a[lo] = a[lo], a[hi]
-        if a[hi] < a[mid]:
-            a[hi], a[mid] = a[mid], a[hi]
-        pivot = a[mid]
-        i, j = lo, hi
-        while i <= j:
-            while a[i] < pivot:
-                i += 1
-            while pivot < a[j]:
-                j -= 1
-            if i <= j:
-                a[i], a[j] = a[j], a[i]
-                i += 1
-                j -= 1
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
+def _select(a, b, k):
+    """The ``k``-th smallest value (0-based) of ``a`` and the ``k - 1``-th (meaningless
+    for ``k = 0``); ``a`` and ``b`` (as large) are scratch. Each step splits the values
+    around a pivot (the median of three) into ``b``, those below from the front and
+    those above from the back, in a loop with no branch (a branch per value would be
+    mispredicted half the time), and goes on in the part that holds rank ``k``, the two
+    arrays trading places. Rank ``k - 1``: the largest value left below, or the last
+    pivot passed over on the way up."""
+    n = a.size
+    lower = a[0]
+    while n > 16:
+        x, y, z = a[0], a[n // 2], a[n - 1]
+        pivot = max(min(x, y), min(max(x, y), z))
+        below = 0
+        above = 0
+        for j in range(n):
+            x = a[j]
+            b[below] = x
+            below += x < pivot
+            b[n - 1 - above] = x
+            above += x > pivot
+        if k < below:
+            a, b, n = b[:below], a, below
+        elif k >= n - above:
+            k -= n - above
+            a, b, n, lower = b[n - above:n], a, above, pivot  # the pivot's copies: below
         else:
-            break
-    return a[k]
+            if k > below:
+                lower = pivot
+            elif below:
+                lower = b[0]
+                for j in range(1, below):
+                    lower = max(lower, b[j])
+            return pivot, lower
+    for i in range(1, n):  # a few values: insertion sort
+        x = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > x:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = x
+    return a[k], (a[k - 1] if k else lower)
 
 
 @njit
-def _median(values, two):
-    a = values.copy()
-    n = a.size
-    upper = _select(a, n // 2)
-    if n % 2:
-        return upper
-    lower = a[0]
-    for i in range(1, n // 2):
-        if a[i] > lower:
-            lower = a[i]
-    return (lower + upper) / two
+def _middle(a, spare, r, even, two):
+    """The order statistic ``r`` of ``a`` (scratch, as ``spare``), or with ``even`` its
+    mean with statistic ``r - 1``, added and halved in the dtype, as numpy's mean of
+    the two."""
+    upper, lower = _select(a, spare, r)
+    return (lower + upper) / two if even else upper
+
+
+_SAMPLE = 512  # values whose order statistics bound the median's neighbourhood
+_SPREAD = 40  # sample ranks either side of the median's: 3.5 standard deviations
+
+
+@njit
+def _median(v, work, spare, two):
+    """``np.median(v)`` (``v`` unchanged; ``work`` and ``spare``: as large, scratch). A
+    large ``v`` is first cut to the values between two order statistics of a strided
+    sample, which hold its middle unless the data are unlucky (then all of it is
+    selected): one pass with no branch, then the selection on a tenth of the values."""
+    n = v.size
+    k = n // 2
+    even = n % 2 == 0
+    if n >= 8 * _SAMPLE:
+        step = n // _SAMPLE
+        q = (k * _SAMPLE) // n
+        for j in range(_SAMPLE):
+            work[j] = v[j * step]
+        lo = _select(work[:_SAMPLE], spare[:_SAMPLE], max(q - _SPREAD, 0))[0]
+        for j in range(_SAMPLE):
+            work[j] = v[j * step]
+        hi = _select(work[:_SAMPLE], spare[:_SAMPLE], min(q + _SPREAD, _SAMPLE - 1))[0]
+        below = 0
+        kept = 0
+        for j in range(n):
+            x = v[j]
+            below += x < lo
+            work[kept] = x
+            kept += (x >= lo) & (x <= hi)
+        if below <= k - even and k < below + kept:
+            return _middle(work[:kept], spare, k - below, even, two)
+    work[:n] = v
+    return _middle(work[:n], spare, k, even, two)
 
 
 def median(values: np.ndarray):
     """``np.median(values)`` of a 1-D float array without NaN, the same number in the same
     dtype: the middle value, or for an even count the two middle ones added and halved in
     the array's dtype, as numpy's mean of them."""
-    return values.dtype.type(_median(values, values.dtype.type(2)))
+    return values.dtype.type(_median(values, np.empty_like(values), np.empty_like(values),
+                                     values.dtype.type(2)))
 
 
 _SQRT2 = math.sqrt(2.0)
@@ -221,93 +285,174 @@ _BLOCK = 256  # pixels whose logarithms are taken together, in one vectorised lo
 
 
 @njit
-def _scaled_errors(gt, p, scale, lo, hi, zero, work, ratio):
-    """The sums over the pixels of ``g = gt`` and ``d = clamp(p * scale, lo, hi)``, both in
-    the dtype of ``zero`` (numpy's arithmetic): ``|g - d| / g``, ``(g - d)^2 / g``, ``(g -
-    d)^2``, the counts of ``max(g / d, d / g)`` under the three thresholds, then of ``e =
-    log(d / g)`` in float64 (``log d - log g``; ``log10 d - log10 g`` is ``e / ln 10``),
-    ``e``, ``e^2`` and ``|e|``, each summed in pixel order; and whether a ``d`` is NaN.
+def _pixel(g, d):
+    """One pixel's terms: ``|g - d| / g``, ``(g - d)^2 / g``, ``(g - d)^2``, ``max(g / d,
+    d / g)`` in the dtype of ``g`` and ``d``, and ``log(d / g)`` in float64."""
+    diff = g - d
+    sq = diff * diff
+    return (div(abs(diff), g), div(sq, g), sq, max(div(g, d), div(d, g)),
+            _log(div(np.float64(d), np.float64(g))))
 
-    A block of pixels at a time: their terms into the rows of ``work`` (4 x block) and
-    ``ratio`` (block, float64) in loops that vectorise, then summed one by one."""
-    s0 = s1 = s2 = s6 = s7 = s8 = 0.0
-    n1 = n2 = n3 = 0  # integer counts: off the floating-point adders
-    block = ratio.size
-    for start in range(0, p.size, block):
-        m = min(block, p.size - start)
-        nan = 0
+
+@njit
+def _terms(gt, p, scale, lo, hi, zero, w0, w1, w2, ratio):
+    """:func:`_scaled_errors`' terms of the pixels of ``gt`` and ``p`` (a block) into
+    ``w0``, ``w1``, ``w2`` and ``ratio``, in a loop that vectorises; returns the count of
+    NaN ``d`` and those of ``t`` under the thresholds (integers: in any order)."""
+    nan = n1 = n2 = n3 = 0
+    for j in range(p.size):
+        d = p[j] * scale
+        nan += d != d
+        d = lo if d < lo else d
+        d = hi if d > hi else d
+        w0[j], w1[j], w2[j], t, ratio[j] = _pixel(gt[j] + zero, d + zero)
+        n1 += t < 1.25
+        n2 += t < 1.25 ** 2
+        n3 += t < 1.25 ** 3
+    return nan, n1, n2, n3
+
+
+@njit
+def _add(sums, w0, w1, w2, ratio, m, nyu):
+    """``sums`` (the six float sums of :func:`_scaled_errors`) plus the first ``m`` terms
+    of the rows, one by one in pixel order (the order fixes the last bits)."""
+    s0, s1, s2, s6, s7, s8 = sums
+    if nyu:
         for j in range(m):
-            d = p[start + j] * scale
-            nan += d != d
-            d = lo if d < lo else d
-            d = hi if d > hi else d
-            g, d = gt[start + j] + zero, d + zero
-            diff = g - d
-            sq = diff * diff
-            work[0, j] = div(abs(diff), g)
-            work[1, j] = div(sq, g)
-            work[2, j] = sq
-            work[3, j] = max(div(g, d), div(d, g))
-            ratio[j] = _log(div(np.float64(d), np.float64(g)))
-        if nan:
-            return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), True
-        for j in range(m):
-            s0 += work[0, j]
-            s1 += work[1, j]
-            s2 += work[2, j]
-            t = work[3, j]
-            n1 += t < 1.25
-            n2 += t < 1.25 ** 2
-            n3 += t < 1.25 ** 3
+            s0 += w0[j]
+            s1 += w1[j]
+            s2 += w2[j]
             e = ratio[j]
             s6 += e
             s7 += e * e
             s8 += abs(e)
-    return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), False
+    else:  # two sums fewer: the means of e and |e| are nyu's
+        for j in range(m):
+            s0 += w0[j]
+            s1 += w1[j]
+            s2 += w2[j]
+            e = ratio[j]
+            s7 += e * e
+    return s0, s1, s2, s6, s7, s8
 
 
 @njit
-def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, gbuf, pbuf, work, ratio):
+def _scaled_errors(gt, p, scale, lo, hi, zero, nyu, work, ratio):
+    """The sums over the pixels of ``g = gt`` and ``d = clamp(p * scale, lo, hi)``, both in
+    the dtype of ``zero`` (numpy's arithmetic): ``|g - d| / g``, ``(g - d)^2 / g``, ``(g -
+    d)^2``, the counts of ``max(g / d, d / g)`` under the three thresholds, then of ``e =
+    log(d / g)`` in float64 (``log d - log g``; ``log10 d - log10 g`` is ``e / ln 10``),
+    ``e`` and ``|e|`` (``nyu`` only: 0 otherwise) and ``e^2``, each summed in pixel order;
+    and whether a ``d`` is NaN.
+
+    A block of pixels at a time: their terms into the rows of ``work`` (3 x block) and
+    ``ratio`` (block), float64 (:func:`_terms`), then summed one by one."""
+    sums = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    n1 = n2 = n3 = 0
+    block = ratio.size
+    w0, w1, w2 = work[0], work[1], work[2]
+    for start in range(0, p.size, block):
+        m = min(block, p.size - start)
+        nan, c1, c2, c3 = _terms(gt[start:start + m], p[start:start + m], scale, lo, hi, zero, w0, w1, w2,
+                                 ratio)
+        n1, n2, n3 = n1 + c1, n2 + c2, n3 + c3
+        if nan:
+            break
+        sums = _add(sums, w0, w1, w2, ratio, m, nyu)
+    s0, s1, s2, s6, s7, s8 = sums
+    return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), nan > 0
+
+
+@njit
+def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, w0, w1, w2, ratio):
+    """:func:`_terms` of a block of a row of a whole map: the ground truth ``raw /
+    divisor`` (float32), valid where ``vlo < g < vhi``; an invalid pixel's terms are 0
+    (``g = d = 1``, ``one`` in the prediction's dtype: a sum is the same number with them
+    added), so that the loop has no branch. Returns the counts of NaN, valid pixels and ``t`` under the thresholds."""
+    nan = n = n1 = n2 = n3 = 0
+    for j in range(pred.size):
+        g = div(np.float32(raw[j]), divisor)
+        valid = (g > vlo) & (g < vhi)
+        d = pred[j]
+        nan += valid & (d != d)
+        d = lo if d < lo else d
+        d = hi if d > hi else d
+        g, d = (g if valid else np.float32(1)) + zero, (d if valid else one) + zero
+        w0[j], w1[j], w2[j], t, ratio[j] = _pixel(g, d)
+        n += valid
+        n1 += valid & (t < 1.25)
+        n2 += valid & (t < 1.25 ** 2)
+        n3 += valid & (t < 1.25 ** 3)
+    return nan, n, n1, n2, n3
+
+
+@njit
+def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, nyu, work, ratio):
     """:func:`_scaled_errors` of a whole map in one pass, with no per-pixel array: the
     ground truth ``raw[r, c] / divisor`` (float32), valid where ``vlo < g < vhi`` inside
     the slice bounds ``box`` (top, bottom, left, right), and the prediction ``pred[r, c]``
-    clamped to ``[lo, hi]``, a row's valid pixels at a time (copied into the row buffers
-    ``gbuf``, ``pbuf``). Returns the sums, the count of valid pixels and whether a
+    clamped to ``[lo, hi]`` (:func:`_dense_terms`); each row's sums are added up, then
+    added to the map's. Returns the sums, the count of valid pixels and whether a
     prediction is NaN."""
     total = np.zeros(9)
     n = 0
+    block = ratio.size
+    w0, w1, w2 = work[0], work[1], work[2]
     for r in range(box[0], box[1]):
-        k = 0
-        for c in range(box[2], box[3]):
-            g = div(np.float32(raw[r, c]), divisor)
-            if g > vlo and g < vhi:
-                gbuf[k] = g
-                pbuf[k] = pred[r, c]
-                k += 1
+        sums = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        k = n1 = n2 = n3 = 0
+        for c in range(box[2], box[3], block):
+            m = min(block, box[3] - c)
+            nan, v, c1, c2, c3 = _dense_terms(raw[r, c:c + m], pred[r, c:c + m], divisor, vlo, vhi, lo, hi,
+                                              one, zero, w0, w1, w2, ratio)
+            if nan:
+                return total, n, True
+            if v:
+                sums = _add(sums, w0, w1, w2, ratio, m, nyu)
+                k, n1, n2, n3 = k + v, n1 + c1, n2 + c2, n3 + c3
         if not k:
             continue
-        sums, bad = _scaled_errors(gbuf[:k], pbuf[:k], one, lo, hi, zero, work, ratio)
-        if bad:
-            return total, n, True
-        for i in range(9):
-            total[i] += sums[i]
+        s0, s1, s2, s6, s7, s8 = sums
+        for i, x in enumerate((s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8)):
+            total[i] += x
         n += k
     return total, n, False
 
 
-def _buffers(dtype) -> tuple[np.ndarray, np.ndarray]:
-    """The work rows of :func:`_scaled_errors` for pixels of ``dtype``."""
-    return np.empty((4, _BLOCK), dtype), np.empty(_BLOCK)
+def _buffers() -> tuple[np.ndarray, np.ndarray]:
+    """The work rows of :func:`_scaled_errors`: float64, so that the terms are converted
+    in the loop that vectorises, not in the sums' (the conversions take the adders)."""
+    return np.empty((3, _BLOCK)), np.empty(_BLOCK)
 
 
-def _means(sums: tuple, n: int, nyu: bool) -> tuple:
-    """The metrics from :func:`_scaled_errors`' sums over ``n`` pixels."""
-    abs_rel, sq_rel, sq, n1, n2, n3, e, e2, abs_e = (float(v) / n for v in sums)
-    errs = (abs_rel, sq_rel, math.sqrt(sq), math.sqrt(e2), n1, n2, n3)
-    if not nyu:
-        return errs
-    var = e2 - e * e
-    return errs + (abs_e / math.log(10), math.sqrt(var) * 100 if var >= 0 else math.nan)
+_LN10 = math.log(10)
+
+
+@njit
+def _metrics(sums, n, nyu, out):
+    """The metrics from :func:`_scaled_errors`' sums over ``n`` pixels into ``out`` (7, or
+    ``nyu`` 9); whether they are all finite."""
+    m = np.float64(n)
+    e, e2 = div(sums[6], m), div(sums[7], m)
+    out[0], out[1], out[2] = div(sums[0], m), div(sums[1], m), math.sqrt(div(sums[2], m))
+    out[3], out[4], out[5], out[6] = math.sqrt(e2), div(sums[3], m), div(sums[4], m), div(sums[5], m)
+    k = 7
+    if nyu:
+        var = e2 - e * e
+        out[7] = div(div(sums[8], m), _LN10)
+        out[8] = math.sqrt(var) * 100 if var >= 0 else np.nan
+        k = 9
+    finite = True
+    for i in range(k):
+        finite &= abs(out[i]) < np.inf
+    return finite
+
+
+def _means(sums, n: int, nyu: bool) -> tuple:
+    """The metrics from :func:`_scaled_errors`' sums over ``n`` pixels (:func:`_metrics`)."""
+    out = np.empty(9)
+    _metrics(sums, n, nyu, out)
+    return tuple(float(v) for v in out[:9 if nyu else 7])
 
 
 def errors(gt: np.ndarray, pred: np.ndarray, nyu: bool = False) -> tuple:
@@ -325,7 +470,7 @@ def scaled_errors(gt: np.ndarray, p: np.ndarray, scale, low: float, high: float,
     scale = p.dtype.type(1) if scale is None else scale
     dt = np.result_type(p, scale).type
     t = np.result_type(gt, dt)
-    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), t.type(0), *_buffers(t))
+    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), t.type(0), nyu, *_buffers())
     return None if bad else _means(sums, p.size, nyu)
 
 
@@ -338,10 +483,86 @@ def dense_errors(pred: np.ndarray, raw: np.ndarray, divisor: float, box, valid: 
     (metrics None without a valid pixel), None when a prediction is NaN."""
     f32, dt = np.float32, pred.dtype.type
     t = np.result_type(pred, f32)
-    width = max(box[3] - box[2], 0)
     sums, n, bad = _dense_errors(pred, raw, f32(divisor), np.asarray(box, np.int64), f32(valid[0]),
-                                 f32(valid[1]), dt(low), dt(high), dt(1), t.type(0), np.empty(width, f32),
-                                 np.empty(width, pred.dtype), *_buffers(t))
+                                 f32(valid[1]), dt(low), dt(high), dt(1), t.type(0), nyu, *_buffers())
     if bad:
         return None
     return (_means(sums, n, nyu) if n else None), n
+
+
+# --------------------------------------------------------------------------- a variant's maps
+
+@intrinsic
+def _pointer(typingctx, address, like):
+    """``address`` (an int64) as a pointer to values of ``like``'s type. The ground truth's
+    per-image arrays reach a batch call as addresses: numba's typed lists compile anew in
+    every process (seconds, uncached), and one concatenated copy would hold it twice."""
+    ptr = types.CPointer(like)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(ptr))
+
+    return ptr(types.int64, like), codegen
+
+
+@njit
+def _usable(m, cap, positive):
+    """Whether :func:`~.image.check_values` passes the map ``m``: every value in ``[0,
+    cap]`` (NaN never is) and, with ``positive``, one above 0. Flags, not the minimum and
+    maximum: integer reductions vectorise, and a refused map is checked again for its
+    message."""
+    bad = 0
+    some = 0
+    for r in range(m.shape[0]):
+        for c in range(m.shape[1]):
+            v = m[r, c]
+            bad |= (v < 0) | (v > cap) | (v != v)
+            some |= v > 0
+    return bad == 0 and (some != 0 or not positive)
+
+
+@njit
+def _judge_sparse(pred, first, last, index_at, gt_at, counts, gmed, zi, zg, width, x0, x1, wx, y0, y1,
+                  wy, resize, sigmoid, lo, span, invert, one, two, by_median, factor, zs, low, high, zt,
+                  cap, positive, nyu, vbuf, sbuf, spare, work, ratio, out, ratios, ok):
+    """Maps ``first..last-1`` of ``pred`` (N x h x w) against ground truth kept as valid
+    pixels (image ``i``: ``counts[i]`` flat indices at address ``index_at[i]``, their
+    depths at ``gt_at[i]``; 0 pixels: not here): the value check, the sampling
+    (:func:`_sample`), the scale (``by_median``: ``gmed[i] / median``, in the dtype of
+    ``zs``; else ``factor``), the clamp to ``[low, high]`` and the metrics into ``out[i]``,
+    the scale into ``ratios[i]`` (these three indexed from ``first``). ``ok[i]``: done;
+    where not, the map is judged again one at a time, which says why it is refused."""
+    for i in range(first, last):
+        n = counts[i]
+        if n == 0 or not _usable(pred[i], cap, positive):
+            continue
+        index = carray(_pointer(index_at[i], zi), n)
+        gt = carray(_pointer(gt_at[i], zg), n)
+        v = _sample(pred[i], index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, span, invert,
+                    one, vbuf[:n])
+        s = factor
+        if by_median:
+            s = div(gmed[i] + zs, _median(v, sbuf, spare, two) + zs)
+            if not (s > 0 and s < np.inf):
+                continue
+        sums, bad = _scaled_errors(gt, v, s, low, high, zt, nyu, work, ratio)
+        if not bad and _metrics(sums, n, nyu, out[i - first]):
+            ratios[i - first] = s
+            ok[i - first] = True
+
+
+@njit
+def _judge_dense(pred, first, last, raw_at, zr, divisors, box, vlo, vhi, lo, hi, one, zero, cap,
+                 positive, nyu, work, ratio, out, ok):
+    """Maps ``first..last-1`` of ``pred`` against ground truth kept whole (image ``i``: a
+    map of ``pred``'s size at address ``raw_at[i]``, depth ``raw / divisors[i]``; address
+    0: not here): the value check and :func:`_dense_errors`, the metrics into ``out[i]``;
+    ``ok[i]`` as :func:`_judge_sparse`'s."""
+    shape = (pred.shape[1], pred.shape[2])
+    for i in range(first, last):
+        if raw_at[i] == 0 or not _usable(pred[i], cap, positive):
+            continue
+        raw = carray(_pointer(raw_at[i], zr), shape)
+        sums, n, bad = _dense_errors(pred[i], raw, divisors[i], box, vlo, vhi, lo, hi, one, zero, nyu,
+                                     work, ratio)
+        ok[i - first] = not bad and n > 0 and _metrics(sums, n, nyu, out[i - first])

@@ -325,6 +325,7 @@ class _MapUnpickler:
 
         outer = self
         self._done = 0
+        self._pruned = 0  # memo entries before this one have been pruned
 
         def reduced(arr):
             result = reduce(arr)
@@ -377,5 +378,10 @@ class _MapUnpickler:
             return isinstance(v, tuple) and any(large(x) for x in v)
 
         memo = self._unpickler.memo
-        for k in [k for k, v in memo.items() if large(v)]:
-            memo[k] = None  # not deleted: new entries are numbered by the memo's length
+        # Only the entries made since the last pruning (the memo grows with every map, and
+        # scanning it all each time took 0.3 s of KITTI's 697 maps): picklers number them
+        # 0, 1, 2, ... (a file numbered otherwise is pruned less, never read otherwise).
+        for k in range(self._pruned, len(memo)):
+            if large(memo.get(k)):
+                memo[k] = None  # not deleted: new entries are numbered by the memo's length
+        self._pruned = len(memo)

@@ -275,3 +275,97 @@ def test_the_results_are_the_same_bytes_with_simd_switched_off(kitti_c, kitti_pr
                           env={**os.environ, **stand_ins()["all"]}, cwd=REPO, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert there.read_bytes() == here.read_bytes()
+
+
+# --------------------------------------------------------------------------- a variant's blocks
+
+BLOCK_MODES = [  # (protocol, kind, stereo, align, crop, min, max)
+    ("kitti", "disp", False, None, None, None, None),  # mono: median scaling
+    ("kitti", "disp", True, None, None, None, None),
+    ("kitti", "sigmoid", False, None, None, None, None),
+    ("kitti", "depth", False, "none", "eigen", None, None),
+    ("kitti", "disp", False, None, "none", 0.5, 30.0),  # a zero-shot preset's range, no crop
+    ("nyu", "depth", False, None, None, None, None),
+    ("nyu", "depth", False, None, "garg", None, 5.0),
+]
+
+
+@pytest.mark.parametrize("mode", BLOCK_MODES, ids=lambda m: "-".join(str(x) for x in m))
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_a_variants_maps_judged_in_blocks_are_the_reference_per_map(mode, dtype, tmp_path):
+    """evaluate's block calls (a variant's mapped N x h x w array, several maps a call)
+    against the reference, map by map: KITTI ground truth of two sizes with even and odd
+    counts of valid pixels (the median's two rules), predictions right next to the
+    thresholds; NYU's whole 16-bit maps, and one kept as its valid pixels. A map the block
+    call refuses (a NaN) is refused with the per-map message, and the others still count."""
+    from robodepth_cli.evaluation.batch import BLOCK, plan
+    from robodepth_cli.evaluation.evaluate import _evaluate_variant
+    from robodepth_cli.groundtruth.read import GroundTruth
+    from robodepth_cli.predictions import ArrayPredictions
+
+    protocol, kind, stereo, align, crop, lo, hi = mode
+    setup = make_setup(protocol, kind, stereo, align=align, crop=crop, min_depth=lo, max_depth=hi)
+    rng = np.random.default_rng(sum(map(ord, str(mode))))
+    n = BLOCK + 5  # two blocks, the second short
+    truth, maps = GroundTruth("gt", protocol, setup.valid), []
+    size = (192, 640) if protocol == "kitti" else (480, 640)
+    for i in range(n):
+        if protocol == "kitti":
+            gt = lidar((375, 1242) if i % 3 else (370, 1226), rng)
+            index = setup.valid(gt)
+            if index.size % 2 != i % 2:  # the even rule on every other map
+                gt.reshape(-1)[index[0]] = 0
+            truth.add(gt)
+        else:
+            raw = rng.integers(0, int(setup.depth_cap * 1200), size).astype(np.uint16)
+            raw[rng.random(size) < (0.995 if i == 3 else 0.1)] = 0  # map 3: kept as its pixels
+            gt = raw.astype(np.float32) / np.float32(1000)
+            truth.add(gt, raw, 1000.0)
+        depth = near_thresholds(np.where(gt > 0, gt, 1).astype(np.float32), rng)
+        depth = cv2.resize(depth, (size[1], size[0]), interpolation=cv2.INTER_NEAREST)
+        pred = {"disp": 1 / depth, "depth": depth, "sigmoid": ((1 / depth - 0.01) / 9.99).clip(0, 1)}[kind]
+        maps.append((pred.astype(dtype), gt))
+    assert truth.dense(3) is None and (protocol == "kitti" or truth.dense(4) is not None)
+    np.save(tmp_path / "v.npy", np.stack([p for p, _ in maps]))
+    variant = type("V", (), {"label": "v", "__len__": lambda self: n})()
+    preds = ArrayPredictions(variant, tmp_path / "v.npy")
+    blocks = plan(preds, truth, setup, {})
+    ok, out, ratios = blocks.judge(preds.block(0, n), 0, n)
+    assert ok.all()
+    for i, (pred, gt) in enumerate(maps):
+        want, want_ratio = reference_image(pred, gt, protocol, kind, stereo, setup.alignment, "depth",
+                                           setup.crop_name, setup.min_depth, setup.depth_cap)
+        check(out[i, :len(setup.metrics)], want, protocol == "nyu")
+        if setup.median_scaling:
+            assert ratios[i] == want_ratio
+    # The whole variant as evaluate judges it, with a NaN in map 6: refused by name.
+    bad = np.stack([p for p, _ in maps])
+    bad[6, 5, 5] = np.nan
+    np.save(tmp_path / "bad.npy", bad)
+    with pytest.raises(Exception, match=r"bad\.npy: prediction 6 contains NaN"):
+        _evaluate_variant(variant, ArrayPredictions(variant, tmp_path / "bad.npy"), truth, setup, None, None)
+    result = _evaluate_variant(variant, preds, truth, setup, None, None)
+    want = np.mean([reference_image(p, g, protocol, kind, stereo, setup.alignment, "depth", setup.crop_name,
+                                    setup.min_depth, setup.depth_cap)[0] for p, g in maps], axis=0)
+    np.testing.assert_allclose([result.metrics[m] for m in setup.metrics], want, rtol=1e-6, atol=0)
+
+
+def test_the_median_of_many_values_is_numpys():
+    """The median's cut to the values near the middle (arrays of 4096 values and more) and
+    its selection, against numpy: even and odd counts, ties, sorted and reversed values, a
+    strided pattern that puts the sample's values far from the middle (the whole array is
+    then selected), infinities; the input is left as it was."""
+    rng = np.random.default_rng(5)
+    arrays = [rng.uniform(0, 1, 20000), rng.integers(0, 4, 9001).astype(float), np.sort(rng.uniform(0, 1, 8192)),
+              np.sort(rng.uniform(0, 1, 8193))[::-1].copy(), np.where(rng.random(6000) < 0.5, 0.0, np.inf),
+              np.tile([0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 9.0, 9.0], 1024)]
+    strided = np.full(8192, 5.0)
+    strided[::16] = 0.0  # every sampled value is the smallest
+    arrays.append(strided)
+    for values in arrays:
+        for dtype in (np.float32, np.float64):
+            for v in (values.astype(dtype), values[1:].astype(dtype)):
+                before = v.copy()
+                got, want = median(v), np.median(v)
+                assert got == want and got.dtype == want.dtype, (v.size, v[:4])
+                np.testing.assert_array_equal(v, before)
