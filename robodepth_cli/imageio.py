@@ -171,18 +171,14 @@ PNG_ENCODERS = {
 PNG_ENCODER = PNG_ENCODERS["compact"]  # what every build wrote before --png existed
 
 
-class PngEncoderError(RobodepthError):
-    """The chosen PNG encoder cannot be used here (its package is missing)."""
-
-
 def check_png(method: str) -> None:
-    """Refuse (:class:`PngEncoderError`) before any work if ``method`` cannot run here."""
+    """Refuse (:class:`RobodepthError`) before any work if ``method`` cannot run here."""
     if method == "fast":
         try:
             import fpng  # noqa: F401
         except ImportError as exc:
-            raise PngEncoderError(f"--png fast needs the fpng package ({exc}); install it with "
-                                  f"'pip install fpng', or pass --png compact") from None
+            raise RobodepthError(f"--png fast needs the fpng package ({exc}); install it with "
+                                 f"'pip install fpng', or pass --png compact") from None
 
 
 def encode_png(img: np.ndarray, compress_level: int = 1, *, method: str = "compact") -> bytes:

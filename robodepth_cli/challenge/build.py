@@ -29,10 +29,6 @@ from .draw import Pick, draw
 DEFAULT_IMAGES = {"kitti": 500, "nyu": 200}  # the ICRA 2023 challenge's tracks
 
 
-class ChallengeBuildError(RobodepthError):
-    """A challenge that cannot be built as asked."""
-
-
 def track_of(dataset) -> str:
     """The track a dataset is scored in by default: ``nyu`` where its evaluation protocol
     is NYU's, else ``kitti`` (the official evaluator: disparities, median scaling)."""
@@ -50,24 +46,24 @@ def build_challenge(cfg, root: Path, out: Path, *, images: int | None, track: st
 
     ds = get_dataset(cfg.dataset)
     if not ds.leveled:
-        raise ChallengeBuildError(f"{cfg.dataset}: a challenge draws corruptions and levels; "
-                                  "this dataset has none")
+        raise RobodepthError(f"{cfg.dataset}: a challenge draws corruptions and levels; "
+                             "this dataset has none")
     if not cfg.variants:
-        raise ChallengeBuildError("--corruptions: at least one corruption to draw from")
+        raise RobodepthError("--corruptions: at least one corruption to draw from")
     track = track or track_of(ds)
     n = images or DEFAULT_IMAGES[track]
     public, private = Path(out) / "public", Path(out) / "private"
     if public.exists() and any(public.iterdir()):
-        raise ChallengeBuildError(f"{public}: exists; a challenge is drawn once (remove "
-                                  f"{out} to draw another)")
+        raise RobodepthError(f"{public}: exists; a challenge is drawn once (remove "
+                             f"{out} to draw another)")
     stage = private / layout.BUILD
     summary = build(dataclasses.replace(cfg, variants=()), root, stage, progress=progress,
                     command=command, gt=True)
     if summary.interrupted:
         raise KeyboardInterrupt  # the command line says what was kept, exit status 130
     if not summary.complete:
-        raise ChallengeBuildError(f"{stage}: the build of the source frames did not finish "
-                                  f"({summary.text()}); fix it and rerun")
+        raise RobodepthError(f"{stage}: the build of the source frames did not finish "
+                             f"({summary.text()}); fix it and rerun")
     built = open_dataset(stage)
     maps = ground_truth_maps(built)
     sources = [k for k in built.keys if k in maps]
@@ -92,8 +88,8 @@ def ground_truth_maps(built) -> dict:
 
     gt = built.ground_truth()
     if gt is None:
-        raise ChallengeBuildError(f"{built.path}: no ground truth (the scans or depth maps of "
-                                  "the source frames are missing); a challenge needs it")
+        raise RobodepthError(f"{built.path}: no ground truth (the scans or depth maps of "
+                             "the source frames are missing); a challenge needs it")
     if gt.is_file():
         depth = read_depth_maps(gt)
         return {k: (lambda m=m: np.asarray(m, np.float32)) for k, m in zip(built.keys, depth)}
@@ -137,12 +133,12 @@ def _write_public(cfg, ds, root: Path, stage: Path, public: Path, picks: list[Pi
             if p.source != clean_key:
                 clean, why = load_source(by_key[p.source], cfg.size)
                 if clean is None:
-                    raise ChallengeBuildError(why)
+                    raise RobodepthError(why)
                 clean_key = p.source
             [(_, img)] = list(renderer.render(clean, p.source, [Job(p.corruption, p.level)]))
             if isinstance(img, BaseException):
-                raise ChallengeBuildError(f"{by_key[p.source].path}: {p.corruption} level "
-                                          f"{p.level}: {failure_reason(img)}")
+                raise RobodepthError(f"{by_key[p.source].path}: {p.corruption} level "
+                                     f"{p.level}: {failure_reason(img)}")
             data = encode_png(img, method="fast")
             write_atomic(tmp / layout.IMAGES / f"{p.id}.png", data)
             shas[p.id] = sha256_bytes(data)

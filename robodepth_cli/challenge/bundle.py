@@ -51,10 +51,6 @@ sys.exit(server.main(sys.argv[1:3]))
 '''
 
 
-class BundleError(RobodepthError):
-    """A bundle that cannot be made as asked."""
-
-
 def leaderboard_columns(track: str, corruptions) -> list[dict]:
     """The leaderboard's columns: the ranking metric first (the leaderboard's
     ``primary_index``), then the other metrics, DEE, and DEE per corruption (keys of
@@ -177,7 +173,7 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
     public, private = Path(challenge) / "public", Path(challenge) / "private"
     for folder in (public, private):
         if not folder.is_dir():
-            raise BundleError(f"{folder}: missing; CHALLENGE is the --out of robodepth challenge build")
+            raise RobodepthError(f"{folder}: missing; CHALLENGE is the --out of robodepth challenge build")
     meta = layout.read_meta(str(private))
     ids = layout.read_list(str(public))
     rows = layout.read_key(str(private))
@@ -185,8 +181,8 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
     meta = {**meta, "corruptions": corruptions}
     dev = dev_images if dev_images is not None else max(len(corruptions), min(50, n // 10))
     if not len(corruptions) <= dev <= n:
-        raise BundleError(f"--dev-images {dev}: must be {len(corruptions)}..{n} (at least one "
-                          "image per corruption, so that every leaderboard column has a value)")
+        raise RobodepthError(f"--dev-images {dev}: must be {len(corruptions)}..{n} (at least one "
+                             "image per corruption, so that every leaderboard column has a value)")
     package = Path(__file__).resolve().parent.parent
     with atomic_output(out) as fh, zipfile.ZipFile(fh, "w") as zf:
         _add(zf, "competition.yaml", competition_yaml(meta, title, dev, dates, per_day, total,

@@ -39,10 +39,6 @@ TRACKS = ("kitti", "nyu")
 FORMAT = 1  # of challenge.json
 
 
-class ChallengeFolderError(RobodepthError):
-    """A public or private folder that is not one ``challenge build`` wrote."""
-
-
 def gt_members(image_id: str, depth):
     """The ``gt.npz`` members of one map: ``(<id>, map)`` when at least half its pixels are
     valid (finite, above 0); else its shape (int64 H, W), the flat row-major indices of the
@@ -78,13 +74,13 @@ def read_meta(folder: str) -> dict:
         with open(path, encoding="utf-8") as fh:
             meta = json.load(fh)
     except FileNotFoundError:
-        raise ChallengeFolderError(f"{folder}: no {META}; not a folder written by robodepth "
-                                   "challenge build") from None
+        raise RobodepthError(f"{folder}: no {META}; not a folder written by robodepth "
+                             "challenge build") from None
     except (OSError, ValueError) as exc:
-        raise ChallengeFolderError(f"{path}: unreadable ({exc})") from None
+        raise RobodepthError(f"{path}: unreadable ({exc})") from None
     if not isinstance(meta, dict) or meta.get("track") not in TRACKS or \
             not isinstance(meta.get("images"), int):
-        raise ChallengeFolderError(f"{path}: not a challenge description (track, images)")
+        raise RobodepthError(f"{path}: not a challenge description (track, images)")
     return meta
 
 
@@ -95,9 +91,9 @@ def read_list(folder: str) -> list[str]:
         with open(path, encoding="utf-8") as fh:
             ids = [line.strip() for line in fh if line.strip()]
     except OSError as exc:
-        raise ChallengeFolderError(f"{path}: {exc.strerror or exc}") from None
+        raise RobodepthError(f"{path}: {exc.strerror or exc}") from None
     if len(set(ids)) != len(ids):
-        raise ChallengeFolderError(f"{path}: an id is listed twice")
+        raise RobodepthError(f"{path}: an id is listed twice")
     return ids
 
 
@@ -108,9 +104,9 @@ def read_key(folder: str) -> list[dict]:
         with open(path, encoding="utf-8", newline="") as fh:
             rows = list(csv.DictReader(fh))
     except OSError as exc:
-        raise ChallengeFolderError(f"{path}: {exc.strerror or exc}") from None
+        raise RobodepthError(f"{path}: {exc.strerror or exc}") from None
     if not rows or tuple(rows[0]) != KEY_FIELDS:
-        raise ChallengeFolderError(f"{path}: not a challenge key (columns {', '.join(KEY_FIELDS)})")
+        raise RobodepthError(f"{path}: not a challenge key (columns {', '.join(KEY_FIELDS)})")
     for r in rows:
         r["position"], r["level"], r["seed"] = int(r["position"]), int(r["level"]), int(r["seed"])
     rows.sort(key=lambda r: r["position"])

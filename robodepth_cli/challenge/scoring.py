@@ -33,10 +33,6 @@ from .resize import resize_at
 RANK = {"kitti": ("abs_rel", "asc"), "nyu": ("a1", "desc")}  # as the ICRA 2023 tracks ranked
 
 
-class ReferenceFolderError(RobodepthError):
-    """A private reference folder that cannot be used."""
-
-
 def slug(name: str) -> str:
     """A score key part: ``weather & lighting`` -> ``weather_lighting``."""
     return "_".join(w for w in name.replace("&", " ").split() if w)
@@ -58,7 +54,7 @@ class Reference:
         try:
             return np.load(path, allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise ReferenceFolderError(f"{path}: {exc}") from None
+            raise RobodepthError(f"{path}: {exc}") from None
 
 
 def open_reference(folder: str) -> Reference:
@@ -69,7 +65,7 @@ def open_reference(folder: str) -> Reference:
     rows = {r["id"]: r for r in layout.read_key(folder)}
     unknown = [i for i in rows if i not in set(ids)]
     if unknown:
-        raise ReferenceFolderError(f"{folder}: key.csv names ids list.txt lacks ({unknown[0]})")
+        raise RobodepthError(f"{folder}: key.csv names ids list.txt lacks ({unknown[0]})")
     return Reference(folder, meta["track"], ids, rows, meta)
 
 
@@ -78,7 +74,7 @@ def image_errors(track: str, pred: np.ndarray, gt: np.ndarray) -> tuple:
     if track == "kitti":
         index = P.kitti_valid(gt)
         if not index.size:
-            raise ReferenceFolderError("a ground-truth map has no valid pixel")
+            raise RobodepthError("a ground-truth map has no valid pixel")
         gt_values = gt.reshape(-1)[index]
         disp = resize_at(pred, gt.shape, index)
         depth, _ = P.align_prediction(disp, True, gt_values, "median", "depth",
@@ -159,13 +155,13 @@ def score(submission, ref: Reference) -> Scores:
             try:
                 gt = layout.read_gt(gt_file, image_id)
             except KeyError:
-                raise ReferenceFolderError(f"{ref.folder}: gt.npz has no map for {image_id}") from None
+                raise RobodepthError(f"{ref.folder}: gt.npz has no map for {image_id}") from None
             try:
                 values.append(image_errors(ref.track, pred, gt))
             except P.EvaluationError as exc:
                 raise P.EvaluationError(f"{submission.where}: image {image_id}: {exc}") from None
             rows.append(row)
     if len(rows) != len(ref.rows):
-        raise ReferenceFolderError(f"{ref.folder}: {len(ref.rows) - len(rows)} images of the key are "
+        raise RobodepthError(f"{ref.folder}: {len(ref.rows) - len(rows)} images of the key are "
                               "not in list.txt")
     return Scores(ref.track, metrics, rows, np.array(values, dtype=np.float64).reshape(len(rows), len(metrics)))

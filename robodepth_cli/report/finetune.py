@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from ..benchmarks import CLEAN, get_benchmark
+from ..errors import RobodepthError
 from ..evaluation.csvrows import normalise_name
-from .inputs import ReportError
 
 NONE = "none"
 
@@ -52,27 +52,27 @@ def matrix(models: Sequence, tags: dict[str, dict[str, str]], benchmark: str) ->
             baseline.append(m)
             continue
         if name not in bench.corruptions:
-            raise ReportError(f"--tag {m.name}:finetune={given}: not a corruption of "
-                              f"{benchmark} (or none, for the baseline)")
+            raise RobodepthError(f"--tag {m.name}:finetune={given}: not a corruption of "
+                                 f"{benchmark} (or none, for the baseline)")
         if name in tuned:
-            raise ReportError(f"--tag {m.name}:finetune={given}: {tuned[name].name} is tagged "
-                              "with it too; one model per fine-tuning corruption")
+            raise RobodepthError(f"--tag {m.name}:finetune={given}: {tuned[name].name} is tagged "
+                                 "with it too; one model per fine-tuning corruption")
         tuned[name] = m
     if not tuned:
         return None
     if not baseline:
         baseline = [m for m in models if "finetune" not in tags.get(m.name, {})]
     if len(baseline) > 1:
-        raise ReportError(f"--tag: {len(baseline)} models could be the fine-tuning baseline ("
-                          + ", ".join(m.name for m in baseline) + "); tag one MODEL:finetune=none")
+        raise RobodepthError(f"--tag: {len(baseline)} models could be the fine-tuning baseline ("
+                             + ", ".join(m.name for m in baseline) + "); tag one MODEL:finetune=none")
     ordered = [(NONE, m) for m in baseline] + [(c, tuned[c]) for c in bench.corruptions if c in tuned]
     columns = (CLEAN, *bench.corruptions)
     values = []
     for _, m in ordered:
         row = tuple(_abs_rel(m, c) for c in columns)
         if row[0] is None:
-            raise ReportError(f"{m.path}: no abs_rel column; the fine-tuning matrix shows Abs Rel "
-                              "(robodepth evaluate writes it)")
+            raise RobodepthError(f"{m.path}: no abs_rel column; the fine-tuning matrix shows Abs Rel "
+                                 "(robodepth evaluate writes it)")
         values.append(row)
     keep = [j for j in range(len(columns)) if all(r[j] is not None for r in values)]
     return Matrix(tuple(c for c, _ in ordered), tuple(m.name for _, m in ordered),

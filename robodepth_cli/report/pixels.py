@@ -35,10 +35,6 @@ SCHEMA, SCHEMA_VERSION = "robodepth-stats", 1
 PEAK = 255.0
 
 
-class StatsError(RobodepthError):
-    """A build whose statistics cannot be computed; the message is one line."""
-
-
 @dataclass
 class Sums:
     """What a variant accumulates: its histogram and its clean images' over the same
@@ -94,8 +90,8 @@ def ssim(clean: np.ndarray, image: np.ndarray) -> float:
     import cv2
 
     if min(clean.shape[:2]) < WINDOW:
-        raise StatsError(f"an image of {clean.shape[1]}x{clean.shape[0]} is smaller than SSIM's "
-                         f"{WINDOW}x{WINDOW} window")
+        raise RobodepthError(f"an image of {clean.shape[1]}x{clean.shape[0]} is smaller than SSIM's "
+                             f"{WINDOW}x{WINDOW} window")
     x, y = clean.astype(np.float64), image.astype(np.float64)
 
     def mean(a):
@@ -132,10 +128,10 @@ def collect(dataset, most: int | None = None,
     try:
         clean_v = dataset.variant(CLEAN)
     except KeyError:
-        raise StatsError(f"{dataset.path}: the build has no clean images to compare with") from None
+        raise RobodepthError(f"{dataset.path}: the build has no clean images to compare with") from None
     others = [v for v in dataset.variants() if v != clean_v]
     if not others:
-        raise StatsError(f"{dataset.path}: the build has no corrupted variant")
+        raise RobodepthError(f"{dataset.path}: the build has no corrupted variant")
     clean_sums, sums = Sums(), [(v, Sums()) for v in others]
     for i in chosen(len(dataset.keys), most):
         key = dataset.keys[i]
@@ -148,8 +144,8 @@ def collect(dataset, most: int | None = None,
                 continue
             image = v.read(i)
             if image.shape != clean.shape:
-                raise StatsError(f"{dataset.path / v.relpath / key}: {image.shape[1]}x{image.shape[0]}, "
-                                 f"its clean image {clean.shape[1]}x{clean.shape[0]}")
+                raise RobodepthError(f"{dataset.path / v.relpath / key}: {image.shape[1]}x{image.shape[0]}, "
+                                     f"its clean image {clean.shape[1]}x{clean.shape[0]}")
             s.add(image, clean)
         if progress:
             progress(1)
@@ -186,8 +182,8 @@ def check_level(levels, level) -> None:
     build of styles alone has none: the figure shows every style)."""
     present = {lv for lv in levels if lv is not None}
     if present and level not in present:
-        raise StatsError(f"--level {level}: the build has no variant at that level (it has "
-                         + ", ".join(str(lv) for lv in sorted(present)) + ")")
+        raise RobodepthError(f"--level {level}: the build has no variant at that level (it has "
+                             + ", ".join(str(lv) for lv in sorted(present)) + ")")
 
 
 def figure(doc: dict, level):

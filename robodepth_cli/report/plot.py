@@ -44,16 +44,12 @@ PNG_DPI = 150
 BENCHMARK_TITLE = {"kitti-c": "KITTI-C", "nyudepth2-c": "NYUDepth2-C", "kitti-s": "KITTI-S"}
 
 
-class FiguresUnavailable(RobodepthError):
-    """matplotlib (the ``figures`` extra) is not installed."""
-
-
 def load_matplotlib():
     try:
         import matplotlib
     except ImportError:
-        raise FiguresUnavailable("figures need matplotlib: pip install 'robodepth-cli[figures]' "
-                                 "(or pip install matplotlib)") from None
+        raise RobodepthError("figures need matplotlib: pip install 'robodepth-cli[figures]' "
+                             "(or pip install matplotlib)") from None
     # Text stays text in SVG (searchable, and the page's fonts apply); the same figure
     # gives the same bytes (no random ids, no date).
     matplotlib.rcParams.update({"svg.fonttype": "none", "svg.hashsalt": "robodepth",

@@ -36,10 +36,6 @@ MIN_MODELS = 3  # two models have one pair to order: no ranking to speak of
 METRICS = {"dee": "DEE", "abs_rel": "AbsRel"}
 
 
-class PairsError(RobodepthError):
-    """A pairs table that cannot be read; the message names the file and line."""
-
-
 def parse_key(text: str) -> tuple[str, str]:
     """``drivingstereo-c:foggy`` -> ``("drivingstereo-c", "foggy")``; no split -> ``""``."""
     dataset, _, split = text.strip().partition(":")
@@ -66,14 +62,14 @@ def read_pairs(paths: Sequence[Path]) -> list[Pair]:
     with the columns ``synthetic,corruption,real`` (``#`` lines are comments)."""
     pairs: dict[Pair, None] = {}
     for path in paths:
-        for where, row in table_rows("--pairs", Path(path), ("synthetic", "corruption", "real"), PairsError):
+        for where, row in table_rows("--pairs", Path(path), ("synthetic", "corruption", "real"), RobodepthError):
             if len(row) != 3 or not all(c.strip() for c in row):
-                raise PairsError(f"{where}: expected three cells: DATASET[:SPLIT],CORRUPTION,"
-                                 "DATASET[:SPLIT]")
+                raise RobodepthError(f"{where}: expected three cells: DATASET[:SPLIT],CORRUPTION,"
+                                     "DATASET[:SPLIT]")
             corruption = normalise_name(row[1])
             if corruption not in CORRUPTIONS:
-                raise PairsError(f"{where}: unknown corruption {row[1].strip()!r}; valid: "
-                                 f"{', '.join(CORRUPTIONS)}")
+                raise RobodepthError(f"{where}: unknown corruption {row[1].strip()!r}; valid: "
+                                     f"{', '.join(CORRUPTIONS)}")
             pairs[Pair(parse_key(row[0]), corruption, parse_key(row[2]))] = None
     return list(pairs)
 
