@@ -1,19 +1,8 @@
-"""``robodepth challenge build``: a challenge set drawn from a build of the source frames.
-
-:func:`build_challenge` reads as its steps:
-
-1. the source frames' build, ``private/build/``: ``robodepth build`` with no corruption,
-   so the clean images and the ground truth come from the build's own machinery (its checks,
-   its resuming, its manifest);
-2. the draw (:func:`.draw.draw`) over the frames that have ground truth;
-3. each image rendered by the build's renderer from the clean frame, with the job seed a
-   build of the same seed gives it (the same pixels as ``OUTPUT/<corruption>/<level>/...``
-   of that build), written as ``public/images/<id>.png`` with no metadata chunks;
-4. ``public/list.txt``, ``challenge.json`` and ``README.md``; ``private/gt.npz``,
-   ``key.csv`` and ``challenge.json``.
-
-The public folder is written under a temporary name and renamed when complete.
-"""
+"""``robodepth challenge build``: a challenge set drawn from a build of the source frames
+(``private/build/``, a ``robodepth build`` with no corruption, so its checks, resuming and
+manifest serve here); each image is rendered with the job seed a build of the same seed
+gives it, so its pixels are that build's. The public folder is written under a temporary
+name and renamed when complete."""
 
 from __future__ import annotations
 

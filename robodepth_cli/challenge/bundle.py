@@ -1,23 +1,6 @@
 """``robodepth challenge bundle``: a Codabench competition bundle (``competition.yaml``
-version 2) for a challenge built by ``challenge build``.
-
-The zip holds, at its root:
-
-- ``competition.yaml``: title, logo, docker image, terms and pages, two tasks (the
-  development set, :func:`dev_rows`, scored with visible results; the final set: every
-  image), two phases, a sample submission as a solution, a leaderboard whose
-  columns are keys of ``scores.json``, the track's ranking metric first;
-- ``pages/`` (overview, data, evaluation, terms), ``logo.png``;
-- ``scoring_program/``: ``metadata.yaml`` (``command: python3 /app/program/score.py
-  /app/input /app/output MAX_BYTES``), ``score.py`` and the package files it runs
-  (:data:`PROGRAM_FILES`, copied as they are: numpy and the standard library only);
-- ``reference_dev/``, ``reference_final/``: list.txt, key.csv, gt.npz, challenge.json;
-- ``solutions/sample/``: a valid submission (a keyed npz of small constant maps);
-- ``starting_kit/``: README.md and ``make_submission.py``, which writes a valid
-  submission from a folder of per-image predictions in the list's order.
-
-Codabench zips each folder named in the yaml when it unpacks the bundle.
-"""
+version 2) for a challenge built by ``challenge build``; docs/challenge.md lists what it
+holds. The scoring program is :data:`PROGRAM_FILES`, copied as they are."""
 
 from __future__ import annotations
 

@@ -1,22 +1,5 @@
-"""The files of a challenge: what the public and private folders hold, and their metadata.
-
-public/ (what participants download)::
-
-    images/<id>.png     the test images, anonymous ids
-    list.txt            the ids, one a line, in the order predictions must follow
-    challenge.json      track, number of images, image size (nothing about corruptions)
-    README.md           what to submit and how
-
-private/ (what stays with the organisers and the scoring program)::
-
-    gt.npz              the float32 depth map in metres of each id, no pickle: member
-                        ``<id>.npy`` (the map; 0 or NaN where invalid), or for a map
-                        mostly invalid (KITTI's lidar) ``<id>.shape.npy``, ``<id>.index.npy``
-                        and ``<id>.depth.npy`` (see :func:`gt_members`)
-    key.csv             id, position, source, corruption, level, seed, sha256 (of the PNG)
-    challenge.json      track, dataset, seed, corruptions, levels, benchmark
-    build/              the build of the clean images and ground truth it was drawn from
-"""
+"""The files of a challenge: what the public and private folders hold, and their metadata
+(the table in docs/challenge.md; :func:`gt_members` for the members of ``gt.npz``)."""
 
 from __future__ import annotations
 

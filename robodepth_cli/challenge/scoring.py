@@ -1,21 +1,8 @@
-"""Scoring a challenge submission against the private reference.
-
-Per image, the track's protocol:
-
-kitti
-    the official evaluator (``competition/evaluator_npy.py``): the disparity resized to the
-    ground truth with scikit-image's ``resize`` (:func:`.resize.resize_at`), inverted, the
-    valid pixels ``1e-3 < gt < 80`` inside the Garg crop, median scaling, clamped to
-    [1e-3, 80], the seven metrics (:func:`~robodepth_cli.evaluation.protocols.depth_errors`);
-nyu
-    the NYU protocol of the benchmark (:func:`~robodepth_cli.evaluation.protocols.nyu_image`):
-    metric depth, no scaling, the Eigen crop, [1e-3, 10] m, nine metrics.
-
-Then the mean over images of each metric (the official number), and, because the scorer
-holds the key, the same per corruption, per category and per level, with DEE =
-(abs_rel - a1 + 1) / 2 of each group's means; a category's DEE is the mean of its
-corruptions'.
-"""
+"""Scoring a challenge submission against the private reference, per image by the track's
+protocol (kitti: the official evaluator, the disparity resized by :func:`.resize.resize_at`;
+nyu: :func:`~robodepth_cli.evaluation.protocols.nyu_image`), then the mean of each metric
+over images and, since the scorer holds the key, per corruption, category and level, with
+DEE = (abs_rel - a1 + 1) / 2 of each group's means (a category's: its corruptions' mean)."""
 
 from __future__ import annotations
 

@@ -1,26 +1,7 @@
 """Reading a challenge submission safely: a stranger's upload, so every size is bounded,
-nothing is unpickled and nothing is extracted.
-
-Forms (:func:`open_submission`):
-
-- a zip holding one ``.npy`` of shape (N, H, W), maps in list order (the official Track 1
-  form, ``disp.zip`` with ``disp.npy``), or one ``.npz``;
-- an ``.npz`` whose one member is the (N, H, W) array (``savez_compressed(data=...)``, the
-  official Track 2 form), or whose members are the image ids, one (H, W) map each (the
-  keyed form: order cannot go wrong);
-- a plain ``.npy``; or a folder holding one of these, as Codabench's worker extracts an
-  upload into ``input/res``.
-
-Refused, each with one line: zip members with absolute paths, ``..`` or symlinks, archives
-inside archives (beyond the npz of the forms), several arrays or none, encrypted members,
-more than the size limit declared or found, object arrays (pickles), other dtypes than
-float16/32/64, another number of maps or of dimensions, a header that does not match the
-bytes, and maps with NaN, infinity, zero or negative values. macOS's ``__MACOSX/`` and
-``.DS_Store`` entries are ignored.
-
-Memory: a map is read from its stream (the zip member decompressed as it is read) one at a
-time; nothing holds more than one map plus the archive's index.
-"""
+nothing is unpickled and nothing is extracted. The forms accepted and the refusals are
+those of docs/challenge.md (:func:`open_submission`). A map is read from its stream one at
+a time; nothing holds more than one map plus the archive's index."""
 
 from __future__ import annotations
 

@@ -305,7 +305,7 @@ class Written:
 def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None,
           published: Callable[[], None] = lambda: None) -> Written:
     """Write every output of ``report`` under ``out``, whole or not at all (an interrupt or
-    a write error leaves ``out`` as it was); :class:`~.RobodepthError` when a file cannot be
+    a write error leaves ``out`` as it was); :class:`~robodepth_cli.errors.RobodepthError` when a file cannot be
     written. ``published`` is called once the report is in place, before an interrupt
     held meanwhile acts (so the command can say what an interrupt leaves)."""
     import shutil
