@@ -1,18 +1,9 @@
-"""The ground truth of a built dataset, read safely and once, map by map.
-
-Ground truth: KITTI datasets, ``gt_depths.npz`` as monodepth2's ``export_gt_depth.py``
-writes it (``np.load(f, allow_pickle=True)["data"]``: one float map in metres per split
-image, in split order, as a pickled object array); NYU, a directory of 16-bit PNGs in
-millimetres at the split lines' DEPTH paths (``<scene>/sync_depth_NNNNN.png`` for image
-``<scene>/rgb_NNNNN``), as BTS's test set has them. It is read once, map by map; each map
-is kept only as its valid pixels when that is smaller (KITTI's sparse lidar maps), else as
-read. The pickle is read with only numpy's array reconstructors allowed (see
-:func:`load_ground_truth`).
-
-The same reader serves ``robodepth evaluate``, :func:`robodepth_cli.open_dataset` and
-``robodepth_cli.torch.KittiC`` (:func:`read_depth_maps`): no part of the package unpickles
-ground truth with ``allow_pickle=True``.
-"""
+"""The ground truth of a built dataset (KITTI's ``gt_depths.npz``, NYU's 16-bit PNGs in
+millimetres), read once, map by map; a map is kept as its valid pixels when that is smaller
+(KITTI's sparse lidar maps). The pickle is read with only numpy's array reconstructors
+allowed (:func:`load_ground_truth`); the same reader serves ``robodepth evaluate``,
+:func:`robodepth_cli.open_dataset` and ``robodepth_cli.torch.KittiC``
+(:func:`read_depth_maps`), so nothing unpickles ground truth with ``allow_pickle=True``."""
 
 from __future__ import annotations
 

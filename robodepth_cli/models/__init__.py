@@ -1,21 +1,8 @@
-"""Depth models behind ``robodepth predict``: a model spec in, maps out.
-
-A spec names an adapter and its argument:
-
-``monodepth2:DIR``
-    an official monodepth2-format folder (``encoder.pth`` with ``height``/``width``,
-    ``depth.pth``), ResNet-18/34/50/101/152 encoder (:mod:`.monodepth2`);
-``hf:PATH_OR_NAME``
-    a Hugging Face ``transformers`` depth-estimation model, a local folder or a name in the
-    local cache (:mod:`.hf`);
-``python:MODULE:CALLABLE``
-    a user's function of a batch of uint8 RGB images (:mod:`.pycall`).
-
-Every adapter gives a :class:`~robodepth_cli.models.base.Model`: ``predict(images)`` maps
-an ``N x H x W x 3`` uint8 batch to ``N`` maps, and it states what the maps hold (the
-``kind`` that ``robodepth evaluate`` reads, and whether they are metric). This module
-imports nothing heavy: torch and transformers are imported only when a model is loaded.
-"""
+"""Depth models behind ``robodepth predict``: a model spec (``monodepth2:DIR``,
+``hf:PATH_OR_NAME``, ``python:MODULE:CALLABLE``; docs/predict.md) in, a
+:class:`~robodepth_cli.models.base.Model` out, whose ``predict(images)`` maps an
+``N x H x W x 3`` uint8 batch to ``N`` maps and which states what they hold. This module
+imports nothing heavy: torch and transformers are imported only when a model is loaded."""
 
 from __future__ import annotations
 

@@ -1,21 +1,9 @@
-"""Hugging Face ``transformers`` depth-estimation models (Depth Anything, DPT, ZoeDepth,
-Depth Pro, GLPN, ...): ``AutoModelForDepthEstimation`` with its own image processor.
-
-The model is read from a local folder (``save_pretrained``'s layout) or, by name, from the
-local Hugging Face cache only (``local_files_only``): nothing is downloaded. Each batch goes
-through the processor (its resize and normalisation), the model, and the processor's own
-``post_process_depth_estimation`` with every image's size as the target size (DPT and
-Depth Anything: bicubic ``interpolate`` of ``predicted_depth``; ZoeDepth also removes its
-padding; Depth Pro converts to depth in metres), so each map has its image's size. A
-processor without that method gets DPT's rule: bicubic, ``align_corners=False``.
-
-What the maps hold: a model whose config says ``depth_estimation_type`` (Depth Anything)
-is relative or metric as it says; otherwise DPT models are relative, ZoeDepth, Depth Pro
-and GLPN metric. Relative models predict an inverse depth up to an unknown scale and shift
-(recorded as ``kind disp``, evaluated after a least-squares scale and shift of the
-disparity); metric ones predict depth in metres (``kind depth``, no alignment). ``--kind``
-and ``--metric/--relative`` override this, and are needed for model types not listed here.
-"""
+"""Hugging Face ``transformers`` depth-estimation models: ``AutoModelForDepthEstimation`` with
+its own image processor, from a local folder or the local cache only (nothing is
+downloaded). Each map goes through the processor's ``post_process_depth_estimation`` at its
+image's size (without that method, DPT's rule: bicubic, ``align_corners=False``). What the
+maps hold (relative disparity or metric depth) is the config's ``depth_estimation_type``,
+else the model type's, as docs/predict.md lists."""
 
 from __future__ import annotations
 

@@ -1,32 +1,11 @@
 """monodepth2-format checkpoints (MonoDepth2, Depth Hints, and the many models that share
-the format): a folder with ``encoder.pth`` and ``depth.pth``.
+the format): a folder with ``encoder.pth`` (monodepth2's ``ResnetEncoder``, a ResNet under
+``encoder.`` (:mod:`.resnet`), plus ``height`` and ``width``, the network's input size)
+and ``depth.pth`` (its ``DepthDecoder``, of which only scale 0 is used).
 
-``encoder.pth`` is the ``state_dict`` of monodepth2's ``ResnetEncoder`` (a ResNet under
-``encoder.``, see :mod:`.resnet`) plus ``height`` and ``width``, the network's input size
-(and ``use_stereo``); ``depth.pth`` is its ``DepthDecoder``: a list ``decoder.0`` ..
-``decoder.9`` of 3x3 convolution blocks (``decoder.N.conv.conv``: reflection padding, a
-convolution, then ELU), two per scale from the coarsest, and ``decoder.10`` .. ``decoder.13``
-the 3x3 output convolutions of scales 0..3 (``decoder.N.conv``, sigmoid after). Only scale
-0, the full-size output, is used.
-
-A prediction is what monodepth2's ``evaluate_depth.py`` saves (``--save_pred_disps``):
-
-1. the image resized to ``width x height`` with Pillow's Lanczos filter (its data loader's
-   ``transforms.Resize`` with ``Image.ANTIALIAS``), scaled to [0, 1];
-2. the encoder's input normalisation ``(x - 0.45) / 0.225``;
-3. the decoder's scale-0 sigmoid output ``s`` turned into a scaled disparity by
-   ``disp_to_depth(s, 0.1, 100)``: ``1/100 + (1/0.1 - 1/100) * s``;
-4. with ``--post-process``, the image and its mirror image are both run and combined as
-   ``batch_post_process_disparity`` does: with ``l = linspace(0, 1, w)`` per column and
-   ``m = 1 - clip(20 (l - 0.05), 0, 1)``, ``out = m[::-1] * d + m * f + (1 - m - m[::-1]) *
-   (d + f) / 2`` where ``d`` is the disparity and ``f`` the mirror's, flipped back (the
-   left 5 % of columns come from the mirror, the right 5 % from the image, the middle is
-   their mean). That arithmetic is float64, so post-processed maps are saved as float64,
-   as monodepth2 saves them.
-
-The maps are at the network's size (``height x width``); ``robodepth evaluate`` resizes
-them to the ground truth's, as monodepth2's evaluation does.
-"""
+A prediction is what monodepth2's ``evaluate_depth.py --save_pred_disps`` saves, step by
+step as docs/predict.md gives them (Lanczos resize, normalisation, ``disp_to_depth``, and
+with ``--post-process`` its float64 mirror blend); the maps are at the network's size."""
 
 from __future__ import annotations
 

@@ -1,34 +1,12 @@
 """``robodepth predict``: run a model over the variants of a built dataset and write its
-predictions where ``robodepth evaluate`` reads them.
+predictions where ``robodepth evaluate`` reads them (docs/predict.md).
 
-Per variant, one ``N x h x w`` array in split order, ``PRED/clean.npy``,
-``PRED/<corruption>/<level>.npy`` or ``PRED/<style>.npy`` (the form
-:meth:`robodepth_cli.api.Variant.save_predictions` writes), streamed batch by batch into
-a temporary file that is renamed into place when the variant is complete. So a finished
-variant's file is whole, a killed run loses at most the variant in flight, and a run
-started again skips the variants whose files are there (resume).
-
-A build without one image size (``build custom`` without ``--size``) gets the other form
-``robodepth evaluate`` reads, one ``.npy`` per image, ``PRED/<variant>/<image path>.npy``,
-since maps that follow the image size cannot share one array: the variant's files are
-written into a temporary folder beside it, renamed into place when complete.
-
-``PRED/predictions.json`` records the model (spec, adapter, what tells its weights apart),
-what its maps hold (``output`` disparity or depth, ``scale`` relative or metric, and the
-``evaluate`` defaults ``kind``, ``align``, ``align_space``), the input size, the dataset,
-and the robodepth version; for a torch model also its ``size``, parameters and FLOPs per
-image, measured on the first batch (:mod:`.size`). It is written once the model has
-produced its first valid batch, before any prediction file; a later run into the same
-PRED must be of the same model on the same dataset's split, or it is refused (the files
-would mix two models).
-PRED is refused inside the dataset: the build's manifest lists every file there, and
-``verify`` would then report the predictions as extra files.
-
-Memory: a batch holds at most :data:`BATCH_PIXELS` pixels, counted at the larger of the
-image size and the network's fixed input size (when the model has one), so
-``--batch-size`` beyond that (``-b 100000``) is lowered to what fits instead of holding a
-whole variant, and its activations, at once (:func:`batch_limit`).
-"""
+Each variant's file (or, for a build without one image size, folder of per-image ``.npy``)
+is streamed into a temporary name renamed into place when complete, so a killed run loses
+at most the variant in flight and a rerun skips the finished ones. ``predictions.json`` is
+written once the model has produced its first valid batch; a later run into the same PRED
+must be of the same model on the same dataset's split. A batch holds at most
+:data:`BATCH_PIXELS` pixels (:func:`batch_limit`)."""
 
 from __future__ import annotations
 
