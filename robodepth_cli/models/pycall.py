@@ -1,18 +1,8 @@
-"""A user's own model as a Python function: ``python:MODULE:CALLABLE``.
-
-``MODULE`` is an importable module name (the current directory is searched first, as
-``python -m`` does) or a path to a ``.py`` file; ``CALLABLE`` a name in it (dots reach
-into objects: ``net.predict``). It is called with a batch of images, an ``N x H x W x 3``
-uint8 RGB numpy array (one size per batch), and returns ``N`` maps: an ``N x h x w`` (or
-``N x 1 x h x w``) floating-point numpy array or torch tensor, or a list of ``N`` maps of
-one size. What the maps hold is the user's to say: ``--kind disp|sigmoid|depth`` and
-``--metric`` (metres) or ``--relative`` (the default: right up to a scale and shift).
-
-The record's identity holds the sha256 of the module's own file, so a run into a PRED
-whose module was edited since is refused rather than mixing old and new predictions.
-Only that file is tracked: modules it imports, weights or data it reads, the environment
-and a changed function in an already-imported module are not.
-"""
+"""A user's own model as a Python function: ``python:MODULE:CALLABLE`` (docs/predict.md).
+``MODULE`` is an importable name (the current directory searched first) or a ``.py`` path,
+``CALLABLE`` a name in it (dots reach into objects); it takes an ``N x H x W x 3`` uint8
+batch and returns ``N`` maps. The record's identity holds the sha256 of the module's own
+file only, so a PRED whose module was edited since is refused."""
 
 from __future__ import annotations
 

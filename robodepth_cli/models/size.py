@@ -1,19 +1,8 @@
-"""A torch model's size: its parameters and its FLOPs per image, as ``robodepth predict``
-measures them on the first batch it runs.
-
-Parameters: the number of elements of the model's parameters (``module.parameters()``, a
-tensor shared by two modules counted once; buffers such as batch-norm statistics are not
-parameters). FLOPs: what :class:`torch.utils.flop_counter.FlopCounterMode` counts while the
-model predicts its first batch, divided by the batch's images. That counter counts the
-matrix products and convolutions of the forward pass (``mm``, ``addmm``, ``bmm``,
-convolutions, attention), a multiply-add as 2 FLOPs, and nothing else: bias additions,
-activations, normalisation and resizing are not counted. So a 3x3 convolution of ``c_in``
-to ``c_out`` channels over an ``h x w`` output counts ``2 * 9 * c_in * c_out * h * w``.
-The count is of the network at the input size it ran: monodepth2's fixed input, whatever
-size an ``hf:`` model's processor made, the size a ``python:`` module chose; with
-``--post-process`` the mirror image's pass is counted too (it is part of each prediction).
-Papers often give multiply-adds ("MACs") as FLOPs: those are half of ours.
-"""
+"""A torch model's size as ``robodepth predict`` measures it on the first batch: its
+parameters (shared tensors once, buffers not counted) and its FLOPs per image, what
+:class:`torch.utils.flop_counter.FlopCounterMode` counts over that batch divided by its
+images (matrix products and convolutions, a multiply-add as 2 FLOPs: twice the "MACs" of
+many papers), at the input size the network ran, the ``--post-process`` pass included."""
 
 from __future__ import annotations
 

@@ -1,25 +1,9 @@
-"""What each corruption does to the pixels of a build (``robodepth stats``): per variant,
-the histogram of the pixel values per channel, the mean and spread against the clean
-images', and PSNR and SSIM against the clean image.
-
-Definitions (per variant, over the images it was computed on; channels R, G, B):
-
-- ``histogram[c][v]``: how many pixels of channel ``c`` have value ``v`` (0..255);
-- ``mean[c]``, ``std[c]``: the mean and the (population) standard deviation of channel
-  ``c``'s values, from the histogram; ``mean_shift[c]`` = mean - the clean images' mean
-  over the same images, ``std_ratio[c]`` = std / the clean images' std (null where that is
-  0);
-- ``psnr``: 10 log10(255^2 / MSE), the MSE pooled over every value of every image (so one
-  identical image does not make it infinite); null when every image equals its clean one;
-- ``ssim``: the mean over the images of the SSIM against the clean image, as scikit-image's
-  ``structural_similarity`` computes it by default (a 7 x 7 uniform window, K1 0.01, K2
-  0.03, the mean over the channels; ``data_range`` 255), see :func:`ssim`.
-
-The build is streamed: one clean image and one variant's image are held at a time, and a
-variant keeps only its sums (3 x 256 counts, two numbers), so memory does not grow with
-the build. An image the build did not make is left out of its variant (``images`` says how
-many were used).
-"""
+"""What each corruption does to the pixels of a build (``robodepth stats``): per variant, the
+histogram, mean and spread of each channel against the clean images', and PSNR (the MSE
+pooled over every image) and SSIM (scikit-image's defaults, :func:`ssim`) against the clean
+image, as docs/report.md defines them. The build is streamed: one clean and one variant
+image are held at a time and a variant keeps only its sums; an image the build did not make
+is left out of its variant."""
 
 from __future__ import annotations
 

@@ -1,22 +1,11 @@
 """Synthetic against real: does a synthetic corruption rank models as the real condition does?
 
-A pair of the table (:data:`PAIRS`, which users extend with ``report --pairs FILE``) names
-a synthetic corruption on a dataset (``kitti-c``'s ``fog``) and a real condition, a
-dataset and split whose clean images were taken in it (``drivingstereo-c:foggy``). Every
-model with results on both sides gives two numbers: its error on the corruption (the mean
-over the levels its results have, as ``score`` averages a corruption) and its error on the
-real condition (the clean row of its results there); the error is DEE, or AbsRel.
-
-The two rankings are compared by Spearman's rank correlation (the Pearson correlation of
-the ranks, ties given their average rank) and Kendall's tau-b (concordant minus discordant
-pairs over the geometric mean of the pairs untied on each side). The interval is a
-percentile bootstrap over the models: a resample draws as many models as there are, with
-replacement, from a generator seeded by ``seed``, so the same inputs give the same interval;
-a resample in which one side has every value tied has no ranking and is drawn again. The
-results files hold each variant's mean over the images, not the images' own errors, so the
-images cannot be resampled: the interval says how much the agreement depends on which
-models were compared.
-"""
+A pair (:data:`PAIRS`, extended by ``report --pairs FILE``) names a synthetic corruption on
+a dataset and a real condition (a dataset and split taken in it). Each model with results
+on both sides gives its error (DEE or AbsRel) on the corruption, averaged over its levels,
+and on the real condition's clean row; the two rankings are compared by Spearman's rho and
+Kendall's tau-b, with a percentile bootstrap over the models seeded by ``seed``
+(docs/report.md)."""
 
 from __future__ import annotations
 
