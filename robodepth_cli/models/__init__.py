@@ -6,20 +6,21 @@ imports nothing heavy: torch and transformers are imported only when a model is 
 
 from __future__ import annotations
 
-from .errors import ModelError
+from ..errors import RobodepthError
+
 
 ADAPTERS = ("monodepth2", "hf", "python")
 
 
 def parse_spec(spec: str) -> tuple[str, str]:
-    """``"monodepth2:DIR"`` -> ``("monodepth2", "DIR")``; :class:`ModelError` for a spec
+    """``"monodepth2:DIR"`` -> ``("monodepth2", "DIR")``; :class:`RobodepthError` for a spec
     that names no known adapter or has nothing after the colon."""
     adapter, sep, arg = spec.partition(":")
     if not sep or adapter not in ADAPTERS:
-        raise ModelError(f"--model {spec!r}: unknown model adapter; give "
-                         "monodepth2:DIR, hf:PATH_OR_NAME or python:MODULE:CALLABLE")
+        raise RobodepthError(f"--model {spec!r}: unknown model adapter; give "
+                             "monodepth2:DIR, hf:PATH_OR_NAME or python:MODULE:CALLABLE")
     if not arg:
-        raise ModelError(f"--model {spec!r}: nothing after '{adapter}:'")
+        raise RobodepthError(f"--model {spec!r}: nothing after '{adapter}:'")
     return adapter, arg
 
 
@@ -33,11 +34,11 @@ def load_model(spec: str, *, device: str = "auto", kind: str | None = None,
     """
     adapter, arg = parse_spec(spec)
     if post_process and adapter != "monodepth2":
-        raise ModelError("--post-process applies to monodepth2 models only (its flip averaging)")
+        raise RobodepthError("--post-process applies to monodepth2 models only (its flip averaging)")
     if adapter == "monodepth2":
         if kind is not None or metric is not None:
-            raise ModelError("--kind/--metric: a monodepth2 model's output is known (a scaled "
-                             "disparity, up to scale); leave them out")
+            raise RobodepthError("--kind/--metric: a monodepth2 model's output is known (a scaled "
+                                 "disparity, up to scale); leave them out")
         from .monodepth2 import load
 
         return load(arg, spec, device=device, post_process=post_process)

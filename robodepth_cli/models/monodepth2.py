@@ -13,9 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import os_reason
+from ..errors import RobodepthError, os_reason
 from ..files import sha256_file
-from .errors import ModelError
 from .base import Model, torch_device
 
 MIN_DEPTH, MAX_DEPTH = 0.1, 100.0  # evaluate_depth.py's defaults (--min_depth, --max_depth)
@@ -25,19 +24,19 @@ N_BLOCKS = 10  # decoder.0 .. decoder.9: two blocks per scale, coarsest first
 
 
 def load(arg: str, spec: str, *, device: str = "auto", post_process: bool = False) -> Model:
-    """The monodepth2 model in folder ``arg``; :class:`ModelError` naming the file for a
+    """The monodepth2 model in folder ``arg``; :class:`RobodepthError` naming the file for a
     missing folder or file, an unreadable checkpoint or one of another architecture."""
     import torch
 
     folder = Path(arg).expanduser()
     if not folder.is_dir():
-        raise ModelError(f"{spec}: {folder} is not a folder (expected a monodepth2 model "
-                         "folder with encoder.pth and depth.pth)")
+        raise RobodepthError(f"{spec}: {folder} is not a folder (expected a monodepth2 model "
+                             "folder with encoder.pth and depth.pth)")
     enc_path, dec_path = folder / "encoder.pth", folder / "depth.pth"
     for path in (enc_path, dec_path):
         if not path.is_file():
-            raise ModelError(f"{folder}: no {path.name} (a monodepth2 model folder holds "
-                             "encoder.pth and depth.pth)")
+            raise RobodepthError(f"{folder}: no {path.name} (a monodepth2 model folder holds "
+                                 "encoder.pth and depth.pth)")
     enc = _read(enc_path)
     dec = _read(dec_path)
     height, width = _input_size(enc, enc_path)
@@ -73,14 +72,14 @@ def _read(path: Path) -> dict:
         # weights_only: tensors and plain values only, so a crafted file cannot run code.
         obj = torch.load(path, map_location="cpu", weights_only=True)
     except OSError as exc:
-        raise ModelError(f"{path}: cannot read ({os_reason(exc)})") from None
+        raise RobodepthError(f"{path}: cannot read ({os_reason(exc)})") from None
     except Exception:  # torch fails on a foreign file in many ways (UnpicklingError, KeyError, ...)
         # Never torch's own text: it advises weights_only=False, which runs whatever the file holds.
-        raise ModelError(f"{path}: not a PyTorch checkpoint of tensors ({_what_file(path)}); "
-                         "monodepth2 folders hold state_dicts saved with torch.save") from None
+        raise RobodepthError(f"{path}: not a PyTorch checkpoint of tensors ({_what_file(path)}); "
+                             "monodepth2 folders hold state_dicts saved with torch.save") from None
     if not isinstance(obj, dict):
-        raise ModelError(f"{path}: holds a {type(obj).__name__}; expected a state_dict (a dict "
-                         "of tensors)")
+        raise RobodepthError(f"{path}: holds a {type(obj).__name__}; expected a state_dict (a dict "
+                             "of tensors)")
     return obj
 
 
@@ -103,11 +102,11 @@ def _input_size(enc: dict, path: Path) -> tuple[int, int]:
     try:
         height, width = int(enc["height"]), int(enc["width"])
     except (KeyError, TypeError, ValueError):
-        raise ModelError(f"{path}: no 'height' and 'width' entries (monodepth2 saves the "
-                         "network's input size in encoder.pth)") from None
+        raise RobodepthError(f"{path}: no 'height' and 'width' entries (monodepth2 saves the "
+                             "network's input size in encoder.pth)") from None
     if height <= 0 or width <= 0 or height % 32 or width % 32:
-        raise ModelError(f"{path}: input size {height} x {width}; monodepth2's network needs "
-                         "multiples of 32")
+        raise RobodepthError(f"{path}: input size {height} x {width}; monodepth2's network needs "
+                             "multiples of 32")
     return height, width
 
 
@@ -227,20 +226,20 @@ class DepthNet:
                        if hasattr(v, "shape") and not k.startswith("encoder.fc.")}
         num_layers = depth_of(enc_tensors)
         if num_layers is None:
-            raise ModelError(f"{enc_path}: not a monodepth2 ResNet encoder (its parameters match "
-                             "no ResNet-18/34/50/101/152 under 'encoder.')")
+            raise RobodepthError(f"{enc_path}: not a monodepth2 ResNet encoder (its parameters match "
+                                 "no ResNet-18/34/50/101/152 under 'encoder.')")
         conv1 = enc_tensors.get("encoder.conv1.weight")
         if conv1 is not None and conv1.ndim == 4 and conv1.shape[1] != 3:
-            raise ModelError(f"{enc_path}: its first convolution takes {conv1.shape[1]} channels; a "
-                             "depth encoder takes one RGB image (is this a pose encoder?)")
+            raise RobodepthError(f"{enc_path}: its first convolution takes {conv1.shape[1]} channels; a "
+                                 "depth encoder takes one RGB image (is this a pose encoder?)")
         encoder = Encoder(num_layers)
         _load(encoder, enc_tensors, enc_path, f"a ResNet-{num_layers} encoder")
         dec_tensors = {k: v for k, v in dec.items() if hasattr(v, "shape")}
         scales = sum(f"decoder.{N_BLOCKS + s}.conv.weight" in dec_tensors for s in range(4))
         if scales == 0 or any(f"decoder.{N_BLOCKS + s}.conv.weight" not in dec_tensors
                               for s in range(scales)):
-            raise ModelError(f"{dec_path}: not a monodepth2 DepthDecoder (no output convolution "
-                             f"decoder.{N_BLOCKS}.conv.weight)")
+            raise RobodepthError(f"{dec_path}: not a monodepth2 DepthDecoder (no output convolution "
+                                 f"decoder.{N_BLOCKS}.conv.weight)")
         decoder = Decoder(encoder.encoder.channels, scales)
         _load(decoder, dec_tensors, dec_path,
               f"the depth decoder of a ResNet-{num_layers} encoder")
@@ -278,6 +277,6 @@ def _load(module, tensors: dict, path: Path, what: str) -> None:
             parts.append(f"missing {missing[0]}" + (f" (+{len(missing) - 1} more)" if len(missing) > 1 else ""))
         if extra:
             parts.append(f"unexpected {extra[0]}" + (f" (+{len(extra) - 1} more)" if len(extra) > 1 else ""))
-        raise ModelError(f"{path}: does not fit {what}: {'; '.join(parts)}")
+        raise RobodepthError(f"{path}: does not fit {what}: {'; '.join(parts)}")
     module.load_state_dict({k: v.float() if v.is_floating_point() else v
                            for k, v in tensors.items()}, strict=True)

@@ -13,8 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import reraise_interrupt
-from .errors import ModelError
+from ..errors import RobodepthError, reraise_interrupt
 from .base import KINDS, Model, default_alignment
 from .size import modules_of
 
@@ -22,29 +21,29 @@ from .size import modules_of
 def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = None) -> Model:
     module_name, sep, attr = arg.rpartition(":")
     if not sep or not module_name or not attr:
-        raise ModelError(f"--model {spec!r}: expected python:MODULE:CALLABLE")
+        raise RobodepthError(f"--model {spec!r}: expected python:MODULE:CALLABLE")
     if kind is None:
-        raise ModelError(f"{spec}: say what the function returns with --kind "
-                         f"({', '.join(KINDS)}), and --metric if it is in metres")
+        raise RobodepthError(f"{spec}: say what the function returns with --kind "
+                             f"({', '.join(KINDS)}), and --metric if it is in metres")
     if kind not in KINDS:
-        raise ModelError(f"--kind {kind!r}: valid: {', '.join(KINDS)}")
+        raise RobodepthError(f"--kind {kind!r}: valid: {', '.join(KINDS)}")
     module = _import(module_name, spec)
     fn = module
     for part in attr.split("."):
         try:
             fn = getattr(fn, part)
         except AttributeError:
-            raise ModelError(f"{spec}: {module_name} has no {attr}") from None
+            raise RobodepthError(f"{spec}: {module_name} has no {attr}") from None
     if not callable(fn):
-        raise ModelError(f"{spec}: {attr} is a {type(fn).__name__}, not a function")
+        raise RobodepthError(f"{spec}: {attr} is a {type(fn).__name__}, not a function")
 
     def run(images: np.ndarray):
         try:
             return fn(images)
         except Exception as exc:  # the user's code: its failure is reported, not a crash of ours
             reraise_interrupt(exc)
-            raise ModelError(f"{spec}: raised {type(exc).__name__}: "
-                             f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''}") from None
+            raise RobodepthError(f"{spec}: raised {type(exc).__name__}: "
+                                 f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''}") from None
 
     frames = _frames(getattr(fn, "robodepth_frames", ()), spec)
     metric = bool(metric)
@@ -69,8 +68,8 @@ def _frames(value, spec: str) -> tuple[int, ...]:
     offsets = tuple(value) if isinstance(value, (list, tuple)) else None
     if offsets is None or not all(isinstance(o, int) and not isinstance(o, bool) and o for o in offsets) \
             or len(set(offsets)) != len(offsets):
-        raise ModelError(f"{spec}: robodepth_frames {value!r}: expected distinct non-zero integer "
-                         f"frame offsets such as (-1, 1)")
+        raise RobodepthError(f"{spec}: robodepth_frames {value!r}: expected distinct non-zero integer "
+                             f"frame offsets such as (-1, 1)")
     return offsets
 
 
@@ -85,14 +84,14 @@ def _file_hash(path: str | None, spec: str) -> str | None:
     try:
         return sha256_file(path)
     except OSError as exc:
-        raise ModelError(f"{spec}: {path}: cannot read ({os_reason(exc)})") from None
+        raise RobodepthError(f"{spec}: {path}: cannot read ({os_reason(exc)})") from None
 
 
 def _import(name: str, spec: str):
     if name.endswith(".py"):
         path = Path(name).expanduser()
         if not path.is_file():
-            raise ModelError(f"{spec}: {path}: no such file")
+            raise RobodepthError(f"{spec}: {path}: no such file")
         here = str(path.resolve().parent)
         if here not in sys.path:  # the modules beside the file, as for a script
             sys.path.insert(0, here)
@@ -108,8 +107,8 @@ def _import(name: str, spec: str):
         if "" not in sys.path and str(Path.cwd()) not in sys.path:
             sys.path.insert(0, str(Path.cwd()))
         return importlib.import_module(name)
-    except ModelError:
+    except RobodepthError:
         raise
     except Exception as exc:  # ImportError, or whatever the user's module raises on import
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        raise ModelError(f"{spec}: cannot import {name} ({type(exc).__name__}: {text})") from None
+        raise RobodepthError(f"{spec}: cannot import {name} ({type(exc).__name__}: {text})") from None

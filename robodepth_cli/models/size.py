@@ -46,7 +46,7 @@ def modules_of(fn, spec: str) -> tuple:
     """The torch modules a ``python:`` callable exposes: what its ``robodepth_module``
     attribute names (a module, or a list of them), else itself when it is an ``nn.Module``,
     else the module it is a method of; () when it exposes none (torch is then not imported
-    for it). :class:`ModelError` for a ``robodepth_module`` that is not a module."""
+    for it). :class:`RobodepthError` for a ``robodepth_module`` that is not a module."""
     import sys
 
     declared = getattr(fn, "robodepth_module", None)
@@ -57,10 +57,10 @@ def modules_of(fn, spec: str) -> tuple:
     if declared is not None:
         found = list(declared) if isinstance(declared, (list, tuple)) else [declared]
         if not found or not all(isinstance(m, torch.nn.Module) for m in found):
-            from .errors import ModelError
+            from ..errors import RobodepthError
 
-            raise ModelError(f"{spec}: robodepth_module must be a torch.nn.Module or a list of "
-                             "them (the modules whose parameters and FLOPs are counted)")
+            raise RobodepthError(f"{spec}: robodepth_module must be a torch.nn.Module or a list of "
+                                 "them (the modules whose parameters and FLOPs are counted)")
         return tuple(found)
     for candidate in (fn, getattr(fn, "__self__", None)):
         if isinstance(candidate, torch.nn.Module):
