@@ -137,10 +137,14 @@ def post_process_disparity(disp: np.ndarray, flipped: np.ndarray) -> np.ndarray:
     return right * disp + left * flipped + (1.0 - left - right) * mean
 
 
-def _blocks():
-    """The decoder's building blocks: a reflection-padded 3 x 3 convolution, and one
-    followed by an ELU."""
+def _module_classes():
+    """The network's modules, defined on first use so that importing this file does not
+    import torch."""
+    import torch
     from torch import nn
+    from torch.nn import functional as F
+
+    from .resnet import ResNet
 
     class Conv3x3(nn.Module):
         def __init__(self, cin: int, cout: int):
@@ -159,20 +163,6 @@ def _blocks():
 
         def forward(self, x):
             return self.nonlin(self.conv(x))
-
-    return Conv3x3, ConvBlock
-
-
-def _module_classes():
-    """The network's modules, defined on first use so that importing this file does not
-    import torch."""
-    import torch
-    from torch import nn
-    from torch.nn import functional as F
-
-    from .resnet import ResNet
-
-    Conv3x3, ConvBlock = _blocks()
 
     class Decoder(nn.Module):
         """Upsampling decoder with skips: for scale i = 4..0, a block to scale i's width,

@@ -1,20 +1,10 @@
-"""The plotting layer, with matplotlib: the palette, figure set-up, saving, label
-placement, and the CE bar chart that ``robodepth score --plot`` and ``robodepth report``
-both draw. The report's other figures are in :mod:`robodepth_cli.report.figures`, built on
-this module.
-
-matplotlib is the ``figures`` extra (``pip install 'robodepth-cli[figures]'``); nothing
-else imports this module, so a build or a plain ``score`` never loads it. Figures are made
-with the object-oriented API (:class:`matplotlib.figure.Figure`, no pyplot), so drawing
-one changes no global state of a program that also uses matplotlib.
-
-Conventions every figure follows: colours from the Okabe-Ito palette (distinguishable
-with the common colour-vision deficiencies), a marker and a line style per model as well
-(so print in grey still tells models apart), the benchmark and the model(s) named in the
-title or legend, and text placed where it crosses no line and no other text (labels of
-points are placed by :func:`place_labels`, which drops a context label rather than let it
-overlap).
-"""
+"""The plotting layer, with matplotlib (the ``figures`` extra, imported by nothing else): the
+palette, figure set-up, saving, label placement (:func:`place_labels`), and the CE bar
+chart that ``robodepth score --plot`` and ``robodepth report`` both draw; the report's
+other figures are in :mod:`robodepth_cli.report.figures`. Figures use the object-oriented
+API (no pyplot), so drawing one changes no global state of the calling program; the
+conventions every figure follows (Okabe-Ito colours, a marker and line style per model,
+no overlapping text) are those of docs/report.md."""
 
 from __future__ import annotations
 

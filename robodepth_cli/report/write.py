@@ -1,15 +1,7 @@
-"""Make a report: score the inputs, draw the figures, write the page, tables and JSON.
-
-Output layout under OUT (written whole or not at all: into a temporary folder, then moved
-into place; an earlier report's files there are replaced, and figures of it that this one
-does not draw are removed, so nothing stale is left):
-
-    index.html       the page (self-contained)
-    table.tex        booktabs tables (summary like the paper's Table 1, then the details)
-    table.md         the same tables in Markdown
-    scores.json      the leaderboard entry (schema in docs/report.md, SCHEMA below)
-    figures/<name>.svg|.pdf|.png
-"""
+"""Make a report: score the inputs, draw the figures, write the page, tables and JSON (the
+files and the ``scores.json`` schema of docs/report.md). OUT is written whole or not at
+all: into a temporary folder, then moved into place; an earlier report's figures that this
+one does not draw are removed, so nothing stale is left."""
 
 from __future__ import annotations
 
