@@ -168,7 +168,6 @@ PNG_ENCODERS = {
     "fast": "fpng (one pass; gray: opencv-libpng filters=none,sub,up strategy=rle level 1)",
     "compact": "opencv-libpng filters=none,sub,up strategy=rle",
 }
-PNG_ENCODER = PNG_ENCODERS["compact"]  # what every build wrote before --png existed
 
 
 def check_png(method: str) -> None:

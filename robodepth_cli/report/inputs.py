@@ -19,7 +19,6 @@ from . import published as P
 
 KITTI_S = "kitti-s"
 BENCHMARK_CHOICES = (*B.BENCHMARKS, KITTI_S)
-CONTEXT_CHOICES = ("all", "baseline", "none")
 
 
 def style_names() -> tuple[str, ...]:
