@@ -1,14 +1,8 @@
-"""Results of several datasets in one report: which dataset (and split) each results file is
-on, the files of a dataset without a published baseline read and scored, one table per
-such dataset and a summary across all of them.
-
-A results CSV of ``robodepth evaluate`` names its dataset and split (its ``dataset`` and
-``split`` columns). For results from elsewhere, the rows of KITTI-C, NYUDepth2-C and KITTI-S
-tell them apart (as ``score`` infers them), and ``report --on DATASET[:SPLIT]`` names any
-other (``drivingstereo-c:foggy``, ``diode-c``, ``custom:night``). A dataset without a
-published baseline is scored against the results of the model ``--baseline`` names on the
-same dataset, so its mCE means what it means on KITTI-C; without one, DEE and RR only.
-"""
+"""Results of several datasets in one report (docs/report.md, several datasets): which
+dataset (and split) each results file is on (its own columns, else ``--on``, else the rows
+as ``score`` infers them), the files of a dataset without a published baseline scored
+against the ``--baseline`` model on the same dataset (without one, DEE and RR only), one
+table per such dataset and a summary across all of them."""
 
 from __future__ import annotations
 

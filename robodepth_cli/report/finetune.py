@@ -1,13 +1,7 @@
-"""Fine-tuning with corruptions (the paper's Fig. 6): a model fine-tuned with each corruption
-as augmentation and tested on every corruption, as a matrix of Abs Rel.
-
-Each fine-tuned model's results carry the tag ``finetune=<corruption>`` (``report --tag``);
-the baseline, the model before fine-tuning, is the one tagged ``finetune=none``, else the
-one user model left untagged when there is exactly one. Rows: the baseline, then the
-fine-tuning corruptions in the benchmark's order; columns: the clean images, then the test
-corruptions; a cell: the row's model's Abs Rel on the column's corruption, the mean over
-the levels its results have (clean: the clean row).
-"""
+"""Fine-tuning with corruptions (the paper's Fig. 6): a matrix of Abs Rel, a row per model
+fine-tuned with a corruption (``--tag MODEL:finetune=<corruption>``) after the baseline
+(tagged ``finetune=none``, else the one untagged model), a column per test corruption
+after the clean images; a cell is the mean over the levels its results have."""
 
 from __future__ import annotations
 
