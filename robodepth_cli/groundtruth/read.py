@@ -138,15 +138,10 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
     a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
     image, in split order). Raises :class:`GroundTruthError` naming the file (and map index)
     for a missing, unreadable or malformed map, and when the file holds another number of
-    maps than the split has images.
-
-    A pickled object array (monodepth2's format) is unpickled with nothing but numpy's
-    array and dtype reconstructors allowed, so a crafted file cannot run code, and each map
-    is reduced as soon as it is read: the ~1.3 GB of KITTI maps are never in memory
-    together (peak ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``).
-    ``absent``: the images of a build with depth that have no map (left out, see
-    :class:`.depthmaps.DepthMaps`).
-    """
+    maps than the split has images. The file is read as :func:`read_gt_file` says (peak
+    ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``). ``absent``: the
+    images of a build with depth that have no map (left out, see
+    :class:`.depthmaps.DepthMaps`)."""
     path = Path(path)
     if path.is_dir() and names and all(n.endswith(".npy") for n in names):
         from .depthmaps import DepthMaps  # a build with depth: one float map per image
