@@ -175,8 +175,6 @@ def figure(doc: dict, level):
     when none has levels: styles), each channel's histogram of the variant as a line
     (R vermillion, G bluish green, B blue: Okabe-Ito) over the clean images' (grey, all
     channels), in percent of the pixels; PSNR and SSIM under each title."""
-    import math
-
     from matplotlib.ticker import MaxNLocator
 
     from . import plot
@@ -186,11 +184,9 @@ def figure(doc: dict, level):
     if not shown:
         shown = [v for v in doc["variants"] if v["images"] and v["level"] is None]
     ncols = min(6, len(shown))
-    nrows = math.ceil(len(shown) / ncols)
-    fig = plot.new_figure(2.05 * ncols + 0.5, 1.85 * nrows + 1.3)
     # Each panel its own y scale: a quantised or noisy histogram is spikes that would
     # flatten every other panel.
-    axes = fig.subplots(nrows, ncols, sharex=True, squeeze=False)
+    fig, axes = plot.panel_grid(len(shown), ncols, (2.05, 1.85), (0.5, 1.3), sharex=True)
     colours = (plot.OKABE_ITO[1], plot.OKABE_ITO[2], plot.OKABE_ITO[0])
     clean = np.asarray(doc["clean"]["histogram"], np.float64)
     clean = 100 * clean.sum(axis=0) / clean.sum()  # percent of the pixels
@@ -212,8 +208,6 @@ def figure(doc: dict, level):
         ax.tick_params(labelsize=7)
         ax.grid(color="#ececec", linewidth=0.6)
         ax.set_axisbelow(True)
-    for k in range(len(shown), nrows * ncols):
-        axes[k // ncols][k % ncols].set_visible(False)
     axes[0][0].set_xlim(0, 255)
     axes[0][0].set_xticks([0, 128, 255])
     for row in axes:

@@ -324,6 +324,26 @@ def _write_bar_ends(fig, ax, notes, xmax: float) -> None:
                      color=INK if _luminance(colour) > 0.2 else "white")
 
 
+def panel_grid(n: int, ncols: int, size: tuple[float, float], margins: tuple[float, float] = (0.6, 1.4),
+               **shared):
+    """A figure of ``n`` panels of ``size`` inches, ``ncols`` to a row, the places left over
+    hidden: ``(figure, axes[row][column])``; ``shared``: ``sharex``/``sharey``."""
+    nrows = math.ceil(n / ncols)
+    fig = new_figure(size[0] * ncols + margins[0], size[1] * nrows + margins[1])
+    axes = fig.subplots(nrows, ncols, **shared, squeeze=False)
+    for k in range(n, nrows * ncols):
+        axes[k // ncols][k % ncols].set_visible(False)
+    return fig, axes
+
+
+def panel_axes(ax, labelsize: float | None = 8) -> None:
+    """A panel's faint grid behind the data, and its small tick labels."""
+    ax.grid(color="#ececec", linewidth=0.7)
+    ax.set_axisbelow(True)
+    if labelsize is not None:
+        ax.tick_params(labelsize=labelsize)
+
+
 def bar_axes(ax, grid: bool = True) -> None:
     """Horizontal bar charts: names without tick marks, no box on the top and right, and
     (``grid``) faint vertical lines behind the bars."""
