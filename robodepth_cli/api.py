@@ -1,5 +1,5 @@
-"""A built dataset from Python: its variants, their images in split order, and where a
-model's predictions go.
+"""A built dataset from Python (docs/open-dataset.md): its variants, their images in split
+order, and where a model's predictions go.
 
 >>> from robodepth_cli import open_dataset
 >>> ds = open_dataset("KITTI_C")                          # doctest: +SKIP
@@ -7,14 +7,8 @@ model's predictions go.
 ...     preds = [model(path) for path in variant.images()]
 ...     variant.save_predictions("PRED", preds)
 
-:meth:`Variant.save_predictions` writes the form ``robodepth evaluate`` reads: one array per
-variant, N x h x w, image ``i`` being the ``i``-th image of the build's split, at
-``PRED/clean.npy``, ``PRED/<corruption>/<level>.npy`` or (KITTI-S) ``PRED/<style>.npy``.
-
-A built dataset is a directory written by ``robodepth build``: ``build.json`` names the
-dataset and lists the split's image keys in order, ``manifest.csv`` lists every output, so
-it says which variants and levels the build has (a subset build has only its own).
-"""
+:meth:`Variant.save_predictions` writes the form ``robodepth evaluate`` reads: one
+N x h x w array per variant, image ``i`` being the ``i``-th image of the build's split."""
 
 from __future__ import annotations
 

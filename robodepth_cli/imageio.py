@@ -168,21 +168,16 @@ PNG_ENCODERS = {
     "fast": "fpng (one pass; gray: opencv-libpng filters=none,sub,up strategy=rle level 1)",
     "compact": "opencv-libpng filters=none,sub,up strategy=rle",
 }
-PNG_ENCODER = PNG_ENCODERS["compact"]  # what every build wrote before --png existed
-
-
-class PngEncoderError(RobodepthError):
-    """The chosen PNG encoder cannot be used here (its package is missing)."""
 
 
 def check_png(method: str) -> None:
-    """Refuse (:class:`PngEncoderError`) before any work if ``method`` cannot run here."""
+    """Refuse (:class:`RobodepthError`) before any work if ``method`` cannot run here."""
     if method == "fast":
         try:
             import fpng  # noqa: F401
         except ImportError as exc:
-            raise PngEncoderError(f"--png fast needs the fpng package ({exc}); install it with "
-                                  f"'pip install fpng', or pass --png compact") from None
+            raise RobodepthError(f"--png fast needs the fpng package ({exc}); install it with "
+                                 f"'pip install fpng', or pass --png compact") from None
 
 
 def encode_png(img: np.ndarray, compress_level: int = 1, *, method: str = "compact") -> bytes:
@@ -251,21 +246,9 @@ def parse_size(text: str) -> tuple[int, int]:
 
 # --- 16-bit single-channel PNGs: depth maps ----------------------------------------------
 # The one reader of them (BTS's NYU sync_depth files, PNG predictions, a custom build's
-# --depth PNGs): OpenCV's decoder, whatever reads them. Each caller words the refusal for
-# its own file (ground truth, a prediction, a depth map), from Png16Error.got.
+# --depth PNGs): OpenCV's decoder, whatever reads them.
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-
-
-class Png16Error(RobodepthError):
-    """Not a 16-bit single-channel PNG: ``got`` is ``""`` for bytes no PNG decoder reads
-    (truncated, damaged, not a PNG) and else what it is (``8-bit``, ``16-bit, 3 channels``);
-    ``raw`` the decoded array, when there is one."""
-
-    def __init__(self, got: str, raw: np.ndarray | None = None):
-        super().__init__(got or "not a readable PNG")
-        self.got = got
-        self.raw = raw
 
 
 @contextmanager
@@ -284,37 +267,26 @@ def _native_stderr_silenced():
         os.close(devnull)
 
 
-def read_png16(source: Path | bytes) -> np.ndarray:
-    """The ``H x W`` uint16 map of a PNG file (a path; :class:`OSError` as reading raises
-    it) or of its bytes; :class:`Png16Error` for anything else."""
+def read_depth_png(file: Path, what: str, error: type[RobodepthError], data: bytes | None = None) -> np.ndarray:
+    """The ``H x W`` uint16 map of a 16-bit single-channel PNG ``file`` (or of its bytes
+    ``data``, already read); every refusal is an ``error`` naming the file, ``what`` saying
+    whose file it is (``ground truth of image 3``)."""
     import cv2
 
-    data = source if isinstance(source, bytes) else Path(source).read_bytes()
+    file = Path(file)
+    if data is None and not file.is_file():
+        raise error(f"{file}: no such file ({what})")
+    try:
+        data = file.read_bytes() if data is None else data
+    except OSError as exc:
+        raise error(f"{file}: cannot read ({os_reason(exc)}) ({what})") from None
     raw = None
     if data[:8] == PNG_SIGNATURE:
         with _native_stderr_silenced():
             raw = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
     if raw is None:
-        raise Png16Error("")
+        raise error(f"{file}: not a readable PNG, truncated or damaged ({what})")
     if raw.ndim != 2 or raw.dtype != np.uint16:
-        raise Png16Error(f"{raw.dtype.itemsize * 8}-bit" + (f", {raw.shape[2]} channels" if raw.ndim == 3 else ""),
-                         raw)
+        got = f"{raw.dtype.itemsize * 8}-bit" + (f", {raw.shape[2]} channels" if raw.ndim == 3 else "")
+        raise error(f"{file}: {got}; expected a 16-bit single-channel PNG ({what})")
     return raw
-
-
-def read_depth_png(file: Path, what: str, error: type[RobodepthError], data: bytes | None = None) -> np.ndarray:
-    """The one reader of a 16-bit depth PNG (ground truth, predictions, a dataset's depth
-    maps): :func:`read_png16` of ``file`` (or of its bytes ``data``, already read) with the
-    refusals as ``error`` naming it; ``what`` says whose file it is (``ground truth of
-    image 3``)."""
-    file = Path(file)
-    if data is None and not file.is_file():
-        raise error(f"{file}: no such file ({what})")
-    try:
-        return read_png16(file if data is None else data)
-    except OSError as exc:
-        raise error(f"{file}: cannot read ({os_reason(exc)}) ({what})") from None
-    except Png16Error as exc:
-        if not exc.got:
-            raise error(f"{file}: not a readable PNG, truncated or damaged ({what})") from None
-        raise error(f"{file}: {exc.got}; expected a 16-bit single-channel PNG ({what})") from None

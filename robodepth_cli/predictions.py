@@ -2,20 +2,12 @@
 ``robodepth run --keep-predictions`` and :meth:`robodepth_cli.api.Variant.save_predictions`
 write, and what ``robodepth evaluate``, ``robodepth report`` and ``build --scene-depth`` read.
 
-Predictions come in either of two forms, per variant:
-
-1. one array per variant, N x h x w in split order: ``PRED/clean.npy``,
-   ``PRED/<corruption>/<level>.npy``, KITTI-S ``PRED/<style>.npy``; a ``.npz`` holding one
-   array is accepted too.
-   A ``.npy`` is memory-mapped and read a block of maps at a time.
-2. one file per image, mirroring the dataset tree with the image's name:
-   ``PRED/<variant dir>/<image path>`` with the extension ``.npy`` (a 2-D float map) or
-   ``.png`` (16-bit, depth = value / ``png_scale``).
-
-``PRED/predictions.json`` (:data:`RECORD`), written by ``robodepth predict``, says which
-model made the maps, what they hold and of which build's images (the sha256 of its split,
-:func:`split_digest`). Every refusal here is a :class:`PredictionsError` naming the file.
-"""
+Per variant either one N x h x w array in split order (``PRED/clean.npy``,
+``PRED/<corruption>/<level>.npy``, KITTI-S ``PRED/<style>.npy``; or a one-array ``.npz``),
+memory-mapped and read a block of maps at a time, or one file per image mirroring the dataset
+tree (``.npy``, or a 16-bit ``.png`` holding depth x ``png_scale``). ``PRED/predictions.json``
+(:data:`RECORD`) says which model made the maps, what they hold and of which build's split
+(:func:`split_digest`). Every refusal here is a :class:`PredictionsError` naming the file."""
 
 from __future__ import annotations
 

@@ -1,16 +1,10 @@
 """``python -m robodepth_cli.warmup``: compile every numba kernel of the package into its
-on-disk cache now, so that no command waits for a compile later.
-
-``make install`` runs it. Each kernel is compiled for exactly the argument types the
-corruptions give it (numba compiles one specialisation per dtype, dimension count, layout
-and writability), by running them: every corruption, the depth-aware ones with a depth map,
-at every whole level and a decimal one, on small frames of :data:`SHAPES` (each layout a
-kernel meets at some image size), and those with a size rule also at a severity size
-smaller and larger than the frame (their scaled paths); then small maps judged as
-``evaluate`` judges them (the evaluation's kernels). The cache is the one the package reads at run time
-(``robodepth_cli/corruptions/_jit.py`` says where). Run it again after upgrading numba, on
-another CPU, or with ``NUMBA_CACHE_DIR`` set to the folder the commands will use.
-"""
+on-disk cache now (``make install`` runs it), so that no command waits for a compile later.
+Each kernel is compiled for exactly the argument types it meets, by running every
+corruption at every level and a decimal one on small frames of :data:`SHAPES` (the scaled
+ones also at a smaller and a larger severity size), then ``evaluate``'s kernels. Run it
+again after upgrading numba, on another CPU, or with ``NUMBA_CACHE_DIR`` set
+(docs/development.md)."""
 
 from __future__ import annotations
 

@@ -1,19 +1,8 @@
-"""``robodepth challenge build``: a challenge set drawn from a build of the source frames.
-
-:func:`build_challenge` reads as its steps:
-
-1. the source frames' build, ``private/build/``: ``robodepth build`` with no corruption,
-   so the clean images and the ground truth come from the build's own machinery (its checks,
-   its resuming, its manifest);
-2. the draw (:func:`.draw.draw`) over the frames that have ground truth;
-3. each image rendered by the build's renderer from the clean frame, with the job seed a
-   build of the same seed gives it (the same pixels as ``OUTPUT/<corruption>/<level>/...``
-   of that build), written as ``public/images/<id>.png`` with no metadata chunks;
-4. ``public/list.txt``, ``challenge.json`` and ``README.md``; ``private/gt.npz``,
-   ``key.csv`` and ``challenge.json``.
-
-The public folder is written under a temporary name and renamed when complete.
-"""
+"""``robodepth challenge build``: a challenge set drawn from a build of the source frames
+(``private/build/``, a ``robodepth build`` with no corruption, so its checks, resuming and
+manifest serve here); each image is rendered with the job seed a build of the same seed
+gives it, so its pixels are that build's. The public folder is written under a temporary
+name and renamed when complete."""
 
 from __future__ import annotations
 
@@ -27,10 +16,6 @@ from . import layout
 from .draw import Pick, draw
 
 DEFAULT_IMAGES = {"kitti": 500, "nyu": 200}  # the ICRA 2023 challenge's tracks
-
-
-class ChallengeBuildError(RobodepthError):
-    """A challenge that cannot be built as asked."""
 
 
 def track_of(dataset) -> str:
@@ -50,24 +35,24 @@ def build_challenge(cfg, root: Path, out: Path, *, images: int | None, track: st
 
     ds = get_dataset(cfg.dataset)
     if not ds.leveled:
-        raise ChallengeBuildError(f"{cfg.dataset}: a challenge draws corruptions and levels; "
-                                  "this dataset has none")
+        raise RobodepthError(f"{cfg.dataset}: a challenge draws corruptions and levels; "
+                             "this dataset has none")
     if not cfg.variants:
-        raise ChallengeBuildError("--corruptions: at least one corruption to draw from")
+        raise RobodepthError("--corruptions: at least one corruption to draw from")
     track = track or track_of(ds)
     n = images or DEFAULT_IMAGES[track]
     public, private = Path(out) / "public", Path(out) / "private"
     if public.exists() and any(public.iterdir()):
-        raise ChallengeBuildError(f"{public}: exists; a challenge is drawn once (remove "
-                                  f"{out} to draw another)")
+        raise RobodepthError(f"{public}: exists; a challenge is drawn once (remove "
+                             f"{out} to draw another)")
     stage = private / layout.BUILD
     summary = build(dataclasses.replace(cfg, variants=()), root, stage, progress=progress,
                     command=command, gt=True)
     if summary.interrupted:
         raise KeyboardInterrupt  # the command line says what was kept, exit status 130
     if not summary.complete:
-        raise ChallengeBuildError(f"{stage}: the build of the source frames did not finish "
-                                  f"({summary.text()}); fix it and rerun")
+        raise RobodepthError(f"{stage}: the build of the source frames did not finish "
+                             f"({summary.text()}); fix it and rerun")
     built = open_dataset(stage)
     maps = ground_truth_maps(built)
     sources = [k for k in built.keys if k in maps]
@@ -92,8 +77,8 @@ def ground_truth_maps(built) -> dict:
 
     gt = built.ground_truth()
     if gt is None:
-        raise ChallengeBuildError(f"{built.path}: no ground truth (the scans or depth maps of "
-                                  "the source frames are missing); a challenge needs it")
+        raise RobodepthError(f"{built.path}: no ground truth (the scans or depth maps of "
+                             "the source frames are missing); a challenge needs it")
     if gt.is_file():
         depth = read_depth_maps(gt)
         return {k: (lambda m=m: np.asarray(m, np.float32)) for k, m in zip(built.keys, depth)}
@@ -137,12 +122,12 @@ def _write_public(cfg, ds, root: Path, stage: Path, public: Path, picks: list[Pi
             if p.source != clean_key:
                 clean, why = load_source(by_key[p.source], cfg.size)
                 if clean is None:
-                    raise ChallengeBuildError(why)
+                    raise RobodepthError(why)
                 clean_key = p.source
             [(_, img)] = list(renderer.render(clean, p.source, [Job(p.corruption, p.level)]))
             if isinstance(img, BaseException):
-                raise ChallengeBuildError(f"{by_key[p.source].path}: {p.corruption} level "
-                                          f"{p.level}: {failure_reason(img)}")
+                raise RobodepthError(f"{by_key[p.source].path}: {p.corruption} level "
+                                     f"{p.level}: {failure_reason(img)}")
             data = encode_png(img, method="fast")
             write_atomic(tmp / layout.IMAGES / f"{p.id}.png", data)
             shas[p.id] = sha256_bytes(data)

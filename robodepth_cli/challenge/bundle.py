@@ -1,23 +1,6 @@
 """``robodepth challenge bundle``: a Codabench competition bundle (``competition.yaml``
-version 2) for a challenge built by ``challenge build``.
-
-The zip holds, at its root:
-
-- ``competition.yaml``: title, logo, docker image, terms and pages, two tasks (the
-  development set, :func:`dev_rows`, scored with visible results; the final set: every
-  image), two phases, a sample submission as a solution, a leaderboard whose
-  columns are keys of ``scores.json``, the track's ranking metric first;
-- ``pages/`` (overview, data, evaluation, terms), ``logo.png``;
-- ``scoring_program/``: ``metadata.yaml`` (``command: python3 /app/program/score.py
-  /app/input /app/output MAX_BYTES``), ``score.py`` and the package files it runs
-  (:data:`PROGRAM_FILES`, copied as they are: numpy and the standard library only);
-- ``reference_dev/``, ``reference_final/``: list.txt, key.csv, gt.npz, challenge.json;
-- ``solutions/sample/``: a valid submission (a keyed npz of small constant maps);
-- ``starting_kit/``: README.md and ``make_submission.py``, which writes a valid
-  submission from a folder of per-image predictions in the list's order.
-
-Codabench zips each folder named in the yaml when it unpacks the bundle.
-"""
+version 2) for a challenge built by ``challenge build``; docs/challenge.md lists what it
+holds. The scoring program is :data:`PROGRAM_FILES`, copied as they are."""
 
 from __future__ import annotations
 
@@ -49,10 +32,6 @@ if len(sys.argv) > 3:
     os.environ["ROBODEPTH_MAX_BYTES"] = sys.argv[3]
 sys.exit(server.main(sys.argv[1:3]))
 '''
-
-
-class BundleError(RobodepthError):
-    """A bundle that cannot be made as asked."""
 
 
 def leaderboard_columns(track: str, corruptions) -> list[dict]:
@@ -177,7 +156,7 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
     public, private = Path(challenge) / "public", Path(challenge) / "private"
     for folder in (public, private):
         if not folder.is_dir():
-            raise BundleError(f"{folder}: missing; CHALLENGE is the --out of robodepth challenge build")
+            raise RobodepthError(f"{folder}: missing; CHALLENGE is the --out of robodepth challenge build")
     meta = layout.read_meta(str(private))
     ids = layout.read_list(str(public))
     rows = layout.read_key(str(private))
@@ -185,8 +164,8 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
     meta = {**meta, "corruptions": corruptions}
     dev = dev_images if dev_images is not None else max(len(corruptions), min(50, n // 10))
     if not len(corruptions) <= dev <= n:
-        raise BundleError(f"--dev-images {dev}: must be {len(corruptions)}..{n} (at least one "
-                          "image per corruption, so that every leaderboard column has a value)")
+        raise RobodepthError(f"--dev-images {dev}: must be {len(corruptions)}..{n} (at least one "
+                             "image per corruption, so that every leaderboard column has a value)")
     package = Path(__file__).resolve().parent.parent
     with atomic_output(out) as fh, zipfile.ZipFile(fh, "w") as zf:
         _add(zf, "competition.yaml", competition_yaml(meta, title, dev, dates, per_day, total,

@@ -1,22 +1,5 @@
-"""The files of a challenge: what the public and private folders hold, and their metadata.
-
-public/ (what participants download)::
-
-    images/<id>.png     the test images, anonymous ids
-    list.txt            the ids, one a line, in the order predictions must follow
-    challenge.json      track, number of images, image size (nothing about corruptions)
-    README.md           what to submit and how
-
-private/ (what stays with the organisers and the scoring program)::
-
-    gt.npz              the float32 depth map in metres of each id, no pickle: member
-                        ``<id>.npy`` (the map; 0 or NaN where invalid), or for a map
-                        mostly invalid (KITTI's lidar) ``<id>.shape.npy``, ``<id>.index.npy``
-                        and ``<id>.depth.npy`` (see :func:`gt_members`)
-    key.csv             id, position, source, corruption, level, seed, sha256 (of the PNG)
-    challenge.json      track, dataset, seed, corruptions, levels, benchmark
-    build/              the build of the clean images and ground truth it was drawn from
-"""
+"""The files of a challenge: what the public and private folders hold, and their metadata
+(the table in docs/challenge.md; :func:`gt_members` for the members of ``gt.npz``)."""
 
 from __future__ import annotations
 
@@ -37,10 +20,6 @@ BUILD = "build"
 KEY_FIELDS = ("id", "position", "source", "corruption", "level", "seed", "sha256")
 TRACKS = ("kitti", "nyu")
 FORMAT = 1  # of challenge.json
-
-
-class ChallengeFolderError(RobodepthError):
-    """A public or private folder that is not one ``challenge build`` wrote."""
 
 
 def gt_members(image_id: str, depth):
@@ -78,13 +57,13 @@ def read_meta(folder: str) -> dict:
         with open(path, encoding="utf-8") as fh:
             meta = json.load(fh)
     except FileNotFoundError:
-        raise ChallengeFolderError(f"{folder}: no {META}; not a folder written by robodepth "
-                                   "challenge build") from None
+        raise RobodepthError(f"{folder}: no {META}; not a folder written by robodepth "
+                             "challenge build") from None
     except (OSError, ValueError) as exc:
-        raise ChallengeFolderError(f"{path}: unreadable ({exc})") from None
+        raise RobodepthError(f"{path}: unreadable ({exc})") from None
     if not isinstance(meta, dict) or meta.get("track") not in TRACKS or \
             not isinstance(meta.get("images"), int):
-        raise ChallengeFolderError(f"{path}: not a challenge description (track, images)")
+        raise RobodepthError(f"{path}: not a challenge description (track, images)")
     return meta
 
 
@@ -95,9 +74,9 @@ def read_list(folder: str) -> list[str]:
         with open(path, encoding="utf-8") as fh:
             ids = [line.strip() for line in fh if line.strip()]
     except OSError as exc:
-        raise ChallengeFolderError(f"{path}: {exc.strerror or exc}") from None
+        raise RobodepthError(f"{path}: {exc.strerror or exc}") from None
     if len(set(ids)) != len(ids):
-        raise ChallengeFolderError(f"{path}: an id is listed twice")
+        raise RobodepthError(f"{path}: an id is listed twice")
     return ids
 
 
@@ -108,9 +87,9 @@ def read_key(folder: str) -> list[dict]:
         with open(path, encoding="utf-8", newline="") as fh:
             rows = list(csv.DictReader(fh))
     except OSError as exc:
-        raise ChallengeFolderError(f"{path}: {exc.strerror or exc}") from None
+        raise RobodepthError(f"{path}: {exc.strerror or exc}") from None
     if not rows or tuple(rows[0]) != KEY_FIELDS:
-        raise ChallengeFolderError(f"{path}: not a challenge key (columns {', '.join(KEY_FIELDS)})")
+        raise RobodepthError(f"{path}: not a challenge key (columns {', '.join(KEY_FIELDS)})")
     for r in rows:
         r["position"], r["level"], r["seed"] = int(r["position"]), int(r["level"]), int(r["seed"])
     rows.sort(key=lambda r: r["position"])

@@ -1,21 +1,8 @@
-"""Scoring a challenge submission against the private reference.
-
-Per image, the track's protocol:
-
-kitti
-    the official evaluator (``competition/evaluator_npy.py``): the disparity resized to the
-    ground truth with scikit-image's ``resize`` (:func:`.resize.resize_at`), inverted, the
-    valid pixels ``1e-3 < gt < 80`` inside the Garg crop, median scaling, clamped to
-    [1e-3, 80], the seven metrics (:func:`~robodepth_cli.evaluation.protocols.depth_errors`);
-nyu
-    the NYU protocol of the benchmark (:func:`~robodepth_cli.evaluation.protocols.nyu_image`):
-    metric depth, no scaling, the Eigen crop, [1e-3, 10] m, nine metrics.
-
-Then the mean over images of each metric (the official number), and, because the scorer
-holds the key, the same per corruption, per category and per level, with DEE =
-(abs_rel - a1 + 1) / 2 of each group's means; a category's DEE is the mean of its
-corruptions'.
-"""
+"""Scoring a challenge submission against the private reference, per image by the track's
+protocol (kitti: the official evaluator, the disparity resized by :func:`.resize.resize_at`;
+nyu: :func:`~robodepth_cli.evaluation.protocols.nyu_image`), then the mean of each metric
+over images and, since the scorer holds the key, per corruption, category and level, with
+DEE = (abs_rel - a1 + 1) / 2 of each group's means (a category's: its corruptions' mean)."""
 
 from __future__ import annotations
 
@@ -31,10 +18,6 @@ from . import layout
 from .resize import resize_at
 
 RANK = {"kitti": ("abs_rel", "asc"), "nyu": ("a1", "desc")}  # as the ICRA 2023 tracks ranked
-
-
-class ReferenceFolderError(RobodepthError):
-    """A private reference folder that cannot be used."""
 
 
 def slug(name: str) -> str:
@@ -58,7 +41,7 @@ class Reference:
         try:
             return np.load(path, allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise ReferenceFolderError(f"{path}: {exc}") from None
+            raise RobodepthError(f"{path}: {exc}") from None
 
 
 def open_reference(folder: str) -> Reference:
@@ -69,7 +52,7 @@ def open_reference(folder: str) -> Reference:
     rows = {r["id"]: r for r in layout.read_key(folder)}
     unknown = [i for i in rows if i not in set(ids)]
     if unknown:
-        raise ReferenceFolderError(f"{folder}: key.csv names ids list.txt lacks ({unknown[0]})")
+        raise RobodepthError(f"{folder}: key.csv names ids list.txt lacks ({unknown[0]})")
     return Reference(folder, meta["track"], ids, rows, meta)
 
 
@@ -78,7 +61,7 @@ def image_errors(track: str, pred: np.ndarray, gt: np.ndarray) -> tuple:
     if track == "kitti":
         index = P.kitti_valid(gt)
         if not index.size:
-            raise ReferenceFolderError("a ground-truth map has no valid pixel")
+            raise RobodepthError("a ground-truth map has no valid pixel")
         gt_values = gt.reshape(-1)[index]
         disp = resize_at(pred, gt.shape, index)
         depth, _ = P.align_prediction(disp, True, gt_values, "median", "depth",
@@ -159,13 +142,13 @@ def score(submission, ref: Reference) -> Scores:
             try:
                 gt = layout.read_gt(gt_file, image_id)
             except KeyError:
-                raise ReferenceFolderError(f"{ref.folder}: gt.npz has no map for {image_id}") from None
+                raise RobodepthError(f"{ref.folder}: gt.npz has no map for {image_id}") from None
             try:
                 values.append(image_errors(ref.track, pred, gt))
             except P.EvaluationError as exc:
                 raise P.EvaluationError(f"{submission.where}: image {image_id}: {exc}") from None
             rows.append(row)
     if len(rows) != len(ref.rows):
-        raise ReferenceFolderError(f"{ref.folder}: {len(ref.rows) - len(rows)} images of the key are "
+        raise RobodepthError(f"{ref.folder}: {len(ref.rows) - len(rows)} images of the key are "
                               "not in list.txt")
     return Scores(ref.track, metrics, rows, np.array(values, dtype=np.float64).reshape(len(rows), len(metrics)))

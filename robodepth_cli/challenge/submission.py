@@ -1,26 +1,7 @@
 """Reading a challenge submission safely: a stranger's upload, so every size is bounded,
-nothing is unpickled and nothing is extracted.
-
-Forms (:func:`open_submission`):
-
-- a zip holding one ``.npy`` of shape (N, H, W), maps in list order (the official Track 1
-  form, ``disp.zip`` with ``disp.npy``), or one ``.npz``;
-- an ``.npz`` whose one member is the (N, H, W) array (``savez_compressed(data=...)``, the
-  official Track 2 form), or whose members are the image ids, one (H, W) map each (the
-  keyed form: order cannot go wrong);
-- a plain ``.npy``; or a folder holding one of these, as Codabench's worker extracts an
-  upload into ``input/res``.
-
-Refused, each with one line: zip members with absolute paths, ``..`` or symlinks, archives
-inside archives (beyond the npz of the forms), several arrays or none, encrypted members,
-more than the size limit declared or found, object arrays (pickles), other dtypes than
-float16/32/64, another number of maps or of dimensions, a header that does not match the
-bytes, and maps with NaN, infinity, zero or negative values. macOS's ``__MACOSX/`` and
-``.DS_Store`` entries are ignored.
-
-Memory: a map is read from its stream (the zip member decompressed as it is read) one at a
-time; nothing holds more than one map plus the archive's index.
-"""
+nothing is unpickled and nothing is extracted. The forms accepted and the refusals are
+those of docs/challenge.md (:func:`open_submission`). A map is read from its stream one at
+a time; nothing holds more than one map plus the archive's index."""
 
 from __future__ import annotations
 
@@ -40,10 +21,6 @@ _ARCHIVES = (".zip", ".npz", ".tar", ".tgz", ".gz", ".bz2", ".xz", ".7z", ".rar"
 _CHUNK = 1 << 20
 
 
-class SubmissionError(RobodepthError):
-    """A submission that cannot be scored; the message names the file and the problem."""
-
-
 def _ignored(name: str) -> bool:
     parts = name.replace("\\", "/").split("/")
     return parts[0] == "__MACOSX" or parts[-1] in (".DS_Store", "") or parts[-1].startswith("._")
@@ -54,13 +31,13 @@ def check_member(where: str, info: zipfile.ZipInfo) -> None:
     name = info.filename
     parts = name.replace("\\", "/").split("/")
     if name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":"):
-        raise SubmissionError(f"{where}: member {name!r} has an absolute path; refused")
+        raise RobodepthError(f"{where}: member {name!r} has an absolute path; refused")
     if ".." in parts:
-        raise SubmissionError(f"{where}: member {name!r} has '..' in its path; refused")
+        raise RobodepthError(f"{where}: member {name!r} has '..' in its path; refused")
     if stat.S_ISLNK(info.external_attr >> 16):
-        raise SubmissionError(f"{where}: member {name!r} is a symlink; refused")
+        raise RobodepthError(f"{where}: member {name!r} is a symlink; refused")
     if info.flag_bits & 0x1:
-        raise SubmissionError(f"{where}: member {name!r} is encrypted; refused")
+        raise RobodepthError(f"{where}: member {name!r} is encrypted; refused")
 
 
 def zip_files(where: str, zf: zipfile.ZipFile, max_bytes: int) -> list[zipfile.ZipInfo]:
@@ -68,7 +45,7 @@ def zip_files(where: str, zf: zipfile.ZipFile, max_bytes: int) -> list[zipfile.Z
     checked by :func:`check_member`; their declared sizes together within ``max_bytes``."""
     infos = zf.infolist()
     if len(infos) > MAX_MEMBERS:
-        raise SubmissionError(f"{where}: {len(infos)} entries; at most {MAX_MEMBERS}")
+        raise RobodepthError(f"{where}: {len(infos)} entries; at most {MAX_MEMBERS}")
     files = []
     for info in infos:
         check_member(where, info)
@@ -77,8 +54,8 @@ def zip_files(where: str, zf: zipfile.ZipFile, max_bytes: int) -> list[zipfile.Z
         files.append(info)
     declared = sum(i.file_size for i in files)
     if declared > max_bytes:
-        raise SubmissionError(f"{where}: its contents would be {_mb(declared)} uncompressed, over "
-                              f"the limit of {_mb(max_bytes)} (--max-size)")
+        raise RobodepthError(f"{where}: its contents would be {_mb(declared)} uncompressed, over "
+                             f"the limit of {_mb(max_bytes)} (--max-size)")
     return files
 
 
@@ -116,17 +93,17 @@ def read_header(fh, where: str) -> ArrayHeader:
             raise ValueError(f"version {version}")
         offset = fh.tell() if hasattr(fh, "tell") else start
     except (ValueError, OSError, EOFError, SyntaxError, TypeError) as exc:
-        raise SubmissionError(f"{where}: not a readable .npy array ({_first_line(exc)})") from None
+        raise RobodepthError(f"{where}: not a readable .npy array ({_first_line(exc)})") from None
     if dtype.hasobject:
-        raise SubmissionError(f"{where}: an object array (Python objects, e.g. a list of per-batch "
-                              "arrays, saved with pickle), never loaded; stack the maps into one "
-                              "float array (np.stack) and save that")
+        raise RobodepthError(f"{where}: an object array (Python objects, e.g. a list of per-batch "
+                             "arrays, saved with pickle), never loaded; stack the maps into one "
+                             "float array (np.stack) and save that")
     if dtype.kind != "f" or dtype.itemsize not in (2, 4, 8) or dtype.names or dtype.subdtype:
-        raise SubmissionError(f"{where}: dtype {dtype}; expected float16, float32 or float64")
+        raise RobodepthError(f"{where}: dtype {dtype}; expected float16, float32 or float64")
     if fortran:
-        raise SubmissionError(f"{where}: saved in Fortran order; save np.ascontiguousarray(maps)")
+        raise RobodepthError(f"{where}: saved in Fortran order; save np.ascontiguousarray(maps)")
     if any((not isinstance(s, int)) or s < 0 for s in shape):
-        raise SubmissionError(f"{where}: shape {shape} is not a shape")
+        raise RobodepthError(f"{where}: shape {shape} is not a shape")
     return ArrayHeader(tuple(shape), dtype, offset)
 
 
@@ -136,16 +113,16 @@ def _first_line(exc: BaseException) -> str:
 
 
 def _read_exact(fh, n: int, where: str) -> bytes:
-    """``n`` bytes of ``fh``; :class:`SubmissionError` if it ends sooner."""
+    """``n`` bytes of ``fh``; :class:`RobodepthError` if it ends sooner."""
     parts, left = [], n
     while left:
         try:
             b = fh.read(min(left, _CHUNK))
         except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
-            raise SubmissionError(f"{where}: damaged ({_first_line(exc)})") from None
+            raise RobodepthError(f"{where}: damaged ({_first_line(exc)})") from None
         if not b:
-            raise SubmissionError(f"{where}: ends after {n - left:,} of the {n:,} bytes its "
-                                  "header announces (truncated?)")
+            raise RobodepthError(f"{where}: ends after {n - left:,} of the {n:,} bytes its "
+                                 "header announces (truncated?)")
         parts.append(b)
         left -= len(b)
     return b"".join(parts)
@@ -156,10 +133,10 @@ def check_map(m: np.ndarray, where: str) -> None:
     below (a disparity of 0 is a point infinitely far, which no evaluator can scale)."""
     if not np.isfinite(m).all():
         bad = "NaN" if np.isnan(m).any() else "infinity"
-        raise SubmissionError(f"{where}: holds {bad}; every value must be finite")
+        raise RobodepthError(f"{where}: holds {bad}; every value must be finite")
     if not (m > 0).all():
-        raise SubmissionError(f"{where}: holds values <= 0 (min {float(m.min()):g}); every value must "
-                              "be above zero")
+        raise RobodepthError(f"{where}: holds values <= 0 (min {float(m.min()):g}); every value must "
+                             "be above zero")
 
 
 class Submission:
@@ -196,15 +173,15 @@ class _Dense(Submission):
             self.header = read_header(fh, where)
         h = self.header
         if len(h.shape) != 3:
-            raise SubmissionError(f"{where}: shape {h.shape}; expected 3 dimensions (N, H, W), "
-                                  f"one H x W map per image{_squeeze_hint(h.shape)}")
+            raise RobodepthError(f"{where}: shape {h.shape}; expected 3 dimensions (N, H, W), "
+                                 f"one H x W map per image{_squeeze_hint(h.shape)}")
         n, hh, ww = h.shape
         if n != len(ids):
-            raise SubmissionError(f"{where}: {n} maps; the challenge has {len(ids)} images")
+            raise RobodepthError(f"{where}: {n} maps; the challenge has {len(ids)} images")
         _check_side(hh, ww, where)
         if size is not None and size != h.offset + h.data_bytes:
-            raise SubmissionError(f"{where}: {size:,} bytes, but its header announces "
-                                  f"{h.offset + h.data_bytes:,} (shape {h.shape}, {h.dtype})")
+            raise RobodepthError(f"{where}: {size:,} bytes, but its header announces "
+                                 f"{h.offset + h.data_bytes:,} (shape {h.shape}, {h.dtype})")
         self.form = "array"
 
     def maps(self):
@@ -233,7 +210,7 @@ def _squeeze_hint(shape) -> str:
 
 def _check_side(h: int, w: int, where: str) -> None:
     if not (1 <= h <= MAX_SIDE and 1 <= w <= MAX_SIDE):
-        raise SubmissionError(f"{where}: maps of {h} x {w}; each side must be 1..{MAX_SIDE}")
+        raise RobodepthError(f"{where}: maps of {h} x {w}; each side must be 1..{MAX_SIDE}")
 
 
 class _Keyed(Submission):
@@ -252,7 +229,7 @@ class _Keyed(Submission):
             if extra:
                 parts.append(f"{len(extra)} member(s) that are no image id ({', '.join(extra[:3])}"
                              f"{', ...' if len(extra) > 3 else ''})")
-            raise SubmissionError(f"{where}: " + "; ".join(parts))
+            raise RobodepthError(f"{where}: " + "; ".join(parts))
         self.form = "keyed"
 
     def maps(self):
@@ -262,11 +239,11 @@ class _Keyed(Submission):
             with _open_member(self._zf, info, what) as fh:
                 h = read_header(fh, what)
                 if len(h.shape) != 2:
-                    raise SubmissionError(f"{what}: shape {h.shape}; expected one H x W map")
+                    raise RobodepthError(f"{what}: shape {h.shape}; expected one H x W map")
                 _check_side(*h.shape, what)
                 if info.file_size != h.offset + h.data_bytes:
-                    raise SubmissionError(f"{what}: {info.file_size:,} bytes, but its header "
-                                          f"announces {h.offset + h.data_bytes:,}")
+                    raise RobodepthError(f"{what}: {info.file_size:,} bytes, but its header "
+                                         f"announces {h.offset + h.data_bytes:,}")
                 m = np.frombuffer(_read_exact(fh, h.data_bytes, what), h.dtype).reshape(h.shape)
             m = _native(m)
             check_map(m, f"{what} (image {image_id})")
@@ -277,14 +254,14 @@ def _open_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, where: str):
     try:
         return zf.open(info)
     except (zipfile.BadZipFile, NotImplementedError, RuntimeError, OSError, ValueError) as exc:
-        raise SubmissionError(f"{where}: cannot be read ({_first_line(exc)})") from None
+        raise RobodepthError(f"{where}: cannot be read ({_first_line(exc)})") from None
 
 
 def _open_zip(source, where: str) -> zipfile.ZipFile:
     try:
         return zipfile.ZipFile(source)
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise SubmissionError(f"{where}: not a readable zip ({_first_line(exc)})") from None
+        raise RobodepthError(f"{where}: not a readable zip ({_first_line(exc)})") from None
 
 
 def _npz(where: str, ids, zf: zipfile.ZipFile, max_bytes: int, closers: list) -> Submission:
@@ -292,9 +269,9 @@ def _npz(where: str, ids, zf: zipfile.ZipFile, max_bytes: int, closers: list) ->
     files = zip_files(where, zf, max_bytes)
     bad = [i.filename for i in files if not i.filename.endswith(".npy")]
     if bad:
-        raise SubmissionError(f"{where}: member {bad[0]!r} is not a .npy array; an npz holds arrays only")
+        raise RobodepthError(f"{where}: member {bad[0]!r} is not a .npy array; an npz holds arrays only")
     if not files:
-        raise SubmissionError(f"{where}: holds no array")
+        raise RobodepthError(f"{where}: holds no array")
     members = {i.filename[:-len(".npy")]: i for i in files}
     if len(files) == 1 and next(iter(members)) not in set(ids):
         info = files[0]
@@ -311,24 +288,24 @@ def open_submission(path: str, ids: Sequence[str], max_bytes: int, scratch: str 
     the images ``ids`` in list order. ``max_bytes`` bounds the upload and everything it
     declares; ``scratch``: a folder for the one temporary file an npz inside a deflated zip
     needs (default: the system's), removed on :meth:`Submission.close`.
-    Raises :class:`SubmissionError`."""
+    Raises :class:`RobodepthError`."""
     where = str(path)
     if os.path.islink(path):
-        raise SubmissionError(f"{where}: a symlink; refused")
+        raise RobodepthError(f"{where}: a symlink; refused")
     if os.path.isdir(path):
         return _from_folder(path, ids, max_bytes, scratch)
     try:
         size = os.path.getsize(path)
     except OSError as exc:
-        raise SubmissionError(f"{where}: {exc.strerror or exc}") from None
+        raise RobodepthError(f"{where}: {exc.strerror or exc}") from None
     if size > max_bytes:
-        raise SubmissionError(f"{where}: {_mb(size)}, over the limit of {_mb(max_bytes)} (--max-size)")
+        raise RobodepthError(f"{where}: {_mb(size)}, over the limit of {_mb(max_bytes)} (--max-size)")
     with open(path, "rb") as fh:
         magic = fh.read(6)
     if magic == b"\x93NUMPY":
         return _Dense(where, ids, lambda: open(path, "rb"), size)
     if magic[:2] != b"PK":
-        raise SubmissionError(f"{where}: neither a zip, an npz nor a .npy file")
+        raise RobodepthError(f"{where}: neither a zip, an npz nor a .npy file")
     zf = _open_zip(path, where)
     try:
         files = zip_files(where, zf, max_bytes)
@@ -345,18 +322,18 @@ def _one_array(where: str, names: list[str]) -> str:
     """The one array file among ``names``, else the refusal naming what is wrong."""
     nested = [n for n in names if n.lower().endswith(_ARCHIVES) and not n.lower().endswith(".npz")]
     if nested:
-        raise SubmissionError(f"{where}: holds an archive inside it ({nested[0]}); put the .npy "
-                              "(or .npz) itself at the top of the zip")
+        raise RobodepthError(f"{where}: holds an archive inside it ({nested[0]}); put the .npy "
+                             "(or .npz) itself at the top of the zip")
     arrays = [n for n in names if n.lower().endswith((".npy", ".npz"))]
     if not arrays:
         shown = ", ".join(names[:3]) or "nothing"
-        raise SubmissionError(f"{where}: no .npy or .npz array in it (it holds {shown})")
+        raise RobodepthError(f"{where}: no .npy or .npz array in it (it holds {shown})")
     if len(arrays) > 1:
-        raise SubmissionError(f"{where}: {len(arrays)} arrays ({', '.join(arrays[:3])}); submit "
-                              "exactly one")
+        raise RobodepthError(f"{where}: {len(arrays)} arrays ({', '.join(arrays[:3])}); submit "
+                             "exactly one")
     others = [n for n in names if n not in arrays]
     if others:
-        raise SubmissionError(f"{where}: {others[0]!r} besides the array; submit the array alone")
+        raise RobodepthError(f"{where}: {others[0]!r} besides the array; submit the array alone")
     return arrays[0]
 
 
@@ -397,21 +374,21 @@ def _from_folder(path: str, ids, max_bytes: int, scratch) -> Submission:
         for d in list(dirnames):
             full = os.path.join(dirpath, d)
             if os.path.islink(full):
-                raise SubmissionError(f"{full}: a symlink; refused")
+                raise RobodepthError(f"{full}: a symlink; refused")
             if d == "__MACOSX":
                 dirnames.remove(d)
         for f in filenames:
             full = os.path.join(dirpath, f)
             if os.path.islink(full):
-                raise SubmissionError(f"{full}: a symlink; refused")
+                raise RobodepthError(f"{full}: a symlink; refused")
             rel = os.path.relpath(full, path)
             if _ignored(rel) or rel == "metadata":  # Codabench may add a metadata file
                 continue
             names.append(rel)
             total += os.path.getsize(full)
             if total > max_bytes:
-                raise SubmissionError(f"{path}: over the limit of {_mb(max_bytes)} (--max-size)")
+                raise RobodepthError(f"{path}: over the limit of {_mb(max_bytes)} (--max-size)")
         if len(names) > MAX_MEMBERS:
-            raise SubmissionError(f"{path}: more than {MAX_MEMBERS} files")
+            raise RobodepthError(f"{path}: more than {MAX_MEMBERS} files")
     name = _one_array(path, sorted(names))
     return open_submission(os.path.join(path, name), ids, max_bytes, scratch)

@@ -89,8 +89,7 @@ def _naming_datasets(command):
               help="Also write the ground truth: OUT/gt_depths.npz (KITTI, from the velodyne scans), "
                    "OUT/gt/<scene>/sync_depth_N.png (NYU) or OUT/gt/<image>.npy (custom --depth, "
                    "the zero-shot sets).")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 @_naming_datasets
 def build_command(dataset, root, out, config_file, progress, gt, **flags):
     """Build DATASET ({datasets}, or a zero-shot set: {zero_shot}) from ROOT into OUT.
@@ -181,8 +180,7 @@ def _executor(cfg):
               help="Also compare OUT with another build of the same dataset (its folder, its "
                    "export's folder or its manifest.csv): per variant, outputs identical, "
                    "differing or missing.")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 def verify_command(out, against, progress):
     """Re-hash every file in OUT against OUT/manifest.csv and the build's plan.
 

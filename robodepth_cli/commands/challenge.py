@@ -47,8 +47,7 @@ def challenge_command():
 @click.option("--split", metavar="NAME|FILE", help="The split whose frames are drawn from (default: the preset's).")
 @click.option("--size", metavar="HxW", help="Image size (default: the preset's).")
 @click.option("--jobs", "-j", metavar="N|auto", help="Worker processes of the source frames' build.")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 def challenge_build_command(dataset, root, out, seed, images, corruptions, levels, track,
                             config_file, split, size, jobs, progress):
     """Draw a challenge set of N images from DATASET's frames into OUT.

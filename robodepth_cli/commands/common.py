@@ -252,6 +252,17 @@ def write_bytes(path: Path, data: bytes) -> None:
         raise RobodepthError(cannot_write(path, exc)) from None
 
 
+# Options several commands share, worded once.
+progress_option = click.option("--progress/--no-progress", default=True, show_default=True,
+                               help="Progress bar on stderr (only on a terminal).")
+model_device_option = click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
+                                   show_default=True, help="Where monodepth2 and hf models run (auto: "
+                                   "cuda if torch sees a GPU).")
+model_kind_option = click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
+                                 help="What the maps hold: required for python:, overrides an hf "
+                                 "model's own.")
+
+
 def selection_options(command):
     """Which images, variants and seed a build configuration takes (``building.config``'s
     flags): the options ``build`` and ``run`` share, declared once."""

@@ -48,8 +48,7 @@ DEFAULT_OUT = "results.csv"
 @click.option("--jobs", "-j", type=common.Jobs(), metavar="N|auto",
               help="Worker processes, each evaluating whole variants (default, 'auto' or -1: "
                    "one per CPU); the numbers are the same for any N.")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_space, crop,
                      min_depth, max_depth, png_scale, gt_path, out, force, with_score, as_json,
                      allow_partial, flicker, jobs, progress):

@@ -65,8 +65,7 @@ def _bar(total: int, progress: bool):
                    "the same for any N. Writing "
                    "the compressed file is serial and the workers' start costs more than they "
                    "save on 2 cores: worth it only with many cores.")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 def gt_kitti_command(root, split, out, jobs, progress):
     """monodepth2's gt_depths.npz from velodyne scans.
 
@@ -102,8 +101,7 @@ def gt_kitti_command(root, split, out, jobs, progress):
               help="Standard split name or a split file in the NYU format (RGB DEPTH FOCAL).")
 @click.option("--out", "-o", required=True, type=click.Path(path_type=Path),
               help="Output folder.")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 def gt_nyu_command(root, split, out, progress):
     """BTS's NYU test folder from the labeled .mat.
 

@@ -24,20 +24,16 @@ from . import common
 @click.option("--batch-size", "-b", default=8, show_default=True, type=int,
               help="Images per forward pass, at most what 4.2 million pixels hold (34 "
                    "images of 192x640; a larger value is lowered to that).")
-@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
-              show_default=True, help="Where monodepth2 and hf models run (auto: cuda if "
-              "torch sees a GPU).")
+@common.model_device_option
 @click.option("--post-process", is_flag=True,
               help="monodepth2: average with the mirror image's prediction, as its "
                    "evaluate_depth.py --post_process does (twice the work).")
-@click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
-              help="What the maps hold: required for python:, overrides an hf model's own.")
+@common.model_kind_option
 @click.option("--metric/--relative", default=None,
               help="The maps are in metres (evaluated with no alignment) or relative (evaluated "
                    "after a least-squares scale and shift of the disparity). python: default "
                    "relative; hf: the model's own.")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_process, kind,
                     metric, progress):
     """Run a depth model over DATASET_DIR (made by robodepth build) and write its predictions

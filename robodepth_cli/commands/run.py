@@ -27,13 +27,10 @@ from . import common
               help="The corruption engine (numpy: the published builds' bytes).")
 @click.option("--batch-size", "-b", default=8, show_default=True, type=click.IntRange(min=1),
               help="Images per forward pass, as for predict (at most 4.2 million pixels).")
-@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
-              show_default=True, help="Where monodepth2 and hf models run (auto: cuda if "
-              "torch sees a GPU).")
+@common.model_device_option
 @click.option("--post-process", is_flag=True,
               help="monodepth2: average with the mirror image's prediction (twice the work).")
-@click.option("--kind", type=click.Choice(["disp", "sigmoid", "depth"]),
-              help="What the maps hold: required for python:, overrides an hf model's own.")
+@common.model_kind_option
 @click.option("--metric/--relative", default=None,
               help="The maps are in metres or relative, as for predict.")
 @common.severity_size_option("default: none, the benchmark's pixels")
@@ -42,8 +39,7 @@ from . import common
               help="Also write the predictions to DIR, in predict's layout (DIR/clean.npy, "
                    "DIR/<corruption>/<level>.npy, DIR/predictions.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 def run_command(dataset, root, spec, out, config_file, engine, batch_size, device, post_process,
                 kind, metric, stereo, align, align_space, crop, min_depth, max_depth,
                 keep_predictions, as_json, progress, **flags):

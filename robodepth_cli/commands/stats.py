@@ -19,8 +19,7 @@ from . import common
                    "of styles: every style).")
 @click.option("--images", "most", type=click.IntRange(min=1), metavar="N",
               help="Use N images, evenly spaced over the split (default: all).")
-@click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (only on a terminal).")
+@common.progress_option
 def stats_command(build, out, level, most, progress):
     """Pixel statistics of BUILD (made by robodepth build): per variant, the histogram of
     the pixel values per channel, the mean and spread against the clean images', and PSNR

@@ -1,18 +1,8 @@
-"""numba compilation with an on-disk cache that also serves a read-only install.
-
-Every numba kernel of the package is made by :func:`njit`.
-Its machine code is cached on disk, so that a process loads it instead of compiling it
-(about a second per kernel and signature). ``python -m robodepth_cli.warmup``, which
-``make install`` runs, fills the cache with every signature the corruptions use.
-
-Where the cache is written: the first of ``NUMBA_CACHE_DIR``, the package's own
-``__pycache__`` folders, numba's user cache (``~/.cache/numba``) and a per-user folder
-under the system temporary folder that can be written. Where it is read: there, and then
-the package's ``__pycache__`` folders even when they cannot be written, so that an install
-warmed up before it was made read-only compiles nothing either. An entry is used only by the
-same source file (numba keys it on the file's sha256), numba version, Python version and CPU
-(name and features): another CPU compiles, once, into the writable cache.
-"""
+"""numba compilation with an on-disk cache that also serves a read-only install: every numba
+kernel of the package is made by :func:`njit`, its machine code cached on disk so that a
+process loads it instead of compiling it (``python -m robodepth_cli.warmup`` fills the
+cache). Where the cache is written and read, and what an entry is keyed on, are
+docs/development.md's."""
 
 from __future__ import annotations
 

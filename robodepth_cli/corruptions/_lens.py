@@ -1,21 +1,12 @@
-"""Thin-lens defocus by depth layers, shared by near_focus and far_focus.
+"""Thin-lens defocus by depth layers, shared by near_focus and far_focus (the rules:
+docs/depth-aware-corruptions.md).
 
-A thin lens focused at distance ``f`` images a point at depth ``d`` as a disk whose
-diameter is ``A F / (f - F) * |d - f| / d`` (A the aperture, F the focal length): the blur
-radius is proportional to ``|d - f| / d = |1 - f/d|``, linear in inverse depth. We use
-``r(d) = R * min(1, |1 - f/d|)`` pixels, ``R`` the radius at infinity when focused near
-(the cap keeps a far focus from blurring the nearest objects without bound).
-
-Rendering (layered, back to front): the pixels are split into layers of ``f/d`` spaced so
-that neighbouring layers differ by half a pixel of radius (``R / 2`` for a lens under a
-pixel), the focal plane ``f/d = 1`` being one layer's centre (so it stays exactly sharp);
-a disk of up to half a pixel covers only its own pixel, so ``R <= 0.5`` blurs nothing. From the farthest layer to the
-nearest, each layer's premultiplied colour and its mask are blurred with an anti-aliased
-disk of the layer's radius and laid *over* what lies behind it; the sum is divided by the
-accumulated coverage. A layer's blur only spreads its own pixels: a sharp near object keeps
-its hard edge over a blurred background, the background's blur never paints over it, and a
-blurred near object spreads over what is behind it, as through a real lens.
-"""
+The blur radius is ``r(d) = R * min(1, |1 - f/d|)`` pixels for a focus at ``f``. Rendering is
+layered, back to front: layers of ``f/d`` half a pixel of radius apart (the focal plane one
+layer's centre, so it stays exactly sharp), each layer's premultiplied colour and mask
+blurred with an anti-aliased disk and laid over what lies behind it, the sum divided by
+the accumulated coverage; so a sharp near object keeps its hard edge over a blurred
+background, and a blurred near object spreads over what is behind it."""
 
 from __future__ import annotations
 

@@ -1,32 +1,12 @@
-"""Camera motion during the exposure, shared by motion_3d and zoom_3d.
+"""Camera motion during the exposure, shared by motion_3d and zoom_3d (the model and its
+rules: docs/depth-aware-corruptions.md).
 
-A pinhole camera with its principal point at the image centre ``(cx, cy) = ((W-1)/2,
-(H-1)/2)`` moves by ``(tx, 0, tz)`` metres. A pixel ``(x, y)`` at depth ``Z`` is then seen at
-
-    x' = cx + ((x - cx) Z - a) / (Z - tz),   y' = cy + (y - cy) Z / (Z - tz)
-
-with ``a = focal * tx`` (pixels x metres). Each path is set in pixels at the scene's median
-depth ``Zm`` (a sideways shift of ``D`` pixels there is ``a = D * Zm``; a forward travel is
-a fraction of ``Zm``), so the focal length cancels: the same level moves KITTI's street
-and NYU's room by the same amount at their median distance, nearer things more.
-
-One frame: every source pixel is splatted to its nearest target pixel, the nearest surface
-winning (z-buffer); points that would reach the camera (``Z - tz < 0.05 Z``) leave the view.
-A target pixel nobody reached inside a stretched surface (a crack, at most ``m / 2 + 1``
-pixels from a reached one, ``m`` the largest magnification of the path) takes the depth
-of its farthest reached neighbour. Every target pixel with a depth is traced back to the
-source and sampled bilinearly; a filled one whose trace lands outside the image or on a
-surface more than 5 % nearer or farther (a disocclusion: the source never saw it) is not
-seen in that frame.
-
-The exposure: at each pixel, the mean of the frames that see it, over ``n`` frames on a
-path centred on the captured position (offsets ``i / (n - 1) - 1/2`` of the path, ``i =
-0..n-1``; ``n`` odd, so the captured frame, which sees every pixel, is one of them). ``n``
-follows the largest motion: one frame per pixel of the longest path any pixel travels
-inside the image, at least 9. Fewer frames would draw a fast near
-object as separate copies; filling what the source never saw from a neighbour would draw
-streaks across the direction of motion.
-"""
+A pinhole camera at the image centre moves by ``(tx, 0, tz)`` metres, each path set in
+pixels at the scene's median depth so that the focal length cancels. One frame is a
+forward warp with a z-buffer, its cracks filled from the farthest reached neighbour and
+every reached pixel sampled back bilinearly; a disocclusion (the source never saw it) is
+not seen in that frame. The exposure is, per pixel, the mean of the ``n`` frames (odd, at
+least 9, one per pixel of the longest path) that see it."""
 
 from __future__ import annotations
 

@@ -1,35 +1,15 @@
-"""Compound corruptions: chains such as ``fog:3+gaussian_noise:2.5``.
+"""Compound corruptions: chains such as ``fog:3+gaussian_noise:2.5`` (docs/severity-and-chains.md).
 
-A chain is 1..8 steps joined by ``+``; each step is ``NAME:LEVEL``, a corruption of
-``robodepth list`` and a level in its range (decimals allowed). The steps apply in the order
-written, each to the previous step's output. Spaces around ``+`` and ``:`` are ignored.
-Where a command also takes levels (``corrupt -l``, ``preview --levels``, ``build
---levels``), a step written without one (``fog+gaussian_noise``) is a template: it takes
-each of those levels in turn (:func:`expand_chain`).
-
-Names:
-
-- :attr:`Chain.text` is the canonical text (no spaces, levels as :func:`~.severity.level_text`
-  writes them: ``fog:3+gaussian_noise:2.5``). It is the variant's name in manifests,
-  results files and scores, and it keys the random streams, so ``fog:3.0 + gaussian_noise:2.50``
-  is the same chain, with the same bytes, as ``fog:3+gaussian_noise:2.5``.
-- :attr:`Chain.dirname` names its directory in a build: ``:`` (not allowed in Windows and
-  macOS file names) becomes ``-``, which no corruption name contains, so
-  ``fog-3+gaussian_noise-2.5``; ``+`` and ``.`` are safe on every file system.
-  :func:`parse_chain` reads either form back.
-
-Random streams: step ``k`` (from 1) draws from its own generator, keyed by the seed, the
-dataset, the chain's canonical text, ``k`` and the image's key
-(:func:`robodepth_cli.seeding.chain_rngs`). So the same chain gives the same bytes in any
-process, and no step, not even the first, reuses the random draws of the single corruption
-at the same seed: ``fog:3+gaussian_noise:2`` starts from another fog than ``fog`` level 3.
-A deterministic step (brightness, contrast, defocus_blur, zoom_blur, color_quant, pixelate,
-jpeg_compression) draws nothing, so a chain of deterministic steps equals applying them one
-after another.
+A chain is 1..8 ``NAME:LEVEL`` steps joined by ``+``, applied in the order written; a step
+without a level is a template that takes each of a command's levels in turn
+(:func:`expand_chain`). :attr:`Chain.text` is the canonical text (levels as
+:func:`~.severity.level_text` writes them): the variant's name everywhere and the key of
+its random streams (:func:`robodepth_cli.seeding.chain_rngs`, one generator per step).
+:attr:`Chain.dirname` is its directory in a build, ``:`` written ``-``; :func:`parse_chain`
+reads either form back.
 
 This module is light (no numpy): configurations, results files and scores parse chains
-without loading the corruption engine.
-"""
+without loading the corruption engine."""
 
 from __future__ import annotations
 

@@ -2,19 +2,11 @@
 H.264, libx265 for H.265/HEVC), and bit errors in the encoded stream, decoded as a player
 would. PyAV (the ``video`` extra) is imported here only, when a sequence is encoded.
 
-Encoding: RGB frames -> yuv420p (BT.601 limited range, as a camera's encoder stores video)
-at 10 frames per second (KITTI's rate), constant rate factor ``crf``, preset ``medium``.
-Odd sizes are padded by repeating the last row/column and cropped back after decoding;
-so are narrow frames (H.264: 48 pixels wide or narrower, to 64 columns; H.265: 64 or
-narrower, to 72) and H.265 frames under 64 rows, to 64 (see :func:`coded_size`).
-
-Same bytes in any process and on any CPU with the same library versions: the colour
-conversions both ways are exact integer arithmetic here (:func:`rgb_to_yuv420p`,
-:func:`yuv420p_to_rgb`), not FFmpeg's swscale, whose SIMD code differs with the CPU
-(with FFmpeg's SIMD switched off, its conversion changed the stream); the encoder runs one
-thread with no sliced threads and its lookahead in that thread, the decoder one thread;
-both encoders run their CPU-independent code (:data:`X264_PARAMS`, :data:`X265_PARAMS`).
-"""
+The settings and paddings are docs/video.md's (:func:`coded_size`). The bytes are the same
+in any process and on any CPU with the same library versions: the colour conversions both
+ways are exact integer arithmetic here (:func:`rgb_to_yuv420p`, :func:`yuv420p_to_rgb`), not
+FFmpeg's swscale, whose SIMD code differs with the CPU; the encoder and decoder run one
+thread each and the encoders' CPU-independent code (:data:`X264_PARAMS`, :data:`X265_PARAMS`)."""
 
 from __future__ import annotations
 

@@ -1,19 +1,9 @@
 """The scene depth a depth-aware corruption receives: checked, sized to the image, with no
-missing value left.
-
-Rules (the same for every depth-aware corruption, so a chain sees one scene):
-
-- depth is in metres, an H x W array (H x W x 1 accepted); a value that is not finite or
-  not above 0 is *missing* (NaN, 0 and inf are the usual markers);
-- a depth map of another size with the image's aspect ratio (within 2 %) is resized to the
-  image's size by nearest neighbour, after filling, so no depth between two surfaces is
-  invented; another aspect ratio is refused;
-- a missing value takes the depth of the nearest valid pixel (Euclidean distance, ties as
-  ``scipy.ndimage.distance_transform_edt`` breaks them): a hole in a Kinect map or above
-  KITTI's LiDAR continues the surface beside it;
-- with no valid value at all, the scene is taken as :data:`FAR` metres away;
-- depths are clipped to ``[NEAR, FAR]`` so that no formula divides by zero.
-"""
+missing value left, by the same rules for every corruption (docs/depth-aware-corruptions.md),
+so a chain sees one scene: metres, H x W; a value not finite or not above 0 is missing and
+takes the depth of the nearest valid pixel; another size of the same aspect ratio (within
+2 %) is resized by nearest neighbour after filling, another aspect ratio refused; no valid
+value at all: :data:`FAR` metres; depths clipped to ``[NEAR, FAR]``."""
 
 from __future__ import annotations
 

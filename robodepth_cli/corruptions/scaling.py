@@ -1,20 +1,10 @@
-"""The severity size: the image size at which the levels' spatial parameters are defined.
+"""The severity size: the image size ``H0 x W0`` at which the levels' spatial parameters are
+defined. Every spatial parameter is multiplied by ``s = sqrt((H * W) / (H0 * W0))`` for an
+``H x W`` image, exactly 1 at the severity size itself (the tabulated bytes); without one
+(``none``) the parameters are used as tabulated at any size, the benchmark's behaviour
+(docs/severity-and-chains.md).
 
-The benchmark's levels were tuned at 192 x 640 (KITTI-C) and 480 x 640 (NYUDepth2-C). With a
-severity size ``H0 x W0``, every spatial parameter of a corruption (a blur radius, a streak,
-a displacement, a flake, a block, a texture's grain, a fractal's features) is multiplied by
-
-    ``s = sqrt((H * W) / (H0 * W0))``
-
-for an ``H x W`` image: the square root of the area ratio, so that a blur covers the same
-share of the image's area whatever its size and aspect ratio. At the severity size itself
-``s`` is exactly 1 and the output is that of the levels as tabulated, byte for byte. Without
-a severity size (``none``) the parameters are used as tabulated at any size: the benchmark's
-behaviour. Per-pixel corruptions (noise, JPEG's 8 x 8 codec blocks, brightness, contrast,
-dark, colour quantisation) have nothing to scale.
-
-This module is light (no engine imports): the configuration and the CLI parse the option here.
-"""
+This module is light (no engine imports): the configuration and the CLI parse the option here."""
 
 from __future__ import annotations
 

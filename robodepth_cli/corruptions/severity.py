@@ -1,23 +1,8 @@
-"""Continuous severity: any level ``s`` in [1, 5], between the five integer levels.
-
-Every corruption keeps its table of five parameter entries; a level ``s = i + t``
-(``i`` an integer, ``0 <= t < 1``) takes each parameter from entries ``i`` and ``i + 1`` by the
-rule its corruption declares for it:
-
-- ``linear``: ``p_i + t * (p_{i+1} - p_i)``, for continuous parameters;
-- ``round``: the linear value rounded to the nearest integer, halves up
-  (``floor(v + 0.5)``), for integer parameters with many values in between (a blur radius,
-  a JPEG quality);
-- ``nearest``: the value of the nearest integer level, a half going to the upper one
-  (``p_{floor(s + 0.5)}``), for small integer parameters that do not move together in one
-  direction (glass blur's shuffle distance and passes switch together);
-- ``blend``: the output is ``(1 - t) * out_i + t * out_{i+1}``, the two neighbouring
-  levels' outputs mixed before the final truncation, for parameters whose in-between value
-  has no meaning (a bit depth, a set of zoom factors).
-
-At an integer level every rule gives that level's own entry (the very same values), so
-the output is byte-identical to the integer level's.
-"""
+"""Continuous severity: any level ``s = i + t`` in [1, 5] takes each parameter from entries
+``i`` and ``i + 1`` of its corruption's five by the rule the corruption declares for it
+(``linear``, ``round``, ``nearest``, ``blend``: the table in docs/severity-and-chains.md,
+:func:`interpolate`). At an integer level every rule gives that level's own entry, so the
+output is byte-identical to the integer level's."""
 
 from __future__ import annotations
 

@@ -1,24 +1,12 @@
 """Corruptions over time: they act on a test frame's sequence (its neighbours from
-``build --frames`` and itself, in time order), not on one image.
+``build --frames`` and itself, in time order), not on one image; docs/video.md gives each
+one and its levels.
 
 Each is a pure function ``(frames, center, level, rng) -> frames``: ``frames`` the clean
-uint8 images in time order (None where the drive has no frame), ``center`` the test frame's
-index; it returns the corrupted sequence (None stays None). The build writes each frame's
-own entry. All draws are the sequence's (seeded from the test frame's key), so every frame of
-a sequence is cut from the same corrupted video.
-
-- ``frame_lost``: each neighbour is lost with probability p (levels .2 .4 .6 .8 1); a lost
-  frame is black, what a multi-frame loader makes of a missing file. The test frame stays.
-- ``frame_freeze``: each neighbour freezes with probability p (same levels): it repeats
-  the frame next to it on the test frame's side, as a stalled camera does.
-- ``h264_crf``, ``h265_crf``: the sequence encoded with libx264 / libx265 at CRF 18, 26, 34,
-  42, 51 and decoded (:mod:`.codec`); every frame, the test frame included, changes.
-- ``bit_error``: the sequence encoded with libx264 at CRF 23, each bit of its coded picture
-  data flipped with probability 1e-6, 3e-6, 1e-5, 3e-5, 1e-4 (a 3-frame 192 x 640 sequence
-  holds about 170,000 such bits), then decoded as a player would.
-
-A decimal level interpolates the level table linearly (a CRF rounded to an integer).
-"""
+uint8 images in time order (None where the drive has no frame, and None stays None),
+``center`` the test frame's index. All draws are the sequence's (seeded from the test
+frame's key), so every frame of a sequence is cut from the same corrupted video. A decimal
+level interpolates the level table linearly (a CRF rounded to an integer)."""
 
 from __future__ import annotations
 

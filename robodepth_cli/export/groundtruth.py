@@ -1,17 +1,8 @@
 """The ground truth of an export: one row per image, its depth map in metres as a 2-D float32
-array, NaN where there is no measurement, whatever file the build keeps it in.
-
-- ``gt_depths.npz`` (KITTI; a pickled object array of maps): one row per map, keyed by its
-  image, 0 read as NaN. It is read with robodepth's own unpickler, which allows only
-  numpy's array reconstructors.
-- ``gt/<scene>/sync_depth_N.png`` (NYU; 16-bit millimetres): millimetres / 1000, 0 as NaN.
-- ``gt/<key stem>.npy`` (a build with depth; float32 metres, NaN where invalid): as it is.
-
-Each map's identity is the sha256 of its ``.npy`` file (format 1.0, no pickle): what a tar
-shard holds as ``<key>.depth.npy``, what a parquet row's ``sha256`` says, and what the
-export record keeps for ``verify``. robodepth reading an export writes the build's files
-back from the maps (:func:`write_back`): the same values, so the same evaluation.
-"""
+array, NaN where there is no measurement, whatever file the build keeps it in
+(docs/export.md). ``gt_depths.npz`` is read with robodepth's own unpickler. Each map's
+identity is the sha256 of its ``.npy`` file (format 1.0, no pickle); :func:`write_back`
+writes the build's files back from the maps, the same values."""
 
 from __future__ import annotations
 

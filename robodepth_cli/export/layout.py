@@ -1,17 +1,7 @@
-"""Every name an export writes into ``--to DIR`` (nothing else in the package spells them).
-
-::
-
-    DIR/README.md                                the dataset card (YAML header: configs)
-    DIR/data/<config>/<split>-00000-of-00002.parquet   (or .tar)
-    DIR/robodepth/build.json, manifest.csv       the build's own, byte for byte
-    DIR/robodepth/export.json                    the export record (:data:`RECORD`)
-    DIR/robodepth/.shards.jsonl                  the shards done, while an export runs
-
-A configuration per variant: ``clean``, each corruption, each style, each chain (its
-directory name), and ``ground_truth``; a split per level (``level_3``, ``level_2.5``), or
-``test`` for a variant without levels. The shards of a split hold its rows in split order.
-"""
+"""Every name an export writes into ``--to DIR`` (nothing else in the package spells them;
+docs/export.md shows the tree): the card, ``data/<config>/<split>-NNNNN-of-NNNNN`` shards,
+and under ``robodepth/`` the build's own files, the export record (:data:`RECORD`) and the
+journal of the shards done."""
 
 from __future__ import annotations
 

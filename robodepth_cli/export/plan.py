@@ -16,7 +16,6 @@ from ..errors import InvalidValueError, RobodepthError
 from ..output.layout import GT_DIR, GT_FILE, output_path, variant_dir
 from .layout import GT_CONFIG, NEIGHBOURS, NO_LEVEL, shard_name, split_name
 
-DEFAULT_SHARD_SIZE = 500_000_000
 _UNITS = {"": 1, "b": 1, "kb": 10 ** 3, "mb": 10 ** 6, "gb": 10 ** 9}
 
 

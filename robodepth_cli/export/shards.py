@@ -1,23 +1,8 @@
-"""Writing one shard: parquet (the Hugging Face layout) or tar (WebDataset).
-
-Every file's bytes are read from the build once, hashed, and refused unless the hash is
-the manifest's: what an export holds is provably what the build made. Memory holds one
-row group (:data:`ROW_GROUP` images) of a parquet shard, one file of a tar shard.
-
-Parquet rows: ``key``, ``variant``, ``level`` (null without levels), ``seed``, ``sha256``
-and ``image`` (Hugging Face's Image feature: ``{bytes, path}``, the PNG as built and its
-path in the build); the ground truth's rows have ``path`` (its file in the build) and
-``depth`` (a 2-D float32 map in metres, NaN where there is no measurement: a list of rows,
-Hugging Face's nested Sequence feature, zstd-compressed) instead of ``image``, and their
-``sha256`` is the map's (:mod:`.groundtruth`). The features are in the schema's
-``huggingface`` metadata, where the ``datasets`` library reads them.
-
-Tar samples (one per image of the shard's variant): ``<key>.png`` (the key is the image's
-path in the split, so members keep the benchmark's tree) and ``<key stem>.json`` with the
-row's key, variant, level, seed, sha256 and path in the build; the ground truth's samples
-hold ``<key stem>.depth.npy`` (the map, saved without pickle) instead of the PNG. Members
-are written with fixed owner, mode and time, so the same build gives the same bytes.
-"""
+"""Writing one shard: parquet (the Hugging Face layout) or tar (WebDataset); docs/export.md
+gives the columns and members. Every file's bytes are read from the build once, hashed, and
+refused unless the hash is the manifest's. Memory holds one row group (:data:`ROW_GROUP`
+images) of a parquet shard, one file of a tar shard; tar members have a fixed owner, mode
+and time, so the same build gives the same bytes."""
 
 from __future__ import annotations
 

@@ -1,14 +1,8 @@
 """``robodepth verify DIR`` of an export: every file in its shards against the build's
-manifest carried in the export (``robodepth/manifest.csv``).
-
-Each shard is read whole, row by row (memory: one row group or one member), and each
-row's bytes hashed (a ground-truth map's ``.npy`` against the hash the export record took
-when it read the build's file): a row whose bytes are not the manifest's is changed, a file of the
-manifest that no shard holds is missing, a row the manifest does not list (or a second
-row for one file) is extra, and so is a file under ``data/`` that the export record does
-not name. A shard whose bytes differ from the export record, or that cannot be read, is
-named among the changed with the reason; the files it should hold count as missing.
-"""
+manifest carried in the export (``robodepth/manifest.csv``), as docs/export.md says. Each
+shard is read whole, row by row (memory: one row group or one member), each row's bytes
+hashed, and each file sorted into changed, missing or extra; a shard that differs from the
+export record or cannot be read is named among the changed with the reason."""
 
 from __future__ import annotations
 

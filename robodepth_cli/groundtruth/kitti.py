@@ -1,31 +1,8 @@
-"""KITTI ground-truth depth from the raw velodyne scans, value for value as the benchmark's.
-
-Every published KITTI-C number was computed against the ``gt_depths.npz`` that monodepth2's
-``export_gt_depth.py --split eigen`` writes (its ``generate_depth_map(calib_dir, velo_file,
-cam=2, vel_depth=True)``). :func:`depth_map` computes the same float32 arrays, quirks
-included, without that script's Python loop over duplicate pixels; :func:`export` writes
-them in the same file format.
-
-The rules, for one split line ``DATE/DRIVE FRAME SIDE`` (the side is ignored: the ground
-truth is always that of camera 2):
-
-- calibration: ``ROOT/DATE/calib_cam_to_cam.txt`` and ``calib_velo_to_cam.txt``, each line
-  ``KEY: v1 v2 ...`` (split at the first ``:``). The projection is
-  ``P = P_rect_02 @ R @ V`` (float64, multiplied in that order), ``R`` the 4 x 4 identity
-  with ``R_rect_00`` in its top-left 3 x 3, ``V = [R | T; 0 0 0 1]`` from the velodyne file.
-  The image size is ``S_rect_02`` (``W H``, truncated to integers); it differs by date.
-- points: ``ROOT/DATE/DRIVE/velodyne_points/data/FRAME.bin``, float32 N x 4, the fourth
-  column replaced by 1. Points with ``x < 0`` are dropped; the rest are projected
-  (``P @ p``), ``u`` and ``v`` divided by the third coordinate, and the depth is the
-  lidar's ``x`` (not the camera's z).
-- pixels: ``u = round(u) - 1``, ``v = round(v) - 1`` (numpy's round half to even); points
-  outside ``0 <= u < W``, ``0 <= v < H`` are dropped. Each point writes its depth at
-  ``[v, u]`` in point order, so the last one wins.
-- duplicates: points are grouped by ``v * (W - 1) + u - 1``. That index also puts pixel
-  ``(r, W - 1)`` in the same group as ``(r + 1, 0)``. Every group of two or more points
-  writes its smallest depth at the pixel of its first point (the other pixel of a merged
-  pair keeps its last write). Negative depths become 0.
-"""
+"""KITTI ground-truth depth from the raw velodyne scans, value for value as the benchmark's:
+the float32 arrays of monodepth2's ``export_gt_depth.py --split eigen``, quirks included
+(docs/ground-truth.md gives the rules), without that script's Python loop over duplicate
+pixels. :func:`depth_map` computes one map, :func:`export` writes them in the same file
+format."""
 
 from __future__ import annotations
 

@@ -1,19 +1,9 @@
-"""NYU Depth V2 test frames and ground truth straight from the official labeled file.
-
-``nyu_depth_v2_labeled.mat`` is a MATLAB v7.3 file, that is HDF5, read here with h5py one
-frame at a time (the file is 2.8 GB). Frame ``i`` (0-based) of the file is the split's
-``rgb_{i:05d}``; its datasets are stored transposed:
-
-- ``images``: N x 3 x 640 x 480 uint8, ``images[i].T`` is the 480 x 640 x 3 RGB image;
-- ``rawDepths``: N x 640 x 480 float32, ``rawDepths[i].T`` the depth in metres;
-- ``sceneTypes``: 1 x N HDF5 references, each to a uint16 array of character codes (the
-  scene name, e.g. ``bathroom``).
-
-The benchmark's test images are the JPEGs BTS's ``extract_official_train_test_set_from_mat.py``
-writes, so the clean source of frame ``i`` is exactly that file decoded
-(:func:`bts_jpeg`, :func:`decode_jpeg`), and its ground truth is BTS's
-``sync_depth_{i:05d}.png`` (:func:`sync_depth`).
-"""
+"""NYU Depth V2 test frames and ground truth straight from the official labeled file, a
+MATLAB v7.3 (HDF5) file read with h5py one frame at a time; its datasets are stored
+transposed (``images[i].T`` is the 480 x 640 x 3 RGB image, ``rawDepths[i].T`` the depth in
+metres). Frame ``i`` is the split's ``rgb_{i:05d}``: its clean source is exactly the JPEG
+BTS's extraction script writes (:func:`bts_jpeg`, :func:`decode_jpeg`), its ground truth
+BTS's ``sync_depth_{i:05d}.png`` (:func:`sync_depth`)."""
 
 from __future__ import annotations
 

@@ -1,18 +1,9 @@
-"""The ground truth of a built dataset, read safely and once, map by map.
-
-Ground truth: KITTI datasets, ``gt_depths.npz`` as monodepth2's ``export_gt_depth.py``
-writes it (``np.load(f, allow_pickle=True)["data"]``: one float map in metres per split
-image, in split order, as a pickled object array); NYU, a directory of 16-bit PNGs in
-millimetres at the split lines' DEPTH paths (``<scene>/sync_depth_NNNNN.png`` for image
-``<scene>/rgb_NNNNN``), as BTS's test set has them. It is read once, map by map; each map
-is kept only as its valid pixels when that is smaller (KITTI's sparse lidar maps), else as
-read. The pickle is read with only numpy's array reconstructors allowed (see
-:func:`load_ground_truth`).
-
-The same reader serves ``robodepth evaluate``, :func:`robodepth_cli.open_dataset` and
-``robodepth_cli.torch.KittiC`` (:func:`read_depth_maps`): no part of the package unpickles
-ground truth with ``allow_pickle=True``.
-"""
+"""The ground truth of a built dataset (KITTI's ``gt_depths.npz``, NYU's 16-bit PNGs in
+millimetres), read once, map by map; a map is kept as its valid pixels when that is smaller
+(KITTI's sparse lidar maps). The pickle is read with only numpy's array reconstructors
+allowed (:func:`load_ground_truth`); the same reader serves ``robodepth evaluate``,
+:func:`robodepth_cli.open_dataset` and ``robodepth_cli.torch.KittiC``
+(:func:`read_depth_maps`), so nothing unpickles ground truth with ``allow_pickle=True``."""
 
 from __future__ import annotations
 
@@ -147,15 +138,10 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
     a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
     image, in split order). Raises :class:`GroundTruthError` naming the file (and map index)
     for a missing, unreadable or malformed map, and when the file holds another number of
-    maps than the split has images.
-
-    A pickled object array (monodepth2's format) is unpickled with nothing but numpy's
-    array and dtype reconstructors allowed, so a crafted file cannot run code, and each map
-    is reduced as soon as it is read: the ~1.3 GB of KITTI maps are never in memory
-    together (peak ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``).
-    ``absent``: the images of a build with depth that have no map (left out, see
-    :class:`.depthmaps.DepthMaps`).
-    """
+    maps than the split has images. The file is read as :func:`read_gt_file` says (peak
+    ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``). ``absent``: the
+    images of a build with depth that have no map (left out, see
+    :class:`.depthmaps.DepthMaps`)."""
     path = Path(path)
     if path.is_dir() and names and all(n.endswith(".npy") for n in names):
         from .depthmaps import DepthMaps  # a build with depth: one float map per image

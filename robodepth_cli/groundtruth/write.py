@@ -1,26 +1,13 @@
-"""The ground truth a build writes beside its images, so the dataset can be evaluated as it is.
+"""The ground truth a build writes beside its images, so the dataset can be evaluated as it is
+(docs/ground-truth.md): ``OUT/gt_depths.npz`` for KITTI splits
+(:mod:`robodepth_cli.groundtruth.kitti`), ``OUT/gt/<depth path>`` PNGs for NYU splits
+(:mod:`robodepth_cli.groundtruth.nyu`), ``OUT/gt/<key stem>.npy`` float32 metres for a
+build with depth (:func:`robodepth_cli.sources.depth_io.read_depth`, never resized).
 
-- KITTI-C, KITTI-C-HR, KITTI-S (Eigen-format splits): ``OUT/gt_depths.npz``, the depth maps
-  of the built frames in split order (:mod:`robodepth_cli.groundtruth.kitti`), one manifest row.
-  Made only when every frame has its velodyne file; otherwise a note says which is missing
-  and that rerunning the same build adds it (a manifest row, so ``verify`` still passes).
-- NYUDepth2-C (NYU-format splits): ``OUT/gt/<depth path of the split line>``, e.g.
-  ``OUT/gt/bathroom/sync_depth_00045.png`` (:mod:`robodepth_cli.groundtruth.nyu`), one row each:
-  made from the labeled ``.mat`` when that is the root, copied from a BTS test folder
-  otherwise (when every listed depth file is there; else a note).
-
-- A build with depth (``custom --depth``, the zero-shot presets): ``OUT/gt/<key stem>.npy``
-  per image, the depth map paired with it (:mod:`robodepth_cli.sources.depth_pairs`) read by
-  :func:`robodepth_cli.sources.depth_io.read_depth` into float32 metres, NaN where invalid,
-  at its own size (never resized). A missing, unreadable or all-invalid map, or one of
-  another size than its image when sizes must match, is that image's failed row.
-
-Rows have the variant ``gt``, no level, seed 0 and the depth map's size (0 x 0 for the npz,
-whose maps differ in size). ``params`` fingerprints the inputs (file sizes and modification times, and
-for KITTI the frame list), so a rebuild skips ground truth whose file matches its row and
-whose inputs have not changed. A failure (a bad calibration, a truncated scan, a frame of
-another scene) is a failed row, like a broken image.
-"""
+Rows have the variant ``gt``, no level, seed 0 and the map's size (0 x 0 for the npz).
+``params`` fingerprints the inputs, so a rebuild skips ground truth whose inputs have not
+changed. A failure (a bad calibration, a truncated scan) is a failed row, like a broken
+image; missing inputs are a note, and rerunning the same build adds the file."""
 
 from __future__ import annotations
 

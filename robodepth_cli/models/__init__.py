@@ -1,38 +1,26 @@
-"""Depth models behind ``robodepth predict``: a model spec in, maps out.
-
-A spec names an adapter and its argument:
-
-``monodepth2:DIR``
-    an official monodepth2-format folder (``encoder.pth`` with ``height``/``width``,
-    ``depth.pth``), ResNet-18/34/50/101/152 encoder (:mod:`.monodepth2`);
-``hf:PATH_OR_NAME``
-    a Hugging Face ``transformers`` depth-estimation model, a local folder or a name in the
-    local cache (:mod:`.hf`);
-``python:MODULE:CALLABLE``
-    a user's function of a batch of uint8 RGB images (:mod:`.pycall`).
-
-Every adapter gives a :class:`~robodepth_cli.models.base.Model`: ``predict(images)`` maps
-an ``N x H x W x 3`` uint8 batch to ``N`` maps, and it states what the maps hold (the
-``kind`` that ``robodepth evaluate`` reads, and whether they are metric). This module
-imports nothing heavy: torch and transformers are imported only when a model is loaded.
-"""
+"""Depth models behind ``robodepth predict``: a model spec (``monodepth2:DIR``,
+``hf:PATH_OR_NAME``, ``python:MODULE:CALLABLE``; docs/predict.md) in, a
+:class:`~robodepth_cli.models.base.Model` out, whose ``predict(images)`` maps an
+``N x H x W x 3`` uint8 batch to ``N`` maps and which states what they hold. This module
+imports nothing heavy: torch and transformers are imported only when a model is loaded."""
 
 from __future__ import annotations
 
-from .errors import ModelError
+from ..errors import RobodepthError
+
 
 ADAPTERS = ("monodepth2", "hf", "python")
 
 
 def parse_spec(spec: str) -> tuple[str, str]:
-    """``"monodepth2:DIR"`` -> ``("monodepth2", "DIR")``; :class:`ModelError` for a spec
+    """``"monodepth2:DIR"`` -> ``("monodepth2", "DIR")``; :class:`RobodepthError` for a spec
     that names no known adapter or has nothing after the colon."""
     adapter, sep, arg = spec.partition(":")
     if not sep or adapter not in ADAPTERS:
-        raise ModelError(f"--model {spec!r}: unknown model adapter; give "
-                         "monodepth2:DIR, hf:PATH_OR_NAME or python:MODULE:CALLABLE")
+        raise RobodepthError(f"--model {spec!r}: unknown model adapter; give "
+                             "monodepth2:DIR, hf:PATH_OR_NAME or python:MODULE:CALLABLE")
     if not arg:
-        raise ModelError(f"--model {spec!r}: nothing after '{adapter}:'")
+        raise RobodepthError(f"--model {spec!r}: nothing after '{adapter}:'")
     return adapter, arg
 
 
@@ -46,11 +34,11 @@ def load_model(spec: str, *, device: str = "auto", kind: str | None = None,
     """
     adapter, arg = parse_spec(spec)
     if post_process and adapter != "monodepth2":
-        raise ModelError("--post-process applies to monodepth2 models only (its flip averaging)")
+        raise RobodepthError("--post-process applies to monodepth2 models only (its flip averaging)")
     if adapter == "monodepth2":
         if kind is not None or metric is not None:
-            raise ModelError("--kind/--metric: a monodepth2 model's output is known (a scaled "
-                             "disparity, up to scale); leave them out")
+            raise RobodepthError("--kind/--metric: a monodepth2 model's output is known (a scaled "
+                                 "disparity, up to scale); leave them out")
         from .monodepth2 import load
 
         return load(arg, spec, device=device, post_process=post_process)

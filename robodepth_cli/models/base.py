@@ -7,7 +7,8 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import ModelError
+from ..errors import RobodepthError
+
 
 KINDS = ("disp", "sigmoid", "depth")  # what the maps hold, in robodepth evaluate's words
 
@@ -68,7 +69,7 @@ def default_alignment(metric: bool) -> tuple[str, str]:
 
 def check_maps(out, n: int, spec: str) -> np.ndarray:
     """A model's output for a batch of ``n`` images as an ``n x h x w`` floating array, or
-    :class:`ModelError` saying what is wrong (shape, dtype, NaN or infinity)."""
+    :class:`RobodepthError` saying what is wrong (shape, dtype, NaN or infinity)."""
     if hasattr(out, "detach"):  # a torch tensor, perhaps on a GPU
         out = out.detach().float().cpu().numpy() if out.dtype.is_floating_point else out.cpu().numpy()
     elif isinstance(out, (list, tuple)):
@@ -76,42 +77,42 @@ def check_maps(out, n: int, spec: str) -> np.ndarray:
             out = np.stack([np.asarray(o.detach().cpu().numpy() if hasattr(o, "detach") else o)
                             for o in out])
         except ValueError:
-            raise ModelError(f"{spec}: returned maps of different sizes for one batch; expected "
-                             f"an array of {n} x h x w") from None
+            raise RobodepthError(f"{spec}: returned maps of different sizes for one batch; expected "
+                                 f"an array of {n} x h x w") from None
     if not isinstance(out, np.ndarray):
-        raise ModelError(f"{spec}: returned a {type(out).__name__}; expected an array of "
-                         f"{n} x h x w maps")
+        raise RobodepthError(f"{spec}: returned a {type(out).__name__}; expected an array of "
+                             f"{n} x h x w maps")
     if out.ndim == 4 and out.shape[1] == 1:
         out = out[:, 0]
     if out.ndim != 3 or out.shape[0] != n:
-        raise ModelError(f"{spec}: returned shape {out.shape} for a batch of {n} images; "
-                         f"expected {n} x h x w (one 2-D map per image)")
+        raise RobodepthError(f"{spec}: returned shape {out.shape} for a batch of {n} images; "
+                             f"expected {n} x h x w (one 2-D map per image)")
     if out.dtype.kind != "f":
-        raise ModelError(f"{spec}: returned dtype {out.dtype}; expected floating-point maps "
-                         "(float16, float32 or float64)")
+        raise RobodepthError(f"{spec}: returned dtype {out.dtype}; expected floating-point maps "
+                             "(float16, float32 or float64)")
     if 0 in out.shape[1:]:
-        raise ModelError(f"{spec}: returned empty maps (shape {out.shape})")
+        raise RobodepthError(f"{spec}: returned empty maps (shape {out.shape})")
     if out.dtype == np.float16:
         out = out.astype(np.float32)
     bad = ~np.isfinite(out)
     if bad.any():
         what = "NaN" if np.isnan(out).any() else "infinity"
-        raise ModelError(f"{spec}: its output holds {what} ({int(bad.sum())} values in a batch "
-                         f"of {n} images); nothing written for this variant")
+        raise RobodepthError(f"{spec}: its output holds {what} ({int(bad.sum())} values in a batch "
+                             f"of {n} images); nothing written for this variant")
     return out
 
 
 def torch_device(device: str) -> str:
     """``auto`` -> ``cuda`` when torch sees a GPU, else ``cpu``; ``cuda`` without one is a
-    :class:`ModelError`."""
+    :class:`RobodepthError`."""
     import torch
 
     if device == "auto":
         return "cuda" if torch.cuda.is_available() else "cpu"
     if device == "cuda" and not torch.cuda.is_available():
         build = "a CPU-only build" if torch.version.cuda is None else "no GPU visible"
-        raise ModelError(f"--device cuda: CUDA is not available (torch {torch.__version__}: "
-                         f"{build}); use --device cpu or auto")
+        raise RobodepthError(f"--device cuda: CUDA is not available (torch {torch.__version__}: "
+                             f"{build}); use --device cpu or auto")
     if device not in ("cpu", "cuda"):
-        raise ModelError(f"--device {device!r}: valid: auto, cpu, cuda")
+        raise RobodepthError(f"--device {device!r}: valid: auto, cpu, cuda")
     return device

@@ -1,21 +1,9 @@
-"""Hugging Face ``transformers`` depth-estimation models (Depth Anything, DPT, ZoeDepth,
-Depth Pro, GLPN, ...): ``AutoModelForDepthEstimation`` with its own image processor.
-
-The model is read from a local folder (``save_pretrained``'s layout) or, by name, from the
-local Hugging Face cache only (``local_files_only``): nothing is downloaded. Each batch goes
-through the processor (its resize and normalisation), the model, and the processor's own
-``post_process_depth_estimation`` with every image's size as the target size (DPT and
-Depth Anything: bicubic ``interpolate`` of ``predicted_depth``; ZoeDepth also removes its
-padding; Depth Pro converts to depth in metres), so each map has its image's size. A
-processor without that method gets DPT's rule: bicubic, ``align_corners=False``.
-
-What the maps hold: a model whose config says ``depth_estimation_type`` (Depth Anything)
-is relative or metric as it says; otherwise DPT models are relative, ZoeDepth, Depth Pro
-and GLPN metric. Relative models predict an inverse depth up to an unknown scale and shift
-(recorded as ``kind disp``, evaluated after a least-squares scale and shift of the
-disparity); metric ones predict depth in metres (``kind depth``, no alignment). ``--kind``
-and ``--metric/--relative`` override this, and are needed for model types not listed here.
-"""
+"""Hugging Face ``transformers`` depth-estimation models: ``AutoModelForDepthEstimation`` with
+its own image processor, from a local folder or the local cache only (nothing is
+downloaded). Each map goes through the processor's ``post_process_depth_estimation`` at its
+image's size (without that method, DPT's rule: bicubic, ``align_corners=False``). What the
+maps hold (relative disparity or metric depth) is the config's ``depth_estimation_type``,
+else the model type's, as docs/predict.md lists."""
 
 from __future__ import annotations
 
@@ -24,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ModelError
+from ..errors import RobodepthError
 from .base import KINDS, Model, default_alignment, torch_device
 
 RELATIVE_TYPES = ("dpt",)
@@ -74,7 +62,7 @@ def load(arg: str, spec: str, *, device: str = "auto", kind: str | None = None,
 
 def _load_parts(source, where: str, arg: str, spec: str):
     """(config, model, image processor) of the transformers model at ``source``, from local
-    files only; :class:`ModelError` saying which part is missing or unusable."""
+    files only; :class:`RobodepthError` saying which part is missing or unusable."""
     from transformers import AutoConfig, AutoImageProcessor, AutoModelForDepthEstimation
 
     try:
@@ -83,29 +71,29 @@ def _load_parts(source, where: str, arg: str, spec: str):
         if where == "cache":
             from huggingface_hub import constants
 
-            raise ModelError(f"{spec}: {arg} is not in the local Hugging Face cache "
-                             f"({constants.HF_HUB_CACHE}); download it first with "
-                             f"'hf download {arg}' (needs internet), or give a local folder "
-                             "(hf:PATH)") from None
-        raise ModelError(f"{spec}: {source} holds no transformers model (no readable "
-                         "config.json)") from None
+            raise RobodepthError(f"{spec}: {arg} is not in the local Hugging Face cache "
+                                 f"({constants.HF_HUB_CACHE}); download it first with "
+                                 f"'hf download {arg}' (needs internet), or give a local folder "
+                                 "(hf:PATH)") from None
+        raise RobodepthError(f"{spec}: {source} holds no transformers model (no readable "
+                             "config.json)") from None
     except ValueError as exc:
-        raise ModelError(f"{spec}: {source}: unusable config ({_first_line(exc)})") from None
+        raise RobodepthError(f"{spec}: {source}: unusable config ({_first_line(exc)})") from None
     model_type = getattr(config, "model_type", "?")
     try:
         model = AutoModelForDepthEstimation.from_pretrained(source, local_files_only=True)
     except ValueError as exc:
         if "Unrecognized configuration class" in str(exc):
-            raise ModelError(f"{spec}: a {model_type} model, not a depth-estimation model "
-                             "(transformers' AutoModelForDepthEstimation does not know it)") from None
-        raise ModelError(f"{spec}: cannot load the model ({_first_line(exc)})") from None
+            raise RobodepthError(f"{spec}: a {model_type} model, not a depth-estimation model "
+                                 "(transformers' AutoModelForDepthEstimation does not know it)") from None
+        raise RobodepthError(f"{spec}: cannot load the model ({_first_line(exc)})") from None
     except (OSError, RuntimeError) as exc:
-        raise ModelError(f"{spec}: cannot load the model ({_first_line(exc)})") from None
+        raise RobodepthError(f"{spec}: cannot load the model ({_first_line(exc)})") from None
     try:
         processor = AutoImageProcessor.from_pretrained(source, local_files_only=True)
     except (OSError, ValueError) as exc:
-        raise ModelError(f"{spec}: no usable image processor beside the model "
-                         f"(preprocessor_config.json; {_first_line(exc)})") from None
+        raise RobodepthError(f"{spec}: no usable image processor beside the model "
+                             f"(preprocessor_config.json; {_first_line(exc)})") from None
     return config, model, processor
 
 
@@ -115,8 +103,8 @@ def _source(arg: str, spec: str) -> tuple[str, str]:
     if path.is_dir():
         return str(path.resolve()), "folder"
     if path.exists():
-        raise ModelError(f"{spec}: {arg} is not a folder (give a folder written by "
-                         "save_pretrained, or a model name such as org/name)")
+        raise RobodepthError(f"{spec}: {arg} is not a folder (give a folder written by "
+                             "save_pretrained, or a model name such as org/name)")
     # A Hub name is org/name (a few old ones are a bare name): anything else (a leading ./
     # or ~, several slashes, a trailing one, a backslash, a bare name not in the cache) was
     # meant as a folder, and "download it" would be no advice.
@@ -124,8 +112,8 @@ def _source(arg: str, spec: str) -> tuple[str, str]:
                        or arg.endswith("/") or "\\" in arg
                        or ("/" not in arg and not _cached(arg)))
     if looks_like_path:
-        raise ModelError(f"{spec}: no folder {arg} (from {Path.cwd()}); give a folder written "
-                         "by save_pretrained, or a cached model's name such as org/name")
+        raise RobodepthError(f"{spec}: no folder {arg} (from {Path.cwd()}); give a folder written "
+                             "by save_pretrained, or a cached model's name such as org/name")
     return arg, "cache"
 
 
@@ -145,15 +133,15 @@ def _output(config, model_type: str, kind: str | None, metric: bool | None,
         elif model_type in RELATIVE_TYPES or model_type in METRIC_TYPES:
             metric = model_type in METRIC_TYPES
         elif kind is None:
-            raise ModelError(f"{spec}: cannot tell whether this {model_type} model predicts "
-                             "relative inverse depth or metric depth; say --kind disp "
-                             "--relative, or --kind depth --metric")
+            raise RobodepthError(f"{spec}: cannot tell whether this {model_type} model predicts "
+                                 "relative inverse depth or metric depth; say --kind disp "
+                                 "--relative, or --kind depth --metric")
         else:
             metric = False
     if kind is None:
         kind = "depth" if metric else "disp"
     if kind not in KINDS:
-        raise ModelError(f"--kind {kind!r}: valid: {', '.join(KINDS)}")
+        raise RobodepthError(f"--kind {kind!r}: valid: {', '.join(KINDS)}")
     return kind, metric
 
 

@@ -1,32 +1,11 @@
 """monodepth2-format checkpoints (MonoDepth2, Depth Hints, and the many models that share
-the format): a folder with ``encoder.pth`` and ``depth.pth``.
+the format): a folder with ``encoder.pth`` (monodepth2's ``ResnetEncoder``, a ResNet under
+``encoder.`` (:mod:`.resnet`), plus ``height`` and ``width``, the network's input size)
+and ``depth.pth`` (its ``DepthDecoder``, of which only scale 0 is used).
 
-``encoder.pth`` is the ``state_dict`` of monodepth2's ``ResnetEncoder`` (a ResNet under
-``encoder.``, see :mod:`.resnet`) plus ``height`` and ``width``, the network's input size
-(and ``use_stereo``); ``depth.pth`` is its ``DepthDecoder``: a list ``decoder.0`` ..
-``decoder.9`` of 3x3 convolution blocks (``decoder.N.conv.conv``: reflection padding, a
-convolution, then ELU), two per scale from the coarsest, and ``decoder.10`` .. ``decoder.13``
-the 3x3 output convolutions of scales 0..3 (``decoder.N.conv``, sigmoid after). Only scale
-0, the full-size output, is used.
-
-A prediction is what monodepth2's ``evaluate_depth.py`` saves (``--save_pred_disps``):
-
-1. the image resized to ``width x height`` with Pillow's Lanczos filter (its data loader's
-   ``transforms.Resize`` with ``Image.ANTIALIAS``), scaled to [0, 1];
-2. the encoder's input normalisation ``(x - 0.45) / 0.225``;
-3. the decoder's scale-0 sigmoid output ``s`` turned into a scaled disparity by
-   ``disp_to_depth(s, 0.1, 100)``: ``1/100 + (1/0.1 - 1/100) * s``;
-4. with ``--post-process``, the image and its mirror image are both run and combined as
-   ``batch_post_process_disparity`` does: with ``l = linspace(0, 1, w)`` per column and
-   ``m = 1 - clip(20 (l - 0.05), 0, 1)``, ``out = m[::-1] * d + m * f + (1 - m - m[::-1]) *
-   (d + f) / 2`` where ``d`` is the disparity and ``f`` the mirror's, flipped back (the
-   left 5 % of columns come from the mirror, the right 5 % from the image, the middle is
-   their mean). That arithmetic is float64, so post-processed maps are saved as float64,
-   as monodepth2 saves them.
-
-The maps are at the network's size (``height x width``); ``robodepth evaluate`` resizes
-them to the ground truth's, as monodepth2's evaluation does.
-"""
+A prediction is what monodepth2's ``evaluate_depth.py --save_pred_disps`` saves, step by
+step as docs/predict.md gives them (Lanczos resize, normalisation, ``disp_to_depth``, and
+with ``--post-process`` its float64 mirror blend); the maps are at the network's size."""
 
 from __future__ import annotations
 
@@ -34,9 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import os_reason
+from ..errors import RobodepthError, os_reason
 from ..files import sha256_file
-from .errors import ModelError
 from .base import Model, torch_device
 
 MIN_DEPTH, MAX_DEPTH = 0.1, 100.0  # evaluate_depth.py's defaults (--min_depth, --max_depth)
@@ -46,19 +24,19 @@ N_BLOCKS = 10  # decoder.0 .. decoder.9: two blocks per scale, coarsest first
 
 
 def load(arg: str, spec: str, *, device: str = "auto", post_process: bool = False) -> Model:
-    """The monodepth2 model in folder ``arg``; :class:`ModelError` naming the file for a
+    """The monodepth2 model in folder ``arg``; :class:`RobodepthError` naming the file for a
     missing folder or file, an unreadable checkpoint or one of another architecture."""
     import torch
 
     folder = Path(arg).expanduser()
     if not folder.is_dir():
-        raise ModelError(f"{spec}: {folder} is not a folder (expected a monodepth2 model "
-                         "folder with encoder.pth and depth.pth)")
+        raise RobodepthError(f"{spec}: {folder} is not a folder (expected a monodepth2 model "
+                             "folder with encoder.pth and depth.pth)")
     enc_path, dec_path = folder / "encoder.pth", folder / "depth.pth"
     for path in (enc_path, dec_path):
         if not path.is_file():
-            raise ModelError(f"{folder}: no {path.name} (a monodepth2 model folder holds "
-                             "encoder.pth and depth.pth)")
+            raise RobodepthError(f"{folder}: no {path.name} (a monodepth2 model folder holds "
+                                 "encoder.pth and depth.pth)")
     enc = _read(enc_path)
     dec = _read(dec_path)
     height, width = _input_size(enc, enc_path)
@@ -94,14 +72,14 @@ def _read(path: Path) -> dict:
         # weights_only: tensors and plain values only, so a crafted file cannot run code.
         obj = torch.load(path, map_location="cpu", weights_only=True)
     except OSError as exc:
-        raise ModelError(f"{path}: cannot read ({os_reason(exc)})") from None
+        raise RobodepthError(f"{path}: cannot read ({os_reason(exc)})") from None
     except Exception:  # torch fails on a foreign file in many ways (UnpicklingError, KeyError, ...)
         # Never torch's own text: it advises weights_only=False, which runs whatever the file holds.
-        raise ModelError(f"{path}: not a PyTorch checkpoint of tensors ({_what_file(path)}); "
-                         "monodepth2 folders hold state_dicts saved with torch.save") from None
+        raise RobodepthError(f"{path}: not a PyTorch checkpoint of tensors ({_what_file(path)}); "
+                             "monodepth2 folders hold state_dicts saved with torch.save") from None
     if not isinstance(obj, dict):
-        raise ModelError(f"{path}: holds a {type(obj).__name__}; expected a state_dict (a dict "
-                         "of tensors)")
+        raise RobodepthError(f"{path}: holds a {type(obj).__name__}; expected a state_dict (a dict "
+                             "of tensors)")
     return obj
 
 
@@ -124,11 +102,11 @@ def _input_size(enc: dict, path: Path) -> tuple[int, int]:
     try:
         height, width = int(enc["height"]), int(enc["width"])
     except (KeyError, TypeError, ValueError):
-        raise ModelError(f"{path}: no 'height' and 'width' entries (monodepth2 saves the "
-                         "network's input size in encoder.pth)") from None
+        raise RobodepthError(f"{path}: no 'height' and 'width' entries (monodepth2 saves the "
+                             "network's input size in encoder.pth)") from None
     if height <= 0 or width <= 0 or height % 32 or width % 32:
-        raise ModelError(f"{path}: input size {height} x {width}; monodepth2's network needs "
-                         "multiples of 32")
+        raise RobodepthError(f"{path}: input size {height} x {width}; monodepth2's network needs "
+                             "multiples of 32")
     return height, width
 
 
@@ -159,10 +137,14 @@ def post_process_disparity(disp: np.ndarray, flipped: np.ndarray) -> np.ndarray:
     return right * disp + left * flipped + (1.0 - left - right) * mean
 
 
-def _blocks():
-    """The decoder's building blocks: a reflection-padded 3 x 3 convolution, and one
-    followed by an ELU."""
+def _module_classes():
+    """The network's modules, defined on first use so that importing this file does not
+    import torch."""
+    import torch
     from torch import nn
+    from torch.nn import functional as F
+
+    from .resnet import ResNet
 
     class Conv3x3(nn.Module):
         def __init__(self, cin: int, cout: int):
@@ -181,20 +163,6 @@ def _blocks():
 
         def forward(self, x):
             return self.nonlin(self.conv(x))
-
-    return Conv3x3, ConvBlock
-
-
-def _module_classes():
-    """The network's modules, defined on first use so that importing this file does not
-    import torch."""
-    import torch
-    from torch import nn
-    from torch.nn import functional as F
-
-    from .resnet import ResNet
-
-    Conv3x3, ConvBlock = _blocks()
 
     class Decoder(nn.Module):
         """Upsampling decoder with skips: for scale i = 4..0, a block to scale i's width,
@@ -248,20 +216,20 @@ class DepthNet:
                        if hasattr(v, "shape") and not k.startswith("encoder.fc.")}
         num_layers = depth_of(enc_tensors)
         if num_layers is None:
-            raise ModelError(f"{enc_path}: not a monodepth2 ResNet encoder (its parameters match "
-                             "no ResNet-18/34/50/101/152 under 'encoder.')")
+            raise RobodepthError(f"{enc_path}: not a monodepth2 ResNet encoder (its parameters match "
+                                 "no ResNet-18/34/50/101/152 under 'encoder.')")
         conv1 = enc_tensors.get("encoder.conv1.weight")
         if conv1 is not None and conv1.ndim == 4 and conv1.shape[1] != 3:
-            raise ModelError(f"{enc_path}: its first convolution takes {conv1.shape[1]} channels; a "
-                             "depth encoder takes one RGB image (is this a pose encoder?)")
+            raise RobodepthError(f"{enc_path}: its first convolution takes {conv1.shape[1]} channels; a "
+                                 "depth encoder takes one RGB image (is this a pose encoder?)")
         encoder = Encoder(num_layers)
         _load(encoder, enc_tensors, enc_path, f"a ResNet-{num_layers} encoder")
         dec_tensors = {k: v for k, v in dec.items() if hasattr(v, "shape")}
         scales = sum(f"decoder.{N_BLOCKS + s}.conv.weight" in dec_tensors for s in range(4))
         if scales == 0 or any(f"decoder.{N_BLOCKS + s}.conv.weight" not in dec_tensors
                               for s in range(scales)):
-            raise ModelError(f"{dec_path}: not a monodepth2 DepthDecoder (no output convolution "
-                             f"decoder.{N_BLOCKS}.conv.weight)")
+            raise RobodepthError(f"{dec_path}: not a monodepth2 DepthDecoder (no output convolution "
+                                 f"decoder.{N_BLOCKS}.conv.weight)")
         decoder = Decoder(encoder.encoder.channels, scales)
         _load(decoder, dec_tensors, dec_path,
               f"the depth decoder of a ResNet-{num_layers} encoder")
@@ -299,6 +267,6 @@ def _load(module, tensors: dict, path: Path, what: str) -> None:
             parts.append(f"missing {missing[0]}" + (f" (+{len(missing) - 1} more)" if len(missing) > 1 else ""))
         if extra:
             parts.append(f"unexpected {extra[0]}" + (f" (+{len(extra) - 1} more)" if len(extra) > 1 else ""))
-        raise ModelError(f"{path}: does not fit {what}: {'; '.join(parts)}")
+        raise RobodepthError(f"{path}: does not fit {what}: {'; '.join(parts)}")
     module.load_state_dict({k: v.float() if v.is_floating_point() else v
                            for k, v in tensors.items()}, strict=True)

@@ -1,34 +1,12 @@
 """``robodepth predict``: run a model over the variants of a built dataset and write its
-predictions where ``robodepth evaluate`` reads them.
+predictions where ``robodepth evaluate`` reads them (docs/predict.md).
 
-Per variant, one ``N x h x w`` array in split order, ``PRED/clean.npy``,
-``PRED/<corruption>/<level>.npy`` or ``PRED/<style>.npy`` (the form
-:meth:`robodepth_cli.api.Variant.save_predictions` writes), streamed batch by batch into
-a temporary file that is renamed into place when the variant is complete. So a finished
-variant's file is whole, a killed run loses at most the variant in flight, and a run
-started again skips the variants whose files are there (resume).
-
-A build without one image size (``build custom`` without ``--size``) gets the other form
-``robodepth evaluate`` reads, one ``.npy`` per image, ``PRED/<variant>/<image path>.npy``,
-since maps that follow the image size cannot share one array: the variant's files are
-written into a temporary folder beside it, renamed into place when complete.
-
-``PRED/predictions.json`` records the model (spec, adapter, what tells its weights apart),
-what its maps hold (``output`` disparity or depth, ``scale`` relative or metric, and the
-``evaluate`` defaults ``kind``, ``align``, ``align_space``), the input size, the dataset,
-and the robodepth version; for a torch model also its ``size``, parameters and FLOPs per
-image, measured on the first batch (:mod:`.size`). It is written once the model has
-produced its first valid batch, before any prediction file; a later run into the same
-PRED must be of the same model on the same dataset's split, or it is refused (the files
-would mix two models).
-PRED is refused inside the dataset: the build's manifest lists every file there, and
-``verify`` would then report the predictions as extra files.
-
-Memory: a batch holds at most :data:`BATCH_PIXELS` pixels, counted at the larger of the
-image size and the network's fixed input size (when the model has one), so
-``--batch-size`` beyond that (``-b 100000``) is lowered to what fits instead of holding a
-whole variant, and its activations, at once (:func:`batch_limit`).
-"""
+Each variant's file (or, for a build without one image size, folder of per-image ``.npy``)
+is streamed into a temporary name renamed into place when complete, so a killed run loses
+at most the variant in flight and a rerun skips the finished ones. ``predictions.json`` is
+written once the model has produced its first valid batch; a later run into the same PRED
+must be of the same model on the same dataset's split. A batch holds at most
+:data:`BATCH_PIXELS` pixels (:func:`batch_limit`)."""
 
 from __future__ import annotations
 
@@ -44,10 +22,9 @@ import numpy as np
 from .. import __version__
 from ..api import BuiltDataset, Variant
 from ..benchmarks import CLEAN
-from ..errors import cannot_write
+from ..errors import RobodepthError, cannot_write
 from ..predictions import (RECORD, ImageFilesWriter, PredictionWriter, finished, read_record, write_record,
                            remove_leftovers, split_digest)
-from .errors import ModelError
 from .size import measured
 
 # The most pixels one forward pass holds: the memory of a batch (its images, the model's
@@ -83,11 +60,11 @@ def select_variants(dataset: BuiltDataset, value: str | None) -> list[Variant]:
         hits = [v for v in variants if item in (v.relpath, v.name)]
         if not hits:
             names = sorted({v.name for v in variants}, key=[v.name for v in variants].index)
-            raise ModelError(f"--variants {item!r}: not a variant of {dataset.path} (it has: "
-                             f"{', '.join(names)}; a corruption's level as NAME/LEVEL)")
+            raise RobodepthError(f"--variants {item!r}: not a variant of {dataset.path} (it has: "
+                                 f"{', '.join(names)}; a corruption's level as NAME/LEVEL)")
         chosen.update(hits)
     if not chosen:
-        raise ModelError(f"--variants {value!r}: names no variant")
+        raise RobodepthError(f"--variants {value!r}: names no variant")
     return [v for v in variants if v in chosen]
 
 
@@ -149,9 +126,9 @@ def check_outside(dataset: BuiltDataset, pred: Path) -> None:
     predictions, and a rebuild could delete them."""
     d, p = Path(os.path.realpath(dataset.path)), Path(os.path.realpath(pred))
     if p == d or p.is_relative_to(d):
-        raise ModelError(f"--out {pred}: inside the dataset {dataset.path}, whose files its "
-                         "manifest lists (verify would report the predictions as extra files); "
-                         "give a folder outside it")
+        raise RobodepthError(f"--out {pred}: inside the dataset {dataset.path}, whose files its "
+                             "manifest lists (verify would report the predictions as extra files); "
+                             "give a folder outside it")
 
 
 def prepare_output(pred: Path, record: dict) -> bool:
@@ -160,22 +137,22 @@ def prepare_output(pred: Path, record: dict) -> bool:
     whether PRED was created here (so that a run failing before its first file removes it)."""
     pred = Path(pred)
     if pred.exists() and not pred.is_dir():
-        raise ModelError(f"--out {pred}: exists and is not a folder")
+        raise RobodepthError(f"--out {pred}: exists and is not a folder")
     earlier = read_record(pred) if pred.is_dir() else None
     if earlier is not None:
         if earlier.get("split_sha256") != record["split_sha256"]:
-            raise ModelError(f"--out {pred}: holds predictions for another dataset or split "
-                             f"({earlier.get('dataset_path')}); use another --out")
+            raise RobodepthError(f"--out {pred}: holds predictions for another dataset or split "
+                                 f"({earlier.get('dataset_path')}); use another --out")
         for key in _SAME:
             if earlier.get(key) != record.get(key):
                 why = (" (its weights, or a python: module's file, changed since)"
                        if key == "identity" else "")
-                raise ModelError(f"--out {pred}: holds predictions of another model or setting "
-                                 f"({earlier.get('model')}, {key} differs{why}); use another "
-                                 "--out or delete it")
+                raise RobodepthError(f"--out {pred}: holds predictions of another model or setting "
+                                     f"({earlier.get('model')}, {key} differs{why}); use another "
+                                     "--out or delete it")
     elif pred.is_dir() and any(pred.iterdir()):
-        raise ModelError(f"--out {pred}: not empty and holds no {RECORD} (not written by "
-                         "robodepth predict); use a new or empty folder")
+        raise RobodepthError(f"--out {pred}: not empty and holds no {RECORD} (not written by "
+                             "robodepth predict); use a new or empty folder")
     created = not pred.exists()
     try:
         pred.mkdir(parents=True, exist_ok=True)
@@ -183,7 +160,7 @@ def prepare_output(pred: Path, record: dict) -> bool:
         probe.write_bytes(b"")
         probe.unlink()
     except OSError as exc:
-        raise ModelError(cannot_write(pred, exc, "--out")) from None
+        raise RobodepthError(cannot_write(pred, exc, "--out")) from None
     return created
 
 
@@ -210,9 +187,9 @@ def check_frames(dataset: BuiltDataset, model) -> None:
     """A multi-frame model needs a build with those neighbours (``build --frames``)."""
     lacking = sorted(set(model.frames) - dataset.record.frames)
     if lacking:
-        raise ModelError(f"{model.spec} takes the neighbour frames {', '.join(map(str, model.frames))}; "
-                         f"{dataset.path} has no neighbours at {', '.join(map(str, lacking))} "
-                         f"(build it with --frames {','.join(map(str, model.frames))})")
+        raise RobodepthError(f"{model.spec} takes the neighbour frames {', '.join(map(str, model.frames))}; "
+                             f"{dataset.path} has no neighbours at {', '.join(map(str, lacking))} "
+                             f"(build it with --frames {','.join(map(str, model.frames))})")
 
 
 def same_size_runs(images: list[np.ndarray]):
@@ -230,11 +207,10 @@ def predict(dataset: BuiltDataset, model, pred: Path, variants: Sequence[Variant
     """Write ``model``'s predictions for ``variants`` of ``dataset`` under ``pred``.
 
     Variants whose files an earlier run finished are skipped. Raises
-    :class:`~robodepth_cli.models.ModelError` (or another ``RobodepthError``) for bad
-    input or output; the variant in flight is then not written.
+    :class:`~robodepth_cli.errors.RobodepthError` for bad input or output; the variant in flight is then not written.
     """
     if batch_size < 1:
-        raise ModelError(f"--batch-size {batch_size}: must be at least 1")
+        raise RobodepthError(f"--batch-size {batch_size}: must be at least 1")
     frames = tuple(getattr(model, "frames", ()))  # a multi-frame model's neighbours
     if frames:
         check_frames(dataset, model)
@@ -296,7 +272,7 @@ def first_batch(model, batch: np.ndarray, pred: Path, record: dict) -> np.ndarra
 
 def _lacking(dataset: BuiltDataset, v: Variant, run: PredictRun) -> set[int]:
     """The positions of ``v``'s images that are missing because their depth map is unusable
-    (noted in ``run.no_depth``); :class:`ModelError` for an image the build failed otherwise
+    (noted in ``run.no_depth``); :class:`RobodepthError` for an image the build failed otherwise
     (a rerun makes it)."""
     if not v.missing:
         return set()
@@ -304,8 +280,8 @@ def _lacking(dataset: BuiltDataset, v: Variant, run: PredictRun) -> set[int]:
 
     other = {k: why for k, why in v.missing.items() if not dataset.lacks_depth(v, k)}
     if other:
-        raise ModelError(f"{dataset.path / v.relpath}: {failed_text(other, len(v))}; rerun the "
-                         "build command to make them, or leave this variant out with --variants")
+        raise RobodepthError(f"{dataset.path / v.relpath}: {failed_text(other, len(v))}; rerun the "
+                             "build command to make them, or leave this variant out with --variants")
     run.no_depth.update({k: dataset.no_depth[k] for k in v.missing})
     return {i for i, k in enumerate(v.keys) if k in v.missing}
 

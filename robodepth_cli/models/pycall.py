@@ -1,18 +1,8 @@
-"""A user's own model as a Python function: ``python:MODULE:CALLABLE``.
-
-``MODULE`` is an importable module name (the current directory is searched first, as
-``python -m`` does) or a path to a ``.py`` file; ``CALLABLE`` a name in it (dots reach
-into objects: ``net.predict``). It is called with a batch of images, an ``N x H x W x 3``
-uint8 RGB numpy array (one size per batch), and returns ``N`` maps: an ``N x h x w`` (or
-``N x 1 x h x w``) floating-point numpy array or torch tensor, or a list of ``N`` maps of
-one size. What the maps hold is the user's to say: ``--kind disp|sigmoid|depth`` and
-``--metric`` (metres) or ``--relative`` (the default: right up to a scale and shift).
-
-The record's identity holds the sha256 of the module's own file, so a run into a PRED
-whose module was edited since is refused rather than mixing old and new predictions.
-Only that file is tracked: modules it imports, weights or data it reads, the environment
-and a changed function in an already-imported module are not.
-"""
+"""A user's own model as a Python function: ``python:MODULE:CALLABLE`` (docs/predict.md).
+``MODULE`` is an importable name (the current directory searched first) or a ``.py`` path,
+``CALLABLE`` a name in it (dots reach into objects); it takes an ``N x H x W x 3`` uint8
+batch and returns ``N`` maps. The record's identity holds the sha256 of the module's own
+file only, so a PRED whose module was edited since is refused."""
 
 from __future__ import annotations
 
@@ -23,8 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import reraise_interrupt
-from .errors import ModelError
+from ..errors import RobodepthError, reraise_interrupt
 from .base import KINDS, Model, default_alignment
 from .size import modules_of
 
@@ -32,29 +21,29 @@ from .size import modules_of
 def load(arg: str, spec: str, *, kind: str | None = None, metric: bool | None = None) -> Model:
     module_name, sep, attr = arg.rpartition(":")
     if not sep or not module_name or not attr:
-        raise ModelError(f"--model {spec!r}: expected python:MODULE:CALLABLE")
+        raise RobodepthError(f"--model {spec!r}: expected python:MODULE:CALLABLE")
     if kind is None:
-        raise ModelError(f"{spec}: say what the function returns with --kind "
-                         f"({', '.join(KINDS)}), and --metric if it is in metres")
+        raise RobodepthError(f"{spec}: say what the function returns with --kind "
+                             f"({', '.join(KINDS)}), and --metric if it is in metres")
     if kind not in KINDS:
-        raise ModelError(f"--kind {kind!r}: valid: {', '.join(KINDS)}")
+        raise RobodepthError(f"--kind {kind!r}: valid: {', '.join(KINDS)}")
     module = _import(module_name, spec)
     fn = module
     for part in attr.split("."):
         try:
             fn = getattr(fn, part)
         except AttributeError:
-            raise ModelError(f"{spec}: {module_name} has no {attr}") from None
+            raise RobodepthError(f"{spec}: {module_name} has no {attr}") from None
     if not callable(fn):
-        raise ModelError(f"{spec}: {attr} is a {type(fn).__name__}, not a function")
+        raise RobodepthError(f"{spec}: {attr} is a {type(fn).__name__}, not a function")
 
     def run(images: np.ndarray):
         try:
             return fn(images)
         except Exception as exc:  # the user's code: its failure is reported, not a crash of ours
             reraise_interrupt(exc)
-            raise ModelError(f"{spec}: raised {type(exc).__name__}: "
-                             f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''}") from None
+            raise RobodepthError(f"{spec}: raised {type(exc).__name__}: "
+                                 f"{str(exc).strip().splitlines()[0] if str(exc).strip() else ''}") from None
 
     frames = _frames(getattr(fn, "robodepth_frames", ()), spec)
     metric = bool(metric)
@@ -79,8 +68,8 @@ def _frames(value, spec: str) -> tuple[int, ...]:
     offsets = tuple(value) if isinstance(value, (list, tuple)) else None
     if offsets is None or not all(isinstance(o, int) and not isinstance(o, bool) and o for o in offsets) \
             or len(set(offsets)) != len(offsets):
-        raise ModelError(f"{spec}: robodepth_frames {value!r}: expected distinct non-zero integer "
-                         f"frame offsets such as (-1, 1)")
+        raise RobodepthError(f"{spec}: robodepth_frames {value!r}: expected distinct non-zero integer "
+                             f"frame offsets such as (-1, 1)")
     return offsets
 
 
@@ -95,14 +84,14 @@ def _file_hash(path: str | None, spec: str) -> str | None:
     try:
         return sha256_file(path)
     except OSError as exc:
-        raise ModelError(f"{spec}: {path}: cannot read ({os_reason(exc)})") from None
+        raise RobodepthError(f"{spec}: {path}: cannot read ({os_reason(exc)})") from None
 
 
 def _import(name: str, spec: str):
     if name.endswith(".py"):
         path = Path(name).expanduser()
         if not path.is_file():
-            raise ModelError(f"{spec}: {path}: no such file")
+            raise RobodepthError(f"{spec}: {path}: no such file")
         here = str(path.resolve().parent)
         if here not in sys.path:  # the modules beside the file, as for a script
             sys.path.insert(0, here)
@@ -118,8 +107,8 @@ def _import(name: str, spec: str):
         if "" not in sys.path and str(Path.cwd()) not in sys.path:
             sys.path.insert(0, str(Path.cwd()))
         return importlib.import_module(name)
-    except ModelError:
+    except RobodepthError:
         raise
     except Exception as exc:  # ImportError, or whatever the user's module raises on import
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        raise ModelError(f"{spec}: cannot import {name} ({type(exc).__name__}: {text})") from None
+        raise RobodepthError(f"{spec}: cannot import {name} ({type(exc).__name__}: {text})") from None

@@ -1,19 +1,8 @@
-"""A torch model's size: its parameters and its FLOPs per image, as ``robodepth predict``
-measures them on the first batch it runs.
-
-Parameters: the number of elements of the model's parameters (``module.parameters()``, a
-tensor shared by two modules counted once; buffers such as batch-norm statistics are not
-parameters). FLOPs: what :class:`torch.utils.flop_counter.FlopCounterMode` counts while the
-model predicts its first batch, divided by the batch's images. That counter counts the
-matrix products and convolutions of the forward pass (``mm``, ``addmm``, ``bmm``,
-convolutions, attention), a multiply-add as 2 FLOPs, and nothing else: bias additions,
-activations, normalisation and resizing are not counted. So a 3x3 convolution of ``c_in``
-to ``c_out`` channels over an ``h x w`` output counts ``2 * 9 * c_in * c_out * h * w``.
-The count is of the network at the input size it ran: monodepth2's fixed input, whatever
-size an ``hf:`` model's processor made, the size a ``python:`` module chose; with
-``--post-process`` the mirror image's pass is counted too (it is part of each prediction).
-Papers often give multiply-adds ("MACs") as FLOPs: those are half of ours.
-"""
+"""A torch model's size as ``robodepth predict`` measures it on the first batch: its
+parameters (shared tensors once, buffers not counted) and its FLOPs per image, what
+:class:`torch.utils.flop_counter.FlopCounterMode` counts over that batch divided by its
+images (matrix products and convolutions, a multiply-add as 2 FLOPs: twice the "MACs" of
+many papers), at the input size the network ran, the ``--post-process`` pass included."""
 
 from __future__ import annotations
 
@@ -57,7 +46,7 @@ def modules_of(fn, spec: str) -> tuple:
     """The torch modules a ``python:`` callable exposes: what its ``robodepth_module``
     attribute names (a module, or a list of them), else itself when it is an ``nn.Module``,
     else the module it is a method of; () when it exposes none (torch is then not imported
-    for it). :class:`ModelError` for a ``robodepth_module`` that is not a module."""
+    for it). :class:`RobodepthError` for a ``robodepth_module`` that is not a module."""
     import sys
 
     declared = getattr(fn, "robodepth_module", None)
@@ -68,10 +57,10 @@ def modules_of(fn, spec: str) -> tuple:
     if declared is not None:
         found = list(declared) if isinstance(declared, (list, tuple)) else [declared]
         if not found or not all(isinstance(m, torch.nn.Module) for m in found):
-            from .errors import ModelError
+            from ..errors import RobodepthError
 
-            raise ModelError(f"{spec}: robodepth_module must be a torch.nn.Module or a list of "
-                             "them (the modules whose parameters and FLOPs are counted)")
+            raise RobodepthError(f"{spec}: robodepth_module must be a torch.nn.Module or a list of "
+                                 "them (the modules whose parameters and FLOPs are counted)")
         return tuple(found)
     for candidate in (fn, getattr(fn, "__self__", None)):
         if isinstance(candidate, torch.nn.Module):

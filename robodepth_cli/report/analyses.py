@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
+from ..errors import RobodepthError
 from . import inputs as I
 from . import tags as TG
 
@@ -21,8 +22,8 @@ def add(report, *, tags: Sequence[str] = (), params: Sequence[str] = (),
     scored = [m for m in report.models if m.row.scores is not None and not m.row.scores.note]
     if report.benchmark == I.KITTI_S or not scored:
         if given:
-            raise I.ReportError("--tag, --params, --flops and --sizes need results on kitti-c or "
-                                "nyudepth2-c with their corruptions (the analyses use CE)")
+            raise RobodepthError("--tag, --params, --flops and --sizes need results on kitti-c or "
+                                 "nyudepth2-c with their corruptions (the analyses use CE)")
         return
     bench = report.benchmark
     mine = [m.name for m in scored]

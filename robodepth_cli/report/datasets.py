@@ -1,14 +1,8 @@
-"""Results of several datasets in one report: which dataset (and split) each results file is
-on, the files of a dataset without a published baseline read and scored, one table per
-such dataset and a summary across all of them.
-
-A results CSV of ``robodepth evaluate`` names its dataset and split (its ``dataset`` and
-``split`` columns). For results from elsewhere, the rows of KITTI-C, NYUDepth2-C and KITTI-S
-tell them apart (as ``score`` infers them), and ``report --on DATASET[:SPLIT]`` names any
-other (``drivingstereo-c:foggy``, ``diode-c``, ``custom:night``). A dataset without a
-published baseline is scored against the results of the model ``--baseline`` names on the
-same dataset, so its mCE means what it means on KITTI-C; without one, DEE and RR only.
-"""
+"""Results of several datasets in one report (docs/report.md, several datasets): which
+dataset (and split) each results file is on (its own columns, else ``--on``, else the rows
+as ``score`` infers them), the files of a dataset without a published baseline scored
+against the ``--baseline`` model on the same dataset (without one, DEE and RR only), one
+table per such dataset and a summary across all of them."""
 
 from __future__ import annotations
 
@@ -17,7 +11,7 @@ from pathlib import Path
 from typing import Sequence
 
 from .. import benchmarks as B
-from ..errors import counted
+from ..errors import RobodepthError, counted
 from ..evaluation import results as R, scores as S
 from ..evaluation.csvrows import ResultsTable, ScoreError
 from . import inputs as I
@@ -50,7 +44,7 @@ class Entry:
         if not rows:
             return None
         if metric == "abs_rel" and "abs_rel" not in rows[0]:
-            raise I.ReportError(f"{self.path}: has no abs_rel column (--metric abs_rel)")
+            raise RobodepthError(f"{self.path}: has no abs_rel column (--metric abs_rel)")
         return R.mean(_error(v, metric) for v in rows)
 
 
@@ -65,29 +59,29 @@ def keys_of(tables: Sequence[ResultsTable], on: Sequence[str], benchmark: str | 
     the one the file names, else its benchmark as inferred from its rows. A file that names
     another than ``--on`` (or ``--benchmark``) is refused."""
     if on and len(on) not in (1, len(tables)):
-        raise I.ReportError(f"--on given {counted(len(on), 'time')} for "
-                            f"{counted(len(tables), 'results file')}; give it "
-                            "once per file, in the same order, or once for all")
+        raise RobodepthError(f"--on given {counted(len(on), 'time')} for "
+                             f"{counted(len(tables), 'results file')}; give it "
+                             "once per file, in the same order, or once for all")
     given = [X.parse_key(t) for t in (on * len(tables) if len(on) == 1 else on)]
     for text, key in zip(on, given):
         if not key[0]:
-            raise I.ReportError(f"--on {text!r}: expected DATASET or DATASET:SPLIT")
+            raise RobodepthError(f"--on {text!r}: expected DATASET or DATASET:SPLIT")
     out = []
     for i, table in enumerate(tables):
         p, own = table.source, table.dataset()
         key = given[i] if given else own
         if own is not None and own != key:
-            raise I.ReportError(f"--on {X.key_text(key)}: {p} says its results are on "
-                                f"{X.key_text(own)} (its dataset column)")
+            raise RobodepthError(f"--on {X.key_text(key)}: {p} says its results are on "
+                                 f"{X.key_text(own)} (its dataset column)")
         if own is not None and benchmark and not given and own != (benchmark, ""):
-            raise I.ReportError(f"--benchmark {benchmark}: {p} says its results are on "
-                                f"{X.key_text(own)} (its dataset column)")
+            raise RobodepthError(f"--benchmark {benchmark}: {p} says its results are on "
+                                 f"{X.key_text(own)} (its dataset column)")
         if key is None:
             try:
                 key = (I.infer([table], benchmark), "")
             except ScoreError as exc:
-                raise I.ReportError(f"{exc} (results on another dataset: name it with --on "
-                                    "DATASET[:SPLIT])") from None
+                raise RobodepthError(f"{exc} (results on another dataset: name it with --on "
+                                     "DATASET[:SPLIT])") from None
         out.append(key)
     return out
 
@@ -100,17 +94,17 @@ def load(tables: Sequence[ResultsTable], names: Sequence[str], keys: Sequence[tu
     paths = [Path(t.source) for t in tables]
     chosen = list(names) if names else [p.stem for p in paths]
     if names and len(names) != len(paths):
-        raise I.ReportError(f"--name given {counted(len(names), 'time')} for "
-                            f"{counted(len(paths), 'results file')}; "
-                            "give it once per file, in the same order, or not at all")
+        raise RobodepthError(f"--name given {counted(len(names), 'time')} for "
+                             f"{counted(len(paths), 'results file')}; "
+                             "give it once per file, in the same order, or not at all")
     seen: dict[tuple, Path] = {}
     for n, p, k in zip(chosen, paths, keys):
         if not n.strip():
-            raise I.ReportError("--name: a model name cannot be empty")
+            raise RobodepthError("--name: a model name cannot be empty")
         if (n, k) in seen:
             hint = "" if names else " (use --name to tell them apart)"
-            raise I.ReportError(f"{p}: model name {n!r} on {X.key_text(k)} is also the name of "
-                                f"{seen[n, k]}{hint}")
+            raise RobodepthError(f"{p}: model name {n!r} on {X.key_text(k)} is also the name of "
+                                 f"{seen[n, k]}{hint}")
         seen[n, k] = p
     entries = []
     for n, p, k, t in zip(chosen, paths, keys, tables):
@@ -122,14 +116,14 @@ def load(tables: Sequence[ResultsTable], names: Sequence[str], keys: Sequence[tu
             _check(t)
             entries.append(Entry(n, p, k, I.variant_rows(t), t.sha256, severity_size=t.severity_size()))
     if baseline is not None and baseline not in chosen:
-        raise I.ReportError(f"--baseline {baseline!r}: no results file has that model name "
-                            f"(the names: {', '.join(dict.fromkeys(chosen))})")
+        raise RobodepthError(f"--baseline {baseline!r}: no results file has that model name "
+                             f"(the names: {', '.join(dict.fromkeys(chosen))})")
     for e in entries:
         if e.model is None and _corrupted(e):
             base = next((b for b in entries if b.name == baseline and b.key == e.key), None)
             if baseline is not None and (base is None or not _corrupted(base)):
-                raise I.ReportError(f"--baseline {baseline}: has no results with corruption rows "
-                                    f"on {X.key_text(e.key)}, which {e.path} has")
+                raise RobodepthError(f"--baseline {baseline}: has no results with corruption rows "
+                                     f"on {X.key_text(e.key)}, which {e.path} has")
             e.scores = _score(e, base)
     return entries
 
@@ -167,8 +161,8 @@ def _score(e: Entry, base: Entry | None) -> S.Scores:
     if base is not None:
         bres, bbench = _results(base)
         if bbench.corruptions != bench.corruptions or bbench.n_levels != bench.n_levels:
-            raise I.ReportError(f"--baseline: {base.path} and {e.path} on {X.key_text(e.key)} do "
-                                "not have the same corruptions and levels")
+            raise RobodepthError(f"--baseline: {base.path} and {e.path} on {X.key_text(e.key)} do "
+                                 "not have the same corruptions and levels")
         baseline = R.baseline_from_results(bres, bbench)
         baseline = B.Baseline(base.name, baseline.clean, baseline.dee)
     return S.score(res, bench, baseline, allow_partial=True)

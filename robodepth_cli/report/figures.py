@@ -9,8 +9,8 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
-from .plot import (CONTEXT, INK, MUTED, Model, bar_axes, new_figure, freeze_layout,
-                               figure_legend, figure_title, bench_title, place_labels, pretty, style)
+from .plot import (CONTEXT, INK, MUTED, Model, bar_axes, new_figure, freeze_layout, figure_legend,
+                   figure_title, bench_title, panel_axes, panel_grid, place_labels, pretty, style)
 
 # --------------------------------------------------------------------------- radar
 
@@ -101,9 +101,8 @@ def levels_figure(models: Sequence[Model], benchmark: str, baseline: tuple[str, 
     first = models[0].scores
     names = [c.name for c in first.corruptions]
     ncols = 6 if len(names) > 15 else 5
-    nrows = math.ceil(len(names) / ncols)
-    fig = new_figure(1.75 * ncols + 0.6, 1.55 * nrows + 1.4)
-    axes = fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False)
+    fig, axes = panel_grid(len(names), ncols, (1.75, 1.55), sharex=True, sharey=True)
+    nrows = len(axes)
     levels = list(range(1, first.n_levels + 1))
     top = 0.0
     for k, name in enumerate(names):
@@ -121,11 +120,7 @@ def levels_figure(models: Sequence[Model], benchmark: str, baseline: tuple[str, 
             ax.plot(xs, ys, color=st["color"], linestyle=st["linestyle"], marker=st["marker"],
                     markersize=3.5, linewidth=1.4, label=m.name if k == 0 else None)
         ax.set_title(pretty(name), fontsize=9, pad=3)
-        ax.grid(color="#ececec", linewidth=0.7)
-        ax.set_axisbelow(True)
-        ax.tick_params(labelsize=8)
-    for k in range(len(names), nrows * ncols):
-        axes[k // ncols][k % ncols].set_visible(False)
+        panel_axes(ax)
     axes[0][0].set_xticks(levels)
     axes[0][0].set_xlim(levels[0] - 0.3, levels[-1] + 0.3)
     axes[0][0].set_ylim(0, math.ceil(top * 10 + 0.5) / 10)
@@ -151,9 +146,7 @@ def severity_figure(models: Sequence[Model], benchmark: str):
     the benchmark: they are in no mCE or mRR."""
     names = list(dict.fromkeys(n for m in models for n in m.scores.curves))
     ncols = min(len(names), 4)
-    nrows = math.ceil(len(names) / ncols)
-    fig = new_figure(2.3 * ncols + 0.6, 1.9 * nrows + 1.4)
-    axes = fig.subplots(nrows, ncols, sharey=True, squeeze=False)
+    fig, axes = panel_grid(len(names), ncols, (2.3, 1.9), sharey=True)
     top = models[0].scores.n_levels
     for k, name in enumerate(names):
         ax = axes[k // ncols][k % ncols]
@@ -168,11 +161,7 @@ def severity_figure(models: Sequence[Model], benchmark: str):
         ax.set_xlim(0.8, top + 0.2)
         ax.set_xticks(range(1, top + 1))
         ax.set_xlabel("level s")
-        ax.grid(color="#ececec", linewidth=0.7)
-        ax.set_axisbelow(True)
-        ax.tick_params(labelsize=8)
-    for k in range(len(names), nrows * ncols):
-        axes[k // ncols][k % ncols].set_visible(False)
+        panel_axes(ax)
     for row in axes:
         row[0].set_ylabel("DEE")
     figure_title(fig, f"DEE against continuous severity on {bench_title(benchmark)}",
@@ -217,8 +206,7 @@ def summary_figure(models: Sequence[Point], published: Sequence[Point], benchmar
         ax.set_ylabel(label)
         # No x value at the left end: it would touch the lowest y value in the corner.
         ax.xaxis.set_major_locator(MaxNLocator(nbins=7, steps=[1, 2, 2.5, 5, 10], prune="lower"))
-        ax.grid(color="#ececec", linewidth=0.7)
-        ax.set_axisbelow(True)
+        panel_axes(ax, None)
         if ref is not None:
             ax.axhline(ref, color=MUTED, linestyle=":", linewidth=1.0, zorder=1)
     figure_title(fig, f"Robustness against clean error on {bench_title(benchmark)}",
@@ -365,11 +353,7 @@ def synreal_figure(comparisons: Sequence, metric: str = "DEE"):
 
     models = list(dict.fromkeys(m for c in comparisons for m in c.models))
     ncols = min(len(comparisons), 3)
-    nrows = math.ceil(len(comparisons) / ncols)
-    fig = new_figure(4.3 * ncols + 0.4, 4.0 * nrows + 0.9)
-    axes = fig.subplots(nrows, ncols, squeeze=False)
-    for k in range(len(comparisons), nrows * ncols):
-        axes[k // ncols][k % ncols].set_visible(False)
+    fig, axes = panel_grid(len(comparisons), ncols, (4.3, 4.0), (0.4, 0.9))
     for k, c in enumerate(comparisons):
         ax = axes[k // ncols][k % ncols]
         for m, x, y in zip(c.models, c.synthetic, c.real):
@@ -392,9 +376,7 @@ def synreal_figure(comparisons: Sequence, metric: str = "DEE"):
             stats = f"Spearman ρ {c.spearman:.2f}{lo}   Kendall τ {c.kendall:.2f}"
         ax.set_title(f"{pretty(c.pair.corruption)} against {_key_title(c.pair.real)}\n{stats}",
                      fontsize=9, color=INK)
-        ax.grid(color="#ececec", linewidth=0.7)
-        ax.set_axisbelow(True)
-        ax.tick_params(labelsize=8)
+        panel_axes(ax)
     figure_title(fig, "Synthetic against real: does the corruption rank the models as the real "
                 "condition does?", f"{metric}, lower is better; one point per model; ρ and τ: "
                 "rank correlations, 95% bootstrap interval over the models")

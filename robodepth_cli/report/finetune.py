@@ -1,13 +1,7 @@
-"""Fine-tuning with corruptions (the paper's Fig. 6): a model fine-tuned with each corruption
-as augmentation and tested on every corruption, as a matrix of Abs Rel.
-
-Each fine-tuned model's results carry the tag ``finetune=<corruption>`` (``report --tag``);
-the baseline, the model before fine-tuning, is the one tagged ``finetune=none``, else the
-one user model left untagged when there is exactly one. Rows: the baseline, then the
-fine-tuning corruptions in the benchmark's order; columns: the clean images, then the test
-corruptions; a cell: the row's model's Abs Rel on the column's corruption, the mean over
-the levels its results have (clean: the clean row).
-"""
+"""Fine-tuning with corruptions (the paper's Fig. 6): a matrix of Abs Rel, a row per model
+fine-tuned with a corruption (``--tag MODEL:finetune=<corruption>``) after the baseline
+(tagged ``finetune=none``, else the one untagged model), a column per test corruption
+after the clean images; a cell is the mean over the levels its results have."""
 
 from __future__ import annotations
 
@@ -15,8 +9,8 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from ..benchmarks import CLEAN, get_benchmark
+from ..errors import RobodepthError
 from ..evaluation.csvrows import normalise_name
-from .inputs import ReportError
 
 NONE = "none"
 
@@ -52,27 +46,27 @@ def matrix(models: Sequence, tags: dict[str, dict[str, str]], benchmark: str) ->
             baseline.append(m)
             continue
         if name not in bench.corruptions:
-            raise ReportError(f"--tag {m.name}:finetune={given}: not a corruption of "
-                              f"{benchmark} (or none, for the baseline)")
+            raise RobodepthError(f"--tag {m.name}:finetune={given}: not a corruption of "
+                                 f"{benchmark} (or none, for the baseline)")
         if name in tuned:
-            raise ReportError(f"--tag {m.name}:finetune={given}: {tuned[name].name} is tagged "
-                              "with it too; one model per fine-tuning corruption")
+            raise RobodepthError(f"--tag {m.name}:finetune={given}: {tuned[name].name} is tagged "
+                                 "with it too; one model per fine-tuning corruption")
         tuned[name] = m
     if not tuned:
         return None
     if not baseline:
         baseline = [m for m in models if "finetune" not in tags.get(m.name, {})]
     if len(baseline) > 1:
-        raise ReportError(f"--tag: {len(baseline)} models could be the fine-tuning baseline ("
-                          + ", ".join(m.name for m in baseline) + "); tag one MODEL:finetune=none")
+        raise RobodepthError(f"--tag: {len(baseline)} models could be the fine-tuning baseline ("
+                             + ", ".join(m.name for m in baseline) + "); tag one MODEL:finetune=none")
     ordered = [(NONE, m) for m in baseline] + [(c, tuned[c]) for c in bench.corruptions if c in tuned]
     columns = (CLEAN, *bench.corruptions)
     values = []
     for _, m in ordered:
         row = tuple(_abs_rel(m, c) for c in columns)
         if row[0] is None:
-            raise ReportError(f"{m.path}: no abs_rel column; the fine-tuning matrix shows Abs Rel "
-                              "(robodepth evaluate writes it)")
+            raise RobodepthError(f"{m.path}: no abs_rel column; the fine-tuning matrix shows Abs Rel "
+                                 "(robodepth evaluate writes it)")
         values.append(row)
     keep = [j for j in range(len(columns)) if all(r[j] is not None for r in values)]
     return Matrix(tuple(c for c, _ in ordered), tuple(m.name for _, m in ordered),

@@ -1,16 +1,8 @@
-"""Variants of one model compared per corruption (the paper's Figs. 3 and 4): models that
-share a base and differ in one property, the training ``modality``, the ``pretrain``-ing or
-the input ``resolution``.
-
-A model's properties: the published table's columns (``modality``, ``backbone``,
-``resolution``, ``pretrain``; a published model's base is the first word of its name, so
-``MonoDepth2 R18``, ``MonoDepth2 nopt (stereo)`` and ``MonoDepth2 HR`` share ``MonoDepth2``)
-or, for the user's models, the ``--tag`` values (base "" when untagged). For a property P,
-a group is every model with a value of P whose base and other three properties are equal,
-when the group holds at least two values of P. So the paper's MonoDepth2 R18 rows in
-Mono, Stereo and M+S are one modality group; MonoDepth2 R18 and nopt (ImageNet or none,
-the rest equal) a pre-training group.
-"""
+"""Variants of one model compared per corruption (the paper's Figs. 3 and 4): for a property P
+(``modality``, ``pretrain``, ``resolution``), a group is every model whose base and other
+properties are equal, when it holds at least two values of P. A published model's
+properties are its table's columns, its base the first word of its name; a user's model's
+are its ``--tag`` values (docs/report.md)."""
 
 from __future__ import annotations
 

@@ -19,11 +19,6 @@ from . import published as P
 
 KITTI_S = "kitti-s"
 BENCHMARK_CHOICES = (*B.BENCHMARKS, KITTI_S)
-CONTEXT_CHOICES = ("all", "baseline", "none")
-
-
-class ReportError(RobodepthError):
-    """Inputs a report cannot be made from; the message is one line."""
 
 
 def style_names() -> tuple[str, ...]:
@@ -69,18 +64,18 @@ class Model:
 def model_names(paths: Sequence[Path], names: Sequence[str]) -> list[str]:
     """``--name`` per file (in order) or the file stems; duplicates refused."""
     if names and len(names) != len(paths):
-        raise ReportError(f"--name given {counted(len(names), 'time')} for "
-                          f"{counted(len(paths), 'results file')}; "
-                          "give it once per file, in the same order, or not at all")
+        raise RobodepthError(f"--name given {counted(len(names), 'time')} for "
+                             f"{counted(len(paths), 'results file')}; "
+                             "give it once per file, in the same order, or not at all")
     chosen = list(names) if names else [p.stem for p in paths]
     for n in chosen:
         if not n.strip():
-            raise ReportError("--name: a model name cannot be empty")
+            raise RobodepthError("--name: a model name cannot be empty")
     seen: dict[str, Path] = {}
     for n, p in zip(chosen, paths):
         if n in seen:
             hint = "" if names else " (use --name to tell them apart)"
-            raise ReportError(f"{p}: model name {n!r} is also the name of {seen[n]}{hint}")
+            raise RobodepthError(f"{p}: model name {n!r} is also the name of {seen[n]}{hint}")
         seen[n] = p
     return chosen
 
@@ -94,9 +89,9 @@ def infer(tables: Sequence[ResultsTable], benchmark: str | None) -> str:
     kinds = sorted(set(found.values()))
     if len(kinds) > 1:
         first = {k: next(p for p, v in found.items() if v == k) for k in kinds}
-        raise ReportError("the results are on different benchmarks ("
-                          + ", ".join(f"{first[k]} is {k}" for k in kinds)
-                          + "); make one report per benchmark")
+        raise RobodepthError("the results are on different benchmarks ("
+                             + ", ".join(f"{first[k]} is {k}" for k in kinds)
+                             + "); make one report per benchmark")
     return kinds[0]
 
 
@@ -138,7 +133,7 @@ def load(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: str) -
             res = R.read_results(table, bench)
             missing = R.missing_message(res, bench)
             if missing:
-                raise ReportError(missing)
+                raise RobodepthError(missing)
             row = Row(name, "yours", res.clean, scores=S.score(res, bench), source=str(path))
         out.append(Model(name, path, row, variant_rows(table), table.sha256, warning(table),
                          table.severity_size()))
@@ -153,8 +148,8 @@ def beyond_only(models: Sequence[Model]) -> str:
     if any(notes) and not all(notes):
         only = next(m for m, n in zip(models, notes) if n)
         full = next(m for m, n in zip(models, notes) if not n)
-        raise ReportError(f"{only.path}: has rows beyond the benchmark only, {full.path} has the "
-                          "benchmark's: make one report of each kind")
+        raise RobodepthError(f"{only.path}: has rows beyond the benchmark only, {full.path} has the "
+                             "benchmark's: make one report of each kind")
     return notes[0] if all(notes) else ""
 
 
@@ -186,7 +181,7 @@ def dataset_info(path: Path, benchmark: str) -> dict:
 
     ds = open_dataset(path)
     if ds.name != benchmark:
-        raise ReportError(f"--dataset {path}: is a {ds.name} build, but the results are {benchmark}")
+        raise RobodepthError(f"--dataset {path}: is a {ds.name} build, but the results are {benchmark}")
     rows = OutputFolder(path).rows()
     digest = hashlib.sha256()
     for out in sorted(rows):

@@ -13,7 +13,8 @@ from pathlib import Path
 from typing import Sequence
 
 from ..benchmarks import ALL_CORRUPTIONS
-from .inputs import ReportError, model_names
+from ..errors import RobodepthError
+from .inputs import model_names
 
 RANK = {"kitti": ("abs_rel", False), "nyu": ("a1", True)}  # metric, higher is better
 METRICS = {"kitti": ("abs_rel", "sq_rel", "rmse", "rmse_log", "a1", "a2", "a3"),
@@ -37,14 +38,14 @@ def read_scores(path: Path) -> tuple[str, dict[str, float]]:
     try:
         doc = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
-        raise ReportError(f"{path}: not a readable scores.json ({exc})") from None
+        raise RobodepthError(f"{path}: not a readable scores.json ({exc})") from None
     if not isinstance(doc, dict):
-        raise ReportError(f"{path}: not a challenge scores.json (a JSON object)")
+        raise RobodepthError(f"{path}: not a challenge scores.json (a JSON object)")
     track = "nyu" if "silog" in doc else "kitti"
     bad = [m for m in METRICS[track] + ("dee",)
            if not isinstance(doc.get(m), (int, float)) or not math.isfinite(doc[m])]
     if bad:
-        raise ReportError(f"{path}: {bad[0]}: missing or not a number; not a challenge scores.json")
+        raise RobodepthError(f"{path}: {bad[0]}: missing or not a number; not a challenge scores.json")
     return track, {k: float(v) for k, v in doc.items() if isinstance(v, (int, float))}
 
 

@@ -1,25 +1,9 @@
-"""What each corruption does to the pixels of a build (``robodepth stats``): per variant,
-the histogram of the pixel values per channel, the mean and spread against the clean
-images', and PSNR and SSIM against the clean image.
-
-Definitions (per variant, over the images it was computed on; channels R, G, B):
-
-- ``histogram[c][v]``: how many pixels of channel ``c`` have value ``v`` (0..255);
-- ``mean[c]``, ``std[c]``: the mean and the (population) standard deviation of channel
-  ``c``'s values, from the histogram; ``mean_shift[c]`` = mean - the clean images' mean
-  over the same images, ``std_ratio[c]`` = std / the clean images' std (null where that is
-  0);
-- ``psnr``: 10 log10(255^2 / MSE), the MSE pooled over every value of every image (so one
-  identical image does not make it infinite); null when every image equals its clean one;
-- ``ssim``: the mean over the images of the SSIM against the clean image, as scikit-image's
-  ``structural_similarity`` computes it by default (a 7 x 7 uniform window, K1 0.01, K2
-  0.03, the mean over the channels; ``data_range`` 255), see :func:`ssim`.
-
-The build is streamed: one clean image and one variant's image are held at a time, and a
-variant keeps only its sums (3 x 256 counts, two numbers), so memory does not grow with
-the build. An image the build did not make is left out of its variant (``images`` says how
-many were used).
-"""
+"""What each corruption does to the pixels of a build (``robodepth stats``): per variant, the
+histogram, mean and spread of each channel against the clean images', and PSNR (the MSE
+pooled over every image) and SSIM (scikit-image's defaults, :func:`ssim`) against the clean
+image, as docs/report.md defines them. The build is streamed: one clean and one variant
+image are held at a time and a variant keeps only its sums; an image the build did not make
+is left out of its variant."""
 
 from __future__ import annotations
 
@@ -33,10 +17,6 @@ from ..errors import RobodepthError
 CHANNELS = ("R", "G", "B")
 SCHEMA, SCHEMA_VERSION = "robodepth-stats", 1
 PEAK = 255.0
-
-
-class StatsError(RobodepthError):
-    """A build whose statistics cannot be computed; the message is one line."""
 
 
 @dataclass
@@ -94,8 +74,8 @@ def ssim(clean: np.ndarray, image: np.ndarray) -> float:
     import cv2
 
     if min(clean.shape[:2]) < WINDOW:
-        raise StatsError(f"an image of {clean.shape[1]}x{clean.shape[0]} is smaller than SSIM's "
-                         f"{WINDOW}x{WINDOW} window")
+        raise RobodepthError(f"an image of {clean.shape[1]}x{clean.shape[0]} is smaller than SSIM's "
+                             f"{WINDOW}x{WINDOW} window")
     x, y = clean.astype(np.float64), image.astype(np.float64)
 
     def mean(a):
@@ -132,10 +112,10 @@ def collect(dataset, most: int | None = None,
     try:
         clean_v = dataset.variant(CLEAN)
     except KeyError:
-        raise StatsError(f"{dataset.path}: the build has no clean images to compare with") from None
+        raise RobodepthError(f"{dataset.path}: the build has no clean images to compare with") from None
     others = [v for v in dataset.variants() if v != clean_v]
     if not others:
-        raise StatsError(f"{dataset.path}: the build has no corrupted variant")
+        raise RobodepthError(f"{dataset.path}: the build has no corrupted variant")
     clean_sums, sums = Sums(), [(v, Sums()) for v in others]
     for i in chosen(len(dataset.keys), most):
         key = dataset.keys[i]
@@ -148,8 +128,8 @@ def collect(dataset, most: int | None = None,
                 continue
             image = v.read(i)
             if image.shape != clean.shape:
-                raise StatsError(f"{dataset.path / v.relpath / key}: {image.shape[1]}x{image.shape[0]}, "
-                                 f"its clean image {clean.shape[1]}x{clean.shape[0]}")
+                raise RobodepthError(f"{dataset.path / v.relpath / key}: {image.shape[1]}x{image.shape[0]}, "
+                                     f"its clean image {clean.shape[1]}x{clean.shape[0]}")
             s.add(image, clean)
         if progress:
             progress(1)
@@ -186,8 +166,8 @@ def check_level(levels, level) -> None:
     build of styles alone has none: the figure shows every style)."""
     present = {lv for lv in levels if lv is not None}
     if present and level not in present:
-        raise StatsError(f"--level {level}: the build has no variant at that level (it has "
-                         + ", ".join(str(lv) for lv in sorted(present)) + ")")
+        raise RobodepthError(f"--level {level}: the build has no variant at that level (it has "
+                             + ", ".join(str(lv) for lv in sorted(present)) + ")")
 
 
 def figure(doc: dict, level):
@@ -195,8 +175,6 @@ def figure(doc: dict, level):
     when none has levels: styles), each channel's histogram of the variant as a line
     (R vermillion, G bluish green, B blue: Okabe-Ito) over the clean images' (grey, all
     channels), in percent of the pixels; PSNR and SSIM under each title."""
-    import math
-
     from matplotlib.ticker import MaxNLocator
 
     from . import plot
@@ -206,11 +184,9 @@ def figure(doc: dict, level):
     if not shown:
         shown = [v for v in doc["variants"] if v["images"] and v["level"] is None]
     ncols = min(6, len(shown))
-    nrows = math.ceil(len(shown) / ncols)
-    fig = plot.new_figure(2.05 * ncols + 0.5, 1.85 * nrows + 1.3)
     # Each panel its own y scale: a quantised or noisy histogram is spikes that would
     # flatten every other panel.
-    axes = fig.subplots(nrows, ncols, sharex=True, squeeze=False)
+    fig, axes = plot.panel_grid(len(shown), ncols, (2.05, 1.85), (0.5, 1.3), sharex=True)
     colours = (plot.OKABE_ITO[1], plot.OKABE_ITO[2], plot.OKABE_ITO[0])
     clean = np.asarray(doc["clean"]["histogram"], np.float64)
     clean = 100 * clean.sum(axis=0) / clean.sum()  # percent of the pixels
@@ -232,8 +208,6 @@ def figure(doc: dict, level):
         ax.tick_params(labelsize=7)
         ax.grid(color="#ececec", linewidth=0.6)
         ax.set_axisbelow(True)
-    for k in range(len(shown), nrows * ncols):
-        axes[k // ncols][k % ncols].set_visible(False)
     axes[0][0].set_xlim(0, 255)
     axes[0][0].set_xticks([0, 128, 255])
     for row in axes:

@@ -1,20 +1,10 @@
-"""The plotting layer, with matplotlib: the palette, figure set-up, saving, label
-placement, and the CE bar chart that ``robodepth score --plot`` and ``robodepth report``
-both draw. The report's other figures are in :mod:`robodepth_cli.report.figures`, built on
-this module.
-
-matplotlib is the ``figures`` extra (``pip install 'robodepth-cli[figures]'``); nothing
-else imports this module, so a build or a plain ``score`` never loads it. Figures are made
-with the object-oriented API (:class:`matplotlib.figure.Figure`, no pyplot), so drawing
-one changes no global state of a program that also uses matplotlib.
-
-Conventions every figure follows: colours from the Okabe-Ito palette (distinguishable
-with the common colour-vision deficiencies), a marker and a line style per model as well
-(so print in grey still tells models apart), the benchmark and the model(s) named in the
-title or legend, and text placed where it crosses no line and no other text (labels of
-points are placed by :func:`place_labels`, which drops a context label rather than let it
-overlap).
-"""
+"""The plotting layer, with matplotlib (the ``figures`` extra, imported by nothing else): the
+palette, figure set-up, saving, label placement (:func:`place_labels`), and the CE bar
+chart that ``robodepth score --plot`` and ``robodepth report`` both draw; the report's
+other figures are in :mod:`robodepth_cli.report.figures`. Figures use the object-oriented
+API (no pyplot), so drawing one changes no global state of the calling program; the
+conventions every figure follows (Okabe-Ito colours, a marker and line style per model,
+no overlapping text) are those of docs/report.md."""
 
 from __future__ import annotations
 
@@ -44,16 +34,12 @@ PNG_DPI = 150
 BENCHMARK_TITLE = {"kitti-c": "KITTI-C", "nyudepth2-c": "NYUDepth2-C", "kitti-s": "KITTI-S"}
 
 
-class FiguresUnavailable(RobodepthError):
-    """matplotlib (the ``figures`` extra) is not installed."""
-
-
 def load_matplotlib():
     try:
         import matplotlib
     except ImportError:
-        raise FiguresUnavailable("figures need matplotlib: pip install 'robodepth-cli[figures]' "
-                                 "(or pip install matplotlib)") from None
+        raise RobodepthError("figures need matplotlib: pip install 'robodepth-cli[figures]' "
+                             "(or pip install matplotlib)") from None
     # Text stays text in SVG (searchable, and the page's fonts apply); the same figure
     # gives the same bytes (no random ids, no date).
     matplotlib.rcParams.update({"svg.fonttype": "none", "svg.hashsalt": "robodepth",
@@ -336,6 +322,26 @@ def _write_bar_ends(fig, ax, notes, xmax: float) -> None:
             # of black and white reads better on the bar's colour.
             text.set(x=ce - xmax * 0.008, ha="right",
                      color=INK if _luminance(colour) > 0.2 else "white")
+
+
+def panel_grid(n: int, ncols: int, size: tuple[float, float], margins: tuple[float, float] = (0.6, 1.4),
+               **shared):
+    """A figure of ``n`` panels of ``size`` inches, ``ncols`` to a row, the places left over
+    hidden: ``(figure, axes[row][column])``; ``shared``: ``sharex``/``sharey``."""
+    nrows = math.ceil(n / ncols)
+    fig = new_figure(size[0] * ncols + margins[0], size[1] * nrows + margins[1])
+    axes = fig.subplots(nrows, ncols, **shared, squeeze=False)
+    for k in range(n, nrows * ncols):
+        axes[k // ncols][k % ncols].set_visible(False)
+    return fig, axes
+
+
+def panel_axes(ax, labelsize: float | None = 8) -> None:
+    """A panel's faint grid behind the data, and its small tick labels."""
+    ax.grid(color="#ececec", linewidth=0.7)
+    ax.set_axisbelow(True)
+    if labelsize is not None:
+        ax.tick_params(labelsize=labelsize)
 
 
 def bar_axes(ax, grid: bool = True) -> None:

@@ -10,8 +10,8 @@ import numpy as np
 
 from .. import open_dataset
 from ..benchmarks import CLEAN
-from ..errors import counted
-from .inputs import KITTI_S, ReportError
+from ..errors import RobodepthError, counted
+from .inputs import KITTI_S
 
 # Shown when the build has them: one corruption of each category and one more, at level 3
 # (visible yet not extreme); for KITTI-S, three styles.
@@ -25,7 +25,7 @@ def choose_variants(dataset) -> list:
     """Clean and up to three other variants of ``dataset`` that exist, by preference."""
     built = {(v.name, v.level): v for v in dataset.variants()}
     if (CLEAN, None) not in built:
-        raise ReportError(f"--dataset {dataset.path}: the build has no clean images")
+        raise RobodepthError(f"--dataset {dataset.path}: the build has no clean images")
     chosen = [built[CLEAN, None]]
     wanted = ([(s, None) for s in PREFERRED_STYLES] if dataset.name == KITTI_S else list(PREFERRED))
     wanted += sorted(k for k in built if k[0] != CLEAN)
@@ -53,12 +53,12 @@ DRAWN = {"disp": "disparity", "sigmoid": "sigmoid output", "depth": "depth, draw
 def check_kinds(kinds: Sequence[str], preds: Sequence[Path]) -> None:
     """``--kind`` is given once per ``--pred``, once for all, or not at all."""
     if kinds and not preds:
-        raise ReportError("--kind needs --pred (it says what the predictions hold)")
+        raise RobodepthError("--kind needs --pred (it says what the predictions hold)")
     if kinds and len(kinds) not in (1, len(preds)):
-        raise ReportError(f"--kind given {counted(len(kinds), 'time')} for "
-                          f"{counted(len(preds), '--pred folder')}; give "
-                          "it once per --pred in the same order, once for all, or not at all "
-                          "(each folder's predictions.json says it)")
+        raise RobodepthError(f"--kind given {counted(len(kinds), 'time')} for "
+                             f"{counted(len(preds), '--pred folder')}; give "
+                             "it once per --pred in the same order, once for all, or not at all "
+                             "(each folder's predictions.json says it)")
 
 
 def pred_kinds(preds: Sequence[Path], kinds: Sequence[str], dataset_name: str) -> list[tuple[str, str]]:
@@ -90,8 +90,8 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
 
     dataset = open_dataset(dataset_dir)
     if frame >= len(dataset.keys):
-        raise ReportError(f"--frame {frame}: {dataset_dir} has {len(dataset.keys)} images "
-                          f"(0..{len(dataset.keys) - 1})")
+        raise RobodepthError(f"--frame {frame}: {dataset_dir} has {len(dataset.keys)} images "
+                             f"(0..{len(dataset.keys) - 1})")
     held = pred_kinds(preds, kinds, dataset.name)
     variants = choose_variants(dataset)
     models = report.models[:len(preds)]
@@ -103,14 +103,14 @@ def qualitative(report, dataset_dir: Path, preds: Sequence[Path], frame: int, ki
         for v in variants:
             found = find_predictions(Path(pred), v, 256.0)
             if found is None:
-                raise ReportError(f"--pred {pred}: no predictions for {v.label} (expected "
-                                  f"{v.prediction_file(pred)})")
+                raise RobodepthError(f"--pred {pred}: no predictions for {v.label} (expected "
+                                     f"{v.prediction_file(pred)})")
             try:
                 m, _, _ = found.read(frame)
             finally:
                 found.close()
             if m.ndim != 2:
-                raise ReportError(f"--pred {pred}: prediction {frame} of {v.label} is not a 2-D map")
+                raise RobodepthError(f"--pred {pred}: prediction {frame} of {v.label} is not a 2-D map")
             row.append(inverse_depth(m, kind))
         rows.append((f"{model.name}  ({DRAWN[kind]})", row))
     key = dataset.keys[frame]

@@ -1,22 +1,11 @@
 """Synthetic against real: does a synthetic corruption rank models as the real condition does?
 
-A pair of the table (:data:`PAIRS`, which users extend with ``report --pairs FILE``) names
-a synthetic corruption on a dataset (``kitti-c``'s ``fog``) and a real condition, a
-dataset and split whose clean images were taken in it (``drivingstereo-c:foggy``). Every
-model with results on both sides gives two numbers: its error on the corruption (the mean
-over the levels its results have, as ``score`` averages a corruption) and its error on the
-real condition (the clean row of its results there); the error is DEE, or AbsRel.
-
-The two rankings are compared by Spearman's rank correlation (the Pearson correlation of
-the ranks, ties given their average rank) and Kendall's tau-b (concordant minus discordant
-pairs over the geometric mean of the pairs untied on each side). The interval is a
-percentile bootstrap over the models: a resample draws as many models as there are, with
-replacement, from a generator seeded by ``seed``, so the same inputs give the same interval;
-a resample in which one side has every value tied has no ranking and is drawn again. The
-results files hold each variant's mean over the images, not the images' own errors, so the
-images cannot be resampled: the interval says how much the agreement depends on which
-models were compared.
-"""
+A pair (:data:`PAIRS`, extended by ``report --pairs FILE``) names a synthetic corruption on
+a dataset and a real condition (a dataset and split taken in it). Each model with results
+on both sides gives its error (DEE or AbsRel) on the corruption, averaged over its levels,
+and on the real condition's clean row; the two rankings are compared by Spearman's rho and
+Kendall's tau-b, with a percentile bootstrap over the models seeded by ``seed``
+(docs/report.md)."""
 
 from __future__ import annotations
 
@@ -34,10 +23,6 @@ from .tablefile import table_rows
 PAIRS = Path(__file__).resolve().parent / "pairs.csv"
 MIN_MODELS = 3  # two models have one pair to order: no ranking to speak of
 METRICS = {"dee": "DEE", "abs_rel": "AbsRel"}
-
-
-class PairsError(RobodepthError):
-    """A pairs table that cannot be read; the message names the file and line."""
 
 
 def parse_key(text: str) -> tuple[str, str]:
@@ -66,14 +51,14 @@ def read_pairs(paths: Sequence[Path]) -> list[Pair]:
     with the columns ``synthetic,corruption,real`` (``#`` lines are comments)."""
     pairs: dict[Pair, None] = {}
     for path in paths:
-        for where, row in table_rows("--pairs", Path(path), ("synthetic", "corruption", "real"), PairsError):
+        for where, row in table_rows("--pairs", Path(path), ("synthetic", "corruption", "real"), RobodepthError):
             if len(row) != 3 or not all(c.strip() for c in row):
-                raise PairsError(f"{where}: expected three cells: DATASET[:SPLIT],CORRUPTION,"
-                                 "DATASET[:SPLIT]")
+                raise RobodepthError(f"{where}: expected three cells: DATASET[:SPLIT],CORRUPTION,"
+                                     "DATASET[:SPLIT]")
             corruption = normalise_name(row[1])
             if corruption not in CORRUPTIONS:
-                raise PairsError(f"{where}: unknown corruption {row[1].strip()!r}; valid: "
-                                 f"{', '.join(CORRUPTIONS)}")
+                raise RobodepthError(f"{where}: unknown corruption {row[1].strip()!r}; valid: "
+                                     f"{', '.join(CORRUPTIONS)}")
             pairs[Pair(parse_key(row[0]), corruption, parse_key(row[2]))] = None
     return list(pairs)
 

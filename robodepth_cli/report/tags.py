@@ -14,7 +14,8 @@ import math
 from pathlib import Path
 from typing import Sequence
 
-from .inputs import ReportError
+from ..errors import RobodepthError
+
 
 TAG_KEYS = ("base", "modality", "backbone", "resolution", "pretrain", "finetune")
 SUFFIXES = {"": 1.0, "k": 1e3, "m": 1e6, "g": 1e9, "t": 1e12}
@@ -24,27 +25,27 @@ SIZES_COLUMNS = ("model", "params", "flops")
 
 def count(text: str, where: str) -> float:
     """``"14.3M"`` -> 14300000.0: a positive finite number with an optional k/M/G/T suffix
-    (case-insensitive); :class:`ReportError` naming ``where`` otherwise."""
+    (case-insensitive); :class:`RobodepthError` naming ``where`` otherwise."""
     t = text.strip()
     suffix = t[-1:].lower() if t[-1:].isalpha() else ""
     try:
         value = float(t[:len(t) - len(suffix)]) * SUFFIXES[suffix]
     except (ValueError, KeyError):
-        raise ReportError(f"{where}: {text.strip()!r} is not a count (a number, optionally with "
-                          "k, M, G or T: 14.3M)") from None
+        raise RobodepthError(f"{where}: {text.strip()!r} is not a count (a number, optionally with "
+                             "k, M, G or T: 14.3M)") from None
     if not math.isfinite(value) or value <= 0:
-        raise ReportError(f"{where}: {text.strip()!r} must be a positive finite number")
+        raise RobodepthError(f"{where}: {text.strip()!r} must be a positive finite number")
     return value
 
 
 def _split(text: str, flag: str, names: Sequence[str], at: int, form: str) -> tuple[str, str]:
     """``text`` split at ``at`` into a model of ``names`` and the rest."""
     if at <= 0 or "=" not in text:
-        raise ReportError(f"{flag} {text!r}: expected {form}")
+        raise RobodepthError(f"{flag} {text!r}: expected {form}")
     model = text[:at].strip()
     if model not in names:
-        raise ReportError(f"{flag} {text!r}: no model is named {model!r} (the names: "
-                          f"{', '.join(names)})")
+        raise RobodepthError(f"{flag} {text!r}: no model is named {model!r} (the names: "
+                             f"{', '.join(names)})")
     return model, text[at + 1:]
 
 
@@ -59,9 +60,9 @@ def parse_tags(values: Sequence[str], names: Sequence[str]) -> dict[str, dict[st
             key, eq, value = item.partition("=")
             key = key.strip().lower()
             if not eq or not value.strip():
-                raise ReportError(f"--tag {text!r}: expected KEY=VALUE, got {item.strip()!r}")
+                raise RobodepthError(f"--tag {text!r}: expected KEY=VALUE, got {item.strip()!r}")
             if key not in TAG_KEYS:
-                raise ReportError(f"--tag {text!r}: unknown key {key!r}; valid: {', '.join(TAG_KEYS)}")
+                raise RobodepthError(f"--tag {text!r}: unknown key {key!r}; valid: {', '.join(TAG_KEYS)}")
             out.setdefault(model, {})[key] = value.strip()
     return out
 
@@ -82,12 +83,12 @@ def read_sizes(path: Path, names: Sequence[str]) -> dict[str, dict[str, float]]:
     from .tablefile import table_rows
 
     out = {}
-    for where, row in table_rows("--sizes", path, SIZES_COLUMNS, ReportError,
+    for where, row in table_rows("--sizes", path, SIZES_COLUMNS, RobodepthError,
                                  (SIZES_LIMIT, "a table of model sizes is a few lines")):
         if len(row) != 3:
-            raise ReportError(f"{where}: expected three cells: model,params,flops")
+            raise RobodepthError(f"{where}: expected three cells: model,params,flops")
         model = row[0].strip()
         if model not in names:
-            raise ReportError(f"{where}: no model of the report is named {model!r}")
+            raise RobodepthError(f"{where}: no model of the report is named {model!r}")
         out[model] = {k: count(v, where) for k, v in zip(SIZES_COLUMNS[1:], row[1:]) if v.strip()}
     return out

@@ -1,15 +1,7 @@
-"""Make a report: score the inputs, draw the figures, write the page, tables and JSON.
-
-Output layout under OUT (written whole or not at all: into a temporary folder, then moved
-into place; an earlier report's files there are replaced, and figures of it that this one
-does not draw are removed, so nothing stale is left):
-
-    index.html       the page (self-contained)
-    table.tex        booktabs tables (summary like the paper's Table 1, then the details)
-    table.md         the same tables in Markdown
-    scores.json      the leaderboard entry (schema in docs/report.md, SCHEMA below)
-    figures/<name>.svg|.pdf|.png
-"""
+"""Make a report: score the inputs, draw the figures, write the page, tables and JSON (the
+files and the ``scores.json`` schema of docs/report.md). OUT is written whole or not at
+all: into a temporary folder, then moved into place; an earlier report's figures that this
+one does not draw are removed, so nothing stale is left."""
 
 from __future__ import annotations
 
@@ -20,7 +12,7 @@ from typing import Callable, Sequence
 
 from .. import __version__
 from ..formats import stamp
-from ..errors import counted
+from ..errors import RobodepthError, counted
 from ..evaluation.csvrows import ResultsTable
 from . import inputs as I
 from . import published as P
@@ -61,9 +53,9 @@ def check_writable(out: Path) -> None:
     from ..files import check_writable as check
 
     if out.exists() and not out.is_dir():
-        raise I.ReportError(f"--out {out}: exists and is not a directory")
+        raise RobodepthError(f"--out {out}: exists and is not a directory")
     if (out / FIGURES).exists() and not (out / FIGURES).is_dir():
-        raise I.ReportError(f"--out {out}: {out / FIGURES} exists and is not a directory")
+        raise RobodepthError(f"--out {out}: {out / FIGURES} exists and is not a directory")
     check(out / "index.html" if out.is_dir() else out, "--out")
 
 
@@ -85,26 +77,26 @@ def assemble(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: st
         report = _main(bench, I.load(tables, names, bench), context,
                        I.dataset_info(dataset, bench) if dataset is not None else None)
         if baseline is not None:
-            raise I.ReportError(f"--baseline: {bench} has a published baseline; --baseline names "
-                                "the model to score datasets without one against")
+            raise RobodepthError(f"--baseline: {bench} has a published baseline; --baseline names "
+                                 "the model to score datasets without one against")
         return report
     entries = D.load(tables, names, keys, baseline)
     by_key = D.groups(entries)
     main = next((k for k in by_key if k[0] in D.PUBLISHED and not k[1]), None)
     if n_pred and main is None:
-        raise I.ReportError("--pred: the report has no results on kitti-c, nyudepth2-c or "
-                            "kitti-s for its qualitative figure")
+        raise RobodepthError("--pred: the report has no results on kitti-c, nyudepth2-c or "
+                             "kitti-s for its qualitative figure")
     if main is not None and n_pred > len(by_key[main]):
-        raise I.ReportError(f"--pred given {counted(n_pred, 'time')} for "
-                            f"{counted(len(by_key[main]), 'results file')} on "
-                            f"{main[0]}; give it at most once per file on it, in the same order")
+        raise RobodepthError(f"--pred given {counted(n_pred, 'time')} for "
+                             f"{counted(len(by_key[main]), 'results file')} on "
+                             f"{main[0]}; give it at most once per file on it, in the same order")
     if main is not None:
         report = _main(main[0], [e.model for e in by_key[main]], context,
                        I.dataset_info(dataset, main[0]) if dataset is not None else None)
     else:
         if dataset is not None:
-            raise I.ReportError("--dataset: the report has no results on kitti-c, nyudepth2-c "
-                                "or kitti-s to record it with")
+            raise RobodepthError("--dataset: the report has no results on kitti-c, nyudepth2-c "
+                                 "or kitti-s to record it with")
         report = Report(keys[0][0], [], [], [])
     report.sections = [D.section(k, es, context) for k, es in by_key.items() if k != main]
     report.entries = entries
@@ -305,7 +297,7 @@ class Written:
 def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _: None,
           published: Callable[[], None] = lambda: None) -> Written:
     """Write every output of ``report`` under ``out``, whole or not at all (an interrupt or
-    a write error leaves ``out`` as it was); :class:`~.inputs.ReportError` when a file cannot be
+    a write error leaves ``out`` as it was); :class:`~robodepth_cli.errors.RobodepthError` when a file cannot be
     written. ``published`` is called once the report is in place, before an interrupt
     held meanwhile acts (so the command can say what an interrupt leaves)."""
     import shutil
@@ -331,7 +323,7 @@ def write(report: Report, out: Path, progress: Callable[[str], None] = lambda _:
             finally:
                 shutil.rmtree(stage, ignore_errors=True)
     except OSError as exc:
-        raise I.ReportError(cannot_write(out, exc, "--out")) from None
+        raise RobodepthError(cannot_write(out, exc, "--out")) from None
     return Written([out / n for n in names], removed)
 
 

@@ -1,24 +1,11 @@
-"""``robodepth selftest``: build the fixtures shipped in this package and compare every output
-with the reference recorded on the locked install.
-
-The builds (:data:`BUILDS`) go through the ordinary builder, one of each kind of variant:
-
-- ``custom``: one 33 x 49 frame with its depth map: the 18 corruptions and the six
-  depth-aware ones at levels 1-5 and 2.5, and a chain;
-- ``sequence``: three consecutive 32 x 64 KITTI frames (``--frames -1,1``) with the five
-  corruptions over time at levels 1-5 and 2.5 (the codec ones need PyAV, KITTI-S needs
-  torch: without one, its outputs are skipped and the run says so);
-- ``neighbours``: the same frames with corruptions whose draws the neighbours share;
-- ``kitti-s``: one style through AdaIN with random weights drawn from a fixed seed
-  (:func:`write_random_adain`). torch's CPU kernels are not bit-exact across CPUs, so these
-  outputs pass within :data:`STYLE_TOLERANCE` grey levels; every other output must be the
-  reference's bytes.
-
-The reference (``data/reference.json`` and ``data/reference.xz``) holds, per output, the
-sha256 of the file and its pixels: hashes alone would say that an output differs but not by
-how much, and the pixels of all outputs compress (xz) to about 450 KB. It is written only by
-:func:`record` (``make selftest-record``), which refuses an install other than the lock's.
-"""
+"""``robodepth selftest``: build the fixtures shipped in this package (:data:`BUILDS`, one of
+each kind of variant, through the ordinary builder) and compare every output with the
+reference recorded on the locked install (docs/reproducibility.md). KITTI-S outputs pass
+within :data:`STYLE_TOLERANCE` grey levels (torch's CPU kernels are not bit-exact across
+CPUs), every other output must be the reference's bytes; an output whose optional
+dependency is missing (PyAV, torch) is skipped and said so. The reference holds each
+output's sha256 and its pixels, so a difference says by how much; only :func:`record`
+(``make selftest-record``) writes it, on the lock's install alone."""
 
 from __future__ import annotations
 

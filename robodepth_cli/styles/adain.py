@@ -75,23 +75,19 @@ class CheckpointError(RobodepthError):
     """A checkpoint that cannot be used; the message names the file and the tensor."""
 
 
-class DeviceError(RobodepthError):
-    """The device asked for (``--device``) is not there."""
-
-
 def choose_device(choice: str) -> torch.device:
     """The device of ``--device`` ``choice``: ``cpu``; ``cuda`` (the current CUDA device,
-    :class:`DeviceError` if there is none); ``auto``: CUDA when there is a device, else
+    :class:`RobodepthError` if there is none); ``auto``: CUDA when there is a device, else
     the CPU."""
     if choice not in DEVICES:
-        raise DeviceError(f"--device: expected one of {', '.join(DEVICES)}, got {choice!r}")
+        raise RobodepthError(f"--device: expected one of {', '.join(DEVICES)}, got {choice!r}")
     if choice == "cpu" or (choice == "auto" and not torch.cuda.is_available()):
         return torch.device("cpu")
     if not torch.cuda.is_available():
         why = ("this torch is a CPU-only build" if torch.version.cuda is None
                else "torch finds no CUDA device")
-        raise DeviceError(f"--device cuda: no CUDA device ({why}, torch {torch.__version__}); "
-                          f"use --device cpu or auto")
+        raise RobodepthError(f"--device cuda: no CUDA device ({why}, torch {torch.__version__}); "
+                             f"use --device cpu or auto")
     return torch.device("cuda", torch.cuda.current_device())
 
 

@@ -12,7 +12,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from robodepth_cli.challenge.submission import SubmissionError, open_submission
+from robodepth_cli.challenge.submission import open_submission
+from robodepth_cli.errors import RobodepthError
 from tests.helpers.challenge import public_folder
 from tests.helpers.messages import one_line_error
 
@@ -120,7 +121,7 @@ def test_declared_sizes_are_not_trusted(tmp_path):
     a = _maps()
     data = _npy_bytes(a)
     path = _zip(tmp_path / "s.zip", [("disp.npy", data + bytes(10 ** 6))])
-    with pytest.raises(SubmissionError, match="header announces"):
+    with pytest.raises(RobodepthError, match="header announces"):
         open_submission(str(path), IDS, 10 ** 9)
 
 
@@ -198,7 +199,7 @@ def test_folder_as_codabench_extracts_it(tmp_path):
     with open_submission(str(res), IDS, 10 ** 9) as sub:
         assert [i for i, _ in sub.maps()] == IDS
     os.symlink("/etc/passwd", res / "link.npy")
-    with pytest.raises(SubmissionError, match="symlink"):
+    with pytest.raises(RobodepthError, match="symlink"):
         open_submission(str(res), IDS, 10 ** 9)
 
 

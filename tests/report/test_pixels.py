@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from robodepth_cli.errors import RobodepthError
 from robodepth_cli.report import pixels as X
 from tests.helpers.messages import one_line_error
 
@@ -77,7 +78,7 @@ def test_ssim_is_scikit_images(shape):
 
 
 def test_ssim_of_an_image_under_its_window_refused():
-    with pytest.raises(X.StatsError, match="smaller than SSIM's 7x7 window"):
+    with pytest.raises(RobodepthError, match="smaller than SSIM's 7x7 window"):
         X.ssim(np.zeros((6, 20, 3), np.uint8), np.zeros((6, 20, 3), np.uint8))
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robodepth_cli.errors import RobodepthError
 from robodepth_cli.evaluation import ranking as K
 from robodepth_cli.report import synreal as X
 from tests.helpers.messages import one_line_error
@@ -90,10 +91,10 @@ def test_pairs_tables(tmp_path):
     assert pairs[-1] == X.Pair(("drivingstereo-c", "sunny"), "fog", ("drivingstereo-c", "foggy"))
     bad = tmp_path / "bad.csv"
     bad.write_text("synthetic,corruption,real\nkitti-c,haze,custom:night\n")
-    with pytest.raises(X.PairsError, match=r"bad.csv:2: unknown corruption 'haze'"):
+    with pytest.raises(RobodepthError, match=r"bad.csv:2: unknown corruption 'haze'"):
         X.read_pairs([bad])
     bad.write_text("a,b,c\n")
-    with pytest.raises(X.PairsError, match="header must be synthetic,corruption,real"):
+    with pytest.raises(RobodepthError, match="header must be synthetic,corruption,real"):
         X.read_pairs([bad])
 
 

@@ -10,6 +10,7 @@ import torch
 from PIL import Image
 
 from tests.helpers.adain import reference_stylize, save_checkpoints, smooth_image
+from robodepth_cli.errors import RobodepthError
 from robodepth_cli.styles import adain
 
 FRAME = "kitti_raw/2011_09_26/2011_09_26_drive_0002_sync/image_02/data/0000000069.png"
@@ -28,9 +29,9 @@ def no_cuda(monkeypatch):
 def test_choose_device(monkeypatch):
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
     assert adain.choose_device("cpu") == adain.choose_device("auto") == torch.device("cpu")
-    with pytest.raises(adain.DeviceError, match=r"^--device cuda: no CUDA device \(.*\); use --device cpu or auto$"):
+    with pytest.raises(RobodepthError, match=r"^--device cuda: no CUDA device \(.*\); use --device cpu or auto$"):
         adain.choose_device("cuda")
-    with pytest.raises(adain.DeviceError, match="expected one of auto, cpu, cuda, got 'gpu'"):
+    with pytest.raises(RobodepthError, match="expected one of auto, cpu, cuda, got 'gpu'"):
         adain.choose_device("gpu")
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
     monkeypatch.setattr(torch.cuda, "current_device", lambda: 1)
