@@ -33,7 +33,7 @@ import scipy.fft  # noqa: E402
 from bench import cpu_name  # noqa: E402
 from bench.depth import frames  # noqa: E402
 from robodepth_cli.corruptions import NAMES, REGISTRY, corrupt  # noqa: E402
-from robodepth_cli.building.tasks import _keep_freed_memory  # noqa: E402
+from robodepth_cli.building.jobs import _keep_freed_memory  # noqa: E402
 from robodepth_cli.corruptions import _lens, _ops, defocus_blur, elastic_transform, frost  # noqa: E402
 
 CHANGED = ("defocus_blur", "glass_blur", "elastic_transform", "frost", "near_focus", "far_focus")

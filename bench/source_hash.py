@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
 
-from robodepth_cli.benchmarks import BENCHMARKS  # noqa: E402
+from robodepth_cli.benchmark_facts import BENCHMARKS  # noqa: E402
 from robodepth_cli.corruptions import corrupt  # noqa: E402
 from robodepth_cli.imageio import encode_png, load_clean  # noqa: E402
 from robodepth_cli.files import sha256_file  # noqa: E402

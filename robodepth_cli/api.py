@@ -44,10 +44,10 @@ def read_output(root: Path, store, output: str) -> np.ndarray | None:
 
 def read_neighbours(root: Path, store, relpath: str, key: str, frames, like: np.ndarray) -> list:
     """The images of frame ``key``'s neighbours at the offsets ``frames`` in the variant
-    directory ``relpath`` (named as ``build --frames`` writes them: :func:`robodepth_cli.keys.neighbour_key`),
+    directory ``relpath`` (named as ``build --frames`` writes them: :func:`robodepth_cli.sourcekeys.neighbour_key`),
     from a build or an export; a neighbour the build does not have is black (the shape of
     ``like``), as ManyDepth's loader makes a missing file."""
-    from .keys import neighbour_key
+    from .sourcekeys import neighbour_key
 
     out = []
     for o in frames:

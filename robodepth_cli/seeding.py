@@ -13,7 +13,7 @@ import hashlib
 
 import numpy as np
 
-from .keys import level_text
+from .sourcekeys import level_text
 
 
 def job_seed_sequence(seed: int, dataset: str, variant: str, level, relpath: str) -> np.random.SeedSequence:
@@ -64,7 +64,7 @@ def check_seed(value, where: str = "--seed") -> int:
     :class:`~robodepth_cli.errors.RobodepthError` naming ``where`` otherwise.
     """
     from .errors import RobodepthError
-    from .values import int_from_text, is_int
+    from .integers import int_from_text, is_int
 
     value = int_from_text(value)
     if not is_int(value) or value < 0:

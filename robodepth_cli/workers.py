@@ -36,7 +36,7 @@ def parse_jobs(value) -> int:
     """``--jobs`` (and a build config's ``jobs``) as every command reads it: an integer
     >= 1, or 'auto' or -1 for one worker per CPU (:func:`default_jobs`)."""
     from .errors import InvalidValueError
-    from .values import int_from_text, is_int
+    from .integers import int_from_text, is_int
 
     number = int_from_text(value)
     if number == -1 and is_int(number) or isinstance(value, str) and value.strip() == "auto":

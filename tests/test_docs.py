@@ -183,7 +183,7 @@ def test_the_performance_page_stays_under_8_kb():
 def test_the_readme_counts_what_robodepth_list_lists():
     from click.testing import CliRunner
 
-    from robodepth_cli.benchmarks import CORRUPTIONS, DEPTH_AWARE
+    from robodepth_cli.benchmark_facts import CORRUPTIONS, DEPTH_AWARE
     from robodepth_cli.corruptions import REGISTRY
 
     import json

@@ -13,9 +13,9 @@ from robodepth_cli.imageio import ImageError
 
 def _checks(tmp_path):
     from robodepth_cli import corruptions
-    from robodepth_cli.benchmarks import get_benchmark
+    from robodepth_cli.benchmark_facts import get_benchmark
     from robodepth_cli.imageio import as_rgb, parse_size
-    from robodepth_cli.keys import relative_parts
+    from robodepth_cli.sourcekeys import relative_parts
     from robodepth_cli.sources import splits
     from robodepth_cli.sources.custom import check_list, compile_pattern
     from robodepth_cli.sources.datasets import get_dataset, parse_eigen, parse_nyu

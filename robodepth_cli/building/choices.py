@@ -7,11 +7,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..benchmarks import TEMPORAL
+from ..benchmark_facts import TEMPORAL
 from ..errors import RobodepthError
 from ..imageio import parse_size
 from ..sources import splits
-from ..values import int_from_text, is_int
+from ..integers import int_from_text, is_int
 
 ALL = "all"
 NONE = "none"  # corruptions: none, e.g. to build only chains
@@ -68,7 +68,7 @@ def choose_levels(loc: str, v, valid: tuple[int, ...] | None, *, owner: str = ""
     sorted without repeats: integers, or decimals between them (``2.5``). ``all`` means
     ``valid`` (the integer levels); any other level must lie in ``valid``'s span, else it is
     refused naming ``owner`` (``valid`` None: 1..5). :class:`ConfigError` naming ``loc``."""
-    from ..benchmarks import N_LEVELS
+    from ..benchmark_facts import N_LEVELS
     from ..corruptions.severity import LevelError, parse_level
 
     if v == ALL:

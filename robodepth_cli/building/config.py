@@ -35,7 +35,7 @@ from typing import Any
 
 import yaml
 
-from ..benchmarks import TEMPORAL
+from ..benchmark_facts import TEMPORAL
 from ..files import data_dir
 from ..sources import splits
 from ..sources.datasets import DATASETS, Options, get_dataset

@@ -1,6 +1,6 @@
 """Which source images a build reads: the split's entries found under the root (or in NYU's
 labeled file), or for a custom build the images found under the root or listed in
-``--list``. Each becomes a :class:`~.tasks.Source`; a missing or unusable image is that
+``--list``. Each becomes a :class:`~.jobs.Source`; a missing or unusable image is that
 image's failure, and only a root where none is usable refuses the build.
 """
 
@@ -16,7 +16,7 @@ from ..sources import splits
 from ..sources.datasets import Dataset, Entry, read_split
 from .checks import BuildError
 from .config import BuildConfig
-from .tasks import Source
+from .jobs import Source
 
 
 def check_root(root: Path, labeled_ok: bool = False) -> Path:

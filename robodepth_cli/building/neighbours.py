@@ -17,9 +17,9 @@ from dataclasses import replace
 from pathlib import PurePosixPath
 
 from ..errors import InvalidValueError
-from ..keys import PRESET_EXTS, neighbour_key
+from ..sourcekeys import PRESET_EXTS, neighbour_key
 from ..sources.datasets import Entry
-from .tasks import Source
+from .jobs import Source
 
 MAX_OFFSET = 10
 

@@ -5,7 +5,7 @@ impossible is checked before the first image is touched:
 
 1. :func:`~.gather.gather_sources`: check the root (and that it and OUT do not overlap),
    read the split (a standard one is downloaded and checked on first use) and find every
-   listed image, one :class:`~.tasks.Source` per entry; abort if none is there, if one
+   listed image, one :class:`~.jobs.Source` per entry; abort if none is there, if one
    resolves into OUT, or if OUT holds a build of another dataset, size or seed
    (:mod:`.checks`); a custom build finds its images under the root instead;
 2. ``Dataset.renderer``: the object that turns a clean image into its variants (KITTI-S
@@ -13,11 +13,11 @@ impossible is checked before the first image is touched:
 3. :class:`~robodepth_cli.output.folder.OutputFolder`: create OUT, prove it writable, take
    its lock, refuse symlinks in it that lead outside it, delete temporary files a killed
    build left and record what it wrote;
-4. :func:`plan`: one :class:`~.tasks.Task` per source, holding its jobs (clean + variants x levels)
+4. :func:`plan`: one :class:`~.jobs.SourceJobs` per source, holding its jobs (clean + variants x levels)
    and, for each output already in the manifest with the current settings and made from
    the source as it is now (same size; same sha256, which the worker checks), the sha256
    to check it against;
-5. :func:`run_tasks`: the executor runs :func:`~.tasks.run_task` on every task (in-process or in a
+5. :func:`run_tasks`: the executor runs :func:`~.jobs.run_source_jobs` on every task (in-process or in a
    pool of workers). A worker hashes the outputs that may be done and, only if something
    is left, decodes and resizes the source once, writes the clean image and renders the
    rest, writing each PNG atomically. It returns one ``(JobState, manifest row)`` per job,
@@ -54,8 +54,8 @@ from .config import BuildConfig
 from .executors import Executor, ExecutorError, checked_executor
 from .gather import check_root, gather_sources, orientation_record
 from .vanished import prune
-from .tasks import (PNG_COMPRESS_LEVEL, Context, JobState, Source, Task, fingerprint, for_source,
-                    run_task, same_source)
+from .jobs import (PNG_COMPRESS_LEVEL, Context, JobState, Source, SourceJobs, fingerprint, for_source,
+                    run_source_jobs, same_source)
 
 MAX_ERRORS_SHOWN = 10
 
@@ -220,7 +220,7 @@ def make_renderer(ds: Dataset, cfg: BuildConfig, root: Path, split_path: str | N
 
 
 def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, Row],
-         renderer: Renderer) -> list[Task]:
+         renderer: Renderer) -> list[SourceJobs]:
     """One task per source. An output counts as possibly done (its sha256 goes into the
     task) when ``done``, the manifest, has a row for it without an error, from the same
     source, seed, size and renderer fingerprint; the worker still checks the file."""
@@ -251,7 +251,7 @@ def plan(ds: Dataset, cfg: BuildConfig, sources: list[Source], done: dict[str, R
         source_sha = hashes.pop() if len(hashes) == 1 else ""
         stamps.discard("")
         stamp = stamps.pop() if len(stamps) == 1 else ("mixed" if stamps else "")
-        tasks.append(Task(src, jobs, tuple(expected), source_sha, refresh, size, stamp))
+        tasks.append(SourceJobs(src, jobs, tuple(expected), source_sha, refresh, size, stamp))
     return tasks
 
 
@@ -298,7 +298,7 @@ def start_record(cfg: BuildConfig, ds: Dataset, root: Path, folder: OutputFolder
     return record
 
 
-def run_tasks(tasks: list[Task], ctx: Context, executor: Executor, folder: OutputFolder,
+def run_tasks(tasks: list[SourceJobs], ctx: Context, executor: Executor, folder: OutputFolder,
               progress: bool) -> Summary:
     """Run every task through ``executor``, appending the manifest rows of each as it
     finishes. Stops at the first fatal error; Ctrl-C marks the summary interrupted."""
@@ -314,7 +314,7 @@ def run_tasks(tasks: list[Task], ctx: Context, executor: Executor, folder: Outpu
     return summary
 
 
-def _run(tasks: list[Task], ctx: Context, executor: Executor, folder: OutputFolder,
+def _run(tasks: list[SourceJobs], ctx: Context, executor: Executor, folder: OutputFolder,
          summary: Summary, progress: bool) -> None:
     from ..progress import bar as progress_bar
 
@@ -327,7 +327,7 @@ def _run(tasks: list[Task], ctx: Context, executor: Executor, folder: OutputFold
     # Outputs whose rows predate the source records: written again even when skipped.
     refresh = {job.path(t.source.key) for t in tasks if t.refresh for job in t.jobs}
     with bar, writer:
-        for results in executor.map_unordered(functools.partial(run_task, ctx=ctx), tasks):
+        for results in executor.map_unordered(functools.partial(run_source_jobs, ctx=ctx), tasks):
             try:
                 writer.append([r for state, r in results
                                if state is not JobState.SKIPPED or r.output in refresh])

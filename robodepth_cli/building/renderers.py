@@ -21,7 +21,7 @@ from typing import Iterator, Protocol, Sequence
 
 import numpy as np
 
-from ..benchmarks import TEMPORAL
+from ..benchmark_facts import TEMPORAL
 from ..errors import InvalidValueError, reraise_interrupt
 from ..output.layout import SEVERITY_SIZE, TORCH_FINGERPRINT
 from ..sources.datasets import Dataset, Job, Options, StyleDataset

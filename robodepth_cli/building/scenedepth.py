@@ -238,13 +238,13 @@ class PredictedDepth(DepthSource):
 
     def __init__(self, pred: Path, record: dict, keys: dict[str, int], own: DepthSource | None):
         from ..predictions import model_identity
-        from ..sources import predicted as P
+        from ..sources import predicted
 
         self.pred = str(pred)
         self.model = str(record.get("model"))
         self.identity = model_identity(record)
         self.disparity = record["evaluate"]["kind"] == "disp"
-        self.rule = P.conversion(record, pred)
+        self.rule = predicted.conversion(record, pred)
         self.keys = keys  # key -> index in the predicting build's split order
         self.own = own
         self._array = None
@@ -258,11 +258,11 @@ class PredictedDepth(DepthSource):
         """The depth of ``PRED``, checked before any work; ``own``: the dataset's own depth,
         which relative maps are scaled to. :class:`RobodepthError` naming ``--scene-depth``."""
         from .. import predictions
-        from ..sources import predicted as P
+        from ..sources import predicted
 
         try:
-            record = P.read_record(pred)
-            rule = P.conversion(record, pred)
+            record = predicted.read_record(pred)
+            rule = predicted.conversion(record, pred)
         except InvalidValueError as exc:
             raise exc.at("--scene-depth") from None
         if rule == "median" and own is None:

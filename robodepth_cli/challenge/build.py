@@ -101,7 +101,7 @@ def _write_public(cfg, ds, root: Path, stage: Path, public: Path, picks: list[Pi
     ``then`` with the sha256 of each id's PNG; the folder appears whole after that."""
     from ..building.gather import gather_sources
     from ..building.pipeline import make_renderer
-    from ..building.tasks import load_source
+    from ..building.jobs import load_source
     from ..files import atomic_directory, sha256_bytes, write_atomic
     from ..imageio import encode_png
     from ..progress import bar as progress_bar

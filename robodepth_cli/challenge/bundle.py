@@ -16,7 +16,7 @@ from .scoring import RANK
 from .npzfile import write_npz
 
 DOCKER_IMAGE = "codalab/codalab-legacy:py39"  # Codabench's documented default (Python 3.9, numpy)
-PROGRAM_FILES = ("errors.py", "benchmarks.py", "evaluation/protocols.py", "evaluation/resample.py",
+PROGRAM_FILES = ("errors.py", "benchmark_facts.py", "evaluation/protocols.py", "evaluation/resample.py",
                  "challenge/__init__.py", "challenge/layout.py", "challenge/submission.py",
                  "challenge/resize.py", "challenge/scoring.py", "challenge/page.py",
                  "challenge/server.py")
@@ -66,7 +66,7 @@ def dev_rows(rows: list[dict], k: int) -> list[dict]:
 
 def present(rows: list[dict]) -> list[str]:
     """The corruptions of ``rows``, in benchmark order."""
-    from ..benchmarks import ALL_CORRUPTIONS
+    from ..benchmark_facts import ALL_CORRUPTIONS
 
     have = {r["corruption"] for r in rows}
     return [c for c in ALL_CORRUPTIONS if c in have] + sorted(have - set(ALL_CORRUPTIONS))
@@ -151,7 +151,7 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
     """Write the bundle of the challenge in ``challenge`` (its public and private folders)
     to ``out``; returns a summary (images per phase)."""
     from ..files import atomic_output
-    from . import pages as P
+    from . import pages
 
     public, private = Path(challenge) / "public", Path(challenge) / "private"
     for folder in (public, private):
@@ -171,7 +171,7 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
         _add(zf, "competition.yaml", competition_yaml(meta, title, dev, dates, per_day, total,
                                                       final_total, docker_image).encode())
         _add(zf, "logo.png", _logo())
-        for name, text in P.pages(meta, title, dev, max_bytes).items():
+        for name, text in pages.pages(meta, title, dev, max_bytes).items():
             _add(zf, f"pages/{name}.md", text.encode())
         _add(zf, "scoring_program/metadata.yaml",
              f"command: python3 /app/program/score.py /app/input /app/output {max_bytes}\n".encode())
@@ -184,6 +184,6 @@ def make_bundle(challenge: Path, out: Path, *, title: str, dev_images: int | Non
             for name, data in reference_files(private, ids, part, meta).items():
                 _add(zf, f"{folder}/{name}", data)
         _add(zf, "solutions/sample/disp.npz", sample_submission(ids))
-        _add(zf, "starting_kit/README.md", P.starting_kit_readme(meta).encode())
-        _add(zf, "starting_kit/make_submission.py", P.MAKE_SUBMISSION.encode())
+        _add(zf, "starting_kit/README.md", pages.starting_kit_readme(meta).encode())
+        _add(zf, "starting_kit/make_submission.py", pages.MAKE_SUBMISSION.encode())
     return {"dev": dev, "final": n}

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import html
 
-from ..benchmarks import ALL_CATEGORY, CATEGORIES
+from ..benchmark_facts import ALL_CATEGORY, CATEGORIES
 
 # The report's category colours (robodepth_cli/report/plot.py COLOURS: Okabe-Ito blue,
 # orange, bluish green), so the figures agree; tests/challenge checks they stay equal.

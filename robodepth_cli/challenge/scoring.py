@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..benchmarks import ALL_CATEGORY, CATEGORIES
+from ..benchmark_facts import ALL_CATEGORY, CATEGORIES
 from ..errors import RobodepthError
-from ..evaluation import protocols as P
+from ..evaluation import protocols
 from . import layout
 from .resize import resize_at
 
@@ -59,16 +59,16 @@ def open_reference(folder: str) -> Reference:
 def image_errors(track: str, pred: np.ndarray, gt: np.ndarray) -> tuple:
     """The metrics of one image under ``track`` (see the module docstring)."""
     if track == "kitti":
-        index = P.kitti_valid(gt)
+        index = protocols.kitti_valid(gt)
         if not index.size:
             raise RobodepthError("a ground-truth map has no valid pixel")
         gt_values = gt.reshape(-1)[index]
         disp = resize_at(pred, gt.shape, index)
-        depth, _ = P.align_prediction(disp, True, gt_values, "median", "depth",
-                                      P.MIN_DEPTH, P.KITTI_MAX_DEPTH)
-        return P.depth_errors(gt_values, depth)
-    index = P.nyu_valid(gt)
-    return P.nyu_image(pred.astype(np.float32), gt.shape, index, gt.reshape(-1)[index])
+        depth, _ = protocols.align_prediction(disp, True, gt_values, "median", "depth",
+                                      protocols.MIN_DEPTH, protocols.KITTI_MAX_DEPTH)
+        return protocols.depth_errors(gt_values, depth)
+    index = protocols.nyu_valid(gt)
+    return protocols.nyu_image(pred.astype(np.float32), gt.shape, index, gt.reshape(-1)[index])
 
 
 @dataclass
@@ -132,7 +132,7 @@ def dee(m: dict) -> float:
 def score(submission, ref: Reference) -> Scores:
     """Score every map of ``submission`` (a :class:`.submission.Submission` opened for
     ``ref.ids``) whose image ``ref`` holds; the others are read and checked, not scored."""
-    metrics = P.KITTI_METRICS if ref.track == "kitti" else P.NYU_METRICS
+    metrics = protocols.KITTI_METRICS if ref.track == "kitti" else protocols.NYU_METRICS
     rows, values = [], []
     with ref.ground_truth() as gt_file:
         for image_id, pred in submission.maps():
@@ -145,8 +145,8 @@ def score(submission, ref: Reference) -> Scores:
                 raise RobodepthError(f"{ref.folder}: gt.npz has no map for {image_id}") from None
             try:
                 values.append(image_errors(ref.track, pred, gt))
-            except P.EvaluationError as exc:
-                raise P.EvaluationError(f"{submission.where}: image {image_id}: {exc}") from None
+            except protocols.EvaluationError as exc:
+                raise protocols.EvaluationError(f"{submission.where}: image {image_id}: {exc}") from None
             rows.append(row)
     if len(rows) != len(ref.rows):
         raise RobodepthError(f"{ref.folder}: {len(ref.rows) - len(rows)} images of the key are "

@@ -80,7 +80,7 @@ class Jobs(click.ParamType):
 def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
     """The corruptions ``value`` selects ('all': the benchmarks' 18; a name or a comma list
     of any, the depth-aware ones included), in order."""
-    from ..benchmarks import ALL_CORRUPTIONS, CORRUPTIONS
+    from ..benchmark_facts import ALL_CORRUPTIONS, CORRUPTIONS
     from ..building.choices import ALL, choose_names
 
     if value == ALL:
@@ -91,7 +91,7 @@ def corruption_names(value: str, flag: str = "--corruption") -> list[str]:
 def levels(value: str, flag: str = "--level") -> list:
     """The levels ``value`` selects ('all': 1..5, a level or a comma list; decimals such as
     2.5 allowed), sorted, each checked by the one level rule of every command."""
-    from ..benchmarks import N_LEVELS
+    from ..benchmark_facts import N_LEVELS
     from ..corruptions.severity import parse_levels
 
     return list(parse_levels(value, top=N_LEVELS, what=flag))
@@ -169,10 +169,10 @@ def as_option(command):
 
 def draw_as(value: str | None, clean: np.ndarray) -> tuple[str, str]:
     """``(dataset, key)`` a single-image command draws under: ``--as DATASET:KEY`` as a
-    build of DATASET draws for its source KEY (:func:`~robodepth_cli.keys.seed_key`: the
+    build of DATASET draws for its source KEY (:func:`~robodepth_cli.sourcekeys.seed_key`: the
     manifest's ``source`` column or the image's path under ``clean/``), else (:data:`CONTENT_DATASET`, the image's
     :func:`~robodepth_cli.seeding.content_key`)."""
-    from ..keys import seed_key
+    from ..sourcekeys import seed_key
     from ..seeding import content_key
     from ..sources.datasets import DATASETS
 
@@ -333,7 +333,7 @@ def show_results(result, table, out: Path, bench, as_json: bool, replacing: bool
     it calls for, and with ``bench`` the robustness scores, as ``robodepth score`` prints them."""
     import json
 
-    from ..evaluation import results as R, scores as S
+    from ..evaluation import results, scores
     from ..evaluation.protocols import STEREO_SCALE
 
     if result.setup.stereo and result.setup.kind == "depth":
@@ -353,11 +353,11 @@ def show_results(result, table, out: Path, bench, as_json: bool, replacing: bool
     implausible = _implausible_clean(result) if bench is not None else ""
     scored = None
     if bench is not None and not implausible:
-        res = R.parse_results(table, bench)
-        missing = R.missing_message(res, bench)
+        res = results.parse_results(table, bench)
+        missing = results.missing_message(res, bench)
         if missing:
             click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
-        scored = S.score(res, bench, allow_partial=True)
+        scored = scores.score(res, bench, allow_partial=True)
     if as_json:
         doc = {**result.to_json(), "csv": str(out)}
         if scored is not None:
@@ -370,13 +370,13 @@ def show_results(result, table, out: Path, bench, as_json: bool, replacing: bool
         click.echo(f"robodepth: warning: {implausible}", err=True)
     if scored is not None and not as_json:
         click.echo()
-        click.echo(S.format_table(scored), nl=False)
+        click.echo(scores.format_table(scored), nl=False)
 
 
 def _implausible_clean(result) -> str:
     """Why the clean DEE cannot be scored (at least 1: every rate divides by 1 - DEE), as
     a wrong --kind, --stereo or --png-scale gives it; "" when it is plausible."""
-    from ..benchmarks import CLEAN
+    from ..benchmark_facts import CLEAN
     from ..evaluation.results import implausible_dee
 
     for r in result.results:

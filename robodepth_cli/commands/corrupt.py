@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ..benchmarks import DEPTH_AWARE
+from ..benchmark_facts import DEPTH_AWARE
 from ..errors import RobodepthError
 from ..files import check_writable
 from . import common
@@ -31,7 +31,7 @@ def list_command(fmt):
     """List the corruptions (the benchmarks' 18, then those that also need the scene's
     depth) with their category and per-level parameters."""
     from ..corruptions import REGISTRY
-    from ..docs import corruption_table
+    from ..listing import corruption_table
 
     if fmt == "json":
         import json

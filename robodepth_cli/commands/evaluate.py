@@ -74,8 +74,8 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     """
     from ..progress import bar as progress_bar
 
-    from ..evaluation import evaluate as E
-    from ..evaluation.setup import evaluation_setup, scored_benchmark
+    from ..evaluation import evaluate
+    from ..evaluation.configure import evaluation_setup, scored_benchmark
     from ..workers import default_jobs
     from .. import open_dataset
     from ..files import check_writable
@@ -104,7 +104,7 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
             # time against the first image made the first estimate hours long.
             bar.reset(total=n)
 
-        result = E.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
+        result = evaluate.evaluate(dataset, pred, setup, gt=gt_path, allow_partial=allow_partial,
                             require_clean=with_score, progress=bar.update, on_total=set_total,
                             jobs=jobs or default_jobs(), flicker=flicker)
     table = result.table(((dataset.record.config or {}).get("extra") or {}).get("severity_size"),

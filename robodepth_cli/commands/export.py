@@ -44,7 +44,7 @@ def export_command(out, fmt, to, shard_size, progress):
     from .. import __version__
     from ..api import open_dataset
     from ..export.plan import parse_size
-    from ..export.run import export
+    from ..export.driver import export
     from .common import on_interrupt
 
     try:

@@ -58,18 +58,18 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
         return _challenge(dataset_dir, spec, pred, variants, batch_size, device, post_process, kind, metric, progress)
     from .. import open_dataset
     from ..models import load_model
-    from ..models import predict as P
+    from ..models import predict
     from ..progress import bar as progress_bar
 
     dataset = open_dataset(dataset_dir, warn=False)  # a failed build: images() says which, one line
-    chosen = P.select_variants(dataset, variants)
+    chosen = predict.select_variants(dataset, variants)
     if batch_size < 1:
         raise click.BadParameter("must be at least 1", param_hint="--batch-size")
     model = load_model(spec, device=device, kind=kind, metric=metric, post_process=post_process)
-    fits = P.batch_limit(batch_size, dataset.size, model.input_size)
+    fits = predict.batch_limit(batch_size, dataset.size, model.input_size)
     if fits < batch_size:
         click.echo(f"robodepth: --batch-size {batch_size}: {fits} images per batch (a batch "
-                   f"holds at most {P.BATCH_PIXELS:,} pixels)", err=True)
+                   f"holds at most {predict.BATCH_PIXELS:,} pixels)", err=True)
     if model.device in ("cpu", "cuda"):  # chosen here (a python: callable chooses its own)
         # Said before the run, not after: a long CPU run where a GPU was expected shows at once.
         click.echo(f"robodepth: {model.spec} runs on {model.device} (--device {device})", err=True)
@@ -79,7 +79,7 @@ def predict_command(dataset_dir, spec, pred, variants, batch_size, device, post_
         def set_total(n):
             bar.reset(total=n)  # the clock too: the time spent before the images is not theirs
 
-        run = P.predict(dataset, model, pred, chosen, batch_size=batch_size,
+        run = predict.predict(dataset, model, pred, chosen, batch_size=batch_size,
                         progress=bar.update, on_total=set_total)
     done = f"{len(run.written)} variants x {len(dataset.keys)} images"
     skipped = f" ({len(run.skipped)} already done, skipped)" if run.skipped else ""

@@ -98,7 +98,7 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
     Challenge scores.json files (robodepth challenge score) make a leaderboard instead:
     OUT/index.html and OUT/leaderboard.md, a table per track with per-corruption columns.
     """
-    from ..report import write as W
+    from ..report import write
     from ..report.leaderboard import is_challenge_scores
 
     challenge = [is_challenge_scores(p) for p in results]
@@ -115,15 +115,15 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
 
     check_kinds(kinds, preds)
     load_matplotlib()  # refuse before anything is created when matplotlib is missing
-    W.check_writable(out)
+    write.check_writable(out)
     from ..evaluation.csvrows import ResultsTable
 
-    report = W.assemble([ResultsTable.read(p) for p in results], list(names), benchmark, context, dataset, on=on,
+    report = write.assemble([ResultsTable.read(p) for p in results], list(names), benchmark, context, dataset, on=on,
                         pairs=pairs, baseline=baseline, metric=metric, n_boot=n_boot, seed=seed,
                         n_pred=len(preds))
 
     say = (lambda what: click.echo(f"  {what}", err=True)) if sys.stderr.isatty() else (lambda _: None)
-    W.draw(report)
+    write.draw(report)
     from ..report.analyses import add as add_analyses
 
     add_analyses(report, tags=tags, params=params, flops=flops, sizes=sizes, groups=groups)
@@ -132,7 +132,7 @@ def report_command(results, out, names, benchmark, context, dataset, preds, fram
             click.echo(f"robodepth: warning: {m.own_depth}", err=True)
     if preds:
         _add_qualitative(report, dataset, preds, frame, kinds)
-    written = W.write(report, out, progress=say,
+    written = write.write(report, out, progress=say,
                       published=lambda: common.on_interrupt(f"the report was written to {out}"))
     _say_written(report, written, out)
 

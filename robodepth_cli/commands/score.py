@@ -40,7 +40,7 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
       robodepth score monovit.csv --plot ce.png
       robodepth score monovit.csv --benchmark kitti-c --json
     """
-    from ..evaluation import results as R, scores as S
+    from ..evaluation import results as results_mod, scores
     from ..evaluation.csvrows import ResultsTable
 
     plot_file = None
@@ -51,17 +51,17 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
         load_matplotlib()  # refuse before scoring when matplotlib is missing
     table = ResultsTable.read(results)
     bench = _benchmark(table, benchmark)
-    res = R.read_results(table, bench)
+    res = results_mod.read_results(table, bench)
     _warn_own_depth(table)
     base = None
     if baseline_file is not None:
-        base = R.baseline_from_results(R.read_results(ResultsTable.read(baseline_file), bench), bench)
-    missing = R.missing_message(res, bench)
+        base = results_mod.baseline_from_results(results_mod.read_results(ResultsTable.read(baseline_file), bench), bench)
+    missing = results_mod.missing_message(res, bench)
     if missing and not allow_partial:
         raise RobodepthError(missing if res.looks_like else f"{missing} (--allow-partial scores what is there)")
     if missing:
         click.echo(f"robodepth: warning: {missing}; scoring what is present", err=True)
-    result = S.score(res, bench, base, allow_partial=True)
+    result = scores.score(res, bench, base, allow_partial=True)
     if plot_file is not None and result.note:
         raise RobodepthError(f"--plot: {results}: {result.note} (no CE to draw)")
     if plot_file is not None:
@@ -76,20 +76,20 @@ def score_command(results, benchmark, baseline_file, allow_partial, as_json, plo
 def _benchmark(table, benchmark: str | None):
     """The benchmark the results are scored on: ``--benchmark``, or the dataset the CSV
     names, or the one their rows name; KITTI-S results are refused (no CE or RR)."""
-    from .. import benchmarks as B
-    from ..evaluation import results as R
+    from .. import benchmark_facts
+    from ..evaluation import results as results_mod
 
     benchmark = _benchmark_of(table, benchmark)
     if benchmark is None:
         from ..report.inputs import style_names
 
-        benchmark = R.infer_benchmark(table, style_names())
-    if benchmark not in B.BENCHMARKS and benchmark not in unpublished():
+        benchmark = results_mod.infer_benchmark(table, style_names())
+    if benchmark not in benchmark_facts.BENCHMARKS and benchmark not in unpublished():
         raise RobodepthError(f"{table.source}: KITTI-S results (styles) have no CE or RR to score; "
                              "robodepth report shows their DEE per style and mDEE")
     if benchmark in unpublished():
-        return _unpublished(benchmark, R.read_results(table, B.unpublished(benchmark)))
-    return B.get_benchmark(benchmark)
+        return _unpublished(benchmark, results_mod.read_results(table, benchmark_facts.unpublished(benchmark)))
+    return benchmark_facts.get_benchmark(benchmark)
 
 
 def _show(table, result, as_json: bool) -> None:
@@ -97,7 +97,7 @@ def _show(table, result, as_json: bool) -> None:
     --flicker's columns."""
     import json
 
-    from ..evaluation import scores as S
+    from ..evaluation import scores
     from ..evaluation.flicker import format_flicker, read_flicker
 
     flicker = read_flicker(table)
@@ -105,7 +105,7 @@ def _show(table, result, as_json: bool) -> None:
         click.echo(json.dumps({**result.to_json(), **({"flicker": flicker} if flicker else {})},
                               indent=2, allow_nan=False))
     else:
-        click.echo(S.format_table(result), nl=False)
+        click.echo(scores.format_table(result), nl=False)
         if flicker:
             click.echo(format_flicker(flicker), nl=False)
 
@@ -113,16 +113,16 @@ def _show(table, result, as_json: bool) -> None:
 def _benchmark_of(table, given: str | None) -> str | None:
     """``given``, or the dataset the results ``table`` names in its dataset column (None:
     neither); refused when the two differ."""
-    from .. import benchmarks as B
+    from .. import benchmark_facts
     from ..report.inputs import KITTI_S
 
     path = table.source
     own = table.dataset()
     if own is None:
         return given
-    if own[0] not in (*B.BENCHMARKS, *unpublished(), KITTI_S):
+    if own[0] not in (*benchmark_facts.BENCHMARKS, *unpublished(), KITTI_S):
         raise RobodepthError(f"{path}: dataset {own[0]!r} (its dataset column) is none robodepth "
-                             f"scores; valid: {', '.join((*B.BENCHMARKS, *unpublished()))}")
+                             f"scores; valid: {', '.join((*benchmark_facts.BENCHMARKS, *unpublished()))}")
     if given is not None and given != own[0]:
         raise RobodepthError(f"--benchmark {given}: {path} says its results are on {own[0]} "
                              "(its dataset column)")
@@ -132,9 +132,9 @@ def _benchmark_of(table, given: str | None) -> str | None:
 def _unpublished(name: str, res):
     """The benchmark of ``name`` (no published baseline) that ``res`` is on: the corruptions
     it has rows of, at the levels among them."""
-    from .. import benchmarks as B
+    from .. import benchmark_facts
 
-    return B.unpublished(name, tuple(res.dee), levels=[lv for d in res.dee.values() for lv in d])
+    return benchmark_facts.unpublished(name, tuple(res.dee), levels=[lv for d in res.dee.values() for lv in d])
 
 
 def _warn_own_depth(table) -> None:

@@ -39,18 +39,18 @@ def stats_command(build, out, level, most, progress):
     from ..api import open_dataset
     from ..files import check_writable, write_atomic
     from ..progress import bar as progress_bar
-    from ..report import pixels as X
+    from ..report import pixels
     from ..report.plot import close, load_matplotlib, save
 
     load_matplotlib()  # refuse before the work when matplotlib is missing
     check_writable(out / "stats.json" if out.is_dir() else out, "--out")
     dataset = open_dataset(build, warn=False)
-    X.check_level([v.level for v in dataset.variants()], level)
-    n = len(X.chosen(len(dataset.keys), most))
+    pixels.check_level([v.level for v in dataset.variants()], level)
+    n = len(pixels.chosen(len(dataset.keys), most))
     with progress_bar("img", n, progress=progress) as bar:
-        clean, sums = X.collect(dataset, most, bar.update)
-    doc = X.to_json(dataset, clean, sums, most)
-    fig = X.figure(doc, level)
+        clean, sums = pixels.collect(dataset, most, bar.update)
+    doc = pixels.to_json(dataset, clean, sums, most)
+    fig = pixels.figure(doc, level)
     common.will_write(out / "stats.json")
     save(fig, out / "histograms")
     close(fig)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import importlib
 
-from ..benchmarks import ALL_CATEGORY, CATEGORIES, DATA, SENSOR, WEATHER
+from ..benchmark_facts import ALL_CATEGORY, CATEGORIES, DATA, SENSOR, WEATHER
 from .severity import LevelError, level_text, parse_level
 
 _ENGINE = ("REGISTRY", "NAMES", "DEPTH_NAMES", "DepthError", "Corruption", "corrupt",

@@ -16,10 +16,10 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from ..benchmarks import ALL_CATEGORY, ALL_CORRUPTIONS, N_LEVELS
+from ..benchmark_facts import ALL_CATEGORY, ALL_CORRUPTIONS, N_LEVELS
 # The test of a chain's name is a benchmark fact (output/ orders variants by it without
 # loading the corruptions); chains' users find it here too.
-from ..benchmarks import looks_like_chain  # noqa: F401
+from ..benchmark_facts import looks_like_chain  # noqa: F401
 from ..errors import RobodepthError
 from .severity import LevelError, level_text, parse_level
 

@@ -13,7 +13,7 @@ on the test frame itself both keys are its own, so its output is the single-fram
 
 from __future__ import annotations
 
-from ..benchmarks import CORRUPTIONS, DEPTH_AWARE
+from ..benchmark_facts import CORRUPTIONS, DEPTH_AWARE
 
 # What each corruption's draws stand for across frames (docs/video.md shows this table).
 SHARED = "scene/camera: same draws in every frame"

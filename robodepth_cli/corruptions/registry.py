@@ -4,7 +4,7 @@ Each corruption module defines a pure function ``name(x, level, rng) -> uint8 im
 depth-aware one ``name(x, depth, level, rng)``, registered with ``depth=True``) and
 registers it with :func:`register`, declaring its parameter table (one entry per level,
 levels 1..5) and how each parameter is interpolated between levels (:mod:`.severity`). Its category and its place in every listing come from
-:mod:`robodepth_cli.benchmarks`, which names the corruptions that exist.
+:mod:`robodepth_cli.benchmark_facts`, which names the corruptions that exist.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..benchmarks import ALL_CATEGORY, ALL_CORRUPTIONS, N_LEVELS
+from ..benchmark_facts import ALL_CATEGORY, ALL_CORRUPTIONS, N_LEVELS
 from .severity import LINEAR, RULES, interpolate
 
 CorruptionFn = Callable[[np.ndarray, int, np.random.Generator], np.ndarray]
@@ -54,8 +54,8 @@ _REGISTRY: dict[str, Corruption] = {}
 def register(fields: Sequence[str], levels: Sequence, *, rules: Sequence[str] | None = None,
              deterministic: bool = False, depth: bool = False, scaled: bool = False):
     """Decorator: add a corruption function to the registry under its own name, which must
-    be one of :data:`robodepth_cli.benchmarks.ALL_CORRUPTIONS`; ``depth`` marks one that
-    takes the scene's depth (:data:`~robodepth_cli.benchmarks.DEPTH_AWARE`), ``scaled`` one
+    be one of :data:`robodepth_cli.benchmark_facts.ALL_CORRUPTIONS`; ``depth`` marks one that
+    takes the scene's depth (:data:`~robodepth_cli.benchmark_facts.DEPTH_AWARE`), ``scaled`` one
     with spatial parameters, which takes the keyword ``scale`` (:mod:`.scaling`; None: the
     parameters as tabulated). ``rules`` names, per field, how
     it is interpolated between integer levels (default: all ``linear``); the function

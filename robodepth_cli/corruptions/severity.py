@@ -11,7 +11,7 @@ import numbers
 from typing import NamedTuple, Sequence
 
 from ..errors import RobodepthError
-from ..keys import level_text
+from ..sourcekeys import level_text
 
 LINEAR, ROUND, NEAREST, BLEND = "linear", "round", "nearest", "blend"
 RULES = (LINEAR, ROUND, NEAREST, BLEND)

@@ -14,7 +14,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..benchmarks import TEMPORAL
+from ..benchmark_facts import TEMPORAL
 
 P_LEVELS = (0.2, 0.4, 0.6, 0.8, 1.0)
 LEVELS: dict[str, tuple[float, ...]] = {

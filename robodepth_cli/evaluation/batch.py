@@ -15,7 +15,7 @@ import numpy as np
 
 from ..groundtruth.read import GroundTruth
 from .protocols import _SIGMOID, STEREO_SCALE, Setup, crop_box
-from . import kernels as K
+from . import kernels
 
 BLOCK = 32  # maps a call: the pages of a block are released after it (predictions.py)
 
@@ -76,7 +76,7 @@ class Plan:
             shape_of[i] = shapes.index(shape)
             counts[i], index_at[i], gt_at[i] = index.size, index.ctypes.data, values.ctypes.data
             if by_median:
-                gmed[i] = K.median(values)
+                gmed[i] = kernels.median(values)
             self._keep += [index, values]
         if not shapes:
             return None
@@ -94,7 +94,7 @@ class Plan:
         return dict(counts=counts, index_at=index_at, gt_at=gt_at, shape_of=shape_of, shapes=shapes,
                     gmed=gmed.astype(gdtype), zi=idtype.type(0), zg=gdtype.type(0), kinds=kinds,
                     buffers=(np.empty(size, self.dtype), np.empty(size, self.dtype),
-                             np.empty(size, self.dtype), *K._buffers()))
+                             np.empty(size, self.dtype), *kernels._buffers()))
 
     def _dense(self, truth: GroundTruth, n: int) -> dict | None:
         raw_at, divisors = np.zeros(n, np.int64), np.ones(n, np.float32)
@@ -120,7 +120,7 @@ class Plan:
         f32 = np.float32
         return dict(raw_at=raw_at, zr=rdtype.type(0), divisors=divisors, box=box,
                     valid=(f32(s.min_depth), f32(s.depth_cap)), clamp=(p(s.min_depth), p(s.depth_cap)),
-                    one=p(1), zero=t.type(0), buffers=K._buffers())
+                    one=p(1), zero=t.type(0), buffers=kernels._buffers())
 
     # ----------------------------------------------------------------- judging
 
@@ -139,15 +139,15 @@ class Plan:
                 height, width = sp["shapes"][j]
                 resize = tuple(maps.shape[1:]) != (height, width)
                 double = self.dtype == np.float64
-                x0, x1, wx = K.linear_axis(maps.shape[2], width, double) if resize else K._NONE[double]
-                y0, y1, wy = K.linear_axis(maps.shape[1], height, double) if resize else K._NONE[double]
-                K._judge_sparse(maps, first, last, sp["index_at"], sp["gt_at"], sp["counts"][j], sp["gmed"],
+                x0, x1, wx = kernels.linear_axis(maps.shape[2], width, double) if resize else kernels._NONE[double]
+                y0, y1, wy = kernels.linear_axis(maps.shape[1], height, double) if resize else kernels._NONE[double]
+                kernels._judge_sparse(maps, first, last, sp["index_at"], sp["gt_at"], sp["counts"][j], sp["gmed"],
                                 sp["zi"], sp["zg"], width, x0, x1, wx, y0, y1, wy, resize, kk["sigmoid"],
                                 kk["lo"], kk["span"], kk["invert"], kk["one"], kk["two"], kk["by_median"],
                                 kk["factor"], kk["zs"], kk["low"], kk["high"], kk["zt"], cap, positive,
                                 self.nyu, *sp["buffers"], out, ratios, ok)
         if dn is not None and dn["raw_at"][first:last].any():
-            K._judge_dense(maps, first, last, dn["raw_at"], dn["zr"], dn["divisors"], dn["box"],
+            kernels._judge_dense(maps, first, last, dn["raw_at"], dn["zr"], dn["divisors"], dn["box"],
                            *dn["valid"], *dn["clamp"], dn["one"], dn["zero"], cap, positive, self.nyu,
                            *dn["buffers"], out, ok)
         return ok, out, ratios

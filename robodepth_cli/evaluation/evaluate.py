@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..api import BuiltDataset, Variant
-from ..benchmarks import CLEAN
+from ..benchmark_facts import CLEAN
 from ..errors import counted
 from ..groundtruth.depthmaps import NoValidPixel
 from ..groundtruth.read import GroundTruth, load_ground_truth

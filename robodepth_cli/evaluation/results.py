@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterable, Iterator, Mapping
 
-from ..benchmarks import ALL_CORRUPTIONS, BENCHMARKS, CATEGORY, CLEAN, DEPTH_AWARE, Baseline, Benchmark
+from ..benchmark_facts import ALL_CORRUPTIONS, BENCHMARKS, CATEGORY, CLEAN, DEPTH_AWARE, Baseline, Benchmark
 from .csvrows import ResultsTable, ScoreError, level as _level, normalise_name, number
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..benchmarks import CATEGORIES, CATEGORY, CORRUPTIONS, Baseline, Benchmark
+from ..benchmark_facts import CATEGORIES, CATEGORY, CORRUPTIONS, Baseline, Benchmark
 from ..errors import counted
 from .results import Results, ScoreError, check_complete, corruption_error, mean, resilience_rate
 
@@ -81,7 +81,7 @@ class Scores:
         if self.note:
             doc["note"] = self.note
         if self.curves or self.chains:
-            from ..keys import level_text
+            from ..sourcekeys import level_text
 
             doc["beyond_benchmark"] = {
                 "severity_curves": {n: {level_text(lv): d for lv, d in curve.items()}
@@ -194,7 +194,7 @@ def _beyond(s: Scores) -> list[str]:
     """The section of rows beyond the benchmark: severity curves and chains."""
     if not s.curves and not s.chains:
         return []
-    from ..keys import level_text
+    from ..sourcekeys import level_text
 
     lines = ["", "Beyond the benchmark (not in mCE, mRR or mDEE)"]
     if s.curves:

@@ -44,7 +44,7 @@ def _parameters(variants: list[str]) -> list[str]:
     """The section with the parameters of each level of the exported corruptions (a
     chain's steps included), as ``robodepth list`` gives them; none for styles."""
     from ..corruptions import REGISTRY
-    from ..docs import corruption_table
+    from ..listing import corruption_table
 
     names = {step.split("-")[0] for v in variants for step in v.split("+")} & set(REGISTRY)
     if not names:
@@ -83,7 +83,7 @@ def holdings(shards, rows: dict) -> dict[str, dict]:
 
 def _held_lines(held: dict[str, dict]) -> list[str]:
     """One line per configuration: its levels, seeds, engines and severity sizes."""
-    from ..keys import level_text
+    from ..sourcekeys import level_text
 
     lines = []
     for config, h in held.items():
@@ -110,7 +110,7 @@ def _yaml(record, configs: dict[str, list[str]], ext: str) -> list[str]:
 def card(record, shards: list[dict], fmt: str, version: str, held: dict[str, dict]) -> str:
     """The card's text for an export of the build ``record`` made of ``shards`` (the
     export record's entries) holding ``held`` (:func:`holdings`)."""
-    from ..benchmarks import BIBTEX
+    from ..benchmark_facts import BIBTEX
 
     configs: dict[str, list[str]] = {}
     for s in shards:

@@ -15,7 +15,7 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from ..errors import RobodepthError, cannot_write, os_reason
-from ..keys import KITTI_PREFIX
+from ..sourcekeys import KITTI_PREFIX
 
 CAM_TO_CAM = "calib_cam_to_cam.txt"
 VELO_TO_CAM = "calib_velo_to_cam.txt"

@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import __version__
 from ..api import BuiltDataset, Variant
-from ..benchmarks import CLEAN
+from ..benchmark_facts import CLEAN
 from ..errors import RobodepthError, cannot_write
 from ..predictions import (RECORD, ImageFilesWriter, PredictionWriter, finished, read_record, write_record,
                            remove_leftovers, split_digest)

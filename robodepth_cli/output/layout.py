@@ -24,7 +24,7 @@ mirrors the benchmark's own tree.
 
 from __future__ import annotations
 
-from ..benchmarks import CLEAN
+from ..benchmark_facts import CLEAN
 from ..corruptions.severity import level_text
 
 MANIFEST = "manifest.csv"
@@ -77,7 +77,7 @@ def variant_order(ds, built) -> list[tuple[str, int | float | None]]:
     the order of its results: clean, the benchmark's corruptions (or styles) with levels
     ascending, the depth-aware ones, the corruptions over time of a build with --frames,
     then the chains by name."""
-    from ..benchmarks import TEMPORAL, looks_like_chain
+    from ..benchmark_facts import TEMPORAL, looks_like_chain
 
     order = [CLEAN, *ds.variant_names(), *ds.depth_variant_names(), *TEMPORAL,
              *sorted({v for v, _ in built if looks_like_chain(v)})]

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..files import write_atomic
 from ..errors import RobodepthError
-from ..values import int_from_text, is_int
+from ..integers import int_from_text, is_int
 from .layout import MANIFEST, NEIGHBOUR_OF
 
 SEQUENCE = "sequence="  # a params part: a corruption over time's sequence

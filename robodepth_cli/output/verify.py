@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..files import sha256_file
-from ..lock import build_note
+from ..versionlock import build_note
 from .layout import BOOKKEEPING, JOURNAL, MANIFEST
 from .folder import OutputFolder
 from .manifest import ManifestError

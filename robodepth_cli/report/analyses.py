@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import RobodepthError
-from . import inputs as I
+from . import inputs
 from . import tags as TG
 
 
@@ -20,14 +20,14 @@ def add(report, *, tags: Sequence[str] = (), params: Sequence[str] = (),
     ``finetune`` (models tagged ``finetune``). Bad flags are one-line refusals."""
     given = bool(tags or params or flops or sizes is not None)
     scored = [m for m in report.models if m.row.scores is not None and not m.row.scores.note]
-    if report.benchmark == I.KITTI_S or not scored:
+    if report.benchmark == inputs.KITTI_S or not scored:
         if given:
             raise RobodepthError("--tag, --params, --flops and --sizes need results on kitti-c or "
                                  "nyudepth2-c with their corruptions (the analyses use CE)")
         return
     bench = report.benchmark
     mine = [m.name for m in scored]
-    context = I.context(bench, "all")
+    context = inputs.context(bench, "all")
     everyone = mine + [r.name for r in context if r.name not in mine]
     tagged = TG.parse_tags(tags, mine)
     counts = TG.read_sizes(sizes, everyone) if sizes is not None else {}
@@ -40,27 +40,27 @@ def add(report, *, tags: Sequence[str] = (), params: Sequence[str] = (),
 
 
 def _add_sizes(report, scored, context, counts) -> None:
-    from . import sizes as S
+    from . import sizes as sizes_mod
 
-    points = S.collect(scored, context, counts)
+    points = sizes_mod.collect(scored, context, counts)
     if points:
         report.figures.append((
             "size", "mCE against model size",
             "Each model's mCE against its parameters and its FLOPs per image (a multiply-add "
             "counts 2), log axes: measured by robodepth predict, or given with --params, "
-            "--flops and --sizes.", S.figure(points, report.benchmark)))
+            "--flops and --sizes.", sizes_mod.figure(points, report.benchmark)))
 
 
 def _add_groups(report, scored, tagged, context) -> None:
-    from . import groups as G
+    from . import groups as groups_mod
 
-    found = G.groups(G.members(scored, tagged, context, report.benchmark))
+    found = groups_mod.groups(groups_mod.members(scored, tagged, context, report.benchmark))
     for prop, gs in found.items():
         report.figures.append((
-            f"groups-{prop}", f"{G.TITLES[prop]} compared",
+            f"groups-{prop}", f"{groups_mod.TITLES[prop]} compared",
             f"CE per corruption of variants of one model that differ only in "
-            f"{G.TITLES[prop].lower()} (the paper's Figs. 3 and 4), one panel per model: the "
-            "published columns, or --tag.", G.figure(prop, gs, report.benchmark)))
+            f"{groups_mod.TITLES[prop].lower()} (the paper's Figs. 3 and 4), one panel per model: the "
+            "published columns, or --tag.", groups_mod.figure(prop, gs, report.benchmark)))
 
 
 def _add_finetune(report, scored, tagged) -> None:

@@ -10,16 +10,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
-from .. import benchmarks as B
+from .. import benchmark_facts
 from ..errors import RobodepthError, counted
-from ..evaluation import results as R, scores as S
+from ..evaluation import results, scores as scores_mod
 from ..evaluation.csvrows import ResultsTable, ScoreError
-from . import inputs as I
-from . import synreal as X
-from . import tables as T
+from . import inputs
+from . import synreal
+from . import tables as tables_mod
 from .tables import HIGH, LOW, Column, Table
 
-PUBLISHED = I.BENCHMARK_CHOICES  # datasets with the paper's tables: the full report
+PUBLISHED = inputs.BENCHMARK_CHOICES  # datasets with the paper's tables: the full report
 
 
 @dataclass
@@ -31,27 +31,27 @@ class Entry:
     key: tuple[str, str]
     variants: list[dict]  # the CSV's rows, numbers as floats
     sha256: str
-    model: I.Model | None = None  # scored as its benchmark (kitti-c, nyudepth2-c, kitti-s)
-    scores: S.Scores | None = None  # other datasets with corruption rows
+    model: inputs.Model | None = None  # scored as its benchmark (kitti-c, nyudepth2-c, kitti-s)
+    scores: scores_mod.Scores | None = None  # other datasets with corruption rows
     severity_size: str = "none"  # the build's, as the results file records it
 
     def value(self, corruption: str | None, metric: str) -> float | None:
         """The clean row's error (``corruption`` None), or the corruption's mean over its
         integer levels; None where the file has no such row."""
         rows = [v for v in self.variants
-                if v.get("corruption") == (corruption or B.CLEAN) and isinstance(v.get("level"), int)
+                if v.get("corruption") == (corruption or benchmark_facts.CLEAN) and isinstance(v.get("level"), int)
                 and (corruption is None) == (v["level"] == 0)]
         if not rows:
             return None
         if metric == "abs_rel" and "abs_rel" not in rows[0]:
             raise RobodepthError(f"{self.path}: has no abs_rel column (--metric abs_rel)")
-        return R.mean(_error(v, metric) for v in rows)
+        return results.mean(_error(v, metric) for v in rows)
 
 
 def _error(row: dict, metric: str) -> float:
     if metric == "dee" and "dee" in row:
         return row["dee"]
-    return R.dee(row["abs_rel"], row["a1"]) if metric == "dee" else row["abs_rel"]
+    return results.dee(row["abs_rel"], row["a1"]) if metric == "dee" else row["abs_rel"]
 
 
 def keys_of(tables: Sequence[ResultsTable], on: Sequence[str], benchmark: str | None) -> list[tuple[str, str]]:
@@ -62,7 +62,7 @@ def keys_of(tables: Sequence[ResultsTable], on: Sequence[str], benchmark: str | 
         raise RobodepthError(f"--on given {counted(len(on), 'time')} for "
                              f"{counted(len(tables), 'results file')}; give it "
                              "once per file, in the same order, or once for all")
-    given = [X.parse_key(t) for t in (on * len(tables) if len(on) == 1 else on)]
+    given = [synreal.parse_key(t) for t in (on * len(tables) if len(on) == 1 else on)]
     for text, key in zip(on, given):
         if not key[0]:
             raise RobodepthError(f"--on {text!r}: expected DATASET or DATASET:SPLIT")
@@ -71,14 +71,14 @@ def keys_of(tables: Sequence[ResultsTable], on: Sequence[str], benchmark: str | 
         p, own = table.source, table.dataset()
         key = given[i] if given else own
         if own is not None and own != key:
-            raise RobodepthError(f"--on {X.key_text(key)}: {p} says its results are on "
-                                 f"{X.key_text(own)} (its dataset column)")
+            raise RobodepthError(f"--on {synreal.key_text(key)}: {p} says its results are on "
+                                 f"{synreal.key_text(own)} (its dataset column)")
         if own is not None and benchmark and not given and own != (benchmark, ""):
             raise RobodepthError(f"--benchmark {benchmark}: {p} says its results are on "
-                                 f"{X.key_text(own)} (its dataset column)")
+                                 f"{synreal.key_text(own)} (its dataset column)")
         if key is None:
             try:
-                key = (I.infer([table], benchmark), "")
+                key = (inputs.infer([table], benchmark), "")
             except ScoreError as exc:
                 raise RobodepthError(f"{exc} (results on another dataset: name it with --on "
                                      "DATASET[:SPLIT])") from None
@@ -103,18 +103,18 @@ def load(tables: Sequence[ResultsTable], names: Sequence[str], keys: Sequence[tu
             raise RobodepthError("--name: a model name cannot be empty")
         if (n, k) in seen:
             hint = "" if names else " (use --name to tell them apart)"
-            raise RobodepthError(f"{p}: model name {n!r} on {X.key_text(k)} is also the name of "
+            raise RobodepthError(f"{p}: model name {n!r} on {synreal.key_text(k)} is also the name of "
                                  f"{seen[n, k]}{hint}")
         seen[n, k] = p
     entries = []
     for n, p, k, t in zip(chosen, paths, keys, tables):
         if k[0] in PUBLISHED:
-            (model,) = I.load([t], [n], k[0])
+            (model,) = inputs.load([t], [n], k[0])
             entries.append(Entry(n, p, k, model.variants, model.sha256, model=model,
                                  severity_size=model.severity_size))
         else:
             _check(t)
-            entries.append(Entry(n, p, k, I.variant_rows(t), t.sha256, severity_size=t.severity_size()))
+            entries.append(Entry(n, p, k, inputs.variant_rows(t), t.sha256, severity_size=t.severity_size()))
     if baseline is not None and baseline not in chosen:
         raise RobodepthError(f"--baseline {baseline!r}: no results file has that model name "
                              f"(the names: {', '.join(dict.fromkeys(chosen))})")
@@ -123,7 +123,7 @@ def load(tables: Sequence[ResultsTable], names: Sequence[str], keys: Sequence[tu
             base = next((b for b in entries if b.name == baseline and b.key == e.key), None)
             if baseline is not None and (base is None or not _corrupted(base)):
                 raise RobodepthError(f"--baseline {baseline}: has no results with corruption rows "
-                                     f"on {X.key_text(e.key)}, which {e.path} has")
+                                     f"on {synreal.key_text(e.key)}, which {e.path} has")
             e.scores = _score(e, base)
     return entries
 
@@ -131,41 +131,41 @@ def load(tables: Sequence[ResultsTable], names: Sequence[str], keys: Sequence[tu
 def _corrupted(e: Entry) -> bool:
     """Whether ``e`` has rows of the benchmark's corruptions (the depth-aware ones have no
     baseline and never enter mCE, mRR or mDEE, as in ``score``)."""
-    return any(v["corruption"] in B.CORRUPTIONS and isinstance(v["level"], int) for v in e.variants)
+    return any(v["corruption"] in benchmark_facts.CORRUPTIONS and isinstance(v["level"], int) for v in e.variants)
 
 
 def _check(table: ResultsTable) -> None:
     """Every number checked (as ``score`` checks them), corruptions known, one row per
     variant, a clean row."""
-    for _ in R.checked_rows(table, None, "the report needs the clean error"):
+    for _ in results.checked_rows(table, None, "the report needs the clean error"):
         pass
 
 
-def _results(e: Entry) -> tuple[R.Results, B.Benchmark]:
+def _results(e: Entry) -> tuple[results.Results, benchmark_facts.Benchmark]:
     table: dict[str, dict[int, float]] = {}
     for v in e.variants:
-        if v["corruption"] in B.CORRUPTIONS and isinstance(v["level"], int):
+        if v["corruption"] in benchmark_facts.CORRUPTIONS and isinstance(v["level"], int):
             table.setdefault(v["corruption"], {})[v["level"]] = _error(v, "dee")
-    names = tuple(n for n in B.CORRUPTIONS if n in table)
+    names = tuple(n for n in benchmark_facts.CORRUPTIONS if n in table)
     top = max(lv for levels in table.values() for lv in levels)
     # Without a baseline, CE is not shown: a unit baseline lets the one scoring function
     # give DEE and RR.
-    unit = B.Baseline("", 0.0, dict.fromkeys(names, 1.0))
-    return (R.Results(str(e.path), e.value(None, "dee"), {n: dict(sorted(table[n].items())) for n in names}),
-            B.Benchmark(e.key[0], names, top, unit))
+    unit = benchmark_facts.Baseline("", 0.0, dict.fromkeys(names, 1.0))
+    return (results.Results(str(e.path), e.value(None, "dee"), {n: dict(sorted(table[n].items())) for n in names}),
+            benchmark_facts.Benchmark(e.key[0], names, top, unit))
 
 
-def _score(e: Entry, base: Entry | None) -> S.Scores:
+def _score(e: Entry, base: Entry | None) -> scores_mod.Scores:
     res, bench = _results(e)
     baseline = None
     if base is not None:
         bres, bbench = _results(base)
         if bbench.corruptions != bench.corruptions or bbench.n_levels != bench.n_levels:
-            raise RobodepthError(f"--baseline: {base.path} and {e.path} on {X.key_text(e.key)} do "
+            raise RobodepthError(f"--baseline: {base.path} and {e.path} on {synreal.key_text(e.key)} do "
                                  "not have the same corruptions and levels")
-        baseline = R.baseline_from_results(bres, bbench)
-        baseline = B.Baseline(base.name, baseline.clean, baseline.dee)
-    return S.score(res, bench, baseline, allow_partial=True)
+        baseline = results.baseline_from_results(bres, bbench)
+        baseline = benchmark_facts.Baseline(base.name, baseline.clean, baseline.dee)
+    return scores_mod.score(res, bench, baseline, allow_partial=True)
 
 
 # --------------------------------------------------------------------------- tables
@@ -179,7 +179,7 @@ class Section:
 
     @property
     def title(self) -> str:
-        return T.bench_name(self.key[0]) + (f", {self.key[1]}" if self.key[1] else "")
+        return tables_mod.bench_name(self.key[0]) + (f", {self.key[1]}" if self.key[1] else "")
 
 
 def groups(entries: Sequence[Entry]) -> dict[tuple[str, str], list[Entry]]:
@@ -197,13 +197,13 @@ def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Sec
     label = "dataset-" + "-".join(p for p in key if p)
     if key[0] in PUBLISHED:
         rows = [e.model.row for e in entries]
-        if key[0] == I.KITTI_S:
-            t = T.styles_table(rows + I.context(key[0], context))
+        if key[0] == inputs.KITTI_S:
+            t = tables_mod.styles_table(rows + inputs.context(key[0], context))
             sec.tables.append(_relabel(t, label))
         else:
-            rows += I.context(key[0], context)
-            sec.tables += [_relabel(T.summary_table(rows, key[0]), label),
-                           _relabel(T.corruption_table(rows, key[0], "dee"), label + "-dee")]
+            rows += inputs.context(key[0], context)
+            sec.tables += [_relabel(tables_mod.summary_table(rows, key[0]), label),
+                           _relabel(tables_mod.corruption_table(rows, key[0], "dee"), label + "-dee")]
         return sec
     cols = [Column("abs_rel", "AbsRel", "Clean", LOW, 3), Column("a1", "δ1", "Clean", HIGH, 3)]
     metrics = any("abs_rel" in e.variants[0] for e in entries)
@@ -217,7 +217,7 @@ def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Sec
         cols += [Column("mCE", "mCE", "Corruptions", LOW, 2)] if with_ce else []
     values = []
     for e in entries:
-        clean = next(v for v in e.variants if v["corruption"] == B.CLEAN)
+        clean = next(v for v in e.variants if v["corruption"] == benchmark_facts.CLEAN)
         v = {"abs_rel": clean.get("abs_rel"), "a1": clean.get("a1"), "clean": e.value(None, "dee")}
         if e.scores is not None:
             v.update({"mDEE": e.scores.overall.dee, "mRR": e.scores.overall.rr,
@@ -231,14 +231,14 @@ def section(key: tuple[str, str], entries: Sequence[Entry], context: str) -> Sec
                             f"on {sec.title}"
                             + ("; over its corruptions, mDEE and mRR" if scored else "") + what
                             + ". Bold: best; underlined: second." + _mixed(entries),
-                            cols, [I.Row(e.name, "yours", e.value(None, "dee"), source=str(e.path))
+                            cols, [inputs.Row(e.name, "yours", e.value(None, "dee"), source=str(e.path))
                                    for e in entries], values))
     return sec
 
 
 def _mixed(entries: Sequence[Entry]) -> str:
     """The caption's sentence when ``entries`` were made at different severity sizes."""
-    note = T.mixed_note(e.severity_size for e in entries)
+    note = tables_mod.mixed_note(e.severity_size for e in entries)
     return f" {note}." if note else ""
 
 
@@ -252,23 +252,23 @@ def across(entries: Sequence[Entry]) -> Table:
     by_key = groups(entries)
     cols = []
     for key, es in by_key.items():
-        title = T.bench_name(key[0]) + (f" {key[1]}" if key[1] else "")
-        cols.append(Column(f"{X.key_text(key)} clean", "clean DEE", title, LOW, 3))
+        title = tables_mod.bench_name(key[0]) + (f" {key[1]}" if key[1] else "")
+        cols.append(Column(f"{synreal.key_text(key)} clean", "clean DEE", title, LOW, 3))
         if any(_mdee(e) is not None for e in es):
-            cols.append(Column(f"{X.key_text(key)} mDEE", "mDEE", title, LOW, 3))
+            cols.append(Column(f"{synreal.key_text(key)} mDEE", "mDEE", title, LOW, 3))
     models = list(dict.fromkeys(e.name for e in entries))
     values = []
     for m in models:
         v: dict = {}
         for e in entries:
             if e.name == m:
-                v[f"{X.key_text(e.key)} clean"] = e.value(None, "dee")
-                v[f"{X.key_text(e.key)} mDEE"] = _mdee(e)
+                v[f"{synreal.key_text(e.key)} clean"] = e.value(None, "dee")
+                v[f"{synreal.key_text(e.key)} mDEE"] = _mdee(e)
         values.append(v)
     return Table("Across datasets", "across", "Each model's clean DEE on every dataset and, "
                  "where the dataset has corruptions, its mDEE (lower is better; n/a: no results "
                  "there). Bold: best; underlined: second." + _mixed(entries), cols,
-                 [I.Row(m, "yours", None) for m in models], values)
+                 [inputs.Row(m, "yours", None) for m in models], values)
 
 
 def _mdee(e: Entry) -> float | None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
-from ..benchmarks import CLEAN, get_benchmark
+from ..benchmark_facts import CLEAN, get_benchmark
 from ..errors import RobodepthError
 from ..evaluation.csvrows import normalise_name
 

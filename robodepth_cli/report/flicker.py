@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Sequence
 
-from ..benchmarks import ALL_CATEGORY, CLEAN, TEMPORAL
+from ..benchmark_facts import ALL_CATEGORY, CLEAN, TEMPORAL
 from ..evaluation.flicker import COLUMNS
 from ..evaluation.results import mean
 from .tables import CATEGORY_SHORT, LOW, Column, Table, bench_name

@@ -79,7 +79,7 @@ def figure(prop: str, found: Sequence[Group], benchmark: str):
     """CE per corruption, one panel per group, one bar per variant in each corruption's
     place (benchmark order, a gap between categories), coloured by the property's value
     (the same value the same colour in every panel); the baseline's 100% dashed."""
-    from ..benchmarks import CATEGORIES
+    from ..benchmark_facts import CATEGORIES
     from . import plot
 
     first = found[0].members[0].scores

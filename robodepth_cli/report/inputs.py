@@ -11,19 +11,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
-from .. import benchmarks as B
-from ..evaluation import results as R, scores as S
+from .. import benchmark_facts
+from ..evaluation import results, scores as scores_mod
 from ..evaluation.csvrows import ResultsTable, normalise_name
 from ..errors import RobodepthError, counted
-from . import published as P
+from . import published
 
 KITTI_S = "kitti-s"
-BENCHMARK_CHOICES = (*B.BENCHMARKS, KITTI_S)
+BENCHMARK_CHOICES = (*benchmark_facts.BENCHMARKS, KITTI_S)
 
 
 def style_names() -> tuple[str, ...]:
     """The KITTI-S styles in the benchmark's order (the published table's columns)."""
-    return tuple(P.style_models()[0].dee)
+    return tuple(published.style_models()[0].dee)
 
 
 @dataclass
@@ -33,7 +33,7 @@ class Row:
     name: str
     kind: str
     clean: float | None
-    scores: S.Scores | None = None  # KITTI-C / NYUDepth2-C
+    scores: scores_mod.Scores | None = None  # KITTI-C / NYUDepth2-C
     styles: dict[str, float] | None = None  # KITTI-S: DEE per style
     source: str = ""  # the results file (yours) or the paper
 
@@ -45,7 +45,7 @@ class Row:
     def mdee(self) -> float:
         if self.scores is not None:
             return self.scores.overall.dee
-        return R.mean(self.styles.values())
+        return results.mean(self.styles.values())
 
 
 @dataclass
@@ -85,7 +85,7 @@ def infer(tables: Sequence[ResultsTable], benchmark: str | None) -> str:
     the rows (as ``robodepth score`` infers it); files of different benchmarks are refused."""
     if benchmark:
         return benchmark
-    found = {t.source: R.infer_benchmark(t, style_names()) for t in tables}
+    found = {t.source: results.infer_benchmark(t, style_names()) for t in tables}
     kinds = sorted(set(found.values()))
     if len(kinds) > 1:
         first = {k: next(p for p, v in found.items() if v == k) for k in kinds}
@@ -126,15 +126,15 @@ def load(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: str) -
     paths = [Path(t.source) for t in tables]
     for name, path, table in zip(model_names(paths, names), paths, tables):
         if benchmark == KITTI_S:
-            res = R.parse_style_results(table, style_names())
+            res = results.parse_style_results(table, style_names())
             row = Row(name, "yours", res.clean, styles=res.dee, source=str(path))
         else:
-            bench = B.get_benchmark(benchmark)
-            res = R.read_results(table, bench)
-            missing = R.missing_message(res, bench)
+            bench = benchmark_facts.get_benchmark(benchmark)
+            res = results.read_results(table, bench)
+            missing = results.missing_message(res, bench)
             if missing:
                 raise RobodepthError(missing)
-            row = Row(name, "yours", res.clean, scores=S.score(res, bench), source=str(path))
+            row = Row(name, "yours", res.clean, scores=scores_mod.score(res, bench), source=str(path))
         out.append(Model(name, path, row, variant_rows(table), table.sha256, warning(table),
                          table.severity_size()))
     return out
@@ -157,14 +157,14 @@ def context(benchmark: str, which: str) -> list[Row]:
     """The published models as rows: ``all`` of them, only the ``baseline`` or ``none``."""
     if which == "none":
         return []
-    cite = f"{P.CITATION} ({P.CITATION_URL})"
+    cite = f"{published.CITATION} ({published.CITATION_URL})"
     if benchmark == KITTI_S:
         rows = [Row(m.name, "baseline" if m.block == "baseline" else "published", None,
-                    styles=dict(m.dee), source=cite) for m in P.style_models()]
+                    styles=dict(m.dee), source=cite) for m in published.style_models()]
     else:
-        bench = B.get_benchmark(benchmark)
+        bench = benchmark_facts.get_benchmark(benchmark)
         rows = [Row(m.name, "baseline" if m.block == "baseline" else "published", m.clean_dee,
-                    scores=S.score(m.results(), bench), source=cite) for m in P.models(benchmark)]
+                    scores=scores_mod.score(m.results(), bench), source=cite) for m in published.models(benchmark)]
     return [r for r in rows if which == "all" or r.kind == "baseline"]
 
 

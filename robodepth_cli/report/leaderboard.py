@@ -12,7 +12,7 @@ import math
 from pathlib import Path
 from typing import Sequence
 
-from ..benchmarks import ALL_CORRUPTIONS
+from ..benchmark_facts import ALL_CORRUPTIONS
 from ..errors import RobodepthError
 from .inputs import model_names
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from .. import __version__
-from . import published as P
+from . import published
 from .tables import Table, bench_name, mixed_note, to_html
 
 CSS = """
@@ -124,8 +124,8 @@ def render(*, benchmark: str, models: Sequence, tables: Sequence[Table], figures
               "and clean DEE by the same code as <code>robodepth score</code>; where the paper "
               "is inconsistent (see the package's published/README.md) they can differ from its "
               "printed summary.</p>",
-              "<h2>Cite</h2>", f"<p>{e(P.CITATION)}. {e(P.CITATION_URL)}</p>",
-              f'<pre class="bib">{e(P.BIBTEX)}</pre>', "</main>", "</body>", "</html>"]
+              "<h2>Cite</h2>", f"<p>{e(published.CITATION)}. {e(published.CITATION_URL)}</p>",
+              f'<pre class="bib">{e(published.BIBTEX)}</pre>', "</main>", "</body>", "</html>"]
     return "\n".join(parts) + "\n"
 
 

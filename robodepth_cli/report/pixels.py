@@ -107,7 +107,7 @@ def collect(dataset, most: int | None = None,
             progress: Callable[[int], None] | None = None) -> tuple[Sums, list[tuple[object, Sums]]]:
     """The clean images' sums and each other variant's, over :func:`chosen` images, reading
     each image once (image by image, every variant of it in turn)."""
-    from ..benchmarks import CLEAN
+    from ..benchmark_facts import CLEAN
 
     try:
         clean_v = dataset.variant(CLEAN)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-from ..benchmarks import CATEGORIES
+from ..benchmark_facts import CATEGORIES
 from ..errors import RobodepthError
 from ..evaluation.scores import Scores
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from ..benchmarks import BIBTEX, Benchmark, get_benchmark  # noqa: F401 (the page's citation)
+from ..benchmark_facts import BIBTEX, Benchmark, get_benchmark  # noqa: F401 (the page's citation)
 from ..evaluation.results import Results
 
 CITATION = ("Kong, Xie, Hu, Ng, Cottereau, Ooi. RoboDepth: Robust Out-of-Distribution Depth "

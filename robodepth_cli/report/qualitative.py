@@ -9,7 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from .. import open_dataset
-from ..benchmarks import CLEAN
+from ..benchmark_facts import CLEAN
 from ..errors import RobodepthError, counted
 from .inputs import KITTI_S
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from ..benchmarks import CORRUPTIONS
+from ..benchmark_facts import CORRUPTIONS
 from ..errors import RobodepthError
 from ..evaluation.csvrows import normalise_name
 from ..evaluation.ranking import LEVEL, bootstrap, kendall, spearman

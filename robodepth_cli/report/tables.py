@@ -13,7 +13,7 @@ import html
 from dataclasses import dataclass, field
 from typing import Sequence
 
-from ..benchmarks import CATEGORIES
+from ..benchmark_facts import CATEGORIES
 from .inputs import Row
 
 LOW, HIGH = "low", "high"  # which end of a column is better
@@ -128,7 +128,7 @@ def beyond_table(rows: Sequence[Row], benchmark: str, clean: bool = False) -> Ta
     """Rows beyond the benchmark (decimal levels, chains) of the user's models: DEE at every
     level of each severity curve, then each chain's DEE (after the clean DEE if ``clean``).
     None when there are none."""
-    from ..keys import level_text
+    from ..sourcekeys import level_text
 
     curves: dict[str, set] = {}
     chains: dict[str, None] = {}

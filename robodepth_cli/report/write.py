@@ -14,10 +14,10 @@ from .. import __version__
 from ..formats import stamp
 from ..errors import RobodepthError, counted
 from ..evaluation.csvrows import ResultsTable
-from . import inputs as I
-from . import published as P
+from . import inputs
+from . import published as published_mod
 from . import flicker as FL
-from . import tables as T
+from . import tables as tables_mod
 from .page import PageFigure
 from .page import render as render_page
 
@@ -27,9 +27,9 @@ SCHEMA = "robodepth-report"  # its version: robodepth_cli/formats.py
 @dataclass
 class Report:
     benchmark: str
-    models: list[I.Model]
-    rows: list[I.Row]  # the user's, then the published context
-    tables: list[T.Table]
+    models: list[inputs.Model]
+    rows: list[inputs.Row]  # the user's, then the published context
+    tables: list[tables_mod.Table]
     figures: list[tuple[str, str, str, object]] = field(default_factory=list)  # stem, title, caption, Figure
     dataset: dict | None = None
     note: str = ""  # why there is no mCE, mRR or mDEE (results beyond the benchmark only)
@@ -37,7 +37,7 @@ class Report:
     # table across them, and synthetic against real where the pairs table resolves.
     sections: list = field(default_factory=list)
     entries: list = field(default_factory=list)
-    across: T.Table | None = None
+    across: tables_mod.Table | None = None
     synreal: list = field(default_factory=list)
     synreal_setup: dict = field(default_factory=dict)
     flicker: list = field(default_factory=list)  # flicker.Flicker per model with the columns
@@ -67,22 +67,22 @@ def assemble(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: st
     benchmarks make the report as before; results of several datasets add a section per
     dataset beyond the first of the paper's (or per dataset, with none of them), a table
     across the datasets and, where the pairs table resolves, synthetic against real."""
-    from . import datasets as D
-    from . import synreal as X
+    from . import datasets
+    from . import synreal as synreal_mod
 
-    keys = D.keys_of(tables, on, benchmark)
-    if len(set(keys)) == 1 and keys[0][0] in D.PUBLISHED and not keys[0][1]:
-        I.model_names([Path(t.source) for t in tables], names)  # flag mistakes first
+    keys = datasets.keys_of(tables, on, benchmark)
+    if len(set(keys)) == 1 and keys[0][0] in datasets.PUBLISHED and not keys[0][1]:
+        inputs.model_names([Path(t.source) for t in tables], names)  # flag mistakes first
         bench = keys[0][0]
-        report = _main(bench, I.load(tables, names, bench), context,
-                       I.dataset_info(dataset, bench) if dataset is not None else None)
+        report = _main(bench, inputs.load(tables, names, bench), context,
+                       inputs.dataset_info(dataset, bench) if dataset is not None else None)
         if baseline is not None:
             raise RobodepthError(f"--baseline: {bench} has a published baseline; --baseline names "
                                  "the model to score datasets without one against")
         return report
-    entries = D.load(tables, names, keys, baseline)
-    by_key = D.groups(entries)
-    main = next((k for k in by_key if k[0] in D.PUBLISHED and not k[1]), None)
+    entries = datasets.load(tables, names, keys, baseline)
+    by_key = datasets.groups(entries)
+    main = next((k for k in by_key if k[0] in datasets.PUBLISHED and not k[1]), None)
     if n_pred and main is None:
         raise RobodepthError("--pred: the report has no results on kitti-c, nyudepth2-c or "
                              "kitti-s for its qualitative figure")
@@ -92,15 +92,15 @@ def assemble(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: st
                              f"{main[0]}; give it at most once per file on it, in the same order")
     if main is not None:
         report = _main(main[0], [e.model for e in by_key[main]], context,
-                       I.dataset_info(dataset, main[0]) if dataset is not None else None)
+                       inputs.dataset_info(dataset, main[0]) if dataset is not None else None)
     else:
         if dataset is not None:
             raise RobodepthError("--dataset: the report has no results on kitti-c, nyudepth2-c "
                                  "or kitti-s to record it with")
         report = Report(keys[0][0], [], [], [])
-    report.sections = [D.section(k, es, context) for k, es in by_key.items() if k != main]
+    report.sections = [datasets.section(k, es, context) for k, es in by_key.items() if k != main]
     report.entries = entries
-    report.across = D.across(entries) if len(by_key) > 1 else None
+    report.across = datasets.across(entries) if len(by_key) > 1 else None
     models = list(dict.fromkeys(e.name for e in entries))
     found = {(e.name, e.key): e for e in entries}
 
@@ -108,12 +108,12 @@ def assemble(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: st
         e = found.get((model, key))
         return None if e is None else e.value(corruption, metric)
 
-    report.synreal = X.compare(models, X.read_pairs([X.PAIRS, *pairs]), value, metric, n_boot, seed)
+    report.synreal = synreal_mod.compare(models, synreal_mod.read_pairs([synreal_mod.PAIRS, *pairs]), value, metric, n_boot, seed)
     report.synreal_setup = {"metric": metric, "resamples": n_boot, "seed": seed}
     return report
 
 
-def _main(bench: str, models: list[I.Model], context: str, info: dict | None) -> Report:
+def _main(bench: str, models: list[inputs.Model], context: str, info: dict | None) -> Report:
     """The report of one of the paper's benchmarks: its tables (figures: :func:`draw`),
     and the flicker of the models whose results have it."""
     report = _main_tables(bench, models, context, info)
@@ -121,19 +121,19 @@ def _main(bench: str, models: list[I.Model], context: str, info: dict | None) ->
     return report
 
 
-def _main_tables(bench: str, models: list[I.Model], context: str, info: dict | None) -> Report:
-    rows = [m.row for m in models] + I.context(bench, context)
-    note = I.beyond_only(models)
+def _main_tables(bench: str, models: list[inputs.Model], context: str, info: dict | None) -> Report:
+    rows = [m.row for m in models] + inputs.context(bench, context)
+    note = inputs.beyond_only(models)
     if note:  # no benchmark score: the clean DEE and the rows beyond it, yours only
         return Report(bench, models, [m.row for m in models],
-                      [T.beyond_table([m.row for m in models], bench, clean=True)], dataset=info, note=note)
-    if bench == I.KITTI_S:
-        tables = [T.styles_table(rows)]
+                      [tables_mod.beyond_table([m.row for m in models], bench, clean=True)], dataset=info, note=note)
+    if bench == inputs.KITTI_S:
+        tables = [tables_mod.styles_table(rows)]
     else:
-        tables = [T.summary_table(rows, bench), T.corruption_table(rows, bench, "dee"),
-                  T.corruption_table(rows, bench, "ce"), T.corruption_table(rows, bench, "rr"),
-                  T.levels_table([m.row for m in models], bench)]
-        beyond = T.beyond_table([m.row for m in models], bench)
+        tables = [tables_mod.summary_table(rows, bench), tables_mod.corruption_table(rows, bench, "dee"),
+                  tables_mod.corruption_table(rows, bench, "ce"), tables_mod.corruption_table(rows, bench, "rr"),
+                  tables_mod.levels_table([m.row for m in models], bench)]
+        beyond = tables_mod.beyond_table([m.row for m in models], bench)
         if beyond is not None:
             tables.append(beyond)
     return Report(bench, models, rows, tables, dataset=info)
@@ -142,7 +142,7 @@ def _main_tables(bench: str, models: list[I.Model], context: str, info: dict | N
 def draw(report: Report) -> None:
     """Add the figures (matplotlib is imported here, not before): the main benchmark's,
     then synthetic against real."""
-    from . import figures as F
+    from . import figures as figures_mod
     from .synreal import METRICS
 
     if report.models:
@@ -156,30 +156,30 @@ def draw(report: Report) -> None:
             f"Each model's {metric} on a synthetic corruption (mean over its levels) against its "
             f"{metric} on the real condition's clean images, one panel per pair of the pairs "
             "table; Spearman's ρ and Kendall's τ of the two rankings, ρ with its 95% bootstrap "
-            "interval over the models.", F.synreal_figure(report.synreal, metric)))
+            "interval over the models.", figures_mod.synreal_figure(report.synreal, metric)))
 
 
 def _draw_main(report: Report) -> None:
     from . import plot
-    from . import figures as F
+    from . import figures as figures_mod
 
     bench, models = report.benchmark, report.models
-    base = P.baseline(bench)
+    base = published_mod.baseline(bench)
     mine = [m.row for m in models]
     figs = report.figures
-    if bench == I.KITTI_S:
+    if bench == inputs.KITTI_S:
         figs.append(("radar", "DEE per style", "Each model's DEE for each KITTI-S style; the "
                      "grey dashed line is the paper's baseline.",
-                     F.radar_figure([(r.name, r.styles) for r in mine], bench,
+                     figures_mod.radar_figure([(r.name, r.styles) for r in mine], bench,
                                        (base.name, base.dee), what="style")))
         figs.append(("styles", "DEE per style, as bars", "Each style's DEE per model, with the "
                      "published baseline for reference.",
-                     F.styles_figure([(r.name, r.styles) for r in mine], bench,
+                     figures_mod.styles_figure([(r.name, r.styles) for r in mine], bench,
                                         (base.name, base.dee))))
         figs.append(("ranking", "mDEE ranking", "Your models among the paper's KITTI-S models, "
                      "ranked by mDEE.",
-                     F.ranking_figure([(r.name, r.mdee) for r in mine],
-                                         [(m.name, S_mean(m.dee)) for m in P.style_models()], bench)))
+                     figures_mod.ranking_figure([(r.name, r.mdee) for r in mine],
+                                         [(m.name, S_mean(m.dee)) for m in published_mod.style_models()], bench)))
         return
     pm = [plot.Model(r.name, r.scores) for r in mine]
     if report.note:
@@ -189,27 +189,27 @@ def _draw_main(report: Report) -> None:
     series = [(r.name, {c.name: c.dee for c in r.scores.corruptions}) for r in mine]
     figs.append(("radar", "DEE per corruption", "Each model's DEE per corruption (mean over the "
                  "levels), the paper's Fig. 1 form; the grey dashed line is the baseline.",
-                 F.radar_figure(series, bench, (base.name, base.dee))))
+                 figures_mod.radar_figure(series, bench, (base.name, base.dee))))
     figs.append(("ce", "CE per corruption", "Corruption error per corruption against the "
                  "baseline's 100% (dashed).", plot.ce_figure(pm, bench)))
     figs.append(("levels", "DEE against level", "DEE at each level, one panel per corruption; "
                  "the grey dashed line is the baseline's published mean over the levels.",
-                 F.levels_figure(pm, bench, (base.name, base.dee))))
+                 figures_mod.levels_figure(pm, bench, (base.name, base.dee))))
     if any(r.scores.curves for r in mine):
         figs.append(_severity(pm, bench))
-    points = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr) for r in mine]
-    context = [F.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr)
-               for r in I.context(bench, "all")]
+    points = [figures_mod.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr) for r in mine]
+    context = [figures_mod.Point(r.name, r.clean, r.scores.overall.ce, r.scores.overall.rr)
+               for r in inputs.context(bench, "all")]
     figs.append(("summary", "mCE and mRR against clean DEE", "Your models (coloured) among "
-                 "the paper's (grey).", F.summary_figure(points, context, bench)))
+                 "the paper's (grey).", figures_mod.summary_figure(points, context, bench)))
 
 
 def _severity(pm: list, bench: str) -> tuple:
-    from . import figures as F
+    from . import figures as figures_mod
 
     return ("severity", "DEE against continuous severity", "Beyond the benchmark: DEE at "
             "every level present, integer and decimal, for each corruption with decimal-level "
-            "rows; in no mCE or mRR.", F.severity_figure([m for m in pm if m.scores.curves], bench))
+            "rows; in no mCE or mRR.", figures_mod.severity_figure([m for m in pm if m.scores.curves], bench))
 
 
 def S_mean(values: dict) -> float:
@@ -226,7 +226,7 @@ def to_json(report: Report) -> dict:
            "models": []}
     if report.note:
         doc["note"] = report.note
-    if report.benchmark != I.KITTI_S and not report.note and report.models:
+    if report.benchmark != inputs.KITTI_S and not report.note and report.models:
         b = report.models[0].row.scores.baseline
         doc["baseline"] = {"name": b.name, "clean_dee": b.clean, "dee": dict(b.dee)}
     for m in report.models:
@@ -260,14 +260,14 @@ def to_json(report: Report) -> dict:
     if report.synreal:
         setup = report.synreal_setup
         doc["synthetic_vs_real"] = [c.to_json(setup["resamples"], setup["seed"]) for c in report.synreal]
-    doc["citation"] = {"text": P.CITATION, "url": P.CITATION_URL}
+    doc["citation"] = {"text": published_mod.CITATION, "url": published_mod.CITATION_URL}
     return doc
 
 
 def _section_json(sec, report: Report) -> dict:
     """A dataset beyond the main benchmark: each model's clean errors, its scores where the
     dataset has corruptions, and its rows as written."""
-    from ..benchmarks import CLEAN
+    from ..benchmark_facts import CLEAN
 
     models = []
     for e in (e for e in report.entries if e.key == sec.key):
@@ -421,18 +421,18 @@ def _write_into(report: Report, out: Path, progress: Callable[[str], None]) -> l
     page = render_page(benchmark=report.benchmark, models=report.models, tables=report.tables,
                        figures=page_figs, dataset=report.dataset, context=context, note=report.note,
                        sections=extra)
-    head = (f"% RoboDepth report on {T.bench_name(report.benchmark)}, made by robodepth {__version__}.\n"
+    head = (f"% RoboDepth report on {tables_mod.bench_name(report.benchmark)}, made by robodepth {__version__}.\n"
             "% Needs \\usepackage{booktabs} and \\usepackage{graphicx} (for \\resizebox).\n"
-            f"% Published rows: {P.CITATION}.\n"
+            f"% Published rows: {published_mod.CITATION}.\n"
             + (f"% {report.note[0].upper()}{report.note[1:]}.\n" if report.note else "") + "\n")
     # LaTeX: the paper's Table 1 and its per-corruption DEE table; Markdown adds CE and RR.
     # The per-level table (90 columns on KITTI-C) stays on the page and in scores.json.
     more = [t for _, ts, _ in extra for t in ts]
     files = {"index.html": page,
-             "table.tex": head + "\n".join(T.to_latex(t) for t in report.tables[:2] + more),
-             "table.md": f"# RoboDepth report: {T.bench_name(report.benchmark)}\n\n"
+             "table.tex": head + "\n".join(tables_mod.to_latex(t) for t in report.tables[:2] + more),
+             "table.md": f"# RoboDepth report: {tables_mod.bench_name(report.benchmark)}\n\n"
                          + (f"{report.note[0].upper()}{report.note[1:]}.\n\n" if report.note else "")
-                         + "\n".join(T.to_markdown(t) for t in report.tables[:4] + more),
+                         + "\n".join(tables_mod.to_markdown(t) for t in report.tables[:4] + more),
              "scores.json": json.dumps(to_json(report), indent=2, allow_nan=False) + "\n"}
     for name, text in files.items():
         progress(name)

@@ -16,7 +16,7 @@ from ..api import Variant
 from ..output.layout import variant_order
 from ..building.config import BuildConfig
 from ..building.gather import check_root, gather_sources
-from ..building.tasks import Source, load_source
+from ..building.jobs import Source, load_source
 from ..errors import RobodepthError
 from ..building.renderers import Renderer
 from ..sources.datasets import Dataset, Job, get_dataset, preset_names

@@ -23,11 +23,11 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..api import Variant
-from ..benchmarks import CLEAN
+from ..benchmark_facts import CLEAN
 from ..errors import failure_reason
 from ..evaluation.evaluate import Evaluation, VariantResult, variant_result
 from ..evaluation.image import image_errors
-from ..models import predict as P
+from ..models import predict
 from ..predictions import PredictionWriter, finished, remove_leftovers, split_digest
 from ..building.renderers import Renderer
 from ..sources.datasets import Job
@@ -100,9 +100,9 @@ def run(ctx: RunContext, *, progress: Callable[[int], None] | None = None,
                         ctx.truth.source, n)
     record = None
     if keep is not None:
-        record = P.make_record(SimpleNamespace(name=inputs.ds.name, path=inputs.root, keys=inputs.keys),
+        record = predict.make_record(SimpleNamespace(name=inputs.ds.name, path=inputs.root, keys=inputs.keys),
                                model)
-        P.prepare_output(keep, record)
+        predict.prepare_output(keep, record)
     todo, earlier = [], 0
     for variant, _ in inputs.variants:
         done = state.get(variant.relpath)
@@ -163,11 +163,11 @@ def _judge(ctx: RunContext, variant: Variant, job: Job, painter, record,
             if k + 1 < len(bounds):
                 pending = painter.submit(paint[k + 1])
             i = a
-            for batch in P.same_size_runs(images):
+            for batch in predict.same_size_runs(images):
                 if record is None:
                     maps = model.predict(batch)
                 else:  # once the model has given a valid batch, as predict (its size too)
-                    maps = P.first_batch(model, batch, keep, record)
+                    maps = predict.first_batch(model, batch, keep, record)
                     record = None
                 for m in maps:
                     errs, ratio = image_errors(m, f"{model.spec}: {variant.label}: {variant.keys[i]}",

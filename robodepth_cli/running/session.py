@@ -40,28 +40,28 @@ def run(settings: RunSettings, *, note: Callable[[str], None], on_state: Callabl
     ``note`` prints a line for the user; ``on_state`` is told the state file once the
     decoding is done (the run then resumes from it)."""
     from ..building.config import resolve
-    from ..evaluation.setup import evaluation_setup, scored_benchmark
+    from ..evaluation.configure import evaluation_setup, scored_benchmark
     from ..evaluation.modelsize import with_size
     from ..files import check_writable
     from ..models import load_model
     from ..models.predict import BATCH_PIXELS, batch_limit
     from ..predictions import RECORD
     from ..progress import bar as progress_bar
-    from . import inputs as I, loop
+    from . import inputs as inputs_mod, loop
     from .state import RunState
 
     s, out = settings, settings.out
     check_writable(out, "--out")
     if s.keep is not None:
         check_writable(s.keep / RECORD, "--keep-predictions")
-    cfg = resolve(s.dataset, s.config_file, {**s.flags, **I.engine_flags(s.engine, s.device)})
-    inputs = I.gather(cfg, s.root, out)
+    cfg = resolve(s.dataset, s.config_file, {**s.flags, **inputs_mod.engine_flags(s.engine, s.device)})
+    inputs = inputs_mod.gather(cfg, s.root, out)
     bench = scored_benchmark(cfg.dataset, [v for v, _ in inputs.variants])
     model = load_model(s.spec, device=s.device, kind=s.kind, metric=s.metric,
                        post_process=s.post_process)
     setup, _ = evaluation_setup(cfg.dataset, model.record()["evaluate"], None, s.kind, png_scale=None,
                                 **s.evaluation)
-    renderer = I.renderer(inputs)
+    renderer = inputs_mod.renderer(inputs)
     step = batch_limit(s.batch_size, cfg.size, model.input_size)
     if step < s.batch_size:
         note(f"robodepth: --batch-size {s.batch_size}: {step} images per batch (a batch "
@@ -71,8 +71,8 @@ def run(settings: RunSettings, *, note: Callable[[str], None], on_state: Callabl
     if state.note:
         note(f"robodepth: {state.note}")
     with progress_bar("img", len(inputs.sources), progress=s.progress, desc="decoding") as bar:
-        cleans = I.decode(inputs, bar.update)
-    truth = I.ground_truth(inputs, setup)
+        cleans = inputs_mod.decode(inputs, bar.update)
+    truth = inputs_mod.ground_truth(inputs, setup)
     on_state(state.path)
     context = loop.RunContext(inputs, cleans, renderer, model, truth, setup, state, step, s.keep)
     with progress_bar("img", progress=s.progress, desc="run") as bar:

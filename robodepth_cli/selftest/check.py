@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..benchmarks import ALL_CORRUPTIONS, TEMPORAL
+from ..benchmark_facts import ALL_CORRUPTIONS, TEMPORAL
 from ..errors import RobodepthError
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -179,7 +179,7 @@ def record(work: Path, folder: Path = DATA) -> int:
     from PIL import Image
 
     from ..files import write_atomic
-    from ..lock import installed, locked
+    from ..versionlock import installed, locked
 
     outputs, chunks, offset = {}, [], 0
     for key, out in sorted(built_outputs(work).items()):
@@ -268,7 +268,7 @@ def checked_count(ref: Reference) -> int:
 def version_differences() -> list[str]:
     """The pixel-deciding distributions installed at other versions than the lock's (PyAV
     and torch only when installed: without one, its outputs are skipped and the run says so)."""
-    from ..lock import differences, installed, locked
+    from ..versionlock import differences, installed, locked
 
     lock = {k: v for k, v in locked().items() if k not in absent()}
     return differences(installed(lock), lock, missing=True)

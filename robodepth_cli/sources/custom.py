@@ -9,7 +9,7 @@ Instead of a split, the sources are found under the root:
   lines and ``#`` comments ignored), in that order.
 
 Each source's key (the name of its outputs and the path that seeds its jobs) is its path
-relative to the root with its extension replaced by ``.png`` (:func:`keys.custom_key`).
+relative to the root with its extension replaced by ``.png`` (:func:`sourcekeys.custom_key`).
 Two sources with the same key (``a.jpg`` and ``a.png``) are refused before any work.
 
 Pattern syntax (matched against the posix path relative to the root, case-insensitively):
@@ -27,7 +27,7 @@ import re
 from pathlib import Path
 
 from ..errors import InvalidValueError, RobodepthError, os_reason
-from ..keys import custom_key, relative_parts
+from ..sourcekeys import custom_key, relative_parts
 
 IMAGE_EXTS = ("png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp")
 DEFAULT_PATTERNS = tuple(f"**/*.{e}" for e in IMAGE_EXTS)

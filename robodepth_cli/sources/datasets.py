@@ -19,10 +19,10 @@ from dataclasses import dataclass, fields
 from pathlib import Path, PurePosixPath
 from typing import Any, Callable, Sequence
 
-from ..benchmarks import BENCHMARKS, CLEAN, CORRUPTIONS, DEPTH_AWARE, N_LEVELS, Baseline
+from ..benchmark_facts import BENCHMARKS, CLEAN, CORRUPTIONS, DEPTH_AWARE, N_LEVELS, Baseline
 from ..errors import InvalidValueError, os_reason
 # SOURCE_EXTS: tried in this order when a split names no extension.
-from ..keys import KITTI_PREFIX, PRESET_EXTS as SOURCE_EXTS, relative_parts
+from ..sourcekeys import KITTI_PREFIX, PRESET_EXTS as SOURCE_EXTS, relative_parts
 from .splits import SplitError
 
 KITTI_SIDES = {"l": "image_02", "r": "image_03"}
@@ -296,7 +296,7 @@ class Dataset:
     # Its evaluation: (key, value) defaults of `robodepth evaluate`: protocol (kitti unless
     # given), crop, min_depth, max_depth (the protocol's unless given)
     evaluation: tuple = ()
-    # The published baseline its CE is measured against (benchmarks.py); None: scored
+    # The published baseline its CE is measured against (benchmark_facts.py); None: scored
     # against the results CSV the user names (score --baseline), else as DEE and RR only.
     baseline: Baseline | None = None
 

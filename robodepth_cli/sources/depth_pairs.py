@@ -39,7 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
 from ..errors import InvalidValueError
-from ..keys import relative_parts
+from ..sourcekeys import relative_parts
 from .depth_io import EXTENSIONS, FORMATS
 
 FIELDS = ("path", "dir", "stem", "name", "ext", "digits", "prefix", "parts")

@@ -21,7 +21,7 @@ from PIL import Image
 from ..imageio import MIN_SIDE, read_rgb
 from ..files import sha256_file
 from ..errors import InvalidValueError, RobodepthError, reraise_interrupt
-from ..values import int_from_text
+from ..integers import int_from_text
 
 # The 12 KITTI-S styles in the benchmark's order; also the output directory names.
 STYLES: tuple[str, ...] = (

@@ -65,7 +65,7 @@ def corrupt(t, batch: torch.Tensor, keys) -> torch.Tensor:
     """:class:`~robodepth_cli.torch.Corrupt` on a batch: with ``keys`` (one per item),
     item ``i`` draws what a build draws for ``keys[i]``, so it equals the single-image
     call with that key; without, the items draw in turn from the transform's generator."""
-    from ..keys import seed_key
+    from ..sourcekeys import seed_key
 
     x, back = _as_uint8(batch)
     keys = _keys(keys, len(x))

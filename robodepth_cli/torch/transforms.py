@@ -18,7 +18,7 @@ from . import batch as transforms_batch
 from ..corruptions.severity import LevelError
 from ..errors import InvalidValueError
 from ..imageio import ImageError
-from ..keys import seed_key
+from ..sourcekeys import seed_key
 from .errors import TorchAPIError
 
 # --- image types ---------------------------------------------------------------------------

@@ -12,7 +12,7 @@ from PIL import Image
 
 from robodepth_cli import corruptions, files, seeding
 
-from robodepth_cli.building import renderers, tasks
+from robodepth_cli.building import renderers, jobs
 
 from robodepth_cli.corruptions import NAMES
 from robodepth_cli.output.folder import OutputFolder
@@ -289,7 +289,7 @@ def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, mo
     root, split = kitti
     out = tmp_path / "out"
     flags = ["--size", "64x96", "--corruptions", "contrast", "--levels", "1,2", "--jobs", "1"]
-    real, calls = tasks.write_png, []
+    real, calls = jobs.write_png, []
 
     def disk_fills_up(path, img, level, **kw):
         calls.append(path)
@@ -297,14 +297,14 @@ def test_write_error_stops_the_build_and_keeps_finished_work(kitti, tmp_path, mo
             raise OSError(28, "No space left on device")
         return real(path, img, level, **kw)
 
-    monkeypatch.setattr(tasks, "write_png", disk_fills_up)
+    monkeypatch.setattr(jobs, "write_png", disk_fills_up)
     res = build_kitti(root, split, out, *flags)
     assert res.exit_code == 2
     assert f"{calls[2]}: cannot write (No space left on device); finished images are kept" in res.output
     assert len(calls) == 3  # nothing attempted after the failure
     assert set(tree(out)) == {f"clean/{kitti_key(5)}", f"contrast/1/{kitti_key(5)}"}
 
-    monkeypatch.setattr(tasks, "write_png", real)
+    monkeypatch.setattr(jobs, "write_png", real)
     res = build_kitti(root, split, out, *flags)
     assert res.exit_code == 0 and "4 written, 2 skipped" in res.output
     assert cli("verify", out).exit_code == 0

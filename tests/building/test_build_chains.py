@@ -145,7 +145,7 @@ def test_kitti_s_takes_no_chains(tmp_path, cli):
 
 def test_heldout_protocol_builds_the_test_side_and_trains_on_the_rest():
     from tests.helpers.paths import REPO
-    from robodepth_cli.benchmarks import CATEGORY, WEATHER
+    from robodepth_cli.benchmark_facts import CATEGORY, WEATHER
     from robodepth_cli.building.config import resolve
 
     path = REPO / "configs" / "protocols" / "heldout-weather.yaml"

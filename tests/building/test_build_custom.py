@@ -253,9 +253,9 @@ def test_exif_orientation_is_applied_and_recorded(tmp_path, build, cli):
 def _stop_at_write(monkeypatch, n, exc=KeyboardInterrupt):
     """Make the build's ``n``-th PNG write raise ``exc`` (the earlier ones are written): a
     stop in the middle of one source image's outputs."""
-    from robodepth_cli.building import tasks
+    from robodepth_cli.building import jobs
 
-    real, calls = tasks.write_png, []
+    real, calls = jobs.write_png, []
 
     def write_png(*args, **kwargs):
         calls.append(args[0])
@@ -263,7 +263,7 @@ def _stop_at_write(monkeypatch, n, exc=KeyboardInterrupt):
             raise exc
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(tasks, "write_png", write_png)
+    monkeypatch.setattr(jobs, "write_png", write_png)
 
 
 def test_interrupt_mid_image_keeps_and_records_what_was_written(folder, tmp_path, build, cli,

@@ -79,15 +79,15 @@ def test_source_linked_into_out_is_refused(kitti, tmp_path, build_kitti):
 # --- defect 2: verify against the plan -------------------------------------------------------
 
 def _interrupt_after(monkeypatch, n_tasks):
-    real, calls = builder.run_task, []
+    real, calls = builder.run_source_jobs, []
 
-    def run_task(task, ctx):
+    def run_source_jobs(task, ctx):
         calls.append(task)
         if len(calls) > n_tasks:
             raise KeyboardInterrupt
         return real(task, ctx)
 
-    monkeypatch.setattr(builder, "run_task", run_task)
+    monkeypatch.setattr(builder, "run_source_jobs", run_source_jobs)
 
 
 def test_verify_calls_an_interrupted_build_incomplete(kitti, tmp_path, cli, build_kitti, monkeypatch):

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pickle
 
-from robodepth_cli.building import gather, pipeline as builder, renderers, tasks
+from robodepth_cli.building import gather, pipeline as builder, renderers, jobs
 
 from robodepth_cli.building import config
 from robodepth_cli.sources.datasets import get_dataset
@@ -18,13 +18,13 @@ FRAMES = [(5, "l", ".png"), (7, "r", ".jpg")]
 def test_each_source_is_decoded_and_resized_once(tmp_path, monkeypatch, cli):
     split = kitti_tree(tmp_path / "kitti_raw", FRAMES)
     calls = []
-    real = tasks.load_clean
+    real = jobs.load_clean
 
     def counting(path, size, **kw):
         calls.append((str(path), size))
         return real(path, size, **kw)
 
-    monkeypatch.setattr(tasks, "load_clean", counting)
+    monkeypatch.setattr(jobs, "load_clean", counting)
     res = cli("build", "kitti-c", "--root", tmp_path / "kitti_raw", "--split", split,
               "--out", tmp_path / "out", "--size", "48x96", "--corruptions", "contrast,color_quant",
               "--levels", "1,2", "--jobs", "1")

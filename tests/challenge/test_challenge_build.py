@@ -12,7 +12,7 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from robodepth_cli.benchmarks import ALL_CORRUPTIONS
+from robodepth_cli.benchmark_facts import ALL_CORRUPTIONS
 from tests.helpers.manifest import manifest_by_output
 from tests.helpers.messages import one_line_error
 from tests.helpers.paths import FIXTURES

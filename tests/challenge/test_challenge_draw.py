@@ -6,7 +6,7 @@ from collections import Counter
 
 import pytest
 
-from robodepth_cli.benchmarks import BENCHMARKS
+from robodepth_cli.benchmark_facts import BENCHMARKS
 from robodepth_cli.challenge.draw import draw
 from robodepth_cli.errors import RobodepthError
 

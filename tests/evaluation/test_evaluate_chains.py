@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from robodepth_cli.api import open_dataset
-from robodepth_cli.benchmarks import BENCHMARKS
+from robodepth_cli.benchmark_facts import BENCHMARKS
 from robodepth_cli.evaluation.results import ScoreError, parse_results
 from robodepth_cli.evaluation.scores import score
 

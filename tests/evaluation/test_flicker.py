@@ -141,7 +141,7 @@ def test_flicker_on_a_frames_build_says_what_it_measures_and_where_to_go(tmp_pat
 
 
 def test_score_reports_the_flicker_beside_the_scores(tmp_path, cli):
-    from robodepth_cli.benchmarks import get_benchmark
+    from robodepth_cli.benchmark_facts import get_benchmark
 
     bench = get_benchmark("kitti-c")
     lines = ["corruption,level,abs_rel,a1,flicker_scale,flicker_abs_rel", "clean,0,0.1,0.9,0.02,0.001"]

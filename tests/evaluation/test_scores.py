@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from robodepth_cli import benchmarks as B
+from robodepth_cli import benchmark_facts as B
 from robodepth_cli.evaluation import results as R, scores as S
 from robodepth_cli.corruptions import DATA, NAMES, SENSOR, WEATHER
 from robodepth_cli.report.plot import COLOURS, Model, ce_figure, render

@@ -260,9 +260,9 @@ def test_resume_rewrites_only_the_missing_shard(build, exports, tmp_path, cli):
 
 def test_an_interrupted_export_keeps_whole_shards_and_resumes(build, exports, tmp_path, cli,
                                                               monkeypatch):
-    from robodepth_cli.export import run
+    from robodepth_cli.export import driver
 
-    real = run.WRITERS["webdataset"]
+    real = driver.WRITERS["webdataset"]
     calls = []
 
     def stopping(fh, *args):
@@ -272,7 +272,7 @@ def test_an_interrupted_export_keeps_whole_shards_and_resumes(build, exports, tm
             raise KeyboardInterrupt  # Ctrl-C in the middle of the fourth shard
         return real(fh, *args)
 
-    monkeypatch.setitem(run.WRITERS, "webdataset", stopping)
+    monkeypatch.setitem(driver.WRITERS, "webdataset", stopping)
     export = tmp_path / "wds"
     args = ("export", build, "--format", "webdataset", "--to", export, "--shard-size", "20kB",
             "--no-progress")
@@ -282,7 +282,7 @@ def test_an_interrupted_export_keeps_whole_shards_and_resumes(build, exports, tm
     files = sorted(p.name for p in (export / "data").rglob("*") if p.is_file())
     assert len(files) == 3 and not any(f.endswith(".part") for f in files)
     assert len((export / "robodepth/.shards.jsonl").read_text().splitlines()) == 3
-    monkeypatch.setitem(run.WRITERS, "webdataset", real)
+    monkeypatch.setitem(driver.WRITERS, "webdataset", real)
     res = cli(*args)
     assert res.exit_code == 0 and "(9 written now)" in res.output, res.output
     assert not (export / "robodepth/.shards.jsonl").exists()
@@ -554,9 +554,9 @@ def test_an_export_refused_mid_way_leaves_nothing_half_made(build, tmp_path, cli
 
 
 def test_verify_of_an_unfinished_export_says_so(build, tmp_path, cli, monkeypatch):
-    from robodepth_cli.export import run
+    from robodepth_cli.export import driver
 
-    real = run.WRITERS["parquet"]
+    real = driver.WRITERS["parquet"]
     calls = []
 
     def stopping(*args):
@@ -565,7 +565,7 @@ def test_verify_of_an_unfinished_export_says_so(build, tmp_path, cli, monkeypatc
             raise KeyboardInterrupt
         return real(*args)
 
-    monkeypatch.setitem(run.WRITERS, "parquet", stopping)
+    monkeypatch.setitem(driver.WRITERS, "parquet", stopping)
     export = tmp_path / "hf"
     res = cli("export", build, "--format", "parquet", "--to", export, "--shard-size", "20kB",
               "--no-progress")

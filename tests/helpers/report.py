@@ -53,7 +53,7 @@ def evaluate_csv(path: Path, bench: str, model: str, tilt: float = 0.04) -> Path
 
 
 def _corruption_names(bench):
-    from robodepth_cli.benchmarks import BENCHMARKS
+    from robodepth_cli.benchmark_facts import BENCHMARKS
 
     return BENCHMARKS[bench].corruptions
 

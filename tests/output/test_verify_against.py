@@ -11,7 +11,7 @@ from tests.helpers.trees import kitti_key, kitti_tree
 
 
 def _lock() -> dict[str, str]:
-    from robodepth_cli.lock import LOCK_FILE
+    from robodepth_cli.versionlock import LOCK_FILE
 
     pins = {}
     for line in LOCK_FILE.read_text().splitlines():
@@ -63,7 +63,7 @@ def test_verify_names_each_library_built_at_another_version_than_the_lock(tmp_pa
 
 
 def test_a_torch_build_label_is_the_same_release():
-    from robodepth_cli.lock import differences
+    from robodepth_cli.versionlock import differences
 
     lock = {"torch": "2.13.0", "av": "18.1.0", "Pillow": "13.0.0"}
     assert differences({"torch": "2.13.0+cpu", "pillow": "13.0.0"}, lock) == []

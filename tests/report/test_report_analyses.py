@@ -38,7 +38,7 @@ def _assemble(files, names, **kw):
 
 def _published_ce(model: str) -> dict[str, float]:
     rows = {r["model"]: r for r in published_rows("kitti-c")}
-    from robodepth_cli.benchmarks import BENCHMARKS
+    from robodepth_cli.benchmark_facts import BENCHMARKS
 
     names = BENCHMARKS["kitti-c"].corruptions
     return {c: 100 * float(rows[model][c]) / float(rows["MonoDepth2 R18"][c]) for c in names}

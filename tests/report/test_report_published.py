@@ -18,7 +18,7 @@ import statistics
 import pytest
 
 from robodepth_cli.evaluation import scores as S
-from robodepth_cli.benchmarks import BENCHMARKS
+from robodepth_cli.benchmark_facts import BENCHMARKS
 from robodepth_cli.report import published as P
 
 DATA = P.DATA

@@ -10,7 +10,7 @@ import shutil
 import numpy as np
 import pytest
 
-from robodepth_cli import lock
+from robodepth_cli import versionlock
 from robodepth_cli.selftest import check as selftest
 
 READ_REFERENCE = selftest.read_reference  # the real one, for the tampered copies
@@ -47,7 +47,7 @@ def tampered_reference(tmp_path, monkeypatch, key, delta):
 
 
 def test_the_builds_cover_every_kind_of_variant():
-    from robodepth_cli.benchmarks import ALL_CORRUPTIONS as CORRUPTIONS, TEMPORAL
+    from robodepth_cli.benchmark_facts import ALL_CORRUPTIONS as CORRUPTIONS, TEMPORAL
 
     ref = selftest.read_reference()
     variants = {e["variant"] for e in ref.outputs.values()}
@@ -92,10 +92,10 @@ def test_kitti_s_passes_within_one_grey_level_only(tmp_path, cli, prebuilt, monk
 
 
 def test_a_version_other_than_the_lock_is_named(tmp_path, cli, prebuilt, monkeypatch):
-    pins = lock.locked()
-    text = lock.LOCK_FILE.read_text().replace(f"numpy=={pins['numpy']}", "numpy==1.26.4")
+    pins = versionlock.locked()
+    text = versionlock.LOCK_FILE.read_text().replace(f"numpy=={pins['numpy']}", "numpy==1.26.4")
     (tmp_path / "constraints.txt").write_text(text)
-    monkeypatch.setattr(lock, "LOCK_FILE", tmp_path / "constraints.txt")
+    monkeypatch.setattr(versionlock, "LOCK_FILE", tmp_path / "constraints.txt")
     res = cli("selftest")  # every output matches: a warning, exit 0
     assert res.exit_code == 0, res.output
     warning, line = res.output.splitlines()

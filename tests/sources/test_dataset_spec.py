@@ -104,7 +104,7 @@ def test_each_preset_file_says_what_its_spec_says(path, monkeypatch):
 
 
 def test_only_the_benchmarks_have_a_published_baseline():
-    from robodepth_cli.benchmarks import BENCHMARKS
+    from robodepth_cli.benchmark_facts import BENCHMARKS
 
     assert {n for n, d in DATASETS.items() if d.baseline is not None} == set(BENCHMARKS)
     assert all(DATASETS[n].baseline == b.baseline and DATASETS[n].corruptions == b.corruptions

@@ -1,5 +1,5 @@
 """One task of a build: a source image and all of its outputs, as a worker receives and
-runs it (:func:`run_task`). The main process plans tasks and writes the manifest and record
+runs it (:func:`run_source_jobs`). The main process plans tasks and writes the manifest and record
 (:mod:`.pipeline`); executors (:mod:`.executors`, :mod:`.cluster`) carry tasks to workers
 and their manifest rows back.
 """
@@ -75,7 +75,7 @@ class Source:
 
 
 @dataclass(frozen=True)
-class Task:
+class SourceJobs:
     """One source image and all of its outputs. Small: this is what a worker receives."""
 
     source: Source
@@ -105,7 +105,7 @@ class Context:
     png: str = "fast"  # how the PNGs are written (imageio.PNG_METHODS)
 
 
-def run_task(task: Task, ctx: Context) -> list[tuple[JobState, Row]]:
+def run_source_jobs(task: SourceJobs, ctx: Context) -> list[tuple[JobState, Row]]:
     """Make the outputs of one source image that are not already done; one
     ``(JobState, manifest row)`` per job (see :class:`JobState`)."""
     _configure_worker(ctx.single_thread)
@@ -175,7 +175,7 @@ def _write(target: Path, img, method: str) -> bytes:
     return write_png(target, img, PNG_COMPRESS_LEVEL, method=method)
 
 
-def _source_hash(task: Task) -> tuple[str, tuple]:
+def _source_hash(task: SourceJobs) -> tuple[str, tuple]:
     """The source's sha256 ("" when not hashed) and the outputs' recorded hashes that still
     stand: none of them when the source's bytes changed (everything is redone)."""
     src = task.source
@@ -228,7 +228,7 @@ def fingerprint(renderer: Renderer, job: Job, src: Source | None = None, stamp: 
     return for_source(params, src, job, stamp if params.startswith(DEPTH) else "")
 
 
-def _depth_checked(task: Task, renderer: Renderer, expected: tuple) -> tuple[tuple, str]:
+def _depth_checked(task: SourceJobs, renderer: Renderer, expected: tuple) -> tuple[tuple, str]:
     """``expected`` without the depth-aware outputs when the source's depth changed since
     they were made, and its depth stamp now ("" when no job needs depth)."""
     keyed = [depth_keyed(renderer, job) for job in task.jobs]
@@ -249,7 +249,7 @@ def for_source(params: str, src: Source, job: Job, stamp: str = "") -> str:
     redoes it when it is rendered for another one; a corruption over time's end with
     ``sequence=<id>`` (its sequence's files); a depth-aware output's with ``map=<stamp>`` (the
     sha256 of its depth's files). A single-frame build's are unchanged otherwise."""
-    from ..benchmarks import TEMPORAL
+    from ..benchmark_facts import TEMPORAL
 
     sequence = src.sequence_id if src.sequence_id and job.variant in TEMPORAL else ""
     return Params(params, src.anchor or "", sequence or "", stamp).text()
@@ -279,7 +279,7 @@ def _frames_of(src: Source, clean, todo: list[Job], size) -> dict:
     key (``anchor``) and, for a corruption over time, the clean frames of its sequence."""
     if not src.sequence:
         return {}
-    from ..benchmarks import TEMPORAL
+    from ..benchmark_facts import TEMPORAL
 
     kw = {"anchor": src.anchor or src.key}
     if any(j.variant in TEMPORAL for j in todo):

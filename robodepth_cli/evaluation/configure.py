@@ -37,14 +37,14 @@ def evaluation_setup(dataset: str, recorded: dict, protocol, kind, stereo, png_s
 def scored_benchmark(dataset: str, variants):
     """The benchmark whose scores ``--score`` prints for ``dataset`` (its ``variants``: what
     an unpublished one scores); refused for one without."""
-    from .. import benchmarks as B
+    from .. import benchmark_facts
     from ..sources.datasets import unpublished
 
     if dataset in unpublished():  # DEE and RR; CE needs robodepth score --baseline
         built = [v for v in variants if v.level is not None and v.level == int(v.level)]
-        return B.unpublished(dataset, tuple(v.name for v in built), 1,
-                             levels=[int(v.level) for v in built if v.name in B.CORRUPTIONS])
-    if dataset not in B.BENCHMARKS:
+        return benchmark_facts.unpublished(dataset, tuple(v.name for v in built), 1,
+                             levels=[int(v.level) for v in built if v.name in benchmark_facts.CORRUPTIONS])
+    if dataset not in benchmark_facts.BENCHMARKS:
         raise RobodepthError(f"--score: {dataset} has no robustness scores (they exist "
-                             f"for {', '.join((*B.BENCHMARKS, *unpublished()))})")
-    return B.get_benchmark(dataset)
+                             f"for {', '.join((*benchmark_facts.BENCHMARKS, *unpublished()))})")
+    return benchmark_facts.get_benchmark(dataset)
