@@ -8,7 +8,8 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from .corruptions import REGISTRY, level_text, render
-from .corruptions.chains import ChainError, expand_chain, looks_like_chain, parse_chain
+from .corruptions.chains import expand_chain, looks_like_chain, parse_chain
+from .errors import RobodepthError
 
 _BG = (255, 255, 255)
 _FG = (20, 20, 20)
@@ -73,6 +74,6 @@ def _fixed(chain: str) -> bool:
     """Whether every step of ``chain`` has its own level (no column's level to take)."""
     try:
         parse_chain(chain)
-    except ChainError:
+    except RobodepthError:
         return False
     return True

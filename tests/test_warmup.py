@@ -24,7 +24,6 @@ from tests.helpers.fresh_install import (
     package_copy,
     run_timed,
 )
-from robodepth_cli.errors import RobodepthError
 from tests.helpers.paths import FIXTURES, REPO
 from tests.helpers.readonly import read_only_tree
 
@@ -138,7 +137,7 @@ def test_a_corruption_that_cannot_run_is_named_and_the_others_warmed(monkeypatch
     from robodepth_cli.corruptions import frost
 
     def missing(*args):
-        raise RobodepthError("frost textures: not installed")
+        raise frost.FrostTextureError("frost textures: not installed")
 
     for reader in ("texture_bgr", "scaled_texture"):  # the second caches the first's result
         monkeypatch.setattr(frost, reader, missing)

@@ -18,12 +18,6 @@ from .draw import Pick, draw
 DEFAULT_IMAGES = {"kitti": 500, "nyu": 200}  # the ICRA 2023 challenge's tracks
 
 
-def track_of(dataset) -> str:
-    """The track a dataset is scored in by default: ``nyu`` where its evaluation protocol
-    is NYU's, else ``kitti`` (the official evaluator: disparities, median scaling)."""
-    return dict(dataset.evaluation).get("protocol", "kitti")
-
-
 def build_challenge(cfg, root: Path, out: Path, *, images: int | None, track: str | None,
                     progress: bool = False, command: list[str] | None = None) -> dict:
     """Build the challenge ``out/public`` and ``out/private`` (see the module docstring)
@@ -39,7 +33,8 @@ def build_challenge(cfg, root: Path, out: Path, *, images: int | None, track: st
                              "this dataset has none")
     if not cfg.variants:
         raise RobodepthError("--corruptions: at least one corruption to draw from")
-    track = track or track_of(ds)
+    # By default the track of the dataset's protocol: nyu, else kitti (the official evaluator).
+    track = track or dict(ds.evaluation).get("protocol", "kitti")
     n = images or DEFAULT_IMAGES[track]
     public, private = Path(out) / "public", Path(out) / "private"
     if public.exists() and any(public.iterdir()):
@@ -61,10 +56,6 @@ def build_challenge(cfg, root: Path, out: Path, *, images: int | None, track: st
     # whose key could not be written never looks built.
     _write_public(cfg, ds, root, stage, public, picks, track, progress,
                   then=lambda shas: _write_private(cfg, private, picks, shas, maps, track, n))
-    return read_public_meta(public)
-
-
-def read_public_meta(public: Path) -> dict:
     return layout.read_meta(str(public))
 
 

@@ -147,14 +147,14 @@ def _describe(items: list[str], level_list: list) -> str:
     chains at level 2"``, for messages: what ``-c`` names, and the ``-l`` levels when a
     corruption or a chain template takes them."""
     from ..corruptions import level_text
-    from ..corruptions.chains import ChainError, looks_like_chain, parse_chain
+    from ..corruptions.chains import looks_like_chain, parse_chain
 
     def takes_levels(item: str) -> bool:
         if not looks_like_chain(item):
             return True
         try:
             parse_chain(item)
-        except ChainError:  # a step without a level: a template
+        except RobodepthError:  # a step without a level: a template
             return True
         return False
 

@@ -28,10 +28,6 @@ _STEP = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*[:\-]\s*(\S.*?)\s*$")
 _NAME = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*$")
 
 
-class ChainError(RobodepthError):
-    """A chain string that cannot be used; the message names the chain and the problem."""
-
-
 @dataclass(frozen=True)
 class Step:
     name: str
@@ -68,7 +64,7 @@ def parse_chain(text: str, *, top: int = N_LEVELS, where: str = "") -> Chain:
     """The chain ``text`` describes (its canonical or directory form).
 
     ``top`` is the highest level allowed (5; a benchmark may allow fewer: NYUDepth2-C 4).
-    :class:`ChainError`, one line naming ``where`` (a flag or file), the chain and the
+    :class:`RobodepthError`, one line naming ``where`` (a flag or file), the chain and the
     problem, for: an empty chain or step, a step that is not ``NAME:LEVEL``, an unknown
     name, a level that is not a number in ``1..top``, more than 8 steps."""
     return expand_chain(text, (), top=top, where=where)[0]
@@ -81,11 +77,11 @@ def expand_chain(text: str, levels, *, top: int = N_LEVELS, where: str = "") -> 
     needs its own. Refused as :func:`parse_chain` refuses."""
     at = f"{where}: " if where else ""
     if not isinstance(text, str):
-        raise ChainError(f"{at}chain {text!r}: expected text such as 'fog:3+gaussian_noise:2.5'")
+        raise RobodepthError(f"{at}chain {text!r}: expected text such as 'fog:3+gaussian_noise:2.5'")
     shown = text.strip()
 
-    def fail(problem: str) -> ChainError:
-        return ChainError(f"{at}chain {shown!r}: {problem}")
+    def fail(problem: str) -> RobodepthError:
+        return RobodepthError(f"{at}chain {shown!r}: {problem}")
 
     if not shown:
         raise fail("empty; write steps NAME:LEVEL joined by '+', e.g. 'fog:3+gaussian_noise:2.5'")

@@ -1,15 +1,8 @@
 """Which draws of a corruption belong to the scene or the camera and which to the sensor, so
 that the neighbour frames of a test frame (``build kitti-c --frames -1,1``) are corrupted
-consistently with it.
-
-A corruption function takes one generator. On a neighbour frame that generator is seeded
-from the *test frame's* key when every draw of the corruption describes the scene or the
-camera (the same fog field, frost crop, snow layer, blur angle or lens distortion in every
-frame of the sequence), and from the *neighbour's own* key when its draws are sensor noise
-(drawn anew for every frame). A corruption without draws is the same function on every
-frame. No corruption mixes the two kinds of draw, so the rule is one choice per corruption;
-on the test frame itself both keys are its own, so its output is the single-frame build's.
-"""
+consistently with it (docs/video.md): a neighbour's generator is seeded from the test
+frame's key when the corruption's draws describe the scene or camera, from its own key when
+they are sensor noise. No corruption mixes the two, so the rule is one choice per corruption."""
 
 from __future__ import annotations
 

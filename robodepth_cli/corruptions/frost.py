@@ -31,6 +31,10 @@ _INSTALL_HINT = (f"run `make install` (or `pip install --no-deps {DISTRIBUTION}`
                  "frost needs its texture files")
 
 
+class FrostTextureError(RobodepthError):
+    """The frost textures cannot be found or read."""
+
+
 @lru_cache(maxsize=None)
 def texture_path(index: int) -> Path:
     """Path of texture ``TEXTURES[index]`` inside the installed distribution."""
@@ -38,13 +42,13 @@ def texture_path(index: int) -> Path:
     try:
         dist = metadata.distribution(DISTRIBUTION)
     except metadata.PackageNotFoundError:
-        raise RobodepthError(f"{DISTRIBUTION} is not installed; {_INSTALL_HINT}") from None
+        raise FrostTextureError(f"{DISTRIBUTION} is not installed; {_INSTALL_HINT}") from None
     for f in dist.files or ():
         if f.parts[-2:] == ("frost", name):
             path = Path(dist.locate_file(f))
             if path.is_file():
                 return path
-    raise RobodepthError(f"{name} is missing from the installed {DISTRIBUTION}; {_INSTALL_HINT}")
+    raise FrostTextureError(f"{name} is missing from the installed {DISTRIBUTION}; {_INSTALL_HINT}")
 
 
 @lru_cache(maxsize=None)
@@ -54,7 +58,7 @@ def texture_bgr(index: int) -> np.ndarray:
     path = texture_path(index)
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
-        raise RobodepthError(f"cannot decode frost texture {path}; {_INSTALL_HINT}")
+        raise FrostTextureError(f"cannot decode frost texture {path}; {_INSTALL_HINT}")
     img.flags.writeable = False
     return img
 
@@ -137,7 +141,7 @@ def frost(x: np.ndarray, level: int, rng: np.random.Generator, scale: float | No
     same way at every level (the level does not choose the texture), so a decimal level
     changes only the blend weights.
 
-    Raises :class:`RobodepthError` if the ``imagecorruptions-imaug`` textures are not
+    Raises :class:`FrostTextureError` if the ``imagecorruptions-imaug`` textures are not
     installed.
     """
     height, width = x.shape[:2]

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Iterable, Iterator, Mapping
 
 from ..benchmark_facts import ALL_CORRUPTIONS, BENCHMARKS, CATEGORY, CLEAN, DEPTH_AWARE, Baseline, Benchmark
+from ..errors import RobodepthError
 from .csvrows import ResultsTable, ScoreError, level as _level, normalise_name, number
 
 
@@ -188,11 +189,11 @@ def parse_results(table: ResultsTable, benchmark: Benchmark) -> Results:
 def _chain(cells: Mapping[str, str], benchmark: Benchmark, where: str) -> str:
     """The canonical text of a chain row's corruption cell, its steps checked against
     ``benchmark``; its level must be 0 or empty (a chain's levels are in its name)."""
-    from ..corruptions.chains import ChainError, parse_chain  # only for such rows: light anyway
+    from ..corruptions.chains import parse_chain  # only for such rows: light anyway
 
     try:
         chain = parse_chain(cells["corruption"], top=benchmark.n_levels)
-    except ChainError as exc:
+    except RobodepthError as exc:
         raise ScoreError(f"{where}: {exc}") from None
     for step in chain.steps:
         if step.name not in benchmark.corruptions and step.name not in DEPTH_AWARE:

@@ -116,17 +116,12 @@ def assemble(tables: Sequence[ResultsTable], names: Sequence[str], benchmark: st
 def _main(bench: str, models: list[inputs.Model], context: str, info: dict | None) -> Report:
     """The report of one of the paper's benchmarks: its tables (figures: :func:`draw`),
     and the flicker of the models whose results have it."""
-    report = _main_tables(bench, models, context, info)
-    report.flicker = FL.collect(models)
-    return report
-
-
-def _main_tables(bench: str, models: list[inputs.Model], context: str, info: dict | None) -> Report:
     rows = [m.row for m in models] + inputs.context(bench, context)
     note = inputs.beyond_only(models)
     if note:  # no benchmark score: the clean DEE and the rows beyond it, yours only
         return Report(bench, models, [m.row for m in models],
-                      [tables_mod.beyond_table([m.row for m in models], bench, clean=True)], dataset=info, note=note)
+                      [tables_mod.beyond_table([m.row for m in models], bench, clean=True)], dataset=info, note=note,
+                      flicker=FL.collect(models))
     if bench == inputs.KITTI_S:
         tables = [tables_mod.styles_table(rows)]
     else:
@@ -136,7 +131,7 @@ def _main_tables(bench: str, models: list[inputs.Model], context: str, info: dic
         beyond = tables_mod.beyond_table([m.row for m in models], bench)
         if beyond is not None:
             tables.append(beyond)
-    return Report(bench, models, rows, tables, dataset=info)
+    return Report(bench, models, rows, tables, dataset=info, flicker=FL.collect(models))
 
 
 def draw(report: Report) -> None:
@@ -168,6 +163,8 @@ def _draw_main(report: Report) -> None:
     mine = [m.row for m in models]
     figs = report.figures
     if bench == inputs.KITTI_S:
+        from ..evaluation.results import mean
+
         figs.append(("radar", "DEE per style", "Each model's DEE for each KITTI-S style; the "
                      "grey dashed line is the paper's baseline.",
                      figures_mod.radar_figure([(r.name, r.styles) for r in mine], bench,
@@ -179,7 +176,7 @@ def _draw_main(report: Report) -> None:
         figs.append(("ranking", "mDEE ranking", "Your models among the paper's KITTI-S models, "
                      "ranked by mDEE.",
                      figures_mod.ranking_figure([(r.name, r.mdee) for r in mine],
-                                         [(m.name, S_mean(m.dee)) for m in published_mod.style_models()], bench)))
+                                         [(m.name, mean(m.dee.values())) for m in published_mod.style_models()], bench)))
         return
     pm = [plot.Model(r.name, r.scores) for r in mine]
     if report.note:
@@ -210,12 +207,6 @@ def _severity(pm: list, bench: str) -> tuple:
     return ("severity", "DEE against continuous severity", "Beyond the benchmark: DEE at "
             "every level present, integer and decimal, for each corruption with decimal-level "
             "rows; in no mCE or mRR.", figures_mod.severity_figure([m for m in pm if m.scores.curves], bench))
-
-
-def S_mean(values: dict) -> float:
-    from ..evaluation.results import mean
-
-    return mean(values.values())
 
 
 def to_json(report: Report) -> dict:

@@ -16,7 +16,7 @@ from PIL import Image
 from .. import corruptions, seeding
 from . import batch as transforms_batch
 from ..corruptions.severity import LevelError
-from ..errors import InvalidValueError
+from ..errors import InvalidValueError, RobodepthError
 from ..imageio import ImageError
 from ..sourcekeys import seed_key
 from .errors import TorchAPIError
@@ -151,12 +151,12 @@ class Corrupt:
 
     def __init__(self, name: str, level=None, seed: int | None = 0, dataset: str = "custom",
                  severity_size=None):
-        from ..corruptions.chains import ChainError, looks_like_chain, parse_chain
+        from ..corruptions.chains import looks_like_chain, parse_chain
 
         if looks_like_chain(name):
             try:
                 self.chain = parse_chain(name)
-            except ChainError as exc:
+            except RobodepthError as exc:
                 raise TorchAPIError(str(exc)) from None
             _no_depth(self.chain.text)
             self.name, self.level = self.chain.text, None

@@ -11,7 +11,6 @@ import pytest
 from PIL import Image
 
 from robodepth_cli.corruptions import NAMES, REGISTRY, corrupt
-from robodepth_cli.errors import RobodepthError
 from robodepth_cli.imageio import load_clean
 from robodepth_cli.seeding import job_rng
 
@@ -256,7 +255,7 @@ def test_missing_frost_textures_are_a_clear_error(tmp_path, monkeypatch, command
     from robodepth_cli.corruptions import frost
 
     def missing(index):
-        raise RobodepthError("imagecorruptions-imaug is not installed; run `make install`")
+        raise frost.FrostTextureError("imagecorruptions-imaug is not installed; run `make install`")
 
     # Textures already decoded in this process would hide the missing package.
     frost.texture_bgr.cache_clear()

@@ -9,7 +9,8 @@ from PIL import Image
 from tests.helpers.paths import REFERENCE
 from robodepth_cli import seeding
 from robodepth_cli.corruptions import REGISTRY, corrupt, corrupt_chain
-from robodepth_cli.corruptions.chains import MAX_STEPS, Chain, ChainError, Step, looks_like_chain, parse_chain
+from robodepth_cli.corruptions.chains import MAX_STEPS, Chain, Step, looks_like_chain, parse_chain
+from robodepth_cli.errors import RobodepthError
 from robodepth_cli.errors import RobodepthError
 
 
@@ -30,7 +31,7 @@ def test_a_chain_has_a_canonical_text_and_a_safe_directory_name():
 
 def test_a_benchmark_range_limits_the_steps():
     assert parse_chain("dark:4+contrast:1.5", top=4).steps[0].level == 4
-    with pytest.raises(ChainError, match=r"step 1 \(dark\): level 4.5 is out of range; valid levels: 1..4"):
+    with pytest.raises(RobodepthError, match=r"step 1 \(dark\): level 4.5 is out of range; valid levels: 1..4"):
         parse_chain("dark:4.5", top=4)
 
 
@@ -49,7 +50,7 @@ def test_a_benchmark_range_limits_the_steps():
                               "9 steps; a chain has at most 8"),
 ])
 def test_bad_chains_are_one_line_refusals_naming_the_chain(text, message):
-    with pytest.raises(ChainError) as info:
+    with pytest.raises(RobodepthError) as info:
         parse_chain(text, where="--compose")
     assert str(info.value).startswith(message)
     assert "\n" not in str(info.value) and isinstance(info.value, RobodepthError)

@@ -14,7 +14,6 @@ import pytest
 from PIL import Image
 
 import robodepth_cli.corruptions.frost as fr
-from robodepth_cli.errors import RobodepthError
 from tests.helpers.paths import REFERENCE
 
 
@@ -55,7 +54,7 @@ def test_missing_package_gives_an_install_hint(monkeypatch):
     fr.texture_path.cache_clear()
     monkeypatch.setattr(fr.metadata, "distribution", missing)
     try:
-        with pytest.raises(RobodepthError, match="make install"):
+        with pytest.raises(fr.FrostTextureError, match="make install"):
             fr.texture_path(2)
     finally:
         fr.texture_path.cache_clear()

@@ -1,15 +1,9 @@
-"""The torch engine of the corruptions: the same 18 corruptions, formulas and random
-draws as the numpy engine, on a batch ``N x 3 x H x W`` uint8 tensor on any device.
-
-Each image of a batch has its own numpy generator (the very streams the numpy engine
-uses, :func:`robodepth_cli.seeding.job_rng`); every random draw is made from it on the
-CPU, in the numpy engine's order, and moved to the device, so on CPU torch most
-corruptions give the numpy engine's bytes (docs/torch-engine.md says which, and how far
-the others are). glass_blur and jpeg_compression run through the numpy engine on the CPU.
-
-Importing the package imports no torch: :func:`corrupt_batch`, :func:`render_batch`,
-:func:`resolve_device` and ``REGISTRY`` load the engine on first use.
-"""
+"""The torch engine of the corruptions: the same 18 corruptions, formulas and random draws as
+the numpy engine, on a batch ``N x 3 x H x W`` uint8 tensor on any device; every draw is
+made on the CPU from the image's own numpy generator, in the numpy engine's order
+(docs/torch-engine.md says which corruptions give the numpy engine's bytes, and how far the
+others are). Importing the package imports no torch: :func:`corrupt_batch`,
+:func:`render_batch`, :func:`resolve_device` and ``REGISTRY`` load the engine on first use."""
 
 from __future__ import annotations
 
