@@ -268,7 +268,9 @@ def _log(x):
     ``x = m 2^k``, ``m`` in ``[sqrt(1/2), sqrt(2))``, ``log m = 2 atanh s`` with ``s = (m -
     1) / (m + 1)``, the series to ``s^21`` (``|s| < 0.172``: the next term is < 1e-17)."""
     i = _bits(x)
-    k = np.float64(((i >> 52) & 0x7FF) - 1023)
+    # the exponent as a float64 by its bits (2^52 + e, less 2^52 + 1023): AVX2 has no
+    # vector conversion of int64 to float64, and a scalar one per value costs the loop
+    k = _from_bits(((i >> 52) & 0x7FF) | 0x4330000000000000) - (4503599627370496.0 + 1023.0)
     m = _from_bits((i & 0xFFFFFFFFFFFFF) | 0x3FF0000000000000)
     big = m > _SQRT2
     m = m * 0.5 if big else m
