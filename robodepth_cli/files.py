@@ -37,6 +37,15 @@ def data_dir(name: str) -> Path:
     return installed if installed.is_dir() else here.parent / name
 
 
+def cache_dir() -> Path:
+    """The user's cache of robodepth (generated splits, ground truth kept for evaluations):
+    ``$ROBODEPTH_CACHE_DIR``, else ``$XDG_CACHE_HOME/robodepth``, else ``~/.cache/robodepth``."""
+    if os.environ.get("ROBODEPTH_CACHE_DIR"):
+        return Path(os.environ["ROBODEPTH_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "robodepth"
+
+
 def write_atomic(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same directory and a
     rename, so a reader never sees a partial file. The temporary file is removed on error;

@@ -27,6 +27,18 @@ def _require(path: Path) -> Path:
     return path
 
 
+@pytest.fixture(scope="session", autouse=True)
+def user_cache(tmp_path_factory) -> Path:
+    """The user's cache (generated splits, ground truth kept between evaluations) in a folder
+    of the session's: no test reads or writes ``~/.cache/robodepth``."""
+    where = tmp_path_factory.mktemp("user-cache")
+    patch = pytest.MonkeyPatch()
+    patch.setenv("ROBODEPTH_CACHE_DIR", str(where))
+    patch.delenv("ROBODEPTH_GT_CACHE", raising=False)
+    yield where
+    patch.undo()
+
+
 @pytest.fixture(scope="session")
 def fixtures_dir() -> Path:
     return _require(FIXTURES)

@@ -65,6 +65,10 @@ def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_spa
     refused, and so is a map with no positive value or, under median scaling, one that is 0
     at half of the valid pixels or more.
 
+    The ground truth as kept (valid pixels) goes into ~/.cache/robodepth/ground-truth
+    (ROBODEPTH_CACHE_DIR moves it; ROBODEPTH_GT_CACHE=off: not kept), and the next
+    evaluation of the same file maps it from there instead of reading it again.
+
     \b
     Examples:
       robodepth evaluate KITTI_C --pred PRED --score

@@ -12,6 +12,7 @@ array for a ``.npz``).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
@@ -190,7 +191,8 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     absent = {i for i, k in enumerate(dataset.keys) if k in dataset.no_depth} if gt is None else set()
     # Handed over in a list that the callee empties: with workers, it drops the maps once
     # shared, and nothing here keeps a second copy.
-    truth = [load_ground_truth(gt_path, names, setup.protocol, setup.valid, absent=absent)]
+    truth = [load_ground_truth(gt_path, names, setup.protocol, setup.valid, absent=absent,
+                               rule=setup.valid_rule)]
     aspect = aspect_warnings(found, truth[0].shapes, dataset.size)
     n = len(dataset.keys)
     if on_total:
@@ -213,7 +215,7 @@ def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTru
         import tempfile
 
         with tempfile.TemporaryDirectory(prefix="robodepth-evaluate-") as tmp:
-            shared = truth.share(Path(tmp) / "ground_truth.bin")
+            shared = _shared(truth, Path(tmp) / "ground_truth.bin")
             # The workers map the file: keeping the maps here too would hold them twice.
             del truth
             return _evaluate_in_workers(found, shared, setup, image_size, progress, pairs, jobs)
@@ -224,6 +226,18 @@ def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTru
         finally:
             p.close()
     return results
+
+
+def _shared(truth: GroundTruth, path: Path):
+    """``truth`` in a file at ``path`` for the workers to map: a link to the cache's file
+    when it is mapped from one (the cache may drop its entry meanwhile), else written."""
+    if truth.mapped is not None:
+        try:
+            os.link(truth.mapped.path, path)
+            return truth.mapped.moved(str(path))
+        except OSError:
+            pass  # another file system: written
+    return truth.share(path)
 
 
 def _with_left_out(result: Evaluation, dataset: BuiltDataset) -> Evaluation:

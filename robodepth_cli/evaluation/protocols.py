@@ -304,6 +304,11 @@ class Setup:
         """Flat indices of the valid pixels of a ground-truth map (:func:`valid_pixels`)."""
         return valid_pixels(gt, self.crop_name, self.protocol, self.min_depth, self.depth_cap)
 
+    @property
+    def valid_rule(self) -> str:
+        """What decides :meth:`valid`'s pixels, as text: the protocol, crop and depth range."""
+        return f"{self.protocol} {self.crop_name} {self.min_depth!r} {self.depth_cap!r}"
+
     def describe(self) -> str:
         if self.is_default:
             if self.protocol == "nyu":

@@ -15,6 +15,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import os_reason
+from . import cache
 from .kitti import KEYS_MEMBER, GroundTruthError, frame_key
 from ..files import read_npy_header
 from ..imageio import read_depth_png
@@ -35,6 +36,7 @@ class GroundTruth:
         self._items: list = []
         self.shapes: list[tuple[int, int]] = []
         self.keys: list[str] | None = None  # the frame of each map, when the file says
+        self.mapped: SharedGroundTruth | None = None  # the file its arrays are mapped from, if any
 
     def add(self, depth: np.ndarray, raw: np.ndarray | None = None,
             divisor: float | None = None, where: str | None = None) -> None:
@@ -79,26 +81,33 @@ class GroundTruth:
         return None if isinstance(item[1], np.ndarray) else item
 
     def share(self, path: Path) -> "SharedGroundTruth":
-        """Write every kept array into the file ``path`` (each at a 64-byte boundary, as
-        numpy aligns its own) and return what other processes need to map it back:
-        ``evaluate --jobs N`` hands its workers this instead of a copy each, so the page
-        cache holds the maps once however many workers read them."""
-        entries, offset = [], 0
+        """Write every kept array into the file ``path`` (:meth:`write_arrays`) and return
+        what other processes need to map it back: ``evaluate --jobs N`` hands its workers
+        this instead of a copy each, so the page cache holds the maps once however many
+        workers read them."""
         with open(path, "wb") as fh:
-            for item in self._items:
-                pixels = isinstance(item[1], np.ndarray)  # (indices, depths), else (map, divisor)
-                arrays = item if pixels else (item[0],)
-                placed = []
-                for a in arrays:
-                    a = np.ascontiguousarray(a)
-                    offset = -(-offset // 64) * 64
-                    fh.seek(offset)
-                    fh.write(a.tobytes())
-                    placed.append((offset, a.dtype.str, a.shape))
-                    offset += a.nbytes
-                entries.append((pixels, placed, None if pixels else item[1]))
+            entries = self.write_arrays(fh)
         return SharedGroundTruth(str(path), self.source, self.protocol, list(self.shapes), entries,
                                  self._valid)
+
+    def write_arrays(self, fh) -> list:
+        """Write every kept array into the binary file ``fh``, each at a 64-byte boundary
+        (as numpy aligns its own); return each map's ``(pixels, [(offset, dtype, shape),
+        ...], divisor)``: its valid pixels (indices, depths), or the map kept whole and
+        its divisor."""
+        entries, offset = [], 0
+        for item in self._items:
+            pixels = isinstance(item[1], np.ndarray)
+            placed = []
+            for a in (item if pixels else (item[0],)):
+                a = np.ascontiguousarray(a)
+                offset = -(-offset // 64) * 64
+                fh.seek(offset)
+                fh.write(a.tobytes())
+                placed.append((offset, a.dtype.str, a.shape))
+                offset += a.nbytes
+            entries.append((pixels, placed, None if pixels else item[1]))
+        return entries
 
 
 def pixels_of(kept: np.ndarray, divisor: float | None, valid) -> tuple:
@@ -120,6 +129,10 @@ class SharedGroundTruth:
         self.shapes, self.entries = shapes, entries
         self.valid = valid  # the rule of valid pixels (picklable: a function or a setup's method)
 
+    def moved(self, path: str) -> "SharedGroundTruth":
+        """The same arrays in a copy (or link) of the file at ``path``."""
+        return SharedGroundTruth(path, self.source, self.protocol, self.shapes, self.entries, self.valid)
+
     def open(self) -> GroundTruth:
         gt = GroundTruth(self.source, self.protocol, self.valid)
         size = Path(self.path).stat().st_size
@@ -128,11 +141,12 @@ class SharedGroundTruth:
             arrays = tuple(buf[off:off + int(np.prod(shp, dtype=np.int64)) * np.dtype(dt).itemsize]
                            .view(dt).reshape(shp) for off, dt, shp in placed)
             gt.append((shape, arrays if pixels else (arrays[0], divisor)))
+        gt.mapped = self
         return gt
 
 
 def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
-                      absent=frozenset()) -> GroundTruth:
+                      absent=frozenset(), rule: str | None = None) -> GroundTruth:
     """Read the ground truth of a split's images from ``path``: a ``.npz``/``.npy`` file of
     depth maps in metres, one per image in split order (monodepth2's ``gt_depths.npz``), or
     a directory of 16-bit PNGs in millimetres at the relative paths ``names`` (one per
@@ -141,12 +155,29 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
     maps than the split has images. The file is read as :func:`read_gt_file` says (peak
     ~125 MB for the 697 Eigen maps, against ~1.3 GB with ``np.load``). ``absent``: the
     images of a build with depth that have no map (left out, see
-    :class:`.depthmaps.DepthMaps`)."""
+    :class:`.depthmaps.DepthMaps`). ``rule``: the name of the rule ``valid``
+    (:attr:`.protocols.Setup.valid_rule`); with it, the maps as kept are also written to
+    the user's cache and mapped from there the next time (:mod:`.cache`)."""
     path = Path(path)
     if path.is_dir() and names and all(n.endswith(".npy") for n in names):
         from .depthmaps import DepthMaps  # a build with depth: one float map per image
 
         return DepthMaps(path, names, protocol, valid, absent)
+    key = None
+    if rule is not None:
+        key = cache.entry_key(path, names if path.is_dir() else None, rule)
+        found = cache.load(key) if key else None
+        if found is not None:
+            where, shapes, entries, keys = found
+            try:
+                kept = SharedGroundTruth(where, str(path), protocol, shapes, entries, valid).open()
+            except (OSError, ValueError):
+                kept = None  # gone or changed since: read the file
+            if kept is not None:
+                kept.keys = keys
+                _check_count(path, len(kept), names)
+                _check_order(path, kept.keys, names)
+                return kept
     gt = GroundTruth(str(path), protocol, valid)
     if path.is_dir():
         for i, name in enumerate(names):
@@ -154,13 +185,18 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
             raw = read_depth_png(file, f"ground truth of image {i}", GroundTruthError)
             gt.add(raw.astype(np.float32) / 1000.0, raw, 1000.0,
                    f"{file} (ground truth of image {i})")
-        return gt
-    count = read_gt_file(path, gt)
+    else:
+        _check_count(path, read_gt_file(path, gt), names)
+        _check_order(path, gt.keys, names)
+    if key:
+        cache.store(key, gt.source, gt.shapes, gt.keys, gt.write_arrays)
+    return gt
+
+
+def _check_count(path: Path, count: int, names: Sequence[str]) -> None:
     if count != len(names):
         raise GroundTruthError(f"{path}: {count} ground-truth maps, but the dataset's split has "
                               f"{len(names)} images; ground truth and split must match one to one")
-    _check_order(path, gt.keys, names)
-    return gt
 
 
 def _check_order(path: Path, keys: Sequence[str] | None, names: Sequence[str]) -> None:

@@ -22,7 +22,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..files import data_dir, sha256_bytes, write_atomic
+from ..files import cache_dir, data_dir, sha256_bytes, write_atomic
 from ..errors import InvalidValueError, RobodepthError, os_reason
 
 RECORDS_FILE = data_dir("splits") / "splits.json"
@@ -100,14 +100,6 @@ def split_path(choice: str, root: Path | None = None) -> Path:
             raise TypeError(f"the {choice} split is made from a raw tree: give its root")
         return generate(choice, Path(root), cache_dir())
     return Path(choice)
-
-
-def cache_dir() -> Path:
-    """``$ROBODEPTH_CACHE_DIR``, else ``$XDG_CACHE_HOME/robodepth``, else ``~/.cache/robodepth``."""
-    if os.environ.get("ROBODEPTH_CACHE_DIR"):
-        return Path(os.environ["ROBODEPTH_CACHE_DIR"])
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "robodepth"
 
 
 def url_for(rec: SplitRecord) -> str:
