@@ -231,10 +231,11 @@ def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTru
 def _shared(truth: GroundTruth, path: Path):
     """``truth`` in a file at ``path`` for the workers to map: a link to the cache's file
     when it is mapped from one (the cache may drop its entry meanwhile), else written."""
-    if truth.mapped is not None:
+    mapped = truth.mapped
+    if mapped is not None:
         try:
-            os.link(truth.mapped.path, path)
-            return truth.mapped.moved(str(path))
+            os.link(mapped.path, path)
+            return mapped.moved(str(path))
         except OSError:
             pass  # another file system: written
     return truth.share(path)

@@ -25,9 +25,10 @@ class NoValidPixel(GroundTruthError):
 
 class DepthMaps:
     """The interface of :class:`~.read.GroundTruth` that evaluation uses (``len``,
-    ``get``, ``shapes``, ``share``/``open``), over one ``.npy`` file per image."""
+    ``get``, ``shapes``, ``share``/``open``, ``mapped``), over one ``.npy`` file per image."""
 
     keys = None  # no frame keys to check the order against: the names are the keys
+    mapped = None  # read map by map, never from the ground-truth cache
 
     def __init__(self, directory: Path, names: Sequence[str], protocol: str, valid,
                  absent=frozenset()):
