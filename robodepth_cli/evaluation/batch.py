@@ -53,7 +53,7 @@ class Plan:
 
     def _sparse(self, truth: GroundTruth, n: int) -> dict | None:
         counts = np.zeros(n, np.int64)
-        index_at, gt_at = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        index_at, gt_at, bounds_at = np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64)
         shape_of = np.full(n, -1)
         shapes: list[tuple[int, int]] = []
         gdtype = idtype = None
@@ -69,15 +69,18 @@ class Plan:
             gdtype = gdtype or values.dtype
             idtype = idtype or index.dtype
             if (values.dtype != gdtype or index.dtype != idtype or not index.flags.c_contiguous
-                    or not values.flags.c_contiguous or values.dtype.kind != "f"):
-                continue
+                    or not values.flags.c_contiguous or values.dtype.kind != "f"
+                    or index.size > 1 and (np.diff(index) <= 0).any()):
+                continue  # the valid pixels' indices are sorted (flatnonzero): else one by one
+            bounds = kernels.row_bounds(index, shape)
             if shape not in shapes:
                 shapes.append(shape)
             shape_of[i] = shapes.index(shape)
             counts[i], index_at[i], gt_at[i] = index.size, index.ctypes.data, values.ctypes.data
+            bounds_at[i] = bounds.ctypes.data
             if by_median:
                 gmed[i] = kernels.median(values)
-            self._keep += [index, values]
+            self._keep += [index, values, bounds]
         if not shapes:
             return None
         p, s = self.dtype.type, self.setup
@@ -91,7 +94,8 @@ class Plan:
         size = int(counts.max())
         # one call per ground-truth size: the counts of the others' images are 0 in it
         counts = [np.where(shape_of == j, counts, 0) for j in range(len(shapes))]
-        return dict(counts=counts, index_at=index_at, gt_at=gt_at, shape_of=shape_of, shapes=shapes,
+        return dict(counts=counts, index_at=index_at, gt_at=gt_at, bounds_at=bounds_at, shape_of=shape_of,
+                    shapes=shapes,
                     gmed=gmed.astype(gdtype), zi=idtype.type(0), zg=gdtype.type(0), kinds=kinds,
                     buffers=(np.empty(size, self.dtype), np.empty(size, self.dtype),
                              np.empty(size, self.dtype), *kernels._buffers()))
@@ -141,7 +145,8 @@ class Plan:
                 double = self.dtype == np.float64
                 x0, x1, wx = kernels.linear_axis(maps.shape[2], width, double) if resize else kernels._NONE[double]
                 y0, y1, wy = kernels.linear_axis(maps.shape[1], height, double) if resize else kernels._NONE[double]
-                kernels._judge_sparse(maps, first, last, sp["index_at"], sp["gt_at"], sp["counts"][j], sp["gmed"],
+                kernels._judge_sparse(maps, first, last, sp["index_at"], sp["gt_at"], sp["bounds_at"], height,
+                                sp["counts"][j], sp["gmed"],
                                 sp["zi"], sp["zg"], width, x0, x1, wx, y0, y1, wy, resize, kk["sigmoid"],
                                 kk["lo"], kk["span"], kk["invert"], kk["one"], kk["two"], kk["by_median"],
                                 kk["factor"], kk["zs"], kk["low"], kk["high"], kk["zt"], cap, positive,

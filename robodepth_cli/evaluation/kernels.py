@@ -84,19 +84,17 @@ def _bilinear(p0, p1, index, start, x0, x1, wx, w, k, end, sigmoid, lo, span, ou
 
 
 @njit
-def _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, span, invert, one, out):
+def _sample(pred, index, bounds, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, span, invert, one,
+            out):
     """``out[k]`` = the prediction at flat ground-truth pixel ``index[k]`` (``width`` per
-    row): interpolated from its four inputs (``resize``) or read; each input first through
-    ``lo + span * v`` (``sigmoid``); then ``one / v`` (``invert``). A run of indices in
-    one row at a time (sorted indices: one run a row)."""
-    n = index.size
-    k = 0
-    while k < n:
-        row = index[k] // width
+    row; sorted): interpolated from its four inputs (``resize``) or read; each input first
+    through ``lo + span * v`` (``sigmoid``); then ``one / v`` (``invert``). Row ``r``'s
+    pixels are ``index[bounds[r]:bounds[r + 1]]`` (:func:`row_bounds`), taken a row at a time."""
+    for row in range(bounds.size - 1):
+        k, end = bounds[row], bounds[row + 1]
+        if k == end:
+            continue
         start = row * width
-        end = k + 1
-        while end < n and start <= index[end] < start + width:
-            end += 1
         if resize:
             p0, p1 = pred[y0[row]], pred[y1[row]]
             if sigmoid:  # two loops: the test out of the inner one
@@ -108,18 +106,24 @@ def _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, spa
             for j in range(k, end):
                 v = p0[np.uint32(index[j] - start)]
                 out[j] = lo + span * v if sigmoid else v
-        k = end
     if invert:  # apart: the divisions vectorise, the gathers above do not
-        for j in range(n):
+        for j in range(index.size):
             out[j] = div(one, out[j])
     return out
+
+
+def row_bounds(index: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Where each row's pixels begin in the sorted flat indices ``index`` of a map of
+    ``shape``, and where the last one's end (``H + 1`` values, int64)."""
+    height, width = shape
+    return np.searchsorted(index, np.arange(height + 1, dtype=np.int64) * width).astype(np.int64)
 
 
 def sample_linear(pred: np.ndarray, gt_shape: tuple[int, int], index: np.ndarray, *,
                   sigmoid: tuple[float, float] | None = None, invert: bool = False) -> np.ndarray:
     """``cv2.resize(pred, (W, H), interpolation=cv2.INTER_LINEAR).reshape(-1)[index]`` for a
     float32 or float64 map and ground truth of shape ``gt_shape = (H, W)``, computing only
-    the pixels ``index`` (flat, row-major; fastest sorted), bit for bit (the module's rules).
+    the pixels ``index`` (flat, row-major; in any order), bit for bit (the module's rules).
 
     ``sigmoid = (lo, span)``: each input pixel is first ``lo + span * v`` (as
     :func:`~.protocols.disp_to_depth` maps the whole map before the resize); ``invert``:
@@ -132,9 +136,18 @@ def sample_linear(pred: np.ndarray, gt_shape: tuple[int, int], index: np.ndarray
     x0, x1, wx = linear_axis(pred.shape[1], width, double) if resize else _NONE[double]
     y0, y1, wy = linear_axis(pred.shape[0], height, double) if resize else _NONE[double]
     lo, span = sigmoid if sigmoid is not None else (0.0, 1.0)
+    order = None
+    if index.size > 1 and (np.diff(index) < 0).any():
+        order = np.argsort(index, kind="stable")
+        index = index[order]
     out = np.empty(index.size, pred.dtype)
-    return _sample(pred, index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid is not None,
-                   dt(lo), dt(span), invert, dt(1), out)
+    _sample(pred, index, row_bounds(index, gt_shape), width, x0, x1, wx, y0, y1, wy, resize,
+            sigmoid is not None, dt(lo), dt(span), invert, dt(1), out)
+    if order is None:
+        return out
+    back = np.empty_like(out)
+    back[order] = out
+    return back
 
 
 _NONE = {d: (np.zeros(1, np.uint32), np.zeros(1, np.uint32), np.zeros(1, t))
@@ -511,26 +524,26 @@ def _pointer(typingctx, address, like):
 def _usable(m, cap, positive):
     """Whether :func:`~.image.check_values` passes the map ``m``: every value in ``[0,
     cap]`` (NaN never is) and, with ``positive``, one above 0. Flags, not the minimum and
-    maximum: integer reductions vectorise, and a refused map is checked again for its
+    maximum: the flags' reductions vectorise, and a refused map is checked again for its
     message."""
-    bad = 0
-    some = 0
+    bad = False
+    some = False
     for r in range(m.shape[0]):
         for c in range(m.shape[1]):
             v = m[r, c]
-            bad |= (v < 0) | (v > cap) | (v != v)
+            bad |= not (v >= 0 and v <= cap)
             some |= v > 0
-    return bad == 0 and (some != 0 or not positive)
+    return not bad and (some or not positive)
 
 
 @njit
-def _judge_sparse(pred, first, last, index_at, gt_at, counts, gmed, zi, zg, width, x0, x1, wx, y0, y1,
+def _judge_sparse(pred, first, last, index_at, gt_at, bounds_at, rows, counts, gmed, zi, zg, width, x0, x1, wx, y0, y1,
                   wy, resize, sigmoid, lo, span, invert, one, two, by_median, factor, zs, low, high, zt,
                   cap, positive, nyu, vbuf, sbuf, spare, work, ratio, out, ratios, ok):
     """Maps ``first..last-1`` of ``pred`` (N x h x w) against ground truth kept as valid
     pixels (image ``i``: ``counts[i]`` flat indices at address ``index_at[i]``, their
-    depths at ``gt_at[i]``; 0 pixels: not here): the value check, the sampling
-    (:func:`_sample`), the scale (``by_median``: ``gmed[i] / median``, in the dtype of
+    depths at ``gt_at[i]``, its ``rows + 1`` :func:`row_bounds` at ``bounds_at[i]``; 0
+    pixels: not here): the value check, the sampling (:func:`_sample`), the scale (``by_median``: ``gmed[i] / median``, in the dtype of
     ``zs``; else ``factor``), the clamp to ``[low, high]`` and the metrics into ``out[i]``,
     the scale into ``ratios[i]`` (these three indexed from ``first``). ``ok[i]``: done;
     where not, the map is judged again one at a time, which says why it is refused."""
@@ -540,8 +553,9 @@ def _judge_sparse(pred, first, last, index_at, gt_at, counts, gmed, zi, zg, widt
             continue
         index = carray(_pointer(index_at[i], zi), n)
         gt = carray(_pointer(gt_at[i], zg), n)
-        v = _sample(pred[i], index, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, span, invert,
-                    one, vbuf[:n])
+        bounds = carray(_pointer(bounds_at[i], np.int64(0)), rows + 1)
+        v = _sample(pred[i], index, bounds, width, x0, x1, wx, y0, y1, wy, resize, sigmoid, lo, span,
+                    invert, one, vbuf[:n])
         s = factor
         if by_median:
             s = div(gmed[i] + zs, _median(v, sbuf, spare, two) + zs)
