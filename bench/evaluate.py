@@ -16,9 +16,8 @@ sampled every 0.2 s in a second, untimed evaluation (a worker's RSS counts the m
 exist once; PSS splits them). The full-benchmark estimate is the ground truth's reading
 time plus the time until each worker's first result plus the remaining maps of the
 benchmark (KITTI-C 91 x 697, NYUDepth2-C 61 x 654) at the steady rate measured after those
-first results (``--jobs N``, where this process evaluates too and results come back in
-bunches: the whole time after the ground truth, scaled; an upper bound, its start-up
-counted once per subset); CPU time per map is printed beside it (the machine is shared: wall time
+first results (``--variants all``: the whole benchmark, timed); CPU time per map is
+printed beside it (the machine is shared: wall time
 moves with the load, CPU time much less). A ``--jobs 1`` run, the reference's included, is
 held to one core (its affinity), so OpenCV's threads take no second one.
 
@@ -186,12 +185,6 @@ def measure(tmp: Path, protocol: str, jobs: int, tag: str) -> None:
     full = t_gt + t_first + (FULL_MAPS[protocol] - counts[first - 1]) / rate
     if images >= FULL_MAPS[protocol]:
         full = dt  # the whole benchmark: measured, not estimated
-    elif jobs > 1:
-        # This process evaluates too, while the workers start: results come back in
-        # variant order, in bunches, and give no steady rate. The whole evaluation's time
-        # after the ground truth, scaled to the full benchmark (its start-up counted again
-        # for every subset's worth of maps: an upper bound; --variants all measures it).
-        full = t_gt + (dt - t_gt) * FULL_MAPS[protocol] / images
     worker_mb = children.ru_maxrss / 1024
     # A worker's RSS counts the ground truth it maps, whose pages exist once (the page
     # cache); the PSS sum splits them between the processes that map them.
