@@ -98,7 +98,7 @@ class Plan:
                     shapes=shapes,
                     gmed=gmed.astype(gdtype), zi=idtype.type(0), zg=gdtype.type(0), kinds=kinds,
                     buffers=(np.empty(size, self.dtype), np.empty(size, self.dtype),
-                             np.empty(size, self.dtype), *kernels._buffers()))
+                             np.empty(size, self.dtype)))
 
     def _dense(self, truth: GroundTruth, n: int) -> dict | None:
         raw_at, divisors = np.zeros(n, np.int64), np.ones(n, np.float32)
@@ -124,7 +124,7 @@ class Plan:
         f32 = np.float32
         return dict(raw_at=raw_at, zr=rdtype.type(0), divisors=divisors, box=box,
                     valid=(f32(s.min_depth), f32(s.depth_cap)), clamp=(p(s.min_depth), p(s.depth_cap)),
-                    one=p(1), zero=t.type(0), buffers=kernels._buffers())
+                    one=p(1), zero=t.type(0))
 
     # ----------------------------------------------------------------- judging
 
@@ -154,7 +154,7 @@ class Plan:
         if dn is not None and dn["raw_at"][first:last].any():
             kernels._judge_dense(maps, first, last, dn["raw_at"], dn["zr"], dn["divisors"], dn["box"],
                            *dn["valid"], *dn["clamp"], dn["one"], dn["zero"], cap, positive, self.nyu,
-                           *dn["buffers"], out, ok)
+                           out, ok)
         return ok, out, ratios
 
 

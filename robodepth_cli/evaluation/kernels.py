@@ -5,10 +5,12 @@ a block of a variant's maps judged in one call (:func:`_judge_sparse`, :func:`_j
 Every per-pixel step is done in the dtype numpy's expression of the reference code would
 use (float32 for float32 inputs: the prediction's dtype, promoted with the ground truth's
 and the scale's as numpy promotes), so the depths compared are the same numbers to the
-last bit; only the sums differ: each metric accumulates in float64 in pixel order
-(numpy sums float32 pairwise in float32), and the logarithms are float64 (:func:`_log`,
-within a few units in the last place of the C library's). The same code runs on every CPU:
-no fast-math, multiply-adds only where written (``fma``), sums in the order written.
+last bit; only the sums differ: each metric accumulates in float64, in columns (pixel
+``j`` of every block of 256, or column ``j`` of every row, added one by one), the columns
+then summed in order (numpy sums float32 pairwise in float32), and the logarithms are
+float64 (:func:`_log`, within a few units in the last place of the C library's). The same
+code runs on every CPU: no fast-math, multiply-adds only where written (``fma``), sums in
+the order written, whatever width the loops are vectorised to.
 
 :func:`sample_linear` is ``cv2.resize(pred, (W, H), interpolation=cv2.INTER_LINEAR)`` at
 the valid pixels only. The opencv-python wheel hands a float resize to IPP; its rules,
@@ -310,17 +312,26 @@ def _pixel(g, d):
 
 
 @njit
-def _terms(gt, p, scale, lo, hi, zero, w0, w1, w2, ratio):
-    """:func:`_scaled_errors`' terms of the pixels of ``gt`` and ``p`` (a block) into
-    ``w0``, ``w1``, ``w2`` and ``ratio``, in a loop that vectorises; returns the count of
-    NaN ``d`` and those of ``t`` under the thresholds (integers: in any order)."""
+def _terms(gt, p, scale, lo, hi, zero, acc, nyu):
+    """:func:`_scaled_errors`' terms of the pixels of ``gt`` and ``p`` (a block), pixel
+    ``j``'s added to column ``j`` of ``acc``'s rows (:func:`_sum_columns`), in a loop that
+    vectorises; returns the count of NaN ``d`` and those of ``t`` under the thresholds
+    (integers: in any order)."""
+    a0, a1, a2, a3, a4, a5 = acc[0], acc[1], acc[2], acc[3], acc[4], acc[5]
     nan = n1 = n2 = n3 = 0
     for j in range(p.size):
         d = p[j] * scale
         nan += d != d
         d = lo if d < lo else d
         d = hi if d > hi else d
-        w0[j], w1[j], w2[j], t, ratio[j] = _pixel(gt[j] + zero, d + zero)
+        x, y, z, t, e = _pixel(gt[j] + zero, d + zero)
+        a0[j] += x
+        a1[j] += y
+        a2[j] += z
+        a4[j] += e * e
+        if nyu:  # the means of e and |e| are nyu's only
+            a3[j] += e
+            a5[j] += abs(e)
         n1 += t < 1.25
         n2 += t < 1.25 ** 2
         n3 += t < 1.25 ** 3
@@ -328,62 +339,50 @@ def _terms(gt, p, scale, lo, hi, zero, w0, w1, w2, ratio):
 
 
 @njit
-def _add(sums, w0, w1, w2, ratio, m, nyu):
-    """``sums`` (the six float sums of :func:`_scaled_errors`) plus the first ``m`` terms
-    of the rows, one by one in pixel order (the order fixes the last bits)."""
-    s0, s1, s2, s6, s7, s8 = sums
-    if nyu:
-        for j in range(m):
-            s0 += w0[j]
-            s1 += w1[j]
-            s2 += w2[j]
-            e = ratio[j]
-            s6 += e
-            s7 += e * e
-            s8 += abs(e)
-    else:  # two sums fewer: the means of e and |e| are nyu's
-        for j in range(m):
-            s0 += w0[j]
-            s1 += w1[j]
-            s2 += w2[j]
-            e = ratio[j]
-            s7 += e * e
-    return s0, s1, s2, s6, s7, s8
+def _sum_columns(acc):
+    """Each row of ``acc`` summed, column after column: the sums' last step. A column holds
+    its pixels' terms added one by one as they came (pixel ``j`` of every block, or column
+    ``j`` of every row): the same order on any CPU, whatever width a loop is vectorised to,
+    and the adds of different columns need not wait for each other."""
+    s = np.zeros(acc.shape[0])
+    for k in range(acc.shape[0]):
+        t = 0.0
+        for j in range(acc.shape[1]):
+            t += acc[k, j]
+        s[k] = t
+    return s[0], s[1], s[2], s[3], s[4], s[5]
 
 
 @njit
-def _scaled_errors(gt, p, scale, lo, hi, zero, nyu, work, ratio):
+def _scaled_errors(gt, p, scale, lo, hi, zero, nyu):
     """The sums over the pixels of ``g = gt`` and ``d = clamp(p * scale, lo, hi)``, both in
     the dtype of ``zero`` (numpy's arithmetic): ``|g - d| / g``, ``(g - d)^2 / g``, ``(g -
     d)^2``, the counts of ``max(g / d, d / g)`` under the three thresholds, then of ``e =
     log(d / g)`` in float64 (``log d - log g``; ``log10 d - log10 g`` is ``e / ln 10``),
-    ``e`` and ``|e|`` (``nyu`` only: 0 otherwise) and ``e^2``, each summed in pixel order;
-    and whether a ``d`` is NaN.
+    ``e`` and ``|e|`` (``nyu`` only: 0 otherwise) and ``e^2``; and whether a ``d`` is NaN.
 
-    A block of pixels at a time: their terms into the rows of ``work`` (3 x block) and
-    ``ratio`` (block), float64 (:func:`_terms`), then summed one by one."""
-    sums = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    n1 = n2 = n3 = 0
-    block = ratio.size
-    w0, w1, w2 = work[0], work[1], work[2]
-    for start in range(0, p.size, block):
-        m = min(block, p.size - start)
-        nan, c1, c2, c3 = _terms(gt[start:start + m], p[start:start + m], scale, lo, hi, zero, w0, w1, w2,
-                                 ratio)
+    A block of pixels at a time (:func:`_terms`): pixel ``j`` of each block is added to
+    column ``j`` of float64 accumulators, which are summed at the end (:func:`_sum_columns`)."""
+    acc = np.zeros((6, min(_BLOCK, max(p.size, 1))))
+    n1 = n2 = n3 = nan = 0
+    for start in range(0, p.size, _BLOCK):
+        m = min(_BLOCK, p.size - start)
+        nan, c1, c2, c3 = _terms(gt[start:start + m], p[start:start + m], scale, lo, hi, zero, acc, nyu)
         n1, n2, n3 = n1 + c1, n2 + c2, n3 + c3
         if nan:
             break
-        sums = _add(sums, w0, w1, w2, ratio, m, nyu)
-    s0, s1, s2, s6, s7, s8 = sums
+    s0, s1, s2, s6, s7, s8 = _sum_columns(acc)
     return (s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8), nan > 0
 
 
 @njit
-def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, w0, w1, w2, ratio):
-    """:func:`_terms` of a block of a row of a whole map: the ground truth ``raw /
-    divisor`` (float32), valid where ``vlo < g < vhi``; an invalid pixel's terms are 0
-    (``g = d = 1``, ``one`` in the prediction's dtype: a sum is the same number with them
-    added), so that the loop has no branch. Returns the counts of NaN, valid pixels and ``t`` under the thresholds."""
+def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, acc, at, nyu):
+    """:func:`_terms` of a row of a whole map (its pixel ``j`` into column ``at + j``): the
+    ground truth ``raw / divisor`` (float32), valid where ``vlo < g < vhi``; an invalid
+    pixel's terms are 0 (``g = d = 1``, ``one`` in the prediction's dtype: a sum is the same
+    number with them added), so that the loop has no branch. Returns the counts of NaN,
+    valid pixels and ``t`` under the thresholds."""
+    a0, a1, a2, a3, a4, a5 = acc[0], acc[1], acc[2], acc[3], acc[4], acc[5]
     nan = n = n1 = n2 = n3 = 0
     for j in range(pred.size):
         g = div(np.float32(raw[j]), divisor)
@@ -393,7 +392,15 @@ def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, w0, w1, w2, ra
         d = lo if d < lo else d
         d = hi if d > hi else d
         g, d = (g if valid else np.float32(1)) + zero, (d if valid else one) + zero
-        w0[j], w1[j], w2[j], t, ratio[j] = _pixel(g, d)
+        x, y, z, t, e = _pixel(g, d)
+        c = at + j
+        a0[c] += x
+        a1[c] += y
+        a2[c] += z
+        a4[c] += e * e
+        if nyu:
+            a3[c] += e
+            a5[c] += abs(e)
         n += valid
         n1 += valid & (t < 1.25)
         n2 += valid & (t < 1.25 ** 2)
@@ -402,42 +409,27 @@ def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, w0, w1, w2, ra
 
 
 @njit
-def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, nyu, work, ratio):
+def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, nyu):
     """:func:`_scaled_errors` of a whole map in one pass, with no per-pixel array: the
     ground truth ``raw[r, c] / divisor`` (float32), valid where ``vlo < g < vhi`` inside
     the slice bounds ``box`` (top, bottom, left, right), and the prediction ``pred[r, c]``
-    clamped to ``[lo, hi]`` (:func:`_dense_terms`); each row's sums are added up, then
-    added to the map's. Returns the sums, the count of valid pixels and whether a
-    prediction is NaN."""
+    clamped to ``[lo, hi]`` (:func:`_dense_terms`), a row at a time: column ``c`` of the
+    accumulators takes column ``c`` of each row, and they are summed at the end. Returns
+    the sums, the count of valid pixels and whether a prediction is NaN."""
     total = np.zeros(9)
-    n = 0
-    block = ratio.size
-    w0, w1, w2 = work[0], work[1], work[2]
+    left, right = box[2], box[3]
+    acc = np.zeros((6, max(right - left, 1)))
+    n = n1 = n2 = n3 = 0
     for r in range(box[0], box[1]):
-        sums = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        k = n1 = n2 = n3 = 0
-        for c in range(box[2], box[3], block):
-            m = min(block, box[3] - c)
-            nan, v, c1, c2, c3 = _dense_terms(raw[r, c:c + m], pred[r, c:c + m], divisor, vlo, vhi, lo, hi,
-                                              one, zero, w0, w1, w2, ratio)
-            if nan:
-                return total, n, True
-            if v:
-                sums = _add(sums, w0, w1, w2, ratio, m, nyu)
-                k, n1, n2, n3 = k + v, n1 + c1, n2 + c2, n3 + c3
-        if not k:
-            continue
-        s0, s1, s2, s6, s7, s8 = sums
-        for i, x in enumerate((s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8)):
-            total[i] += x
-        n += k
+        nan, v, c1, c2, c3 = _dense_terms(raw[r, left:right], pred[r, left:right], divisor, vlo, vhi, lo, hi,
+                                          one, zero, acc, 0, nyu)
+        if nan:
+            return total, n, True
+        n, n1, n2, n3 = n + v, n1 + c1, n2 + c2, n3 + c3
+    s0, s1, s2, s6, s7, s8 = _sum_columns(acc)
+    for i, x in enumerate((s0, s1, s2, float(n1), float(n2), float(n3), s6, s7, s8)):
+        total[i] = x
     return total, n, False
-
-
-def _buffers() -> tuple[np.ndarray, np.ndarray]:
-    """The work rows of :func:`_scaled_errors`: float64, so that the terms are converted
-    in the loop that vectorises, not in the sums' (the conversions take the adders)."""
-    return np.empty((3, _BLOCK)), np.empty(_BLOCK)
 
 
 _LN10 = math.log(10)
@@ -485,7 +477,7 @@ def scaled_errors(gt: np.ndarray, p: np.ndarray, scale, low: float, high: float,
     scale = p.dtype.type(1) if scale is None else scale
     dt = np.result_type(p, scale).type
     t = np.result_type(gt, dt)
-    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), t.type(0), nyu, *_buffers())
+    sums, bad = _scaled_errors(gt, p, scale, dt(low), dt(high), t.type(0), nyu)
     return None if bad else _means(sums, p.size, nyu)
 
 
@@ -499,7 +491,7 @@ def dense_errors(pred: np.ndarray, raw: np.ndarray, divisor: float, box, valid: 
     f32, dt = np.float32, pred.dtype.type
     t = np.result_type(pred, f32)
     sums, n, bad = _dense_errors(pred, raw, f32(divisor), np.asarray(box, np.int64), f32(valid[0]),
-                                 f32(valid[1]), dt(low), dt(high), dt(1), t.type(0), nyu, *_buffers())
+                                 f32(valid[1]), dt(low), dt(high), dt(1), t.type(0), nyu)
     if bad:
         return None
     return (_means(sums, n, nyu) if n else None), n
@@ -539,7 +531,7 @@ def _usable(m, cap, positive):
 @njit
 def _judge_sparse(pred, first, last, index_at, gt_at, bounds_at, rows, counts, gmed, zi, zg, width, x0, x1, wx, y0, y1,
                   wy, resize, sigmoid, lo, span, invert, one, two, by_median, factor, zs, low, high, zt,
-                  cap, positive, nyu, vbuf, sbuf, spare, work, ratio, out, ratios, ok):
+                  cap, positive, nyu, vbuf, sbuf, spare, out, ratios, ok):
     """Maps ``first..last-1`` of ``pred`` (N x h x w) against ground truth kept as valid
     pixels (image ``i``: ``counts[i]`` flat indices at address ``index_at[i]``, their
     depths at ``gt_at[i]``, its ``rows + 1`` :func:`row_bounds` at ``bounds_at[i]``; 0
@@ -561,7 +553,7 @@ def _judge_sparse(pred, first, last, index_at, gt_at, bounds_at, rows, counts, g
             s = div(gmed[i] + zs, _median(v, sbuf, spare, two) + zs)
             if not (s > 0 and s < np.inf):
                 continue
-        sums, bad = _scaled_errors(gt, v, s, low, high, zt, nyu, work, ratio)
+        sums, bad = _scaled_errors(gt, v, s, low, high, zt, nyu)
         if not bad and _metrics(sums, n, nyu, out[i - first]):
             ratios[i - first] = s
             ok[i - first] = True
@@ -569,7 +561,7 @@ def _judge_sparse(pred, first, last, index_at, gt_at, bounds_at, rows, counts, g
 
 @njit
 def _judge_dense(pred, first, last, raw_at, zr, divisors, box, vlo, vhi, lo, hi, one, zero, cap,
-                 positive, nyu, work, ratio, out, ok):
+                 positive, nyu, out, ok):
     """Maps ``first..last-1`` of ``pred`` against ground truth kept whole (image ``i``: a
     map of ``pred``'s size at address ``raw_at[i]``, depth ``raw / divisors[i]``; address
     0: not here): the value check and :func:`_dense_errors`, the metrics into ``out[i]``;
@@ -579,6 +571,5 @@ def _judge_dense(pred, first, last, raw_at, zr, divisors, box, vlo, vhi, lo, hi,
         if raw_at[i] == 0 or not _usable(pred[i], cap, positive):
             continue
         raw = carray(_pointer(raw_at[i], zr), shape)
-        sums, n, bad = _dense_errors(pred[i], raw, divisors[i], box, vlo, vhi, lo, hi, one, zero, nyu,
-                                     work, ratio)
+        sums, n, bad = _dense_errors(pred[i], raw, divisors[i], box, vlo, vhi, lo, hi, one, zero, nyu)
         ok[i - first] = not bad and n > 0 and _metrics(sums, n, nyu, out[i - first])
