@@ -69,7 +69,12 @@ def _warm_evaluation(rng) -> None:
     """Judge small maps as ``evaluate`` does (the evaluation's kernels): float32 and
     float64 predictions, writable and read-only (a mapped ``.npy``), one at a time and a
     variant's block at a time, under the kitti protocol's modes and the nyu protocol,
-    against ground truth as sparse pixels (int32 indices) and as a whole 16-bit map."""
+    against ground truth as sparse pixels (int32 indices) and as a whole 16-bit map, each
+    held in memory and mapped read-only from a file (the ground-truth cache's, or
+    ``--jobs N``'s)."""
+    import os
+    import tempfile
+
     import numpy as np
 
     from .evaluation.batch import Plan
@@ -97,19 +102,25 @@ def _warm_evaluation(rng) -> None:
     few = np.zeros(raw.shape, np.float32)  # valid pixels few enough to be kept as such
     few[60:400:7, 50:600:7] = rng.uniform(0.5, 9.0, few[60:400:7, 50:600:7].shape)
     nyu_pixels.add(few)
-    for dtype in (np.float32, np.float64):
-        for readonly in (False, True):
-            pred = rng.uniform(0.05, 0.9, (h // 2, w // 2)).astype(dtype)
-            dense = rng.uniform(0.5, 9.0, raw.shape).astype(dtype)
-            for p in (pred, dense):
-                p.flags.writeable = not readonly
-            for setup in setups:
-                image_errors(pred, "warmup", truth, setup, None)
-                Plan(kitti_gt, setup, pred.shape, pred.dtype).judge(pred[None], 0, 1)
-            image_errors(dense, "warmup", None, nyu, None, whole=(raw, 1000.0))
-            image_errors(dense, "warmup", nyu_truth, nyu, None)
-            for held in (nyu_gt, nyu_pixels):
-                Plan(held, nyu, dense.shape, dense.dtype).judge(dense[None], 0, 1)
+    with tempfile.TemporaryDirectory(prefix="robodepth-warmup-") as tmp:
+        # and as mapped from a file (read-only arrays: the ground-truth cache's, --jobs N's)
+        kitti_mapped, nyu_mapped, pixels_mapped = (
+            held.share(os.path.join(tmp, f"{k}.bin")).open() for k, held in enumerate((kitti_gt, nyu_gt, nyu_pixels)))
+        for dtype in (np.float32, np.float64):
+            for readonly in (False, True):
+                pred = rng.uniform(0.05, 0.9, (h // 2, w // 2)).astype(dtype)
+                dense = rng.uniform(0.5, 9.0, raw.shape).astype(dtype)
+                for p in (pred, dense):
+                    p.flags.writeable = not readonly
+                for setup in setups:
+                    for pixels, held in ((truth, kitti_gt), (kitti_mapped.get(0), kitti_mapped)):
+                        image_errors(pred, "warmup", pixels, setup, None)
+                        Plan(held, setup, pred.shape, pred.dtype).judge(pred[None], 0, 1)
+                image_errors(dense, "warmup", None, nyu, None, whole=(raw, 1000.0))
+                image_errors(dense, "warmup", None, nyu, None, whole=nyu_mapped.dense(0))
+                image_errors(dense, "warmup", nyu_truth, nyu, None)
+                for held in (nyu_gt, nyu_pixels, nyu_mapped, pixels_mapped):
+                    Plan(held, nyu, dense.shape, dense.dtype).judge(dense[None], 0, 1)
 
 def main() -> int:
     """Warm up and say what was done in one line (and one per corruption that refused:

@@ -113,12 +113,62 @@ def test_after_the_warm_up_the_first_commands_compile_nothing(warmed, tmp_path):
     run_timed(["-m", "robodepth_cli.cli", "corrupt", str(NYU_FRAME), "-c", DEPTH_AWARE, "-l", "all",
                "--size", "120x160", "--depth", str(NYU_DEPTH), "--depth-scale", "1000",
                "--out", f"{tmp_path}/nyu/"], env)
+    # evaluate, twice: the ground truth read, then mapped read-only from the cache
+    for dataset, pred in _minimal_datasets(tmp_path / "eval"):
+        for _ in range(2):
+            run_timed(["-m", "robodepth_cli.cli", "evaluate", str(dataset), "--pred", str(pred), "--out",
+                       str(tmp_path / "eval" / "r.csv"), "--jobs", "1"],
+                      {**env, "ROBODEPTH_CACHE_DIR": str(tmp_path / "eval" / "cache")})
+    assert len(list((tmp_path / "eval" / "cache" / "ground-truth").glob("*.bin"))) == 2
     assert cache_files(root) == before
     # The warm-up again loads every signature and compiles none.
     out = subprocess.run([sys.executable, "-m", "robodepth_cli.warmup"], env=env, cwd=env["HOME"],
                          capture_output=True, text=True, check=True).stdout
     assert ": 0 compiled and cached" in out, out
     assert cache_files(root) == before
+
+
+def _minimal_datasets(where) -> list:
+    """A KITTI-C and a NYUDepth2-C of two images each, as evaluate reads them (build.json,
+    manifest.csv, ground truth), with predictions of the networks' sizes for clean and
+    brightness 1: ``[(dataset, pred), ...]``."""
+    import cv2
+    import numpy as np
+
+    from robodepth_cli.formats import stamp
+    from robodepth_cli.output import manifest
+    from robodepth_cli.output.record import SCHEMA
+
+    rng = np.random.default_rng(0)
+    made = []
+    for name, keys, shape in (("kitti-c", [f"kitti_data/d/image_02/data/{i:010d}.png" for i in range(2)],
+                               (192, 640)),
+                              ("nyudepth2-c", [f"scene/rgb_{i:05d}.png" for i in range(2)], (480, 640))):
+        dataset, pred = where / name, where / f"{name}-pred"
+        dataset.mkdir(parents=True)
+        (dataset / "build.json").write_text(json.dumps({"dataset": name, "split": {"keys": keys},
+                                                        "config": {"size": list(shape)}, **stamp(SCHEMA)}))
+        rows = [manifest.Row(f"{v}/{k}", k, v.split("/")[0], int(v[-1]) if "/" in v else None, 0, 1, 1, "0" * 64)
+                for v in ("clean", "brightness/1") for k in keys]
+        (dataset / "manifest.csv").write_text(manifest.HEADER + manifest.format_rows(rows))
+        if name == "kitti-c":
+            gts = np.empty(2, object)
+            for i in range(2):
+                g = rng.uniform(2, 85, (375, 1242)).astype(np.float32)
+                g[rng.random(g.shape) > 0.05] = 0
+                gts[i] = g
+            np.savez_compressed(dataset / "gt_depths.npz", data=gts)
+        else:
+            for i in range(2):
+                path = dataset / "gt" / f"scene/sync_depth_{i:05d}.png"
+                path.parent.mkdir(parents=True, exist_ok=True)
+                cv2.imwrite(str(path), rng.integers(1, 10000, (480, 640)).astype(np.uint16))
+        low, high = (0.01, 0.3) if name == "kitti-c" else (0.5, 9.0)
+        for v in ("clean", "brightness/1"):
+            (pred / v).parent.mkdir(parents=True, exist_ok=True)
+            np.save(pred / f"{v}.npy", rng.uniform(low, high, (2, *shape)).astype(np.float32))
+        made.append((dataset, pred))
+    return made
 
 
 @pytest.mark.slow
