@@ -4,7 +4,8 @@ one check of it.
 Each such file carries ``schema`` (what it is), ``schema_version`` (its layout) and
 ``robodepth`` (the release that wrote it): build.json, the manifest (through the build.json
 beside it), predictions.json, the results CSV (in its sidecar ``RESULTS.csv.json``, so the
-rows stay plain CSV), the export record and scores.json. A reader meets a file of another
+rows stay plain CSV), the export record, scores.json and the ground-truth cache's entries
+(which are read around, not refused, when they are of another release). A reader meets a file of another
 layout with one line naming the file and the release that reads it, never a guess at what
 its keys meant. The layout version changes when a reader of the old version would read the
 new file wrongly; the release alone changing keeps the layout.
@@ -23,6 +24,7 @@ VERSIONS = {
     "robodepth-results": 1,  # a results CSV's sidecar
     "robodepth-export": 2,  # an export's robodepth/export.json (2: the ground truth one map a row)
     "robodepth-report": 1,  # scores.json
+    "robodepth-gt-cache": 1,  # an entry of the ground-truth cache (groundtruth/cache.py)
 }
 
 

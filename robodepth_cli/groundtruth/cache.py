@@ -4,13 +4,13 @@ into the user's cache and memory-mapped by every later evaluation of the same gr
 under the same rule, instead of inflated and decoded again (KITTI's ``gt_depths.npz``:
 ~2 s; NYU's 654 PNGs: ~4 s).
 
-An entry is named by the SHA-256 of everything that decides its contents: this format's
-version, the resolved path, the identity and times of the file or of each PNG
+An entry is named by the SHA-256 of everything that decides its contents: the release and
+this format's version, the resolved path, the identity and times of the file or of each PNG
 (``st_dev``, ``st_ino``, size, ``st_mtime_ns``, ``st_ctime_ns``: any write changes the
 ctime, so a changed file is read again), the PNGs' names in order, and the rule (protocol,
 crop, depth range). ``<key>.bin`` holds the arrays; ``<key>.json`` describes them and is
 written last, so an entry is complete or absent. One that does not describe its arrays
-exactly (damaged, cut short, another version) is read around and written again. The
+exactly (damaged, cut short, another release's) is read around and written again. The
 newest entries are kept: at most :data:`MOST`, and :data:`BUDGET` bytes together.
 
 The folder is ``ground-truth/`` under :func:`~robodepth_cli.files.cache_dir`;
@@ -28,8 +28,9 @@ from typing import Sequence
 import numpy as np
 
 from ..files import atomic_output, cache_dir, is_temporary, sha256_bytes, write_atomic
+from ..formats import RELEASE, VERSIONS, stamp
 
-FORMAT = 1
+SCHEMA = "robodepth-gt-cache"
 MOST = 8  # entries kept
 BUDGET = 2 << 30  # bytes kept in all (one NYU entry: ~400 MB; one KITTI: ~100 MB)
 _DTYPES = {"|u1", "<u2", "<i2", "<u4", "<i4", "<i8", "<f4", "<f8"}
@@ -53,8 +54,8 @@ def entry_key(path: Path, names: Sequence[str] | None, rule: str) -> str | None:
         where = str(path.resolve())
     except (OSError, RuntimeError):
         return None
-    return sha256_bytes(json.dumps([FORMAT, where, list(names) if names is not None else None, stats,
-                                    rule]).encode())
+    return sha256_bytes(json.dumps([RELEASE, VERSIONS[SCHEMA], where, list(names) if names is not None else None,
+                                    stats, rule]).encode())
 
 
 def load(key: str) -> tuple[str, list, list, list[str] | None] | None:
@@ -80,8 +81,8 @@ def load(key: str) -> tuple[str, list, list, list[str] | None] | None:
 def _checked(meta: dict, size: int) -> tuple[list, list, list[str] | None]:
     """``(shapes, entries, keys)`` of an entry's description, each array inside the
     ``size`` bytes of its file; ValueError when the description is not one."""
-    if meta.get("format") != FORMAT:
-        raise ValueError("another version")
+    if [meta.get(k) for k in ("schema", "schema_version", "robodepth")] != list(stamp(SCHEMA).values()):
+        raise ValueError("another release's")
     shapes = [tuple(int(x) for x in s) for s in meta["shapes"]]
     entries = []
     for pixels, placed, divisor in meta["entries"]:
@@ -113,7 +114,7 @@ def store(key: str, source: str, shapes: list, keys: list[str] | None, write) ->
     try:
         with atomic_output(where / f"{key}.bin") as fh:
             entries = write(fh)
-        meta = {"format": FORMAT, "source": source, "shapes": [list(s) for s in shapes],
+        meta = {**stamp(SCHEMA), "source": source, "shapes": [list(s) for s in shapes],
                 "entries": entries, "keys": keys}
         write_atomic(where / f"{key}.json", json.dumps(meta).encode())
         _prune(where, keep=key)

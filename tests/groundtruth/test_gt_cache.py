@@ -113,7 +113,7 @@ def test_a_damaged_entry_is_read_around_and_written_again(cache_dir, tmp_path, d
     else:
         m = json.loads(meta.read_text())
         if damage == "other version":
-            m["format"] = cache.FORMAT + 1
+            m["schema_version"] += 1
         else:
             m["entries"][0][1][0][0] = data.stat().st_size
         meta.write_text(json.dumps(m))
