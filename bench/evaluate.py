@@ -38,25 +38,12 @@ from pathlib import Path
 
 import numpy as np
 
-from robodepth_cli.output import manifest  # noqa: E402
+from tests.helpers.builds import minimal_build  # evaluate's minimal build folder
 
 REPO = Path(__file__).resolve().parent.parent
 # The commit before evaluation sampled the prediction at the valid pixels only (the
 # whole map resized with cv2.resize, numpy masks and metrics).
 REFERENCE = "f3c8936"
-
-
-def fake_dataset(root: Path, name: str, keys: list[str], variants: list[tuple[str, int | None]]):
-    root.mkdir(parents=True)
-    from robodepth_cli.formats import stamp
-    from robodepth_cli.output.record import SCHEMA
-
-    # stamped with the format version this tree reads (older code ignores the stamp)
-    record = {"dataset": name, "split": {"keys": keys}, "config": {"size": [192, 640]}, **stamp(SCHEMA)}
-    (root / "build.json").write_text(json.dumps(record))
-    rows = [manifest.Row(f"{v}/{lv}/{k}" if lv else f"{v}/{k}", k, v, lv, 0, 1, 1, "0" * 64)
-            for v, lv in variants for k in keys]
-    (root / "manifest.csv").write_text(manifest.HEADER + manifest.format_rows(rows))
 
 
 def rss_mb() -> float:
@@ -106,7 +93,7 @@ def make_kitti(tmp: Path, n: int, n_variants: int) -> None:
     keys = [f"kitti_data/d/image_02/data/{i:010d}.png" for i in range(n)]
     variants = bench_variants("kitti-c", n_variants)
     ds_dir = tmp / "KITTI_C"
-    fake_dataset(ds_dir, "kitti-c", keys, variants)
+    minimal_build(ds_dir, "kitti-c", keys, variants)
     gts = np.empty(n, object)
     for i in range(n):
         g = rng.uniform(2, 85, (375, 1242)).astype(np.float32)
@@ -124,7 +111,7 @@ def make_nyu(tmp: Path, n: int, n_variants: int) -> None:
     keys = [f"scene/rgb_{i:05d}.png" for i in range(n)]
     variants = bench_variants("nyudepth2-c", n_variants)
     ds_dir = tmp / "NYU_C"
-    fake_dataset(ds_dir, "nyudepth2-c", keys, variants)
+    minimal_build(ds_dir, "nyudepth2-c", keys, variants)
     for i in range(n):
         path = ds_dir / "gt" / f"scene/sync_depth_{i:05d}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -162,8 +149,7 @@ def measure(tmp: Path, protocol: str, jobs: int, tag: str) -> None:
     sampler = None
     if jobs > 1:
         # Memory over all the processes in a second evaluation, not the timed one: reading
-        # their PSS walks their page tables and holds up their page faults (and this
-        # process evaluates too), which cost the timed run ~1 s.
+        # their PSS walks their page tables and holds up their page faults.
         sampler = TreeSampler(os.getpid(), interval=0.2, pss_every=5)
         sampler.start()
         E.evaluate(open_dataset(ds_dir), pred, make_setup(protocol), jobs=jobs)

@@ -1,6 +1,6 @@
 """`robodepth predict` on CPU: a ResNet-18 monodepth2 model at 192 x 640, images per second.
 
-A minimal dataset (build.json + manifest.csv, as bench/evaluate.py makes them) of N
+A minimal dataset (build.json + manifest.csv: tests/helpers/builds.py's minimal_build) of N
 KITTI-sized 375 x 1242 PNGs (the fixture frames, shifted so no two are alike), and a
 monodepth2-format checkpoint with random weights (the speed does not depend on them).
 Measured the same run: `robodepth_cli.models.predict.predict` at --batch-size 1 and the
@@ -24,7 +24,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 
-from bench.evaluate import fake_dataset
+from tests.helpers.builds import minimal_build
 
 
 def make(tmp: Path, n: int) -> tuple[Path, Path]:
@@ -36,7 +36,7 @@ def make(tmp: Path, n: int) -> tuple[Path, Path]:
     frames = sorted((HERE.parent / "tests/data/fixtures/kitti_raw").rglob("image_02/data/*.png"))
     keys = [f"kitti_data/d/image_02/data/{i:010d}.png" for i in range(n)]
     ds = tmp / "KITTI_C"
-    fake_dataset(ds, "kitti-c", keys, [("clean", None)])
+    minimal_build(ds, "kitti-c", keys, [("clean", None)])
     for i, key in enumerate(keys):
         img = np.asarray(Image.open(frames[i % len(frames)]).convert("RGB").resize((1242, 375)))
         path = ds / "clean" / key

@@ -135,22 +135,15 @@ def _minimal_datasets(where) -> list:
     import cv2
     import numpy as np
 
-    from robodepth_cli.formats import stamp
-    from robodepth_cli.output import manifest
-    from robodepth_cli.output.record import SCHEMA
+    from tests.helpers.builds import minimal_build
 
     rng = np.random.default_rng(0)
     made = []
     for name, keys, shape in (("kitti-c", [f"kitti_data/d/image_02/data/{i:010d}.png" for i in range(2)],
                                (192, 640)),
                               ("nyudepth2-c", [f"scene/rgb_{i:05d}.png" for i in range(2)], (480, 640))):
-        dataset, pred = where / name, where / f"{name}-pred"
-        dataset.mkdir(parents=True)
-        (dataset / "build.json").write_text(json.dumps({"dataset": name, "split": {"keys": keys},
-                                                        "config": {"size": list(shape)}, **stamp(SCHEMA)}))
-        rows = [manifest.Row(f"{v}/{k}", k, v.split("/")[0], int(v[-1]) if "/" in v else None, 0, 1, 1, "0" * 64)
-                for v in ("clean", "brightness/1") for k in keys]
-        (dataset / "manifest.csv").write_text(manifest.HEADER + manifest.format_rows(rows))
+        dataset = minimal_build(where / name, name, keys, [("clean", None), ("brightness", 1)], shape)
+        pred = where / f"{name}-pred"
         if name == "kitti-c":
             gts = np.empty(2, object)
             for i in range(2):
