@@ -298,7 +298,7 @@ def _log(x):
     return k * _LN2 + 2.0 * s * (q * z + 1.0)
 
 
-_BLOCK = 256  # pixels whose logarithms are taken together, in one vectorised loop
+_BLOCK = 256  # pixels a vectorised loop takes together; pixel j of each goes to column j
 
 
 @njit

@@ -163,21 +163,12 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
         from .depthmaps import DepthMaps  # a build with depth: one float map per image
 
         return DepthMaps(path, names, protocol, valid, absent)
-    key = None
-    if rule is not None:
-        key = cache.entry_key(path, names if path.is_dir() else None, rule)
-        found = cache.load(key) if key else None
-        if found is not None:
-            where, shapes, entries, keys = found
-            try:
-                kept = SharedGroundTruth(where, str(path), protocol, shapes, entries, valid).open()
-            except (OSError, ValueError):
-                kept = None  # gone or changed since: read the file
-            if kept is not None:
-                kept.keys = keys
-                _check_count(path, len(kept), names)
-                _check_order(path, kept.keys, names)
-                return kept
+    key = cache.entry_key(path, names if path.is_dir() else None, rule) if rule is not None else None
+    kept = _cached(key, path, protocol, valid) if key else None
+    if kept is not None:
+        _check_count(path, len(kept), names)
+        _check_order(path, kept.keys, names)
+        return kept
     gt = GroundTruth(str(path), protocol, valid)
     if path.is_dir():
         for i, name in enumerate(names):
@@ -191,6 +182,21 @@ def load_ground_truth(path: Path, names: Sequence[str], protocol: str, valid,
     if key:
         cache.store(key, gt.source, gt.shapes, gt.keys, gt.write_arrays)
     return gt
+
+
+def _cached(key: str, path: Path, protocol: str, valid) -> GroundTruth | None:
+    """The cache's entry ``key`` of the ground truth at ``path``, mapped; None when there is
+    none, or it went or changed between its check and its mapping (the file is read)."""
+    found = cache.load(key)
+    if found is None:
+        return None
+    where, shapes, entries, keys = found
+    try:
+        kept = SharedGroundTruth(where, str(path), protocol, shapes, entries, valid).open()
+    except (OSError, ValueError):
+        return None
+    kept.keys = keys
+    return kept
 
 
 def _check_count(path: Path, count: int, names: Sequence[str]) -> None:
