@@ -376,8 +376,8 @@ def _scaled_errors(gt, p, scale, lo, hi, zero, nyu):
 
 
 @njit
-def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, acc, at, nyu):
-    """:func:`_terms` of a row of a whole map (its pixel ``j`` into column ``at + j``): the
+def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, acc, nyu):
+    """:func:`_terms` of a row of a whole map (its pixel ``j`` into column ``j``): the
     ground truth ``raw / divisor`` (float32), valid where ``vlo < g < vhi``; an invalid
     pixel's terms are 0 (``g = d = 1``, ``one`` in the prediction's dtype: a sum is the same
     number with them added), so that the loop has no branch. Returns the counts of NaN,
@@ -393,14 +393,15 @@ def _dense_terms(raw, pred, divisor, vlo, vhi, lo, hi, one, zero, acc, at, nyu):
         d = hi if d > hi else d
         g, d = (g if valid else np.float32(1)) + zero, (d if valid else one) + zero
         x, y, z, t, e = _pixel(g, d)
-        c = at + j
-        a0[c] += x
-        a1[c] += y
-        a2[c] += z
-        a4[c] += e * e
+        # as in _terms, written out: a function of both took the loops' vectorising away
+        # (3.9 ms a NYU map against 0.44)
+        a0[j] += x
+        a1[j] += y
+        a2[j] += z
+        a4[j] += e * e
         if nyu:
-            a3[c] += e
-            a5[c] += abs(e)
+            a3[j] += e
+            a5[j] += abs(e)
         n += valid
         n1 += valid & (t < 1.25)
         n2 += valid & (t < 1.25 ** 2)
@@ -422,7 +423,7 @@ def _dense_errors(pred, raw, divisor, box, vlo, vhi, lo, hi, one, zero, nyu):
     n = n1 = n2 = n3 = 0
     for r in range(box[0], box[1]):
         nan, v, c1, c2, c3 = _dense_terms(raw[r, left:right], pred[r, left:right], divisor, vlo, vhi, lo, hi,
-                                          one, zero, acc, 0, nyu)
+                                          one, zero, acc, nyu)
         if nan:
             return total, n, True
         n, n1, n2, n3 = n + v, n1 + c1, n2 + c2, n3 + c3
