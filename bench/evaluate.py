@@ -73,7 +73,10 @@ def bench_variants(name: str, count: int) -> list[tuple[str, int | None]]:
 def write_predictions(pred: Path, variants, shape, draw) -> None:
     """One N x H x W float32 array per variant (``draw()`` a map): the first :data:`DISTINCT`
     written, the others hard links to them in turn (the page cache holds those few; the
-    evaluation reads every variant's file as it would)."""
+    evaluation reads every variant's file as it would). Written in 16 MiB writes, as
+    ``np.save`` of a whole array and ``robodepth predict`` write: the page cache then holds
+    the file in large folios, which a mapping takes in about a tenth of the time that
+    the small ones of 480 KiB writes cost (4 against 37 us a 192 x 640 map, Linux 6.18)."""
     written = []
     for k, (v, lv) in enumerate(variants):
         path = pred / (f"{v}/{lv}.npy" if lv else f"{v}.npy")
@@ -81,10 +84,10 @@ def write_predictions(pred: Path, variants, shape, draw) -> None:
         if k >= DISTINCT:
             os.link(written[k % DISTINCT], path)
             continue
-        arr = np.lib.format.open_memmap(path, "w+", np.float32, shape)
-        for i in range(shape[0]):
-            arr[i] = draw()
-        del arr
+        with open(path, "wb", buffering=16 << 20) as f:
+            np.lib.format.write_array_header_1_0(f, {"descr": "<f4", "fortran_order": False, "shape": shape})
+            for _ in range(shape[0]):
+                f.write(np.asarray(draw(), np.float32).tobytes())
         written.append(path)
 
 

@@ -55,16 +55,17 @@ def write_atomic(path: str | os.PathLike, data: bytes) -> None:
 
 
 @contextmanager
-def atomic_output(path: str | os.PathLike) -> Iterator[BinaryIO]:
-    """A binary file (opened ``w+b``, so it can be read back) to write ``path``'s contents
-    into, for output too large to hold as one ``bytes``: it replaces ``path`` when the
-    ``with`` block ends without error and is removed otherwise (:func:`is_temporary`
-    recognises the temporary file a killed process leaves)."""
+def atomic_output(path: str | os.PathLike, buffering: int = -1) -> Iterator[BinaryIO]:
+    """A binary file (opened ``w+b``, so it can be read back; ``buffering`` as
+    :func:`open`'s) to write ``path``'s contents into, for output too large to hold as one
+    ``bytes``: it replaces ``path`` when the ``with`` block ends without error and is
+    removed otherwise (:func:`is_temporary` recognises the temporary file a killed process
+    leaves)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f"{_TEMP_PREFIX}{path.name}.", suffix=_TEMP_SUFFIX, dir=path.parent)
     try:
-        with os.fdopen(fd, "w+b") as fh:
+        with os.fdopen(fd, "w+b", buffering=buffering) as fh:
             os.fchmod(fh.fileno(), _FILE_MODE)
             yield fh
         os.replace(tmp, path)

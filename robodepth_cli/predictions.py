@@ -273,6 +273,9 @@ def find_predictions(pred: Path, variant, png_scale: float) -> Predictions | Non
     return None
 
 
+_WRITE_BUFFER = 16 << 20
+
+
 class PredictionWriter:
     """Streams ``n`` maps into one ``N x h x w`` ``.npy`` file (form 1 of ``robodepth
     evaluate``) through a temporary file and a rename: a reader sees the whole file or
@@ -297,7 +300,10 @@ class PredictionWriter:
     def __enter__(self) -> "PredictionWriter":
         from .files import atomic_output
 
-        self._cm = atomic_output(self.target)
+        # Written in 16 MiB pieces, not a map at a time: Linux's page cache then holds the
+        # file in large folios, which evaluate's mapping takes some ten times faster than
+        # the small ones that 480 KiB writes leave (4 against 37 us a 192 x 640 map).
+        self._cm = atomic_output(self.target, buffering=_WRITE_BUFFER)
         try:
             self._fh = self._cm.__enter__()
         except OSError as exc:
