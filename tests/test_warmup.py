@@ -86,11 +86,31 @@ def test_numba_is_used_through_the_packages_njit_only():
     # jit.py and the evaluation's kernels take numba.extending.intrinsic (an LLVM
     # instruction), numba's types and carray (an array over an address), not a kernel
     # decorator; the warm-up only looks the dispatchers up.
-    assert numba_imports() == {"robodepth_cli.corruptions._jit": {"numba", "numba.core.caching"},
+    assert numba_imports() == {"robodepth_cli.corruptions._jit": {"numba", "numba.core.caching", "numba.np.linalg",
+                                                                  "numba.np.arraymath"},
                                "robodepth_cli.corruptions.jit": {"numba.extending"},
                                "robodepth_cli.evaluation.kernels": {"numba.core", "numba.extending",
                                                                     "numba.np.numpy_support"},
                                "robodepth_cli.warmup": {"numba.core.registry"}}
+
+
+PROBE = """
+import sys
+import numpy as np
+from robodepth_cli.evaluation import kernels
+kernels.median(np.ones(9, np.float32))  # numba's array registry is loaded by then
+import numba.np.arraymath as arraymath
+print("scipy.linalg" in sys.modules, arraymath._HAVE_BLAS, arraymath.ensure_blas.__module__)
+"""
+
+
+def test_a_kernel_runs_without_importing_scipy_linalg_and_numba_finds_the_same_blas():
+    # numba's own probe for a BLAS imports scipy.linalg (0.17 s a process); the package
+    # answers it from the files, with the answer numba's probe gives in a process of its own.
+    ours = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, cwd=REPO, check=True)
+    numbas = subprocess.run([sys.executable, "-c", "import numba.np.arraymath as a; print(a._HAVE_BLAS)"],
+                            capture_output=True, text=True, check=True)
+    assert ours.stdout.split() == ["False", numbas.stdout.strip(), "numba.np.linalg"]
 
 
 @pytest.mark.slow
