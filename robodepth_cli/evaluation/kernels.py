@@ -293,9 +293,10 @@ def _log(x):
     s = div(m - 1.0, m + 1.0)
     z = s * s
     c = _C
-    q = ((((((((c[9] * z + c[8]) * z + c[7]) * z + c[6]) * z + c[5]) * z + c[4]) * z + c[3]) * z
-          + c[2]) * z + c[1]) * z + c[0]
-    return k * _LN2 + 2.0 * s * (q * z + 1.0)
+    # Horner's steps as multiply-adds: half the operations of a product and a sum each
+    q = fma(fma(fma(fma(fma(fma(fma(fma(fma(c[9], z, c[8]), z, c[7]), z, c[6]), z, c[5]), z, c[4]), z, c[3]),
+                    z, c[2]), z, c[1]), z, c[0])
+    return fma(k, _LN2, 2.0 * s * fma(q, z, 1.0))
 
 
 _BLOCK = 256  # pixels a vectorised loop takes together; pixel j of each goes to column j
