@@ -59,56 +59,89 @@ class RemoteTraceback(Exception):
 
 
 def in_order(fn: Callable[..., Any], tasks: Sequence[tuple], jobs: int,
-             initializer: Callable[..., None] | None = None, initargs: tuple = ()) -> Iterator[Any]:
+             initializer: Callable[..., None] | None = None, initargs: tuple = (),
+             here: Callable[..., Any] | None = None) -> Iterator[Any]:
     """``fn(*task)`` for every task in ``jobs`` spawned processes (each started with
     ``initializer(*initargs)``), yielded in task order. Leaving early (an error, an
-    interrupt, closing the iterator) kills the workers; the tasks not started never run."""
+    interrupt, closing the iterator) kills the workers; the tasks not started never run.
+
+    ``here``: this process is one of the ``jobs``, running ``here(*task)`` between looks at
+    the workers' results, while ``jobs - 1`` workers start and run; each worker then holds
+    a second task, so that it never waits for this process to finish one of its own. The
+    first tasks are this process's while the workers start (an interpreter each), which
+    would otherwise leave the cores to imports."""
     import multiprocessing
     from multiprocessing.connection import wait
 
     context = multiprocessing.get_context("spawn")
     pipes: dict = {}  # this side of each worker's pipe -> its process
     finished = False
+    spawned = min(jobs - 1 if here is not None else jobs, len(tasks))
     try:
-        for _ in range(min(jobs, len(tasks))):
-            here, there = context.Pipe()
+        for _ in range(spawned):
+            ours, there = context.Pipe()
             process = context.Process(target=_serve, args=(there, fn, initializer, initargs),
                                       daemon=True)
             # Known before it starts: a Ctrl-C held during the start is raised as the start
             # ends, and the process must be among those killed then.
-            pipes[here] = process
+            pipes[ours] = process
             _start_held(process)
             there.close()
         todo = iter(enumerate(tasks))
-        busy: dict = {}  # pipe -> the index of the task it runs
+        busy: dict = {pipe: [] for pipe in pipes}  # pipe -> the indices of the tasks it holds
         done: dict = {}  # index -> (ok, value), until its turn comes
+        depth = 1 if here is None else 2
 
         def hand_out(pipe) -> None:
-            task = next(todo, None)
-            if task is not None:
+            while len(busy[pipe]) < depth:
+                task = next(todo, None)
+                if task is None:
+                    return
                 pipe.send(task)
-                busy[pipe] = task[0]
+                busy[pipe].append(task[0])
+
+        def collect(timeout) -> None:
+            for pipe in wait([p for p, held in busy.items() if held], timeout):
+                try:
+                    index, ok, value = pipe.recv()
+                except (EOFError, OSError):
+                    _died(pipes[pipe])
+                busy[pipe].remove(index)
+                done[index] = (ok, value)
+                hand_out(pipe)
 
         for pipe in pipes:
             hand_out(pipe)
         for turn in range(len(tasks)):
             while turn not in done:
-                for pipe in wait(list(busy)):
-                    try:
-                        index, ok, value = pipe.recv()
-                    except (EOFError, OSError):
-                        _died(pipes[pipe])
-                    del busy[pipe]
-                    done[index] = (ok, value)
-                    hand_out(pipe)
-            ok, value = done.pop(turn)
-            if not ok:
-                exc, text = value
-                raise exc from RemoteTraceback(text)
-            yield value
+                task = next(todo, None) if here is not None else None
+                if task is None:
+                    collect(None)  # nothing left for this process: wait for a result
+                    continue
+                done[task[0]] = _run_here(here, task[1])
+                collect(0)
+            yield _value(*done.pop(turn))
         finished = True
     finally:
         _stop(pipes, finished)
+
+
+def _run_here(here: Callable[..., Any], args: tuple) -> tuple[bool, Any]:
+    """``(ok, result or (exception, None))`` of ``here(*args)``, as a worker replies."""
+    try:
+        return True, here(*args)
+    except Exception as exc:  # noqa: BLE001 - raised in its turn, as a worker's
+        return False, (exc, None)
+
+
+def _value(ok: bool, value):
+    """A task's result, or its exception raised (a worker's with its traceback as cause)."""
+    if ok:
+        return value
+    exc, text = value
+    if text is None:
+        raise exc
+    raise exc from RemoteTraceback(text)
 
 
 def _stop(pipes: dict, finished: bool) -> None:

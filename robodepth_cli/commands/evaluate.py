@@ -46,8 +46,8 @@ DEFAULT_OUT = "results.csv"
               help="Also measure flicker over the split's consecutive frames: flicker_scale and "
                    "flicker_abs_rel columns (see docs/video.md).")
 @click.option("--jobs", "-j", type=common.Jobs(), metavar="N|auto",
-              help="Worker processes, each evaluating whole variants (default, 'auto' or -1: "
-                   "one per CPU); the numbers are the same for any N.")
+              help="Processes (the command's and N - 1 workers), each evaluating whole variants "
+                   "(default, 'auto' or -1: one per CPU); the numbers are the same for any N.")
 @common.progress_option
 def evaluate_command(dataset_dir, pred, protocol, stereo, kind, align, align_space, crop,
                      min_depth, max_depth, png_scale, gt_path, out, force, with_score, as_json,

@@ -2,10 +2,11 @@
 protocol of its benchmark (:mod:`.protocols`) against its ground truth
 (:mod:`robodepth_cli.groundtruth.read`), into the results CSV that ``robodepth score`` reads.
 
-With ``jobs`` > 1 the variants are shared out among worker processes, each evaluating whole
-variants with the same code as one job, so the numbers are the same to the last bit. The
-ground truth is read once, by this process, and handed to the workers as one read-only
-mapped file (the page cache holds it once); a worker holds one variant's predictions at a
+With ``jobs`` > 1 the variants are shared out among this process and ``jobs - 1`` worker
+processes, each evaluating whole variants with the same code as one job, so the numbers
+are the same to the last bit; this process evaluates the first ones while the workers
+start. The ground truth is read once, by this process, and handed to the workers as one
+read-only mapped file (the page cache holds it once); a worker holds one variant's predictions at a
 time (a block of maps for a ``.npy`` (:mod:`.batch`), one for per-image files, the whole
 array for a ``.npz``).
 """
@@ -171,7 +172,7 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
     predictions of every variant (presence, count, shape) and the ground truth (present,
     one map per split image). Missing variants are an error unless ``allow_partial``.
     ``progress(n)`` is called as images are done; ``on_total(n)`` once with their number.
-    ``jobs``: worker processes (1: all in this process; see the module docstring), never
+    ``jobs``: processes, this one included (1: all in this process; see the module docstring), never
     more than the variants nor one per :data:`MAPS_PER_WORKER` maps. ``flicker``: also
     the flicker measures over the consecutive frames of the split (:mod:`.flicker`).
     Raises :class:`EvaluationError` for any bad input (with several jobs, the one of the
@@ -209,7 +210,7 @@ def evaluate(dataset: BuiltDataset, pred: Path, setup: Setup, *, gt: Path | None
 
 def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTruth], setup: Setup,
                   image_size, progress, pairs, jobs: int) -> list[VariantResult]:
-    """Every variant's result, in ``jobs`` worker processes (1: here); the ground truth is
+    """Every variant's result, in ``jobs`` processes, this one among them; the ground truth is
     taken out of ``held``."""
     truth = held.pop()
     if jobs > 1:
@@ -217,9 +218,11 @@ def _evaluate_all(found: list[tuple[Variant, Predictions]], held: list[GroundTru
 
         with tempfile.TemporaryDirectory(prefix="robodepth-evaluate-") as tmp:
             shared = _shared(truth, Path(tmp) / "ground_truth.bin")
-            # The workers map the file: keeping the maps here too would hold them twice.
-            del truth
-            return _evaluate_in_workers(found, shared, setup, image_size, progress, pairs, jobs)
+            # This process evaluates too: from a mapped file (the cache's, or the workers'),
+            # not from maps read into memory, which would hold them twice.
+            if truth.mapped is None:
+                truth = shared.open()
+            return _evaluate_in_workers(found, shared, truth, setup, image_size, progress, pairs, jobs)
     results, cache = [], {}
     for v, p in found:
         try:
@@ -305,15 +308,24 @@ def _kind_read(setup: Setup, found: Sequence[tuple[Variant, Predictions]]) -> Se
     return replace(setup, kind="depth")
 
 
-def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], shared, setup: Setup,
-                         image_size, progress, pairs, jobs: int) -> list[VariantResult]:
-    """:func:`_evaluate_variant` of every variant in ``jobs`` worker processes that map the
-    ground truth ``shared`` (:meth:`GroundTruth.share`); results in variant order."""
+def _evaluate_in_workers(found: list[tuple[Variant, Predictions]], shared, truth: GroundTruth,
+                         setup: Setup, image_size, progress, pairs, jobs: int) -> list[VariantResult]:
+    """:func:`_evaluate_variant` of every variant in this process and ``jobs - 1`` worker
+    processes, which map the ground truth ``shared`` (:meth:`GroundTruth.share`; ``truth``:
+    this process's map of it); results in variant order."""
     from ..workers import in_order
+
+    cache: dict = {}
+
+    def here(variant, preds, setup, image_size, pairs):
+        try:
+            return _evaluate_variant(variant, preds, truth, setup, image_size, None, pairs, cache)
+        finally:
+            preds.close()
 
     results = []
     tasks = [(v, p, setup, image_size, pairs) for v, p in found]
-    for (v, _), r in zip(found, in_order(_worker_variant, tasks, jobs, _start_worker, (shared,))):
+    for (v, _), r in zip(found, in_order(_worker_variant, tasks, jobs, _start_worker, (shared,), here=here)):
         results.append(r)
         if progress:
             progress(len(v))

@@ -115,7 +115,8 @@ NOTHING = "robodepth: interrupted; nothing was written\n"
 def test_evaluate_with_workers_stops_at_once(big_kitti_c, tmp_path, at, sig, whole_group):
     dataset, pred = big_kitti_c
     out = tmp_path / "r.csv"
-    status, err = stop(["evaluate", dataset, "--pred", pred, "--out", out, "--jobs", "2",
+    # --jobs 3: two workers beside this process, which evaluates too
+    status, err = stop(["evaluate", dataset, "--pred", pred, "--out", out, "--jobs", "3",
                         "--no-progress"], at, sig, whole_group, tmp_path)
     assert (status, err) == (130, NOTHING)
     assert list(tmp_path.iterdir()) == []
