@@ -38,7 +38,7 @@ import numpy as np
 
 from llvmlite import ir
 from numba.np.numpy_support import carray
-from numba.core import types
+from numba.core import cgutils, types
 from numba.extending import intrinsic
 
 from ..corruptions.jit import div, fma, njit
@@ -210,6 +210,66 @@ def _middle(a, spare, r, even, two):
     return (lower + upper) / two if even else upper
 
 
+@intrinsic
+def _keep_between(typingctx, src, dst, lo, hi):
+    """Of the 64 bytes of values at address ``src`` (16 float32 or 8 float64), those in
+    ``[lo, hi]`` stored one after another at address ``dst``, in order (LLVM's
+    ``masked.compressstore``: one instruction with AVX-512, lane by lane elsewhere); returns
+    their count plus ``2^32`` times the count of those below ``lo``."""
+    if not isinstance(lo, types.Float) or lo != hi:
+        return None
+    bits = lo.bitwidth
+    width = 512 // bits
+
+    def codegen(context, builder, signature, args):
+        address, out, low, high = args
+        ft = low.type
+        vt, mt, it = ir.VectorType(ft, width), ir.VectorType(ir.IntType(1), width), ir.IntType(width)
+        v = builder.load(builder.inttoptr(address, vt.as_pointer()), align=bits // 8)
+        undef, zeros = ir.Constant(vt, ir.Undefined), ir.Constant(ir.VectorType(ir.IntType(32), width), [0] * width)
+
+        def splat(x):
+            return builder.shuffle_vector(builder.insert_element(undef, x, ir.Constant(ir.IntType(32), 0)), undef,
+                                          zeros)
+
+        keep = builder.and_(builder.fcmp_ordered(">=", v, splat(low)), builder.fcmp_ordered("<=", v, splat(high)))
+        below = builder.fcmp_ordered("<", v, splat(low))
+        store = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [vt, ft.as_pointer(), mt]),
+                                               f"llvm.masked.compressstore.v{width}f{bits}")
+        builder.call(store, [v, builder.inttoptr(out, ft.as_pointer()), keep])
+        count = cgutils.get_or_insert_function(builder.module, ir.FunctionType(it, [it]), f"llvm.ctpop.i{width}")
+        i64 = ir.IntType(64)
+        kept, under = (builder.zext(builder.call(count, [builder.bitcast(m, it)]), i64) for m in (keep, below))
+        return builder.or_(kept, builder.shl(under, ir.Constant(i64, 32)))
+
+    return types.int64(types.int64, types.int64, lo, hi), codegen
+
+
+@njit
+def _between(v, work, lo, hi):
+    """``(kept, below)``: the values of ``v`` (contiguous) in ``[lo, hi]`` copied to the
+    front of ``work`` in order, their count, and the count of those below ``lo``; 64 bytes
+    at a time (:func:`_keep_between`: a branch-free store at a moving index otherwise
+    costs a loop of several cycles a value), the last few one by one."""
+    n = v.size
+    size = v.itemsize
+    step = 64 // size
+    src, dst = np.int64(v.ctypes.data), np.int64(work.ctypes.data)
+    kept = below = 0
+    j = 0
+    while j + step <= n:
+        r = _keep_between(src + j * size, dst + kept * size, lo, hi)
+        kept += r & 0xFFFFFFFF
+        below += r >> 32
+        j += step
+    for i in range(j, n):
+        x = v[i]
+        below += x < lo
+        work[kept] = x
+        kept += (x >= lo) & (x <= hi)
+    return kept, below
+
+
 _SAMPLE = 512  # values whose order statistics bound the median's neighbourhood
 _SPREAD = 40  # sample ranks either side of the median's: 3.5 standard deviations
 
@@ -232,13 +292,7 @@ def _median(v, work, spare, two):
         for j in range(_SAMPLE):
             work[j] = v[j * step]
         hi = _select(work[:_SAMPLE], spare[:_SAMPLE], min(q + _SPREAD, _SAMPLE - 1))[0]
-        below = 0
-        kept = 0
-        for j in range(n):
-            x = v[j]
-            below += x < lo
-            work[kept] = x
-            kept += (x >= lo) & (x <= hi)
+        kept, below = _between(v, work, lo, hi)
         if below <= k - even and k < below + kept:
             return _middle(work[:kept], spare, k - below, even, two)
     work[:n] = v
@@ -249,6 +303,7 @@ def median(values: np.ndarray):
     """``np.median(values)`` of a 1-D float array without NaN, the same number in the same
     dtype: the middle value, or for an even count the two middle ones added and halved in
     the array's dtype, as numpy's mean of them."""
+    values = np.ascontiguousarray(values)  # _between reads it 64 bytes at a time
     return values.dtype.type(_median(values, np.empty_like(values), np.empty_like(values),
                                      values.dtype.type(2)))
 

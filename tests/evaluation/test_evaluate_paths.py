@@ -126,6 +126,33 @@ def test_median_is_numpys():
                 assert got == want and got.dtype == want.dtype, (values.dtype, n)
 
 
+MEDIANS_ELSEWHERE = """
+import numpy as np
+from robodepth_cli.evaluation.kernels import median
+rng = np.random.default_rng(7)
+for values in (rng.uniform(0, 1, 20001), rng.integers(0, 4, 9000).astype(float), np.sort(rng.uniform(0, 1, 8193))):
+    for dtype in (np.float32, np.float64):
+        v = values.astype(dtype)
+        assert median(v) == np.median(v), (v.size, dtype)
+print("same")
+"""
+
+
+def test_the_median_is_numpys_on_a_cpu_without_avx512():
+    # The cut to the middle values stores them with LLVM's masked compress-store, one
+    # instruction with AVX-512; numba's generic CPU has it done lane by lane.
+    import os
+    import subprocess
+    import sys
+
+    from tests.helpers.paths import REPO
+    from tests.helpers.simd import stand_ins
+
+    done = subprocess.run([sys.executable, "-c", MEDIANS_ELSEWHERE], env={**os.environ, **stand_ins()["numba"]},
+                          cwd=REPO, capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.strip() == "same", done.stderr[-2000:]
+
+
 # --------------------------------------------------------------------------- kitti modes
 
 KITTI_MODES = [  # (kind, stereo, align, space, crop, min, max)
