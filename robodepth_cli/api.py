@@ -329,8 +329,9 @@ def _missing(rows: dict, keys: tuple[str, ...], variants) -> dict[tuple, dict[st
     missing = {}
     for v, lv in variants:
         gone = {}
+        folder = output_path(v, lv, "")  # "<variant dir>/": the keys' paths follow it
         for key in keys:
-            row = rows.get(output_path(v, lv, key))
+            row = rows.get(folder + key)
             if row is None or row.error:
                 gone[key] = row.error if row is not None else "not built (the build stopped before it)"
         if gone:
