@@ -106,8 +106,6 @@ class Row:
 
 FIELDS = tuple(f.name for f in fields(Row))
 HEADER = ",".join(FIELDS) + "\n"
-_INTS = ("seed", "height", "width")
-_OPTIONAL_INTS = ("source_size", "source_mtime")
 
 
 def _to_fields(row: Row) -> list[str]:
